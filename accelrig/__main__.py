@@ -1,0 +1,5 @@
+import sys
+
+from accelrig.cli import main
+
+sys.exit(main())

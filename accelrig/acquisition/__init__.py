@@ -1,0 +1,1 @@
+"""Acquisition: driver interface and registry, device URLs, blocks, ring buffer, recorder."""

@@ -1,0 +1,36 @@
+"""accelrig devices: the installed drivers and the devices they can find."""
+
+from __future__ import annotations
+
+from accelrig.acquisition.driver import load_drivers
+from accelrig.errors import AccelrigError
+
+
+def register(sub, groups) -> None:
+    p = sub.add_parser("devices", help="list installed drivers and the devices they find")
+    p.add_argument("--verbose", "-v", action="store_true", help="also list each simulated rig's options")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    drivers = load_drivers()
+    for scheme in sorted(drivers):
+        cls = drivers[scheme]
+        extra = f"  [extra: {cls.extra}]" if cls.extra else ""
+        print(f"{scheme}://  {cls.description}{extra}")
+        try:
+            found = cls.discover()
+        except AccelrigError as exc:
+            print(f"    (cannot search: {exc})")
+            continue
+        for url in found:
+            print(f"    {url}")
+        if args.verbose and scheme == "sim":
+            from accelrig.sim.rigs import RIGS
+
+            for name in sorted(RIGS):
+                rig = RIGS[name]
+                print(f"    sim://{name}: {rig.description}")
+                for option, help_text in rig.options.items():
+                    print(f"        {option}: {help_text}")
+    return 0

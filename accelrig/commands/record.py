@@ -1,0 +1,53 @@
+"""accelrig record URL --seconds N -o FILE"""
+
+from __future__ import annotations
+
+import sys
+
+from accelrig.acquisition.driver import driver_for
+from accelrig.acquisition.recorder import Progress, record
+from accelrig.errors import DataError
+from accelrig.recording import save_recording
+
+
+def register(sub, groups) -> None:
+    p = sub.add_parser(
+        "record",
+        help="record a device to a CSV or .npz file",
+        description="Record a device to a file. A progress line is shown on a terminal; "
+        "nothing but the file is written otherwise.",
+    )
+    p.add_argument("url", help="device URL, e.g. 'sim://static?seed=1' or replay://run.csv")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument("--seconds", type=float, help="seconds of device time to record")
+    length.add_argument("--samples", type=int, help="number of samples to record")
+    p.add_argument("-o", "--output", required=True, help="output file (.csv interchange or .npz native)")
+    p.add_argument("--units", choices=("m/s2", "counts"), default="m/s2", help="units of ax, ay, az (default m/s2)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if args.seconds is not None and args.seconds <= 0:
+        raise DataError(f"--seconds {args.seconds} must be positive")
+    if args.samples is not None and args.samples <= 0:
+        raise DataError(f"--samples {args.samples} must be positive")
+    show = sys.stderr.isatty()
+
+    def progress(p: Progress) -> None:
+        sys.stderr.write(
+            f"\r{p.samples} samples  {p.seconds:7.2f} s  {p.rate:8.1f} Hz  missing {p.missing} ({p.gap_events} gaps)  "
+        )
+        sys.stderr.flush()
+
+    with driver_for(args.url) as driver:
+        rec = record(
+            driver,
+            seconds=args.seconds,
+            samples=args.samples,
+            units="counts" if args.units == "counts" else "m/s^2",
+            on_progress=progress if show else None,
+        )
+    if show:
+        sys.stderr.write("\n")
+    save_recording(rec, args.output)
+    return 0

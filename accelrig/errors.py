@@ -1,0 +1,60 @@
+"""One hierarchy for every expected failure.
+
+The CLI prints ``str(error)`` as one line and exits non-zero; a traceback is
+shown only with ``--debug``.  Anything that is *not* an AccelrigError is a bug.
+A message says what was wrong; ``hint`` says what the person should do.
+"""
+
+from __future__ import annotations
+
+
+class AccelrigError(Exception):
+    """Base of all expected failures."""
+
+    exit_code = 2
+
+    def __init__(self, message: str, hint: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.hint = hint
+
+    def __str__(self) -> str:
+        if self.hint:
+            return f"{self.message} ({self.hint})"
+        return self.message
+
+
+class DeviceError(AccelrigError):
+    """Opening, reading or writing a device failed (unknown URL, disconnect, ...)."""
+
+    exit_code = 3
+
+
+class MissingExtraError(DeviceError):
+    """A driver or feature needs an optional dependency that is not installed."""
+
+    def __init__(self, feature: str, module: str, extra: str):
+        super().__init__(
+            f"{feature} needs the Python package '{module}', which is not installed",
+            f"install it with: pip install 'accelrig[{extra}]'",
+        )
+        self.module = module
+        self.extra = extra
+
+
+class DataError(AccelrigError):
+    """Input data are unusable: wrong file, wrong units, malformed rows, moved poses."""
+
+    exit_code = 4
+
+
+class CalibrationError(AccelrigError):
+    """A calibration could not be computed from otherwise readable data."""
+
+    exit_code = 5
+
+
+class ProfileError(AccelrigError):
+    """A device profile is malformed, of another schema version, or for another device."""
+
+    exit_code = 6

@@ -1,0 +1,1 @@
+"""Procedures: one per rig.  Each knows its operator steps, its capture checks and its estimator."""

@@ -1,0 +1,128 @@
+"""What every procedure returns: parameters with covariance, the canonical correction, quality, plots."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Estimate:
+    """A value with its standard uncertainty (k = 1).  Scalars or equal-length vectors."""
+
+    value: float | list[float]
+    uncertainty: float | list[float]
+    unit: str
+
+    def to_dict(self) -> dict:
+        return {"value": _plain(self.value), "uncertainty": _plain(self.uncertainty), "unit": self.unit}
+
+
+@dataclass
+class Correction:
+    """The canonical correction every method produces: calibrated = C @ (raw - b).
+
+    raw and calibrated in m/s^2 (raw = counts x nominal scale).  ``covariance``
+    is the 12 x 12 covariance of ``[C.ravel() (row-major), b]``.
+    """
+
+    matrix: np.ndarray
+    bias: np.ndarray
+    covariance: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.matrix = np.asarray(self.matrix, dtype=float).reshape(3, 3)
+        self.bias = np.asarray(self.bias, dtype=float).reshape(3)
+        self.covariance = np.asarray(self.covariance, dtype=float).reshape(12, 12)
+
+    @classmethod
+    def identity(cls) -> "Correction":
+        return cls(np.eye(3), np.zeros(3), np.zeros((12, 12)))
+
+    @property
+    def matrix_uncertainty(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.covariance)[:9], 0, None)).reshape(3, 3)
+
+    @property
+    def bias_uncertainty(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.covariance)[9:], 0, None))
+
+    def apply(self, raw: np.ndarray) -> np.ndarray:
+        """Calibrate samples (n, 3) in m/s^2."""
+        return (np.asarray(raw, dtype=float) - self.bias) @ self.matrix.T
+
+    def sample_covariance(self, raw: np.ndarray) -> np.ndarray:
+        """Covariance (3 x 3) of one calibrated sample due to the correction's uncertainty.
+
+        y = C (x - b); dy/dC_ij = (x - b)_j e_i, dy/db = -C.
+        """
+        d = np.asarray(raw, dtype=float).reshape(3) - self.bias
+        jac = np.zeros((3, 12))
+        for i in range(3):
+            jac[i, 3 * i:3 * i + 3] = d
+        jac[:, 9:] = -self.matrix
+        return jac @ self.covariance @ jac.T
+
+    def to_dict(self) -> dict:
+        return {
+            "matrix": self.matrix.tolist(),
+            "bias": self.bias.tolist(),
+            "matrix_uncertainty": self.matrix_uncertainty.tolist(),
+            "bias_uncertainty": self.bias_uncertainty.tolist(),
+            "covariance": self.covariance.tolist(),
+        }
+
+
+@dataclass
+class CalibrationResult:
+    """A procedure's outcome.
+
+    parameters  name -> Estimate (e.g. gain_x, offset_y, tilt_deg), in a stable order.
+    covariance  covariance of the free parameters in ``parameter_names`` order (SI units).
+    quality     residual_rms (m/s^2), n_samples, sd_over_crb where known, ...
+    arrays      what a person wants to plot (residuals, fitted curves), as arrays.
+    settings    the method's settings and rig geometry used (for the profile's provenance).
+    warnings    things the operator should know that did not stop the calibration.
+    """
+
+    procedure: str
+    method: str
+    model: str
+    correction: Correction | None
+    parameters: dict[str, Estimate]
+    covariance: np.ndarray | None = None
+    parameter_names: list[str] = field(default_factory=list)
+    quality: dict = field(default_factory=dict)
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_json_dict(self, include_arrays: bool = False) -> dict:
+        out = {
+            "procedure": self.procedure,
+            "method": self.method,
+            "model": self.model,
+            "correction": self.correction.to_dict() if self.correction is not None else None,
+            "parameters": {k: v.to_dict() for k, v in self.parameters.items()},
+            "residual_rms": _plain(self.quality.get("residual_rms")),
+            "quality": {k: _plain(v) for k, v in self.quality.items()},
+            "settings": {k: _plain(v) for k, v in self.settings.items()},
+            "warnings": list(self.warnings),
+        }
+        if include_arrays:
+            out["arrays"] = {k: _plain(v) for k, v in self.arrays.items()}
+        return out
+
+
+def _plain(value):
+    """Turn numpy values into JSON/YAML-friendly Python values."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value

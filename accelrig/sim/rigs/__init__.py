@@ -1,0 +1,10 @@
+"""Simulated rigs by name, as used in sim://NAME URLs."""
+
+from __future__ import annotations
+
+from accelrig.sim.rigs.base import Rig
+from accelrig.sim.rigs.still import StillRig
+
+RIGS: dict[str, type[Rig]] = {
+    "still": StillRig,
+}

@@ -1,0 +1,116 @@
+"""replay://FILE: play a recording (CSV or .npz) back as a device.
+
+Options:
+    pace=realtime|fast   at the recorded rate (default) or as fast as possible
+    units=m/s2|g|counts  units of the file when it does not say (default m/s^2)
+    rate=HZ              sample rate for a file without a t column
+    block=N              samples per block (default 256)
+    loop=1               start again at the end (an endless device)
+
+Samples become int16 counts again at the scale the file records, or at the
+finest standard range (2, 4, 8, 16 g) that holds the data.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from accelrig.acquisition.block import Block
+from accelrig.acquisition.driver import DeviceInfo, Driver
+from accelrig.errors import DataError, DeviceError
+from accelrig.recording import load_recording
+from accelrig.units import STANDARD_GRAVITY, scale_for_range
+
+
+class ReplayDriver(Driver):
+    scheme = "replay"
+    description = "play back a recorded CSV or .npz file as a device"
+
+    def __init__(self, url):
+        super().__init__(url)
+        self._counts = None
+        self._pos = 0
+        self._seq = 0
+        self._loops = 0
+
+    def open(self) -> DeviceInfo:
+        url = self.url
+        url.check_known({"pace", "units", "rate", "block", "loop"})
+        if not url.target:
+            raise DeviceError("replay:// needs a file", "e.g. replay://run.csv")
+        self.pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
+        self.block = url.get_int("block", 256)
+        self.loop = url.get_str("loop", "0") in ("1", "true", "yes")
+        rec = load_recording(url.target, units=url.get_str("units"), rate=url.get_float("rate"))
+        if len(rec) < 2:
+            raise DataError(f"{url.target}: a replay needs at least two samples")
+        scale = rec.meta.get("scale")
+        if rec.units == "counts":
+            if not scale:
+                raise DataError(f"{url.target}: the file is in counts but records no scale",
+                                "add 'scale' to its metadata or convert it to m/s^2")
+            counts = rec.acc
+        else:
+            si = rec.to_si().acc
+            if not scale:
+                peak = float(np.max(np.abs(si))) / STANDARD_GRAVITY
+                range_g = next((r for r in (2.0, 4.0, 8.0, 16.0) if peak < r * 0.999), 16.0)
+                scale = scale_for_range(range_g)
+            counts = np.rint(si / scale)
+        self._counts = np.clip(counts, -32768, 32767).astype(np.int16)
+        self._t = rec.t - rec.t[0]
+        self._period = float(self._t[-1] + (self._t[-1] - self._t[0]) / (len(rec) - 1))
+        self._channels = rec.channels
+        self._scale = float(scale)
+        self._t0 = time.monotonic()
+        rate = rec.rate
+        self.info = DeviceInfo(
+            driver="replay", url=url.raw, chip=str(rec.meta.get("chip", "replay")),
+            identity=str(rec.meta.get("device", url.target)),
+            range_g=round(self._scale * 32768 / STANDARD_GRAVITY, 3), scale=self._scale,
+            requested_rate=rate, nominal_rate=float(rec.meta.get("nominal_rate", rate)),
+            channels=tuple(rec.channels), extra={"source": url.target, "meta": rec.meta},
+        )
+        return self.info
+
+    @property
+    def at_end(self) -> bool:
+        return self._counts is not None and not self.loop and self._pos >= len(self._counts)
+
+    def read(self, timeout: float = 0.1) -> list[Block]:
+        if self._counts is None:
+            raise DeviceError("the replay device is not open")
+        n_total = len(self._counts)
+        if self.at_end:
+            return []
+        if self.pace == "fast":
+            stop = min(self._pos + self.block, n_total)
+        else:
+            elapsed = time.monotonic() - self._t0 - self._loops * self._period
+            stop = int(np.searchsorted(self._t, elapsed, side="right"))
+            if stop <= self._pos:
+                time.sleep(timeout if stop >= n_total else min(timeout, max(self._t[self._pos] - elapsed, 0.0)))
+                elapsed = time.monotonic() - self._t0 - self._loops * self._period
+                stop = int(np.searchsorted(self._t, elapsed, side="right"))
+        blocks = []
+        host = time.monotonic()
+        while self._pos < stop:
+            end = min(stop, self._pos + self.block)
+            sl = slice(self._pos, end)
+            offset = self._loops * self._period
+            blocks.append(Block(
+                seq=self._seq, counter=self._loops * n_total + self._pos, host_time=host,
+                counts=self._counts[sl], scale=self._scale, t=self._t[sl] + offset,
+                channels={k: v[sl] for k, v in self._channels.items()},
+            ))
+            self._seq += 1
+            self._pos = end
+        if self.loop and self._pos >= n_total:
+            self._pos = 0
+            self._loops += 1
+        return blocks
+
+    def close(self) -> None:
+        self._counts = None
