@@ -15,6 +15,7 @@ from importlib.metadata import entry_points
 from typing import ClassVar
 
 from accelrig.acquisition.block import Block
+from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
 
@@ -80,6 +81,21 @@ class Driver(abc.ABC):
     @property
     def at_end(self) -> bool:
         return False
+
+    def plan_flash(self, profile) -> "FlashPlan":
+        """Work out what storing ``profile``'s calibration on the device would write.
+
+        Reads the device, writes nothing.  Drivers whose devices can hold a
+        calibration override this and ``flash``.
+        """
+        raise DeviceError(
+            f"{self.scheme}:// devices cannot store a calibration",
+            "keep the profile on the host and apply it to the stream instead",
+        )
+
+    def flash(self, plan: "FlashPlan") -> "FlashReport":
+        """Write a plan made by ``plan_flash``, read it back and verify."""
+        raise DeviceError(f"{self.scheme}:// devices cannot store a calibration")
 
     def __enter__(self) -> "Driver":
         self.info = self.open()
