@@ -1,0 +1,1 @@
+"""Estimation core: least squares with covariance, sine fits, Cramér-Rao bounds."""
