@@ -287,3 +287,38 @@ def test_round_trip_property(tmp_path, matrix, bias, scale, names, warnings, see
     assert loaded.data == profile.data
     np.testing.assert_array_equal(loaded.correction.matrix, m)
     np.testing.assert_array_equal(loaded.correction.covariance, res.correction.covariance)
+
+
+# ------------------------------------------------------------------- example profiles
+
+EXAMPLE_FILES = sorted((REPO / "profiles").glob("example-*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=[p.name for p in EXAMPLE_FILES])
+def test_example_profile_round_trips(tmp_path, path):
+    profile = load_profile(path)
+    assert path.read_text() == dump_yaml(profile.data), "examples are written by profiles/make_examples.py"
+    save_profile(profile, tmp_path / path.name)
+    again = load_profile(tmp_path / path.name)
+    assert again.data == profile.data
+    assert (tmp_path / path.name).read_text() == path.read_text()
+    assert profile.noise is not None and profile.data["provenance"]["recording_hash"]
+
+
+def test_examples_exist_for_the_installed_methods():
+    """One example per calibration method installed; none for a method that is not (regenerate with
+    python profiles/make_examples.py)."""
+    import importlib.util
+    import runpy
+
+    examples = runpy.run_path(str(REPO / "profiles" / "make_examples.py"))["EXAMPLES"]
+    modules = {
+        "static_faces": "accelrig.procedures.static_faces",
+        "wheel": "accelrig.procedures.wheel",
+        "rotary_bench": "accelrig.procedures.rotary_bench",
+    }
+    assert set(examples) == set(modules)
+    installed = {m for m, mod in modules.items() if importlib.util.find_spec(mod) is not None}
+    present = {p.name[len("example-"):-len(".yaml")] for p in EXAMPLE_FILES}
+    assert present <= set(examples), f"stale example files: {present - set(examples)}"
+    assert installed <= present, f"regenerate: python profiles/make_examples.py (missing {installed - present})"
