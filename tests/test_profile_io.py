@@ -223,6 +223,16 @@ def test_not_a_profile(tmp_path, text, message):
         load_profile(path)
 
 
+def test_duplicate_key_is_refused_with_its_line(tmp_path, profile):
+    text = dump_yaml(profile.data)
+    text = text.replace("  g: 9.80665\n", "  g: 9.80665\n  g: 9.81\n", 1)
+    lineno = text.splitlines().index("  g: 9.81") + 1
+    path = tmp_path / "dup.yaml"
+    path.write_text(text)
+    with pytest.raises(ProfileError, match=f"dup.yaml:{lineno}: calibration.g: key given twice"):
+        load_profile(path)
+
+
 def test_missing_and_binary_files(tmp_path):
     with pytest.raises(ProfileError, match="no such profile"):
         load_profile(tmp_path / "none.yaml")

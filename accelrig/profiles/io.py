@@ -240,6 +240,7 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
         where = f":{mark.line + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise ProfileError(f"{source}{where}: not valid YAML ({problem})") from None
+    _refuse_duplicate_keys(text, source)
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: not a profile (expected a mapping at the top level, got {type(data).__name__})")
     _check_version(data, source)
@@ -248,6 +249,27 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
     except ProfileError as exc:
         raise ProfileError(f"{source}: {exc.message}", exc.hint) from None
     return data
+
+
+def _refuse_duplicate_keys(text: str, source: str) -> None:
+    """A key given twice would silently keep the last value: refuse it, naming the line.
+
+    Walks the composed node tree (yaml.compose with the SafeLoader builds nodes, never objects).
+    """
+    stack = [(yaml.compose(text, Loader=yaml.SafeLoader), "")]
+    while stack:
+        node, path = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key, value in node.value:
+                name = key.value if isinstance(key, yaml.ScalarNode) else str(key.value)
+                child = f"{path}.{name}" if path else name
+                if name in seen:
+                    raise ProfileError(f"{source}:{key.start_mark.line + 1}: {child}: key given twice")
+                seen.add(name)
+                stack.append((value, child))
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend((v, f"{path}[{i}]") for i, v in enumerate(node.value))
 
 
 def _check_version(data: dict, source: str) -> None:
