@@ -4,7 +4,7 @@
     python profiles/make_examples.py --schema-only   just the JSON Schema
     python profiles/make_examples.py --strict        fail when a method is missing
 
-Each calibration method is one function: record its simulated rig through the
+Each calibration method (procedure + estimator) is one function: record its simulated rig through the
 sim:// driver (the same path as `accelrig record`), calibrate with the
 method's own entry point, and keep the result as a profile.  The noise
 section comes from a still recording of the same simulated sensor (the sim
@@ -14,6 +14,7 @@ draws the sensor from the seed, whatever the rig).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -33,32 +34,41 @@ def record_sim(url: str) -> Recording:
         return record(driver)
 
 
-def example_static_faces(seed: int):
+def example_static_faces_vp(seed: int):
     from accelrig.procedures.static_faces import calibrate_static
 
     rec = record_sim(f"sim://static?seed={seed}&pace=fast")
-    return calibrate_static(rec), rec
+    return calibrate_static(rec, method="vp"), rec
 
 
-def example_wheel(seed: int):
+def example_static_faces_paper(seed: int):
+    from accelrig.procedures.static_faces import calibrate_static
+
+    rec = record_sim(f"sim://static?seed={seed}&pace=fast")
+    return calibrate_static(rec, model="paper", method="paper"), rec
+
+
+def example_wheel_joint(seed: int):
     from accelrig.procedures.wheel import calibrate_wheel
 
     rec = record_sim(f"sim://wheel?seed={seed}&pace=fast")
-    return calibrate_wheel(rec, radius=0.28), rec   # the rig's radius, measured as the paper advises
+    return calibrate_wheel(rec, radius=0.28, method="joint"), rec   # the rig's radius, measured as the paper advises
 
 
-def example_rotary_bench(seed: int):
-    from accelrig.procedures.rotary_bench import calibrate_rotary   # noqa: F401  (the method's entry point)
+def example_wheel_paper(seed: int):
+    from accelrig.procedures.wheel import calibrate_wheel
 
-    rec = record_sim(f"sim://rotary?seed={seed}&pace=fast")
-    return calibrate_rotary(rec), rec
+    rec = record_sim(f"sim://wheel?seed={seed}&pace=fast")
+    return calibrate_wheel(rec, radius=0.28, method="paper"), rec
 
 
-# method -> (function, seed).  Slider-crank is a verification, not a calibration: it keeps no correction.
+# example name -> (procedure module, function, seed): one per calibration method.  The rotary bench
+# and the slider-crank verify a sensitivity or a rig; they produce no canonical correction, so no profile.
 EXAMPLES = {
-    "static_faces": (example_static_faces, 11),
-    "wheel": (example_wheel, 12),
-    "rotary_bench": (example_rotary_bench, 13),
+    "static_faces-vp": ("accelrig.procedures.static_faces", example_static_faces_vp, 11),
+    "static_faces-paper": ("accelrig.procedures.static_faces", example_static_faces_paper, 11),
+    "wheel-joint": ("accelrig.procedures.wheel", example_wheel_joint, 12),
+    "wheel-paper": ("accelrig.procedures.wheel", example_wheel_paper, 12),
 }
 
 
@@ -77,16 +87,15 @@ def main(argv=None) -> int:
     if args.schema_only:
         return 0
     missing = []
-    for method, (make, seed) in EXAMPLES.items():
-        try:
-            result, rec = make(seed)
-        except ImportError as exc:
-            missing.append(method)
-            print(f"skipped {method}: its procedure is not installed ({exc})", file=sys.stderr)
+    for name, (module, make, seed) in EXAMPLES.items():
+        if importlib.util.find_spec(module) is None:
+            missing.append(name)
+            print(f"skipped {name}: {module} is not installed", file=sys.stderr)
             continue
+        result, rec = make(seed)
         profile = profile_from_result(result, rec)
         profile.data["noise"] = still_noise(seed)
-        path = HERE / f"example-{method}.yaml"
+        path = HERE / f"example-{name}.yaml"
         save_profile(profile, path)
         print(f"wrote {path}")
     if missing:

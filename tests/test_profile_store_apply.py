@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from types import SimpleNamespace
@@ -9,6 +10,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 import pytest
+import yaml
 
 from accelrig.cli import main
 
@@ -23,7 +25,7 @@ from accelrig.recording import Recording, read_csv, write_csv
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock
-from tests.test_profile_io import make_result
+from tests.test_profile_io import MALFORMED, _edit, make_result
 
 
 def run_cli(*args):
@@ -247,3 +249,14 @@ def test_cli_validate_malformed_files_one_line_each(tmp_path, cli):
         assert message in r.stderr, (name, r.stderr)
     r = cli("profile", "validate", str(good), *(str(tmp_path / n) for n in bad_files))
     assert r.returncode == 6 and r.stderr.count("\n") == len(bad_files) and "good.yaml: ok" in r.stdout
+
+
+@pytest.mark.parametrize("dotted,value,message", MALFORMED, ids=[f"{m[0]}={m[1]!r}"[:50] for m in MALFORMED])
+def test_cli_validate_refuses_each_malformed_profile(tmp_path, cli, dotted, value, message):
+    """Every malformed profile of the load tests, through the command: exit 6, one line naming the field."""
+    data = _edit(json.loads(json.dumps(profile_from_result(make_result()).data)), dotted, value)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    r = cli("profile", "validate", path)
+    assert r.returncode == 6 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
