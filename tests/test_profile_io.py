@@ -270,7 +270,7 @@ def test_json_schema_refuses_unknown_keys_everywhere_but_open_maps():
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     matrix=st.lists(st.lists(finite, min_size=3, max_size=3), min_size=3, max_size=3),
     bias=st.lists(finite, min_size=3, max_size=3),
