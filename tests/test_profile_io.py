@@ -108,6 +108,20 @@ def test_result_without_correction_is_refused():
         profile_from_result(res)
 
 
+def test_non_finite_quality_figures_are_kept_as_unknown():
+    res = make_result()
+    res.quality["sd_over_crb"] = {"gain_x": float("nan")}
+    p = profile_from_result(res)
+    assert p.data["quality"]["sd_over_crb"] == {"gain_x": None}
+
+
+def test_non_finite_estimate_is_a_bug_reported_in_one_line():
+    res = make_result()
+    res.parameters["gain_x"] = Estimate(float("nan"), 1e-4, "1")
+    with pytest.raises(ProfileError, match=r"calibration\.parameters\.gain_x\.value: expected a number or a list"):
+        profile_from_result(res)
+
+
 def test_unknown_device_fields_are_null_not_guessed():
     p = profile_from_result(make_result())
     assert p.device["identity"] is None and p.device["range_g"] is None

@@ -10,6 +10,7 @@ and the field.
 from __future__ import annotations
 
 import copy
+import math
 import os
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -138,7 +139,7 @@ def profile_from_result(
     if dev["scale"] is None and dev["range_g"] is not None:
         dev["scale"] = scale_for_range(dev["range_g"])
 
-    settings = {k: _plain(v) for k, v in result.settings.items()}
+    settings = {k: _known(_plain(v)) for k, v in result.settings.items()}
     rig = settings.pop("rig", None)
     if rig is None:
         rig = settings.pop("geometry", None)
@@ -146,7 +147,7 @@ def profile_from_result(
         rig = {"description": rig}
     g = float(settings.get("g", meta.get("g", STANDARD_GRAVITY)))
 
-    quality = {k: _plain(v) for k, v in result.quality.items()}
+    quality = {k: _known(_plain(v)) for k, v in result.quality.items()}
     quality.setdefault("residual_rms", None)
     names = [str(n) for n in result.parameter_names]
     pcov = None
@@ -192,6 +193,17 @@ def profile_from_result(
             "this is a bug in the procedure or in accelrig.profiles; please report it",
         ) from None
     return Profile(data)
+
+
+def _known(value):
+    """NaN or infinite figures in the open maps (settings, quality) mean 'not known': keep them as null."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [_known(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _known(v) for k, v in value.items()}
+    return value
 
 
 def _normal_datetime(value) -> str | None:
