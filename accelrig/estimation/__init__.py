@@ -1,6 +1,6 @@
 """Least squares with covariance, Cramér-Rao bounds, uncertainty propagation.
 
-Shared by every procedure: ``varpro`` (separable least squares by variable
+Shared by every procedure: ``sinefit`` (IEEE 1057 sine fits with harmonics), ``varpro`` (separable least squares by variable
 projection, Kaufman Jacobian, LM), ``crb_covariance`` / ``crb_sd`` (bounds
 and fit covariances), ``propagate_covariance`` (GUM law J U J^T).
 """
