@@ -135,6 +135,7 @@ class StaticProcedure:
         self._tail_x = np.empty((0, 3))
         self._still = False
         self._seg_t: list[np.ndarray] = []
+        self._seg_d: list[np.ndarray] = []   # dispersion at each segment sample
         self._seg_x: list[np.ndarray] = []
         self._seg_n = 0
         self._seg_face: str | None = None
@@ -215,8 +216,10 @@ class StaticProcedure:
                 if not self._still:
                     # Still since the start of the first quiet window.
                     first = max(offset + a - (w - 1), 0)
-                    self._open_segment(buf_t[first:offset + a], buf_x[first:offset + a])
-                self._append(buf_t[offset + a:offset + b], buf_x[offset + a:offset + b])
+                    # The quiet window that opened the pose gets that window's dispersion.
+                    self._open_segment(buf_t[first:offset + a], buf_x[first:offset + a],
+                                       np.full(offset + a - first, d[a]))
+                self._append(buf_t[offset + a:offset + b], buf_x[offset + a:offset + b], d[a:b])
                 events += self._segment_events()
             elif self._still:
                 events += self._close_segment(motion=True)
@@ -230,13 +233,14 @@ class StaticProcedure:
         return self._close_segment(motion=False) if self._still else []
 
     # -------------------------------------------------------------- segments
-    def _open_segment(self, t: np.ndarray, x: np.ndarray) -> None:
+    def _open_segment(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
         self._still = True
-        self._seg_t, self._seg_x, self._seg_n = [t], [x], t.size
+        self._seg_t, self._seg_x, self._seg_d, self._seg_n = [t], [x], [d], t.size
         self._seg_face = None
         self._seg_announced = self._seg_captured = self._seg_problem_reported = False
 
-    def _append(self, t: np.ndarray, x: np.ndarray) -> None:
+    def _append(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
+        self._seg_d.append(d)
         self._seg_t.append(t)
         self._seg_x.append(x)
         self._seg_n += t.size
@@ -277,10 +281,30 @@ class StaticProcedure:
         return events
 
     def _current_pose(self, end_clip: int) -> Pose:
+        """The segment's clean samples.
+
+        Handling rarely starts or stops abruptly: the dispersion creeps up
+        before it crosses the motion threshold and settles after the still
+        threshold.  Windows whose dispersion is above 1.5 x the pose's median
+        at either end hold some of that motion, so the pose ends a window
+        before the first of them (and starts after the last of them), then
+        ``trim`` more is dropped.
+        """
         t = np.concatenate(self._seg_t)
         x = np.concatenate(self._seg_x)
-        stop = t.size - end_clip - self.trim_n
-        t, x = t[self.trim_n:stop], x[self.trim_n:stop]
+        d = np.concatenate(self._seg_d)
+        limit = 1.5 * np.median(d)
+        start = 0
+        while start < d.size and d[start] > limit:
+            start += 1
+        start = max(start - (self.window_n - 1), 0) + self.trim_n
+        stop = d.size
+        if end_clip:
+            while stop > start and d[stop - 1] > limit:
+                stop -= 1
+            stop -= end_clip
+        stop -= self.trim_n
+        t, x = t[start:max(stop, start)], x[start:max(stop, start)]
         face = classify_face(x.mean(axis=0), self.face_tolerance_deg)[0] if t.size else None
         return Pose(face, t, x)
 
@@ -290,7 +314,7 @@ class StaticProcedure:
         # The window that tripped the motion threshold already holds the motion: drop it.
         pose = self._current_pose(end_clip=self.window_n - 1 if motion else 0)
         now = self._now
-        self._seg_t, self._seg_x, self._seg_n = [], [], 0
+        self._seg_t, self._seg_x, self._seg_d, self._seg_n = [], [], [], 0
         if pose.face is not None:
             pose, problem = self._settle(pose)
         else:
