@@ -94,3 +94,16 @@ def test_counts_need_the_range(six_face_csv, tmp_path, capsys):
     assert main(["calibrate", "static", str(path), "--range-g", "2", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert abs(out["correction"]["matrix"][0][0] - 1) < 0.05
+
+
+def test_profile_written_with_the_correction_and_its_uncertainty(six_face_csv, tmp_path, capsys):
+    from accelrig.profiles import load_profile
+
+    path, _ = six_face_csv
+    out = tmp_path / "device.yaml"
+    assert main(["calibrate", "static", str(path), "-o", str(out), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    profile = load_profile(out)
+    assert np.allclose(profile.correction.matrix, result["correction"]["matrix"])
+    assert np.allclose(profile.correction.bias_uncertainty, result["correction"]["bias_uncertainty"])
+    assert profile.data["calibration"]["procedure"] == "static"
