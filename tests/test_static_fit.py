@@ -139,3 +139,12 @@ def test_rotation_convention_matches_the_paper_listing():
     ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
     rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
     assert np.allclose(rotation_xyz([a, b, c]), rz @ ry @ rx)
+
+
+def test_analytic_rotation_derivatives_match_central_differences():
+    from accelrig.estimation import numerical_jacobian
+    from accelrig.procedures.static_fit import _rotation_derivatives
+
+    a = np.array([0.1, -0.3, 0.5])
+    numeric = numerical_jacobian(lambda x: rotation_xyz(x).ravel(), a).T.reshape(3, 3, 3)
+    assert np.allclose(_rotation_derivatives(a), numeric, atol=1e-9)

@@ -109,17 +109,40 @@ class PoseData:
 
 # --------------------------------------------------------------- model algebra
 
-def _paper_basis(refs: np.ndarray):
-    """Phi(angles): observation (i, j) = R^T (c1 * f_i + c2), linear [c1 (3), c2 (3)]."""
+def _rotation_derivatives(alpha: np.ndarray) -> np.ndarray:
+    """d R / d angle_k (3, 3, 3) of R = Rz(c) Ry(b) Rx(a), the convention of rotation_xyz and Listing 1."""
+    a, b, c = alpha
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
+    drx = np.array([[0, 0, 0], [0, -sa, -ca], [0, ca, -sa]])
+    dry = np.array([[-sb, 0, cb], [0, 0, 0], [-cb, 0, -sb]])
+    drz = np.array([[-sc, -cc, 0], [cc, -sc, 0], [0, 0, 0]])
+    return np.array([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx])
+
+
+def _paper_columns(r: np.ndarray, refs: np.ndarray) -> np.ndarray:
     n = refs.shape[0]
+    slope = np.einsum("kj,ik->ijk", r, refs).reshape(3 * n, 3)
+    intercept = np.tile(r.T, (n, 1))
+    return np.hstack([slope, intercept])
+
+
+def _paper_basis(refs: np.ndarray):
+    """Phi(angles): observation (i, j) = R^T (c1 * f_i + c2), linear [c1 (3), c2 (3)].
+
+    Returns (basis, basis_derivatives); Phi is linear in R, so dPhi/dangle
+    is Phi built from dR/dangle.
+    """
 
     def basis(alpha):
-        r = rotation_xyz(alpha)
-        slope = np.einsum("kj,ik->ijk", r, refs).reshape(3 * n, 3)
-        intercept = np.tile(r.T, (n, 1))
-        return np.hstack([slope, intercept])
+        return _paper_columns(rotation_xyz(alpha), refs)
 
-    return basis
+    def derivatives(alpha):
+        return np.array([_paper_columns(d, refs) for d in _rotation_derivatives(np.asarray(alpha, float))])
+
+    return basis, derivatives
 
 
 def _affine_basis(refs: np.ndarray):
@@ -228,7 +251,8 @@ def fit_affine(data: PoseData) -> ModelFit:
 def fit_paper_vp(data: PoseData) -> ModelFit:
     """The 9-parameter model by variable projection + LM (angles outside, per-axis lines inside)."""
     start = time.perf_counter()
-    fit = varpro(data.means.ravel(), _paper_basis(data.references), np.zeros(3), weights=data.weights,
+    basis, derivatives = _paper_basis(data.references)
+    fit = varpro(data.means.ravel(), basis, np.zeros(3), derivatives, weights=data.weights,
                  sigma=data.noise_sd, alpha_names=PAPER_NAMES[:3],
                  linear_names=[f"slope_{a}" for a in AXES] + [f"intercept_{a}" for a in AXES])
     return _finish("paper", "vp", data, fit.parameters, fit.covariance, fit.rss, paper_internal_to_params,
@@ -266,8 +290,8 @@ def fit_paper_nelder_mead(data: PoseData) -> ModelFit:
     angles = np.deg2rad(sol.x)
     _, coefs = _paper_listing_cost(sol.x, m, a)
     internal = np.concatenate([angles, coefs[:, 0], coefs[:, 1]])
-    basis = _paper_basis(data.references)
-    jac = separable_jacobian(basis, angles, internal[3:], weights=data.weights)
+    basis, derivatives = _paper_basis(data.references)
+    jac = separable_jacobian(basis, angles, internal[3:], derivatives, weights=data.weights)
     cov = crb_covariance(jac, data.noise_sd)
     resid = data.weights * (data.means.ravel() - basis(angles) @ internal[3:])
     return _finish("paper", "paper", data, internal, cov, float(resid @ resid), paper_internal_to_params,
@@ -303,7 +327,8 @@ def static_crb(model: str, params: np.ndarray, faces: list[str], counts, sigma: 
     params = np.asarray(params, dtype=float)
     if model == "paper":
         internal = paper_params_to_internal(params)
-        jac = separable_jacobian(_paper_basis(refs), internal[:3], internal[3:], weights=weights)
+        basis, derivatives = _paper_basis(refs)
+        jac = separable_jacobian(basis, internal[:3], internal[3:], derivatives, weights=weights)
         to_params = paper_internal_to_params
     elif model == "affine":
         internal = affine_params_to_internal(params)

@@ -97,6 +97,7 @@ def print_table(title, rows):
     print("|---|---|---:|---:|---:|---:|---:|")
     for name, unit, mean, sd, crb, ratio, cov in rows:
         print(f"| {name} | {unit} | {mean:+.2f} | {sd:.2f} | {crb:.2f} | {ratio:.3f} | {100 * cov:.1f} % |")
+    print(f"| all parameters | | | | | max {max(r[5] for r in rows):.3f} | {100 * np.mean([r[6] for r in rows]):.1f} % |")
 
 
 def table_paper_family(runs, seed):
