@@ -29,7 +29,7 @@ calibration does not exist yet, and a wrong one must not hide motion):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -30,7 +30,6 @@ import numpy as np
 from accelrig.procedures.static_faces import calibrate_static, detect_poses
 from accelrig.procedures.static_fit import (
     AFFINE_NAMES,
-    FACES,
     PAPER_NAMES,
     fit_model,
     paper_params_to_correction,
