@@ -125,3 +125,17 @@ def test_tilted_poses_raise_a_lack_of_fit_warning():
     result = calibrate_static(rec, model="affine")
     assert result.quality["p_value"] < 1e-3
     assert any("table not level" in w for w in result.warnings)
+
+
+def test_correlated_noise_is_detected_and_warned_about():
+    from scipy.signal import lfilter
+
+    rec, _, _ = _record("sim://static", seed=11)
+    white = calibrate_static(rec)
+    assert 0.7 < white.quality["noise_correlation_factor"] < 1.4
+    assert not any("correlated" in w for w in white.warnings)
+    # a first-order low-pass over the raw stream, as a sensor's DLPF would apply
+    smoothed = Recording(rec.t, lfilter([0.2], [1, -0.8], rec.acc - rec.acc[0], axis=0) + rec.acc[0], "m/s^2", {}, {})
+    filtered = calibrate_static(smoothed)
+    assert filtered.quality["noise_correlation_factor"] > 3
+    assert any("correlated" in w for w in filtered.warnings)

@@ -447,8 +447,10 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
         face_rows.append({"face": p.face, "start": p.start, "stop": p.stop, "n": len(p.samples),
                           "noise_sd": p.noise_sd, "residual": (corr.matrix @ lof).tolist(),
                           "residual_norm": float(np.linalg.norm(corr.matrix @ lof))})
+    correlation = noise_correlation_factor(poses, max(int(round(0.25 * settings["rate"])), 5), data.noise_sd)
     quality = {
         "residual_rms": float(np.sqrt(np.mean(all_res**2))),
+        "noise_correlation_factor": correlation,
         "noise_sd": data.noise_sd,
         "n_samples": int(np.sum(data.counts)),
         "n_poses": len(poses),
@@ -465,6 +467,10 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
         warnings.append(f"the poses disagree with the {chosen.model} model beyond their noise (chi2 = "
                         f"{chosen.chi2:.1f} for {chosen.dof} dof): table not level, cube not square or a pose "
                         "not flat? The uncertainties may be too small.")
+    if correlation > 1.5:
+        warnings.append(f"the noise is correlated in time (pose means scatter {correlation:.1f} times more in "
+                        "variance than white noise predicts; a digital low-pass filter?): the uncertainties "
+                        "assume white noise and are too small by about the square root of that")
     if chosen.extra.get("converged") is False:
         warnings.append(f"Nelder-Mead stopped before converging: {chosen.extra.get('message')}")
     parameters = {n: Estimate(float(v), float(u), unit)
@@ -483,6 +489,24 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
         settings={**settings, "model_requested": model, "faces": list(data.faces)},
         warnings=warnings,
     )
+
+
+def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> float:
+    """Variance of block means x block length / sigma^2, pooled over poses and axes.
+
+    About 1 for white noise (the model the uncertainties assume); a low-pass
+    filtered sensor, or a pose that creeps, shows more.  nan when the poses
+    are too short for two blocks.
+    """
+    total, dof = 0.0, 0
+    for p in poses:
+        n_blocks = len(p.samples) // block
+        if n_blocks < 2:
+            continue
+        means = p.samples[: n_blocks * block].reshape(n_blocks, block, 3).mean(axis=1)
+        total += float(np.sum((means - means.mean(axis=0)) ** 2)) * block
+        dof += 3 * (n_blocks - 1)
+    return total / dof / sigma**2 if dof and sigma > 0 else float("nan")
 
 
 # ------------------------------------------------------------------ offline
