@@ -74,6 +74,8 @@ def test_too_short_pose_is_reported_live_and_not_used():
     events = proc.feed(rec.t, rec.acc) + proc.finish()
     assert proc.poses == []
     assert any(e.kind == "too_short" and "held only" in e.message for e in events)
+    with pytest.raises(CalibrationError, match=r"\+z held but too short at t = "):
+        proc.result()
 
 
 def test_fewer_than_six_faces_names_the_missing_ones():

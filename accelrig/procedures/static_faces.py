@@ -412,8 +412,17 @@ class StaticProcedure:
         missing = self.missing_faces
         if missing:
             found = ", ".join(self.faces_done) or "none"
+            # Say why a face that was held did not count (too short, moved, ...).
+            why = []
+            for face in missing:
+                tried = [p for p in self.rejected if p.face == face]
+                if tried:
+                    reasons = sorted({f"{p.problem.replace('_', ' ')} at t = {p.start:.1f} s" for p in tried})
+                    why.append(f"{face} held but {'; '.join(reasons)}")
+            detail = f"; {', '.join(why)}" if why else ""
             raise CalibrationError(f"only {6 - len(missing)} of 6 faces found (have {found}; missing "
-                                   f"{', '.join(missing)})", "hold each missing face down still for a few seconds")
+                                   f"{', '.join(missing)}{detail})",
+                                   f"hold each missing face down still for at least {self.min_hold:g} s")
         return build_result(self.pose_data(), self.poses, model, method, self.settings())
 
     def settings(self) -> dict:
