@@ -111,9 +111,18 @@ def test_gaps_and_short_records_are_refused():
         noise_figures(still(300, seconds=0.2))
 
 
+def test_constant_axis_is_refused_in_one_line():
+    t = np.arange(5000) / 200.0
+    acc = np.random.default_rng(0).standard_normal((5000, 3)) * 0.03
+    acc[:, 2] = G
+    with pytest.raises(DataError, match="axis z never changes"):
+        noise_figures(Recording(t, acc))
+
+
 def test_moving_sensor_has_no_white_noise_line():
     t = np.arange(20000) / 200.0
-    acc = np.column_stack([np.sin(2 * np.pi * 0.05 * t), np.cos(2 * np.pi * 0.05 * t), np.full_like(t, G)])
+    wave = np.column_stack([np.sin(2 * np.pi * 0.05 * t), np.cos(2 * np.pi * 0.05 * t), G + np.sin(2 * np.pi * 0.03 * t)])
+    acc = wave + np.random.default_rng(1).standard_normal(wave.shape) * 1e-5   # motion dwarfs the noise
     with pytest.raises(DataError, match="no white-noise region"):
         noise_figures(Recording(t, acc))
 

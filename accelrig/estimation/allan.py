@@ -290,6 +290,12 @@ def noise_figures(rec: Recording) -> NoiseReport:
             "an Allan deviation needs evenly spaced samples; record again without gaps",
         )
     rate = rec.rate
+    for i, axis in enumerate(AXES):
+        if np.ptp(rec.acc[:, i]) == 0:
+            raise DataError(
+                f"axis {axis} never changes ({rec.acc[0, i]:g} m/s^2 throughout): no noise to measure",
+                "the sensor's noise is below one count at this range, or the axis is stuck",
+            )
     curves = {axis: allan_deviation(rec.acc[:, i], rate) for i, axis in enumerate(AXES)}
     axes = {axis: axis_noise(curves[axis]) for axis in AXES}
     return NoiseReport(rate, n, rec.duration, curves, axes, rec.content_hash())
