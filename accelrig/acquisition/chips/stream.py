@@ -80,8 +80,10 @@ class FifoStream:
     def poll(self) -> list[Block]:
         chip = self.chip
         overflowed = chip.fifo_overflowed()
-        count_time = self.clock.now()
         count = chip.fifo_count()
+        # The chip latches the count during the read transaction: take the time
+        # after it, not before (before would place every sample a transfer early).
+        count_time = self.clock.now()
         self.max_fifo_count = max(self.max_fifo_count, count)
         if count > chip.spec.fifo_capacity and not any("FIFO_COUNT" in n for n in self.notes):
             self.notes.append(

@@ -73,6 +73,8 @@ class ChipEmulator:
             ((int(v) << 1) & 0xFFFF) | int(b)
             for v, b in zip(rng.integers(-3000, 3000, 3), rng.integers(0, 2, 3))
         ]
+        self._trim = np.array([offset_value(w) for w in self.factory_words])
+        self._response_t = sensor.response_matrix.T   # the part does not change while it runs
         # Counters a test can compare with what the driver reports.
         self.samples_taken = 0
         self.frames_into_fifo = 0
@@ -210,9 +212,8 @@ class ChipEmulator:
         force = self.rig.specific_force(times - self.t_origin)
         # The offset registers add (register - factory trim) steps to the output:
         # with the factory trim in place the output bias is sensor.offset.
-        trim = np.array([offset_value(w) for w in self.factory_words])
         held = np.array([offset_value(self._offset_word(axis)) for axis in range(3)])
-        raw = force @ s.response_matrix.T + s.offset + (held - trim) * OFFSET_STEP
+        raw = force @ self._response_t + s.offset + (held - self._trim) * OFFSET_STEP
         rate = 1.0 / self._period
         if s.noise_density > 0:
             raw = raw + self._noise_rng.standard_normal(raw.shape) * s.noise_sd(rate)

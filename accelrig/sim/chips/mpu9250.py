@@ -21,7 +21,8 @@ LAYOUT = Layout(
     overflow_flag=((0, 0x3A), 1 << 4),
     data_ready_flag=((0, 0x3A), 1 << 0),
     offsets=((0, 0x77), (0, 0x7A), (0, 0x7D)),
-    read_only=frozenset({(0, r) for r in (*range(0x3B, 0x49), 0x72, 0x73)}),
+    # data and count registers; 0x7F is not in the map (modelled as reserved: writes ignored)
+    read_only=frozenset({(0, r) for r in (*range(0x3B, 0x49), 0x72, 0x73, 0x7F)}),
 )
 
 
