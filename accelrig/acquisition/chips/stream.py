@@ -51,6 +51,7 @@ class FifoStream:
         self._last_time: float | None = None   # time of the last delivered sample
         self._pending_gap = False
         self._next_poll = 0.0
+        self._started = 0.0
 
     @property
     def delivered_rate(self) -> float:
@@ -63,6 +64,7 @@ class FifoStream:
 
     def start(self) -> None:
         self.chip.fifo_start()
+        self._started = self.clock.now()
         self._restart_segment()
         self._next_poll = self.clock.now() + self.poll_interval
 
@@ -94,6 +96,9 @@ class FifoStream:
             # Overwrite mode lost frames and frame alignment: discard, reset, mark a gap.
             self.overflows += 1
             chip.fifo_reset()
+            # Frames kept arriving between the status read and the reset and may
+            # have raised the flag again: that overflow is already dealt with.
+            chip.fifo_overflowed()
             self._restart_segment()
             return []
         frames = count // FRAME_BYTES
@@ -139,7 +144,7 @@ class FifoStream:
         self._pending_gap = True
 
     def _check_rate(self) -> None:
-        if self.frames_read < RATE_CHECK_AFTER * self.plan.chip_rate:
+        if self.clock.now() - self._started < RATE_CHECK_AFTER:
             return
         measured = self.fit.rate
         if abs(measured / self.plan.chip_rate - 1.0) > RATE_TOLERANCE:
