@@ -17,35 +17,16 @@ from accelrig.acquisition.registers import RegisterAccessor  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, MissingExtraError  # noqa: E402
 from accelrig.sim.chips import EMULATORS, EmulatedBus  # noqa: E402
-from accelrig.sim.rigs.base import Rig  # noqa: E402
+from accelrig.sim.chips.ramp import RampRig  # noqa: E402
 from accelrig.sim.rigs.still import StillRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel  # noqa: E402
 from accelrig_drivers.i2c import I2CDriver  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
 
-RAMP_START, RAMP_SLOPE = -140.0, 25.0   # m/s^2 and m/s^3: x spans the +-16 g range in about 11 s
-
-
-class RampRig(Rig):
-    """x = start + slope t: every sample tells when it was taken (test-only truth)."""
-
-    name = "ramp"
-    description = "x ramps linearly (timing truth)"
-
-    @classmethod
-    def from_url(cls, url, rng):
-        return cls()
-
-    def specific_force(self, t):
-        t = np.asarray(t, dtype=float)
-        return np.stack([RAMP_START + RAMP_SLOPE * t, np.zeros_like(t), np.full_like(t, 9.80665)], axis=1)
-
-    def truth(self):
-        return {"rig": "ramp"}
 
 
 def true_times(counts, scale):
-    return (counts[:, 0] * scale - RAMP_START) / RAMP_SLOPE
+    return RampRig().decode(counts[:, 0] * scale, None)
 
 
 def emulated(chip="mpu9250", rig=None, sensor=None, rate_error=0.004, jitter=0.0005, seed=0, **emulator_options):
