@@ -195,3 +195,15 @@ def test_discover_lists_buses_without_probing():
     found = I2CDriver.discover()
     assert all(u.startswith("i2c://") and u.endswith("/0x68") for u in found)
     assert I2CSimDriver.discover() == ["i2c-sim://icm20948?rig=still", "i2c-sim://mpu9250?rig=still"]
+
+
+def test_a_fifo_larger_than_the_datasheet_figure_is_noticed_by_counting():
+    # One source gives the ICM-20948 a 4 KB FIFO: the driver reads FIFO_COUNT rather than assuming 512 B.
+    driver, emulator, clock = open_driver("rate=2048", chip="icm20948", fifo_capacity=4096)
+    collect(driver, clock, 0.5)
+    clock.sleep(0.1)                                # 450 frames = 2700 B: fits in 4 KB, not in 512 B
+    blocks = collect(driver, clock, 0.5)
+    assert driver.stream.overflows == 0 and emulator.bytes_lost == 0
+    assert all(b.gap_before == 0 for b in blocks)
+    assert driver.stream.max_fifo_count > 512
+    assert any("larger FIFO" in note for note in driver.stream.notes)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 smbus2 = pytest.importorskip("smbus2")
 
@@ -130,3 +132,21 @@ def test_bus_errors_become_device_errors_with_a_hint():
     acc.address = 0x69
     with pytest.raises(DeviceError, match="0x69|address"):
         MpuDemo(acc).who_am_i
+
+
+@settings(max_examples=60, deadline=None)
+@given(lowest=st.integers(0, 7), width=st.integers(1, 8), start=st.integers(0, 255), data=st.data())
+def test_bits_round_trip_and_leave_the_rest_alone(lowest, width, start, data):
+    width = min(width, 8 - lowest)
+    acc, bus, chip, _ = accessor_for(MPU9250Emulator, banked=False)
+    chip.regs[0][0x19] = start                      # SMPLRT_DIV: a plain read/write register
+
+    class One(RegisterMap):
+        field = Bits(0x19, lowest, width)
+
+    value = data.draw(st.integers(0, (1 << width) - 1))
+    regs = One(acc)
+    regs.field = value
+    mask = ((1 << width) - 1) << lowest
+    assert regs.field == value
+    assert chip.regs[0][0x19] & ~mask & 0xFF == start & ~mask & 0xFF
