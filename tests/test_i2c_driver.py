@@ -207,3 +207,19 @@ def test_a_fifo_larger_than_the_datasheet_figure_is_noticed_by_counting():
     assert all(b.gap_before == 0 for b in blocks)
     assert driver.stream.max_fifo_count > 512
     assert any("larger FIFO" in note for note in driver.stream.notes)
+
+
+def test_cli_records_from_an_emulated_chip_and_reports_a_missing_bus_in_one_line(tmp_path, capsys):
+    from accelrig.cli import main
+    from accelrig.recording import read_csv
+
+    out = tmp_path / "chip.csv"
+    assert main(["record", "i2c-sim://mpu9250?rig=still&pace=fast&rate=2048&seed=1", "--seconds", "2",
+                 "-o", str(out)]) == 0
+    rec = read_csv(out)
+    assert rec.meta["chip"] == "mpu9250" and rec.meta["nominal_rate"] == 2048.0
+    assert abs(len(rec) - 2 * 2048 * 1.004) <= 2
+    assert main(["record", "i2c://97/0x68?chip=mpu9250", "--seconds", "1", "-o", str(tmp_path / "no.csv")]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot open I2C bus 97" in err[0]
+    assert not (tmp_path / "no.csv").exists()
