@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from accelrig.acquisition.block import Block
 from accelrig.acquisition.chips import CHIPS
 from accelrig.acquisition.chips.base import plan_rate
 from accelrig.acquisition.chips.timing import EmulatedClock, HostClock
-from accelrig.acquisition.block import Block
 from accelrig.errors import DeviceError
 from accelrig.sim.chips import EMULATORS, EmulatedBus
 from accelrig.sim.rigs import RIGS

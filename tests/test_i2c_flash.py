@@ -12,12 +12,12 @@ pytest.importorskip("smbus2")
 
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402
+from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
 from accelrig.procedures.result import Correction  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
-from accelrig.acquisition.url import DeviceURL  # noqa: E402
 
 G_UP = np.array([0.0, 0.0, 9.80665])
 

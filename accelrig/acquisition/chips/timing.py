@@ -83,10 +83,11 @@ class CounterClockFit:
         self._syy_done = 0.0
         self._points_done = 0
         self._segments_done = 0
+        self._n = 0
         self.new_segment()
 
     def new_segment(self) -> None:
-        if getattr(self, "_n", 0) > 0:
+        if self._n > 0:
             self._sxx_done += self._sxx
             self._sxy_done += self._sxy
             self._syy_done += self._syy
@@ -116,11 +117,6 @@ class CounterClockFit:
     @property
     def points(self) -> int:
         return self._n
-
-    @property
-    def span(self) -> float:
-        """Sxx of all segments, in counts^2: how much the slope is determined."""
-        return self._sxx_done + self._sxx
 
     @property
     def period(self) -> float:
