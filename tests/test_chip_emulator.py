@@ -88,7 +88,8 @@ def test_icm_banks_and_sleep_after_reset():
     assert chip.bank == 0
 
 
-def _start_mpu_fifo(bus, divider):
+def _start_mpu_fifo(bus, divider, dlpf_cfg=1):
+    bus.write_byte_data(ADDR, 0x1A, dlpf_cfg)               # CONFIG: gyro DLPF (sample-rate generator)
     bus.write_byte_data(ADDR, 0x19, divider)                # SMPLRT_DIV
     bus.write_byte_data(ADDR, 0x23, 0x08)                   # accel into FIFO
     bus.write_byte_data(ADDR, 0x6A, 0x44)                   # FIFO enable + reset
@@ -114,6 +115,13 @@ def test_fifo_fills_at_the_configured_rate_and_overflows_when_not_drained():
     assert bus.read_byte_data(ADDR, 0x3A) & 0x10            # FIFO_OFLOW_INT ...
     assert bus.read_byte_data(ADDR, 0x3A) & 0x10 == 0       # ... cleared on read
     assert chip.bytes_lost > 0
+
+
+def test_mpu_divider_needs_the_gyro_dlpf_like_the_register_map_says():
+    bus, chip, clock = make(MPU9250Emulator, rate_error=0.0)
+    _start_mpu_fifo(bus, divider=9, dlpf_cfg=0)             # DLPF_CFG 0: 8 kHz, divider ignored
+    clock.sleep(0.005)
+    assert _fifo_count(bus) // 6 == pytest.approx(40, abs=1)
 
 
 def test_icm_fifo_in_bypass_runs_at_4500_hz():

@@ -89,6 +89,7 @@ def test_struct_and_burst_port():
     regs.xa_offset = (0x1235,)
     assert regs.xa_offset == (0x1235,)
     regs.smplrt_div = 0
+    bus.write_byte_data(0x68, 0x1A, 0x01)                 # gyro DLPF on: 1 kHz sample rate
     bus.write_byte_data(0x68, 0x23, 0x08)
     bus.write_byte_data(0x68, 0x6A, 0x44)
     clock.sleep(0.05)                                     # about 50 frames = 300 bytes

@@ -17,6 +17,7 @@ from accelrig.errors import DeviceError
 class MPU9250Registers(RegisterMap):
     smplrt_div = Bits(0x19, 0, 8)
     fifo_mode = Bits(0x1A, 6)                 # 1 = stop when full, 0 = overwrite oldest
+    dlpf_cfg = Bits(0x1A, 0, 3)               # gyro DLPF: 1..6 makes the internal rate 1 kHz and SMPLRT_DIV effective
     accel_fs_sel = Bits(0x1C, 3, 2)
     accel_fchoice_b = Bits(0x1D, 3)           # 1 = bypass the accelerometer DLPF (4 kHz)
     a_dlpfcfg = Bits(0x1D, 0, 3)
@@ -79,7 +80,15 @@ class MPU9250(AccelChip):
 
     def set_rate(self, plan: RatePlan) -> None:
         self.regs.accel_fchoice_b = 1 if plan.bypass else 0
-        if not plan.bypass:
+        if plan.bypass:
+            # The FIFO's rate in accelerometer bypass is the uncertain fact: with the
+            # gyro DLPF off the sample-rate generator is not the 1 kHz one; the rate
+            # actually delivered is measured and checked by FifoStream.
+            self.regs.dlpf_cfg = 0
+        else:
+            # The register map: SMPLRT_DIV is effective only with 0 < DLPF_CFG < 7
+            # (internal rate 1 kHz); otherwise the FIFO runs at the 8 kHz gyro rate.
+            self.regs.dlpf_cfg = 1
             self.regs.a_dlpfcfg = 1   # 184 Hz accelerometer bandwidth at 1 kHz
             self.regs.smplrt_div = plan.divider
 

@@ -49,7 +49,9 @@ class MPU9250Emulator(ChipEmulator):
     def output_rate(self) -> float:
         if self.get(0, 0x1D) & 0x08:          # ACCEL_FCHOICE_B: DLPF bypassed
             return self.bypass_fifo_rate
-        return 1000.0 / (1 + self.get(0, 0x19))
+        if 1 <= self.get(0, 0x1A) & 0x07 <= 6:  # gyro DLPF on: 1 kHz internal, SMPLRT_DIV effective
+            return 1000.0 / (1 + self.get(0, 0x19))
+        return 8000.0                          # DLPF_CFG 0 or 7: 8 kHz, SMPLRT_DIV ignored
 
     def on_write(self, bank: int, reg: int, value: int) -> bool:
         if reg == PWR_MGMT_1 and value & 0x80:
