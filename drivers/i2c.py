@@ -236,7 +236,9 @@ class I2CDriver(Driver):
         problems = self._profile_mismatches(profile)
         if problems and not force:
             raise ProfileError("; ".join(problems), "use the profile made for this device, or --force")
-        correction = profile.correction
+        correction = getattr(profile, "correction", None)
+        if correction is None:
+            raise ProfileError("the profile holds no correction to flash", "calibrate first, then save the profile")
         op = plan_offsets(self.factory_words, correction.bias)
         current = self.chip.read_offset_words()
         names = self.chip.spec.offset_registers
