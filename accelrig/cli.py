@@ -20,6 +20,8 @@ from accelrig.errors import AccelrigError
 COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.record",
+    "accelrig.commands.profile",
+    "accelrig.commands.noise",
 )
 
 GROUPS = {
