@@ -35,6 +35,8 @@ from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.registers import RegisterAccessor
 from accelrig.errors import DeviceError, MissingExtraError, ProfileError
+from accelrig.profiles import load_profile
+from accelrig.profiles.apply import check_compatible
 from accelrig.units import scale_for_range
 
 I2C_OPTIONS = {"chip", "range", "rate", "profile", "poll"}
@@ -47,15 +49,6 @@ def import_smbus2():
     except ImportError:
         raise MissingExtraError("I2C", "smbus2", "i2c") from None
     return smbus2
-
-
-def load_profile_path(path: str):
-    """The Profile at ``path`` (accelrig.profiles validates it)."""
-    try:
-        from accelrig.profiles import load_profile
-    except ImportError:
-        raise DeviceError("profile= needs accelrig.profiles, which this installation lacks") from None
-    return load_profile(path)
 
 
 class I2CDriver(Driver):
@@ -136,7 +129,7 @@ class I2CDriver(Driver):
             raise DeviceError(f"poll={poll} s in {self.url.raw!r} is outside 0.001 .. 0.1 s")
         profile = self.profile
         if profile is None and self.url.get_str("profile"):
-            profile = load_profile_path(self.url.get_str("profile"))
+            profile = load_profile(self.url.get_str("profile"))
         chip_cls = CHIPS[name]
         self.bus, msg_class = self.open_bus()
         try:
@@ -204,23 +197,23 @@ class I2CDriver(Driver):
         return self.stream.delivered_rate
 
     # -- flashing the offset registers -----------------------------------------------
-    def _profile_mismatches(self, profile) -> list[str]:
-        device = dict(getattr(profile, "device", None) or {})
-        problems = []
-        chip = device.get("chip")
+    def _check_profile(self, profile, force: bool) -> list[str]:
+        """Refuse a profile for another chip, range or device (ProfileError) unless ``force``.
+
+        The chip is checked here (offset registers differ between parts); the
+        device identity, range and scale by accelrig.profiles' own check.
+        Returns notes: what could not be checked, and what ``force`` let through.
+        """
+        chip = profile.device.get("chip")
+        problem = None
         if chip is None:
-            problems.append("the profile does not say which chip it is for")
+            problem = "the profile does not say which chip it was made for"
         elif chip != self.info.chip:
-            problems.append(f"the profile is for chip {chip!r}, this device is {self.info.chip!r}")
-        range_g = device.get("range_g")
-        if range_g is None:
-            problems.append("the profile does not give the range it was calibrated at")
-        elif float(range_g) != self.info.range_g:
-            problems.append(f"the profile is for +-{float(range_g):g} g, this device runs at +-{self.info.range_g:g} g")
-        identity = device.get("identity")
-        if identity is not None and identity != self.info.identity:
-            problems.append(f"the profile is for device {identity!r}, this is {self.info.identity!r}")
-        return problems
+            problem = f"the profile is for chip {chip!r}, this device is {self.info.chip!r}"
+        if problem and not force:
+            raise ProfileError(problem, "use the profile made for this device, or --force (force=True)")
+        notes = [f"forced: {problem}"] if problem else []
+        return notes + check_compatible(profile, self.info.to_dict(), "counts", force)
 
     def plan_flash(self, profile, force: bool = False) -> FlashPlan:
         """The offset-register writes removing ``profile``'s bias; reads the chip, writes nothing.
@@ -233,9 +226,7 @@ class I2CDriver(Driver):
         """
         if self.chip is None or self.info is None:
             raise DeviceError(f"{self.url.raw} must be open to plan a flash")
-        problems = self._profile_mismatches(profile)
-        if problems and not force:
-            raise ProfileError("; ".join(problems), "use the profile made for this device, or --force")
+        checks = self._check_profile(profile, force)
         correction = getattr(profile, "correction", None)
         if correction is None:
             raise ProfileError("the profile holds no correction to flash", "calibrate first, then save the profile")
@@ -262,8 +253,7 @@ class I2CDriver(Driver):
         if current != self.factory_words:
             notes.append("the registers were written since the reset; the plan starts from the factory trim read "
                          "at open, so nothing is subtracted twice")
-        if problems:
-            notes.append("forced despite: " + "; ".join(problems))
+        notes.extend(checks)
         payload = {"driver": id(self), "words": op.new_words}
         return FlashPlan(device=self.info.identity, writes=writes, residual=residual, notes=notes, payload=payload)
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,7 +13,8 @@ from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E
 from accelrig.acquisition.driver import driver_for  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
-from accelrig.procedures.result import Correction  # noqa: E402
+from accelrig.procedures.result import CalibrationResult, Correction  # noqa: E402
+from accelrig.profiles import load_profile, profile_from_result, save_profile  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
@@ -23,13 +23,14 @@ G_UP = np.array([0.0, 0.0, 9.80665])
 
 
 def profile_for(driver, correction=None, **device_overrides):
-    """A stand-in with the Profile contract's fields (correction, device) until accelrig.profiles lands."""
-    truth = driver.emulator.sensor
-    correction = correction or truth.correction()
-    device = {"driver": driver.info.driver, "chip": driver.info.chip, "identity": driver.info.identity,
-              "who_am_i": driver.info.who_am_i, "range_g": driver.info.range_g, "rate": driver.info.nominal_rate}
-    device.update(device_overrides)
-    return SimpleNamespace(correction=correction, device=device, units="m/s^2", data={})
+    """A real Profile (accelrig.profiles) for the opened device, by default with its true correction."""
+    correction = correction or driver.emulator.sensor.correction()
+    result = CalibrationResult(procedure="truth", method="simulator ground truth", model="C (raw - b)",
+                               correction=correction, parameters={})
+    profile = profile_from_result(result, device=driver.info.to_dict())
+    profile.data["device"].update(device_overrides)
+    profile.validate()
+    return profile
 
 
 def mean_reading(driver, seconds, settle=0.05):
@@ -74,16 +75,17 @@ def test_flash_then_a_still_sensor_reads_the_offset_removed_within_one_step(chip
 def test_mismatched_profiles_are_refused_unless_forced():
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200&range=4") as driver:
         for overrides, message in [({"chip": "icm20948"}, "chip 'icm20948'"),
-                                   ({"range_g": 2.0}, "2 g"),
-                                   ({"identity": "i2c-1-0x69"}, "i2c-1-0x69"),
-                                   ({"chip": None}, "which chip")]:
-            profile = profile_for(driver, **overrides)
-            if "chip" in overrides and overrides["chip"] is None:
-                del profile.device["chip"]          # a profile that does not say
+                                   ({"chip": None}, "which chip"),
+                                   ({"range_g": 2.0, "scale": None}, "2 g range"),
+                                   ({"identity": "i2c-1-0x69"}, "i2c-1-0x69")]:
             with pytest.raises(ProfileError, match=message):
-                driver.plan_flash(profile)
-        plan = driver.plan_flash(profile_for(driver, chip="icm20948"), force=True)
-        assert any("forced despite" in note for note in plan.notes)
+                driver.plan_flash(profile_for(driver, **overrides))
+        plan = driver.plan_flash(profile_for(driver, chip="icm20948", identity="i2c-1-0x69"), force=True)
+        forced = [note for note in plan.notes if note.startswith("forced")]
+        assert len(forced) == 2 and "icm20948" in forced[0] and "i2c-1-0x69" in forced[1]
+        # A profile that does not name its device is flashed, with the warning in the plan.
+        plan = driver.plan_flash(profile_for(driver, identity=None))
+        assert any("cannot check the profile belongs to this device" in note for note in plan.notes)
 
 
 def test_flashing_twice_does_not_subtract_twice():
@@ -96,20 +98,28 @@ def test_flashing_twice_does_not_subtract_twice():
         assert [w.current for w in first.readback] == [w.current for w in second.readback]
 
 
-def test_offsets_are_reapplied_on_connect_and_lost_on_power_cycle():
+def test_offsets_are_reapplied_on_connect_and_lost_on_power_cycle(tmp_path):
     url = "i2c-sim://mpu9250?rig=still&pace=fast&rate=500&seed=4"
     with driver_for(url) as plain:
-        profile = profile_for(plain)
-    driver = I2CSimDriver(DeviceURL.parse(url), profile=profile)
-    with driver:
-        applied = driver.info.extra["offsets_applied"]
-        sensor = driver.emulator.sensor
-        remaining = mean_reading(driver, 1.0) - sensor.response_matrix @ G_UP
-        assert np.all(np.abs(remaining) <= OFFSET_STEP)
-        np.testing.assert_allclose(remaining, applied["bias_remaining_m_s2"], atol=0.004)
-        assert driver.chip.read_offset_words() != driver.factory_words
-        driver.emulator.power_cycle()                             # volatile: back to the factory trim
-        assert driver.chip.read_offset_words() == driver.emulator.factory_words == driver.factory_words
+        save_profile(profile_for(plain), tmp_path / "sensor.yaml")
+    for driver in (I2CSimDriver(DeviceURL.parse(url), profile=load_profile(tmp_path / "sensor.yaml")),
+                   driver_for(f"{url}&profile={tmp_path / 'sensor.yaml'}")):
+        with driver:
+            applied = driver.info.extra["offsets_applied"]
+            sensor = driver.emulator.sensor
+            remaining = mean_reading(driver, 1.0) - sensor.response_matrix @ G_UP
+            assert np.all(np.abs(remaining) <= OFFSET_STEP)
+            np.testing.assert_allclose(remaining, applied["bias_remaining_m_s2"], atol=0.004)
+            assert driver.chip.read_offset_words() != driver.factory_words
+            driver.emulator.power_cycle()                         # volatile: back to the factory trim
+            assert driver.chip.read_offset_words() == driver.emulator.factory_words == driver.factory_words
+
+
+def test_a_profile_for_another_device_stops_the_connect(tmp_path):
+    with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200&seed=1") as other:
+        save_profile(profile_for(other), tmp_path / "other.yaml")
+    with pytest.raises(ProfileError, match="i2c-sim-mpu9250-seed1"):
+        driver_for(f"i2c-sim://mpu9250?rig=still&pace=fast&rate=200&seed=2&profile={tmp_path / 'other.yaml'}").open()
 
 
 def test_a_bias_beyond_the_registers_is_refused_and_nothing_written():
