@@ -18,6 +18,7 @@ from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, MissingExtraError  # noqa: E402
 from accelrig.sim.chips import EMULATORS, EmulatedBus  # noqa: E402
 from accelrig.sim.chips.ramp import RampRig  # noqa: E402
+from accelrig.sim.rigs import RIGS  # noqa: E402
 from accelrig.sim.rigs.still import StillRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel  # noqa: E402
 from accelrig_drivers.i2c import I2CDriver  # noqa: E402
@@ -223,3 +224,17 @@ def test_cli_records_from_an_emulated_chip_and_reports_a_missing_bus_in_one_line
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot open I2C bus 97" in err[0]
     assert not (tmp_path / "no.csv").exists()
+
+
+@pytest.mark.parametrize("rig_name", sorted(RIGS))
+def test_every_simulated_rig_is_reachable_through_the_emulated_chip(rig_name):
+    url = f"i2c-sim://mpu9250?rig={rig_name}&pace=fast&rate=500&range=16&truth=ideal&noise=0&seed=1"
+    with driver_for(url) as driver:
+        blocks = collect(driver, driver.clock, 1.0)
+        rig = driver.rig
+    t = np.concatenate([b.t for b in blocks])
+    acc = np.concatenate([b.acceleration() for b in blocks])
+    assert len(t) > 400
+    # The chip sampled the rig when the driver says it did (rig time 0 is the emulated power-on).
+    expected = rig.specific_force(t)
+    assert np.max(np.abs(acc - expected)) < 0.02 + 0.05 * np.max(np.abs(expected))
