@@ -72,7 +72,10 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="emulated seconds per run (default 60)")
     args = parser.parse_args()
     print(f"## I2C driver over emulated chips: {args.seconds:g} s of emulated real time per row, "
-          f"oscillator +{RATE_ERROR:.1%}, host wake-up jitter 0.5 ms\n")
+          f"oscillator +{RATE_ERROR:.1%}, host wake-up jitter 0.5 ms.")
+    resolution = 16 * 9.80665 / 32768 / RampRig().slope      # s per count of x at +-16 g
+    print(f"Time error: driver time stamp minus the time decoded from the ramp; decoding resolves "
+          f"{resolution * 1e6:.0f} us, an sd floor of about {resolution / 12 ** 0.5 * 1e6:.0f} us.\n")
     print("| chip | requested Hz | how | delivered Hz (nominal) | measured Hz | u(measured) Hz | "
           "(measured - true)/u | time error mean / sd / p99 (us) | samples lost | I2C bus use | CPU s per s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
