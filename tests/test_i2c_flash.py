@@ -153,3 +153,23 @@ def test_a_plan_is_bound_to_its_connection():
         with pytest.raises(DeviceError, match="another connection"):
             other.flash(plan)
         assert offset_value(other.chip.read_offset_words()[0]) == offset_value(other.factory_words[0])
+
+
+def test_static_calibration_through_the_emulated_chip_then_flash_removes_the_true_offset():
+    """The whole path: record the six faces from the emulated chip, calibrate, keep the profile,
+    flash it on the next connect of the same part, and read it still."""
+    from accelrig.acquisition.recorder import record
+    from accelrig.procedures.static_faces import calibrate_static
+
+    with driver_for("i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3") as driver:
+        recording = record(driver)
+    result = calibrate_static(recording)
+    profile = profile_from_result(result, recording)
+    with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=500&seed=3") as driver:   # same part, at rest
+        sensor = driver.emulator.sensor
+        report = driver.flash(driver.plan_flash(profile))
+        remaining = mean_reading(driver, 1.0) - sensor.response_matrix @ G_UP
+    u_bias = profile.correction.bias_uncertainty
+    assert np.all(np.abs(sensor.offset - profile.correction.bias) < 4 * u_bias + 1e-3)
+    assert np.all(np.abs(remaining) <= OFFSET_STEP)
+    np.testing.assert_allclose(remaining, report.residual["bias_remaining_m_s2"], atol=4 * u_bias.max() + 0.004)
