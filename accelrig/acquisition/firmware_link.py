@@ -174,8 +174,12 @@ class FirmwareDriver(Driver):
 
     def _start(self) -> None:
         self._pending_data = []
-        self._command(P.START, b"", P.ACK)
-        self.streaming = True
+        self.streaming = True  # before the command: data may arrive right behind the ACK
+        try:
+            self._command(P.START, b"", P.ACK)
+        except Exception:
+            self.streaming = False
+            raise
         self._last_data = time.monotonic()
 
     def read(self, timeout: float = 0.1) -> list[Block]:

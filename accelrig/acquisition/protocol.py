@@ -299,6 +299,8 @@ class DataSequencer:
         self._pending: dict[int, DataFrame] = {}
         self._next_seq: int | None = None
         self._next_counter: int | None = None  # unwrapped counter expected next
+        self._device_next = 0                  # the same as the device's 32-bit counter
+        self._skipped: dict[int, None] = {}    # recently declared lost (ordered, bounded)
 
     def push(self, frame: DataFrame) -> list[tuple[DataFrame, int, int]]:
         stats = self.stats
@@ -312,12 +314,13 @@ class DataSequencer:
                 self._next_seq = frame.seq
                 self._pending[frame.seq] = frame
                 return out + self._release()
-            if frame.seq in self._pending:
-                stats.duplicate_frames += 1
-            else:
-                # It was already declared lost; now it is late instead (and still dropped).
+            if frame.seq in self._skipped:
+                # It was declared lost; now it is late instead (and still dropped).
+                del self._skipped[frame.seq]
                 stats.late_frames += 1
                 stats.lost_frames -= 1
+            else:
+                stats.duplicate_frames += 1
             return []
         if frame.seq in self._pending:
             stats.duplicate_frames += 1
@@ -335,7 +338,12 @@ class DataSequencer:
 
     def _skip_to_oldest(self) -> None:
         oldest = min(self._pending, key=lambda s: _forward(self._next_seq, s))
-        self.stats.lost_frames += _forward(self._next_seq, oldest)
+        missing = _forward(self._next_seq, oldest)
+        self.stats.lost_frames += missing
+        for k in range(max(missing - self.late_horizon, 0), missing):
+            self._skipped[(self._next_seq + k) % _U32] = None
+        while len(self._skipped) > self.late_horizon:
+            del self._skipped[next(iter(self._skipped))]
         self._next_seq = oldest
 
     def _release(self) -> list[tuple[DataFrame, int, int]]:
@@ -355,7 +363,7 @@ class DataSequencer:
         if self._next_counter is None:
             first, gap = frame.counter, 0
         else:
-            jump = _forward(self._next_counter % _U32, frame.counter)
+            jump = _forward(self._device_next, frame.counter)
             if jump >= 0:
                 first, gap = self._next_counter + jump, jump
                 self.stats.lost_samples += jump
@@ -363,6 +371,7 @@ class DataSequencer:
                 first, gap = self._next_counter, -1
                 self.stats.unknown_gaps += 1
         self._next_counter = first + n
+        self._device_next = (frame.counter + n) % _U32
         return frame, first, gap
 
 

@@ -108,6 +108,9 @@ class SimFirmware:
         self.sent_frames = 0
         self.dropped_frames = 0
         self.stalled_samples = 0
+        self.damaged_frames = 0   # corrupted or garbled on the wire (serial)
+        # seq -> "sent" / "dropped" / "damaged" when a test asks for it (None: not kept)
+        self.fate_log: dict[int, str] | None = None
         self._lock = threading.Lock()
         self._make_device()
 
@@ -204,7 +207,11 @@ class SimFirmware:
                 seq, self.seq = self.seq, (self.seq + 1) % (1 << 32)
                 if faults.drop and self.rng.random() < faults.drop:
                     self.dropped_frames += 1
+                    if self.fate_log is not None:
+                        self.fate_log[seq] = "dropped"
                     continue
+                if self.fate_log is not None:
+                    self.fate_log[seq] = "sent"
                 # the device timer counts from boot, which was a while before sampling began
                 time_us = BOOT_US + int(round(block.t[0] * 1e6))
                 bodies.append(P.make_body(P.DATA, P.data_payload(seq, block.counter, time_us, block.counts)))
@@ -215,12 +222,19 @@ class SimFirmware:
         """A body as it leaves on the serial wire, with the injected wire faults."""
         frame = bytearray(P.cobs_encode(body) + b"\x00")
         faults = self.faults
+        damaged = False
         if faults.corrupt and self.rng.random() < faults.corrupt:
             pos = int(self.rng.integers(0, len(frame) - 1))
             frame[pos] ^= 1 << int(self.rng.integers(0, 8))
+            damaged = True
         if faults.garbage and self.rng.random() < faults.garbage:
             junk = self.rng.integers(0, 256, int(self.rng.integers(1, 41)), dtype=np.uint8).tobytes()
             frame[:0] = junk
+            damaged |= junk[-1] != 0  # junk ending in a delimiter leaves the frame intact
+        if damaged:
+            self.damaged_frames += 1
+            if self.fate_log is not None and body[1] == P.DATA:
+                self.fate_log[int.from_bytes(body[2:6], "little")] = "damaged"
         return bytes(frame)
 
 
