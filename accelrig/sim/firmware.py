@@ -109,6 +109,8 @@ class SimFirmware:
         self.dropped_frames = 0
         self.stalled_samples = 0
         self.damaged_frames = 0   # corrupted or garbled on the wire (serial)
+        self.unsent_samples = 0   # taken while the link was down (disconnects)
+        self.link_lost = False
         # seq -> "sent" / "dropped" / "damaged" when a test asks for it (None: not kept)
         self.fate_log: dict[int, str] | None = None
         self._lock = threading.Lock()
@@ -157,6 +159,7 @@ class SimFirmware:
             return [P.make_body(P.CONFIG, self.config.payload())]
         if kind == P.START:
             self.streaming = True
+            self.link_lost = False
             return [self._ack(kind, P.STATUS_OK)]
         if kind == P.STOP:
             self.streaming = False
@@ -186,7 +189,10 @@ class SimFirmware:
             d = self.device
             due = int(math.floor(device_time * d.clock.true_rate))
             if not self.streaming:
-                d.counter = max(d.counter, due)  # the sensor keeps sampling; nobody listens
+                if due > d.counter:  # the sensor keeps sampling; nobody listens
+                    if self.link_lost:  # not stopped by the host: a gap in its stream
+                        self.unsent_samples += due - d.counter
+                    d.counter = due
                 return []
             faults = self.faults
             if faults.stall_at is not None:
@@ -345,7 +351,7 @@ class SimBleClient:
     """
 
     def __init__(self, firmware: SimFirmware, address: str, disconnected_callback=None,
-                 pace: str = "realtime", step: float = 0.02, shared: dict | None = None):
+                 pace: str = "realtime", step: float = 0.1, shared: dict | None = None):
         self.firmware = firmware
         self.address = address
         self._disconnected_callback = disconnected_callback
@@ -433,9 +439,12 @@ class SimBleClient:
     async def _drop_connection(self, now: float) -> None:
         fw = self.firmware
         self.is_connected = False
+        if self._held is not None and fw.fate_log is not None:
+            fw.fate_log[int.from_bytes(self._held[2:6], "little")] = "in flight at disconnect"
         self._held = None  # in flight when the link died
         with fw._lock:
             fw.streaming = False  # the firmware stops streaming when the central goes away
+            fw.link_lost = True
         self.shared["refusals_left"] = fw.faults.refuse_connects
         if self.pace == "fast":
             self.shared["device_time"] = now + fw.faults.outage
