@@ -315,9 +315,12 @@ class FirmwareDriver(Driver):
                 back = None
             if back is not None:
                 readback = [
-                    FlashWrite("record: matrix", _fmt(back.matrix.ravel()), _fmt(intended.matrix.ravel()),
-                               "read back vs intended"),
-                    FlashWrite("record: bias b", _fmt(back.bias), _fmt(intended.bias), "m/s^2"),
+                    FlashWrite(f"record: matrix row {axis}", _fmt(back.matrix[i]), _fmt(intended.matrix[i]),
+                               "same" if np.array_equal(back.matrix[i], intended.matrix[i]) else "DIFFERS")
+                    for i, axis in enumerate("xyz")
+                ] + [
+                    FlashWrite("record: bias b", _fmt(back.bias), _fmt(intended.bias),
+                               "same" if np.array_equal(back.bias, intended.bias) else "DIFFERS"),
                     FlashWrite("record: CRC-16", f"0x{int.from_bytes(raw[-2:], 'big'):04X}",
                                f"0x{int.from_bytes(record_bytes[-2:], 'big'):04X}", "stored vs computed"),
                 ]
@@ -329,4 +332,5 @@ class FirmwareDriver(Driver):
 
 
 def _fmt(values) -> str:
-    return "[" + ", ".join(f"{v:.7g}" for v in np.asarray(values, dtype=float).ravel()) + "]"
+    """float32 values in full (9 significant digits round-trip a float32)."""
+    return "[" + ", ".join(f"{v:.9g}" for v in np.asarray(values, dtype=float).ravel()) + "]"

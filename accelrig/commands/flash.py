@@ -55,7 +55,7 @@ def format_plan(plan: FlashPlan) -> str:
     lines = [f"Flash plan for {plan.device}: {len(plan.writes)} write(s)"]
     lines += format_writes(plan.writes)
     if plan.residual:
-        lines.append("Not stored on the device (stays in the host profile):")
+        lines.append("Residual (what the device cannot hold exactly; the host profile keeps it):")
         lines += _residual_lines(plan.residual)
     for note in plan.notes:
         lines.append(f"  note: {note}")
