@@ -247,12 +247,13 @@ class BleSimDriver(BleDriver):
 
         return [f"ble-sim://{name}" for name in sorted(RIGS)]
 
-    def _link_options(self) -> set[str]:
+    def open(self):
         from accelrig.sim.firmware import SimBleClient
         from accelrig_drivers.serial import firmware_from_url
 
         self.firmware, own = firmware_from_url(
             self.url, P.SAMPLES_PER_BLE_FRAME, {"reorder", "disconnect_at", "outage", "refuse_connects"})
+        self._sim_options = own
         faults = self.firmware.faults
         faults.reorder = self.url.get_float("reorder", 0.0)
         text = self.url.get_str("disconnect_at", "")
@@ -263,7 +264,7 @@ class BleSimDriver(BleDriver):
         faults.outage = self.url.get_float("outage", 1.0)
         faults.refuse_connects = self.url.get_int("refuse_connects", 0)
         pace = self.url.get_choice("pace", ("realtime", "fast"), "realtime")
-        shared = None
+        shared = None  # one simulated device behind every client object the driver creates
 
         def factory(address, disconnected_callback):
             nonlocal shared
@@ -273,9 +274,9 @@ class BleSimDriver(BleDriver):
 
         if self.client_factory is _bleak_client_factory:
             self.client_factory = factory
-        return super()._link_options() | own
-
-    def open(self):
         info = super().open()
         info.extra["truth"] = self.firmware.truth()
         return info
+
+    def _link_options(self) -> set[str]:
+        return super()._link_options() | self._sim_options

@@ -104,7 +104,8 @@ class SerialDriver(FirmwareDriver):
     def _receive(self, timeout: float) -> list:
         port = self._port
         try:
-            port.timeout = timeout
+            if port.timeout != timeout:  # pyserial reconfigures the tty on every change
+                port.timeout = timeout
             data = port.read(max(port.in_waiting, 1))
             if data:
                 waiting = port.in_waiting
@@ -177,9 +178,14 @@ class SerialSimDriver(SerialDriver):
 
         return [f"serial-sim://{name}" for name in sorted(RIGS)]
 
+    def open(self):
+        self.firmware, self._sim_options = firmware_from_url(self.url, 255)
+        info = super().open()
+        info.extra["truth"] = self.firmware.truth()
+        return info
+
     def _link_options(self) -> set[str]:
-        self.firmware, own = firmware_from_url(self.url, 255)
-        return super()._link_options() | own
+        return super()._link_options() | self._sim_options
 
     def _transport_open(self) -> str:
         from accelrig.sim.firmware import PtyFirmware
@@ -192,11 +198,6 @@ class SerialSimDriver(SerialDriver):
         except Exception:
             self.server.stop()
             raise
-
-    def open(self):
-        info = super().open()
-        info.extra["truth"] = self.firmware.truth()
-        return info
 
     def _transport_close(self) -> None:
         try:
