@@ -14,6 +14,7 @@ from accelrig.cli import main
 from accelrig.errors import DeviceError, ProfileError
 from accelrig.procedures.result import Correction
 
+URL = "serial-sim://still?seed=1&pace=fast"
 SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-still-1", "range_g": 4.0}
 
 
@@ -85,33 +86,35 @@ def test_profile_for_another_device_is_refused_unless_forced():
 
 @pytest.fixture
 def profile_file(tmp_path, monkeypatch):
-    """A saved profile, loaded by the CLI through accelrig.profiles.load_profile.
+    """A saved profile of serial-sim://still?seed=1, loaded by the CLI through accelrig.profiles.
 
     Until the profiles module is on this branch the loader is a stand-in that
     keeps the contract (load_profile(path) -> object with correction/device/data).
     """
-    try:
-        from accelrig.profiles import load_profile  # noqa: F401
-        real = True
-    except ImportError:
-        real = False
     profile = make_profile()
     path = tmp_path / "p.yaml"
-    if real:
-        pytest.skip("replaced by test_flash_cli_real_profiles once accelrig.profiles lands")
-    stand_in = types.ModuleType("accelrig.profiles")
-    stand_in.load_profile = lambda p: profile if str(p) == str(path) else (_ for _ in ()).throw(ProfileError(f"{p}: no such profile"))
-    monkeypatch.setitem(sys.modules, "accelrig.profiles", stand_in)
-    path.write_text("stand-in\n")
+    try:
+        from accelrig.profiles import load_profile, profile_from_result, save_profile  # noqa: F401
+    except ImportError:
+        stand_in = types.ModuleType("accelrig.profiles")
+        stand_in.load_profile = lambda p: profile
+        monkeypatch.setitem(sys.modules, "accelrig.profiles", stand_in)
+        path.write_text("stand-in\n")
+        return path
+    from accelrig.acquisition.recorder import record
+    from accelrig.procedures.result import CalibrationResult
+
+    with driver_for(URL) as driver:
+        rec = record(driver, seconds=0.5)
+    result = CalibrationResult("static_faces", "test", "C (raw - b)", profile.correction, {},
+                               quality={"residual_rms": 0.03})
+    save_profile(profile_from_result(result, rec), path)
     return path
 
 
 class TtyInput(io.StringIO):
     def isatty(self):
         return True
-
-
-URL = "serial-sim://still?seed=1&pace=fast"
 
 
 def test_cli_dry_run_shows_the_plan_and_writes_nothing(profile_file, capsys):

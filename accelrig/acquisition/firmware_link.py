@@ -258,6 +258,10 @@ class FirmwareDriver(Driver):
             raise DeviceError(f"{self.identity.chip} firmware {self.identity.firmware!r} has no calibration store",
                               "keep the profile on the host and apply it to the stream instead")
         correction = profile.correction
+        if correction is None:
+            from accelrig.errors import ProfileError
+
+            raise ProfileError("the profile holds no correction to flash")
         current = self._read_record()
         new = P.CalibrationRecord.from_correction(
             correction, self.config.range_g, P.profile_id(profile.data), int(time.time())
