@@ -313,6 +313,7 @@ class DataSequencer:
         self.late_horizon = max(4 * reorder_window, 16)  # further back than this is a restart
         self._pending: dict[int, DataFrame] = {}
         self._next_seq: int | None = None
+        self._origin = 0                       # first sequence number of this stream
         self._next_counter: int | None = None  # unwrapped counter expected next
         self._device_next = 0                  # the same as the device's 32-bit counter
         self._skipped: dict[int, None] = {}    # recently declared lost (ordered, bounded)
@@ -320,13 +321,13 @@ class DataSequencer:
     def push(self, frame: DataFrame) -> list[tuple[DataFrame, int, int]]:
         stats = self.stats
         if self._next_seq is None:
-            self._next_seq = frame.seq
+            self._next_seq = self._origin = frame.seq
         ahead = _forward(self._next_seq, frame.seq)
         if ahead < 0:
             if -ahead > self.late_horizon:  # far behind: the device restarted
                 stats.restarts += 1
                 out = self.flush()
-                self._next_seq = frame.seq
+                self._next_seq = self._origin = frame.seq
                 self._pending[frame.seq] = frame
                 return out + self._release()
             if frame.seq in self._skipped:
@@ -334,6 +335,8 @@ class DataSequencer:
                 del self._skipped[frame.seq]
                 stats.late_frames += 1
                 stats.lost_frames -= 1
+            elif _forward(self._origin, frame.seq) < 0:
+                stats.late_frames += 1  # older than the frame the stream began with
             else:
                 stats.duplicate_frames += 1
             return []
