@@ -8,6 +8,7 @@ sample times, stall detection, and flashing the calibration record.
 
 from __future__ import annotations
 
+import abc
 import time
 
 import numpy as np
@@ -47,19 +48,21 @@ class FirmwareDriver(Driver):
 
     # -------------------------------------------------------- transport (subclass)
 
+    @abc.abstractmethod
     def _transport_open(self) -> str:
         """Connect; return a human description of the link (port, address)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _send(self, body: bytes) -> None:
-        raise NotImplementedError
+        """Send one frame body (the transport adds its own framing)."""
 
+    @abc.abstractmethod
     def _receive(self, timeout: float) -> list:
         """Frames (P.Frame / P.DataFrame) that arrived, waiting at most ``timeout`` s."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _transport_close(self) -> None:
-        raise NotImplementedError
+        """Disconnect; safe to call once after a successful _transport_open."""
 
     def _link_extra(self) -> dict:
         return {}
