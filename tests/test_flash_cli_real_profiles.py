@@ -1,13 +1,11 @@
 """`accelrig flash` end to end with real profiles (accelrig.profiles) and the serial/BLE simulators."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
 from accelrig.acquisition.driver import driver_for
 from accelrig.acquisition.recorder import record
+from accelrig.cli import main
 from accelrig.procedures.result import CalibrationResult, Correction, Estimate
 
 profiles = pytest.importorskip("accelrig.profiles")
@@ -34,12 +32,25 @@ def saved_profile(tmp_path, url):
     return path, profile
 
 
-def flash(*args):
-    return subprocess.run([sys.executable, "-m", "accelrig", "flash", *args], capture_output=True, text=True, timeout=60)
+class Run:
+    def __init__(self, code, out, err):
+        self.returncode, self.stdout, self.stderr = code, out, err
+
+
+@pytest.fixture
+def flash(capsys):
+    """Run `accelrig flash ARGS` in this process (the CLI's main, as the console script does)."""
+
+    def run(*args):
+        code = main(["flash", *args])
+        captured = capsys.readouterr()
+        return Run(code, captured.out, captured.err)
+
+    return run
 
 
 @pytest.mark.parametrize("scheme", ["serial-sim", "ble-sim"])
-def test_flash_a_saved_profile_and_verify(tmp_path, scheme):
+def test_flash_a_saved_profile_and_verify(tmp_path, scheme, flash):
     url = f"{scheme}://still?seed=4&pace=fast"
     path, profile = saved_profile(tmp_path, url)
     assert profile.device["identity"] == "SIM-still-4"
@@ -50,7 +61,7 @@ def test_flash_a_saved_profile_and_verify(tmp_path, scheme):
     assert row in r.stdout
 
 
-def test_profile_of_another_device_is_refused_unless_forced(tmp_path):
+def test_profile_of_another_device_is_refused_unless_forced(tmp_path, flash):
     path, _ = saved_profile(tmp_path, "serial-sim://still?seed=4&pace=fast")
     r = flash(str(path), "--device", "serial-sim://still?seed=5&pace=fast", "--yes")
     assert r.returncode != 0 and "Traceback" not in r.stderr
@@ -62,7 +73,7 @@ def test_profile_of_another_device_is_refused_unless_forced(tmp_path):
     assert r.returncode == 0 and "FORCED despite mismatch: device identity" in r.stdout
 
 
-def test_broken_profile_file_is_one_line(tmp_path):
+def test_broken_profile_file_is_one_line(tmp_path, flash):
     bad = tmp_path / "bad.yaml"
     bad.write_text("schema_version: 1\ndevice: [\n")
     r = flash(str(bad), "--device", "serial-sim://still?pace=fast", "--yes")
