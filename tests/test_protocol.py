@@ -29,6 +29,13 @@ def test_cobs_round_trip_has_no_zero(data):
     assert len(encoded) <= len(data) + len(data) // 254 + 1
 
 
+@given(st.lists(st.one_of(st.binary(max_size=8), st.integers(0, 300).map(bytes),
+                          st.sampled_from([b"\x01" * 5, b"\x00\x01" * 4, b"\xff" * 300])), max_size=12))
+def test_cobs_round_trip_with_zero_runs(pieces):
+    data = b"".join(pieces)
+    assert P.cobs_decode(P.cobs_encode(data)) == data
+
+
 @pytest.mark.parametrize("n", [253, 254, 255, 508, 509])
 def test_cobs_block_boundaries(n):
     for data in (bytes(range(1, 256)) * 3, b"\x07" * 600):

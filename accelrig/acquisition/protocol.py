@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import binascii
 import hashlib
+import re
 import struct
 from dataclasses import dataclass, field
 
@@ -105,6 +106,9 @@ def cobs_encode(data: bytes) -> bytes:
     return bytes(out)
 
 
+_NOT_ONE = re.compile(b"[^\x01]")
+
+
 def cobs_decode(data: bytes) -> bytes:
     """Inverse of cobs_encode; raises ValueError on a malformed frame.
 
@@ -125,6 +129,18 @@ def cobs_decode(data: bytes) -> bytes:
     i = 0
     while True:
         code = data[i]
+        if code == 1 and i + 1 < n and data[i + 1] == 1:
+            # A run of empty blocks (consecutive zeros in the body, e.g. small or
+            # zero samples): each 0x01 is followed by the next code, which
+            # stands for a zero.  One regex search replaces the per-block walk.
+            m = _NOT_ONE.search(data, i)
+            stop = m.start() if m else n
+            out[i + 1:stop + 1] = bytes(min(stop + 1, n) - i - 1)
+            if stop >= n:
+                j = n
+                break
+            i = stop
+            continue
         j = i + code
         if j >= n:
             break
