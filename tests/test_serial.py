@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -147,3 +148,13 @@ def test_cli_records_from_serial_sim(tmp_path):
 
     rec = read_csv(out)
     assert rec.meta["chip"] == "sim-mpu9250" and len(rec) == pytest.approx(3 * 2057.4, abs=2)
+
+
+def test_wall_clock_pace_for_demos():
+    start = time.monotonic()
+    with driver_for("serial-sim://still?seed=2&rate=1000") as driver:
+        rec = record(driver, seconds=0.6)
+        true_rate = driver.firmware.true_rate
+    assert time.monotonic() - start >= 0.55  # it really took the time
+    assert len(rec) == pytest.approx(0.6 * true_rate, abs=2)
+    assert rec.meta["gaps"] == []
