@@ -131,7 +131,8 @@ class BleDriver(FirmwareDriver):
             future.cancel()
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise DeviceError(f"BLE {self.url.target}: {text}",
-                              "is the device powered, in range and not connected to another central?") from None
+                              "is a Bluetooth adapter present, and the device powered, in range "
+                              "and not connected to another central?") from None
 
     def _on_notify(self, _characteristic, data: bytearray) -> None:
         # Runs in bleak's callback context: hand the bytes over and nothing else.

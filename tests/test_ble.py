@@ -15,7 +15,7 @@ from accelrig.acquisition.recorder import record
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError, MissingExtraError
 from accelrig_drivers import ble
-from accelrig_drivers.ble import BleDriver, BleSimDriver
+from accelrig_drivers.ble import BleDriver
 from accelrig_drivers.serial import firmware_from_url
 
 

@@ -94,7 +94,7 @@ def profile_file(tmp_path, monkeypatch):
     profile = make_profile()
     path = tmp_path / "p.yaml"
     try:
-        from accelrig.profiles import load_profile, profile_from_result, save_profile  # noqa: F401
+        from accelrig.profiles import profile_from_result, save_profile
     except ImportError:
         stand_in = types.ModuleType("accelrig.profiles")
         stand_in.load_profile = lambda p: profile

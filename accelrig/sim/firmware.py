@@ -150,8 +150,8 @@ class SimFirmware:
                 want = P.LinkConfig.from_payload(frame.payload)
             except DeviceError:
                 return [self._ack(kind, P.STATUS_BAD_FRAME)]
-            if want.range_g not in (2, 4, 8, 16) or not 1 <= want.samples_per_frame <= self.identity.max_samples_per_frame \
-                    or not 1.0 <= want.rate <= 10000.0 or self.streaming:
+            frame_ok = 1 <= want.samples_per_frame <= self.identity.max_samples_per_frame
+            if want.range_g not in (2, 4, 8, 16) or not frame_ok or not 1.0 <= want.rate <= 10000.0 or self.streaming:
                 return [self._ack(kind, P.STATUS_BAD_VALUE)]
             self.sensor.range_g = float(want.range_g)
             self.config = P.LinkConfig(want.range_g, deliverable_rate(want.rate), want.samples_per_frame)
@@ -197,7 +197,8 @@ class SimFirmware:
             faults = self.faults
             if faults.stall_at is not None:
                 stall_start = int(faults.stall_at * d.clock.true_rate)
-                stall_end = math.inf if math.isinf(faults.stall_for) else int((faults.stall_at + faults.stall_for) * d.clock.true_rate)
+                stall_end = (math.inf if math.isinf(faults.stall_for)
+                             else int((faults.stall_at + faults.stall_for) * d.clock.true_rate))
                 if d.counter + self.config.samples_per_frame > stall_start and d.counter < stall_end:
                     # the FIFO overflows while stalled: those samples are gone
                     lost_to = min(due, stall_end)
