@@ -47,6 +47,7 @@ def test_sixty_seconds_at_2048_hz_through_a_pty_with_zero_loss():
     assert len(rec) == int(np.ceil(60.0 * true_rate))
     assert rec.meta["gaps"] == []
     assert stats.crc_errors == stats.cobs_errors == stats.lost_frames == stats.lost_samples == 0
+    assert rec.meta["link_stats"]["data_frames"] > 0 and "not arriving in real time" in rec.meta["clock_alignment"]
     # sample times: the delivered rate is estimated from device timestamps, not assumed
     assert info.extra["delivered_rate"] == pytest.approx(true_rate, rel=1e-6)
     assert np.all(np.diff(rec.t) > 0)
@@ -74,6 +75,9 @@ def test_corruption_garbage_and_drops_are_all_explained():
     # received + missing = every sample the device took in the span
     assert len(rec) + sum(g["missing"] for g in gaps) == pytest.approx(20.0 * fw.true_rate, abs=frame)
     assert all(g["missing"] % frame == 0 for g in gaps)
+    # the counts reach the recording's metadata (and so the CSV / npz file)
+    assert rec.meta["link_stats"]["lost_frames"] <= stats.lost_frames
+    assert rec.meta["link_stats"]["crc_errors"] + rec.meta["link_stats"]["cobs_errors"] > 0
 
 
 def test_short_stall_leaves_a_measured_gap():
