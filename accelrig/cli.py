@@ -19,6 +19,7 @@ from accelrig.errors import AccelrigError
 
 COMMAND_MODULES = (
     "accelrig.commands.devices",
+    "accelrig.commands.flash",
     "accelrig.commands.record",
     "accelrig.commands.calibrate_static",
     "accelrig.commands.profile",
