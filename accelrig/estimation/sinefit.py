@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import DataError
+from accelrig.estimation.crb import crb_covariance
 
 MIN_CYCLES = 1.5  # below this the frequency and the offset cannot be told apart (IEEE 1057)
 MAX_ITERATIONS = 60
@@ -201,6 +202,13 @@ def _full_jacobian(tc, frequency, coef, harmonics, fit_frequency):
     return np.column_stack([dphi @ coef, phi])
 
 
+def _internal_names(harmonics: int, fit_frequency: bool) -> list[str]:
+    names = (["frequency"] if fit_frequency else []) + ["offset"]
+    for k in range(1, harmonics + 1):
+        names += [f"cos_{k}", f"sin_{k}"]
+    return names
+
+
 def _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q):
     """Map [f, c0, a_k, b_k] (a cos + b sin about t_ref) to [f, offset, A_k, phi_k at t = 0]."""
     a, b = coef[1::2], coef[2::2]
@@ -229,19 +237,6 @@ def _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q):
     for i in range(1, harmonics + 1):
         names += [f"amplitude_{i}", f"phase_{i}"]
     return amp, phase, cov, names
-
-
-def _inverse_normal(jac: np.ndarray) -> np.ndarray:
-    """(J^T J)^-1 via the QR of J (better conditioned than forming J^T J)."""
-    _, r = np.linalg.qr(jac)
-    diag = np.abs(np.diag(r))
-    if diag.min() <= diag.max() * 1e-13:
-        raise DataError(
-            "the sine model is not identifiable from these samples",
-            "record more cycles, or fewer harmonics",
-        )
-    r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
-    return r_inv @ r_inv.T
 
 
 # ---------------------------------------------------------------- public API
@@ -332,7 +327,8 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
     dof = y.size - n_params
     sigma2 = float(resid @ resid) / dof
     jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
-    cov_q = sigma2 * _inverse_normal(jac)
+    # unit sigma then scaled: a noise-free record (sigma2 = 0) still gets its (zero) covariance
+    cov_q = sigma2 * crb_covariance(jac, 1.0, _internal_names(harmonics, fit_frequency))
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -383,7 +379,7 @@ def sine_crb(t, frequency: float, amplitude, phase, sigma: float, offset: float 
     coef[2::2] = -amp * np.sin(phase_ref)
     tc = t - t_ref
     jac = _full_jacobian(tc, frequency, coef, harmonics, fit_frequency)
-    cov_q = sigma**2 * _inverse_normal(jac)
+    cov_q = sigma**2 * crb_covariance(jac, 1.0, _internal_names(harmonics, fit_frequency))
     _, _, cov, names = _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
