@@ -204,7 +204,7 @@ def principal_axis(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     values, vectors = np.linalg.eigh(cov)
     axis = vectors[:, -1]
     axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
-    if values[-1] <= 0:
+    if np.sqrt(max(values[-1], 0.0)) <= 1e-9 * (1.0 + float(np.abs(acc.mean(axis=0)).max())):
         raise DataError("the sensor did not move: all three axes are constant")
     perp = max(float(values[:2].mean()), 0.0)
     angle_sd = float(np.sqrt(perp * (values[-1] + perp) / (acc.shape[0] * values[-1] ** 2)))
@@ -227,6 +227,8 @@ def clipped_samples(rec: Recording) -> int:
     # No declared full scale: flat tops (three or more consecutive samples at an axis's extreme).
     flat = 0
     for column in acc.T:
+        if column.max() == column.min():
+            continue  # a constant axis (e.g. one the file does not carry) is not clipped
         for extreme in (column.max(), column.min()):
             at = np.isclose(column, extreme, rtol=1e-9, atol=0.0)
             runs = np.diff(np.flatnonzero(np.diff(np.concatenate([[0], at.astype(int), [0]]))))[::2]
@@ -428,9 +430,10 @@ def check_neighbours(steps: list[StepResult]) -> None:
     if len(steps) < 3:
         return
     f = np.array([s.frequency_hz.value for s in steps])
-    spacing = float(np.median(np.abs(np.diff(f))))
-    spacing = max(spacing, 0.05 * float(np.median(f)))
     for i, step in enumerate(steps):
+        # the typical spacing of the *other* steps, so the suspect cannot widen its own tolerance
+        others = np.delete(f, i)
+        spacing = max(float(np.median(np.abs(np.diff(others)))), 0.05 * float(np.median(others)))
         if i == 0:
             expected, neighbours = f[1], [f[1]]
         elif i == len(steps) - 1:
@@ -521,7 +524,8 @@ def split_steps(rec: Recording, label: str) -> list[tuple[int | None, str, Recor
         rows = np.flatnonzero(step == value)
         if rows[-1] - rows[0] + 1 != rows.size:
             raise DataError(f"{label}: step {value:g} is not one contiguous block of rows", "one block per step, in time order")
-        out.append((int(value), f"{label} step {value:g}", rec.slice(int(rows[0]), int(rows[-1]) + 1)))
+        name = f"{label} step {value:g}" if values.size > 1 else label
+        out.append((int(value), name, rec.slice(int(rows[0]), int(rows[-1]) + 1)))
     return out
 
 
