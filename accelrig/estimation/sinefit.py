@@ -150,31 +150,66 @@ def _basis(tc: np.ndarray, frequency: float, harmonics: int) -> tuple[np.ndarray
     return phi, dphi
 
 
+# The products below go through einsum, and the only factorisations are of
+# p x p matrices (p = 2H + 1 or 2H + 2, tiny): a QR or SVD of the tall n x p
+# matrix runs in multithreaded LAPACK, which on a loaded machine spends ~50x
+# longer fighting for cores than computing.  With the time axis centred the
+# columns are close to orthogonal, so the normal equations lose nothing.
+
+def _gram_factor(phi: np.ndarray):
+    gram = np.einsum("ni,nj->ij", phi, phi)
+    try:
+        return np.linalg.cholesky(gram)
+    except np.linalg.LinAlgError:
+        raise DataError(
+            "the sine model is not identifiable from these samples",
+            "record more cycles, or fit fewer harmonics",
+        ) from None
+
+
+def _solve_gram(chol: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    return np.linalg.solve(chol.T, np.linalg.solve(chol, rhs))
+
+
 def _project(phi: np.ndarray, y: np.ndarray):
-    q, r = np.linalg.qr(phi)
-    qy = q.T @ y
-    coef = np.linalg.solve(r, qy)
-    resid = y - q @ qy
-    return q, r, coef, resid
+    chol = _gram_factor(phi)
+    coef = _solve_gram(chol, np.einsum("ni,n->i", phi, y))
+    resid = y - np.einsum("ni,i->n", phi, coef)
+    return chol, coef, resid
 
 
 def _vp_step(tc, y, frequency, harmonics):
     """Residual, cost and the Golub-Pereyra Jacobian of the projected residual in f."""
     phi, dphi = _basis(tc, frequency, harmonics)
-    q, r, coef, resid = _project(phi, y)
-    dc = dphi @ coef
+    chol, coef, resid = _project(phi, y)
+    dc = np.einsum("ni,i->n", dphi, coef)
     # d(P_perp y)/df = -P_perp (dPhi c) - Phi^+T (dPhi^T r); the second term is
     # Golub-Pereyra's, which Kaufman drops; kept since a one-sine fit of a
-    # slider-crank signal has large residuals.
-    jac = -(dc - q @ (q.T @ dc)) - q @ np.linalg.solve(r.T, dphi.T @ resid)
+    # slider-crank signal has large residuals.  Both share Phi G^-1 (.):
+    rhs = np.einsum("ni,n->i", phi, dc) + np.einsum("ni,n->i", dphi, resid)
+    jac = -dc + np.einsum("ni,i->n", phi, _solve_gram(chol, rhs))
     return resid, float(resid @ resid), jac, coef
 
 
-def _gauss_newton(tc, y, start, harmonics, span):
+def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
+    """sigma^2 (J^T J)^-1 by the shared CRB helper, handed the p x p Cholesky factor R of J^T J.
+
+    R^T R = J^T J, so R has J's column norms and singular values: the helper's
+    covariance and its rank diagnosis are the same as for J itself.
+    """
+    gram = np.einsum("ni,nj->ij", jac, jac)
+    try:
+        factor = np.linalg.cholesky(gram).T
+    except np.linalg.LinAlgError:
+        factor = jac  # singular: let the helper name the unidentifiable direction
+    # unit sigma then scaled: a noise-free record (sigma2 = 0) still gets its (zero) covariance
+    return sigma2 * crb_covariance(factor, 1.0, names)
+
+
+def _gauss_newton(tc, y, start, harmonics, tol):
     """One-dimensional Gauss-Newton on the variable projection functional, with step halving."""
     frequency = start
     resid, cost, jac, coef = _vp_step(tc, y, frequency, harmonics)
-    tol = 1e-11 / span  # far below any achievable frequency uncertainty
     for iteration in range(1, MAX_ITERATIONS + 1):
         jj = float(jac @ jac)
         if jj <= 0:
@@ -316,19 +351,21 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
     if fit_frequency:
         stages = [1, harmonics] if harmonics > 1 else [1]
         for stage_harmonics in stages:
-            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, span)
+            # the final stage stops far below any achievable uncertainty; an
+            # earlier stage only has to hand a start well inside the basin
+            tol = (1e-11 if stage_harmonics == harmonics else 1e-4) / span
+            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, tol)
             n_iterations += iters
             converged = ok
         if estimate * harmonics >= 0.5 / mean_dt or estimate * (span + mean_dt) < 1.0:
             converged = False  # ran off to a frequency the record cannot support
 
     phi, _ = _basis(tc, estimate, harmonics)
-    _, _, coef, resid = _project(phi, y)
+    _, coef, resid = _project(phi, y)
     dof = y.size - n_params
     sigma2 = float(resid @ resid) / dof
     jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
-    # unit sigma then scaled: a noise-free record (sigma2 = 0) still gets its (zero) covariance
-    cov_q = sigma2 * crb_covariance(jac, 1.0, _internal_names(harmonics, fit_frequency))
+    cov_q = _covariance(jac, sigma2, _internal_names(harmonics, fit_frequency))
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -379,7 +416,7 @@ def sine_crb(t, frequency: float, amplitude, phase, sigma: float, offset: float 
     coef[2::2] = -amp * np.sin(phase_ref)
     tc = t - t_ref
     jac = _full_jacobian(tc, frequency, coef, harmonics, fit_frequency)
-    cov_q = sigma**2 * crb_covariance(jac, 1.0, _internal_names(harmonics, fit_frequency))
+    cov_q = _covariance(jac, sigma**2, _internal_names(harmonics, fit_frequency))
     _, _, cov, names = _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
