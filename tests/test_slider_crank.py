@@ -113,6 +113,10 @@ def test_clearance_and_backlash_are_reported():
     result = verify_slider_crank([("sim", run(rig, seed=4))], RADIUS, ROD, clearance=0.0002)
     assert all(s.backlash for s in result.steps)
     assert all(s.knock_peak > 5.0 for s in result.steps)
+    # the play, from the odd harmonics the crank itself cannot make
+    assert all(0.07e-3 < s.play_m < 0.14e-3 for s in result.steps)
+    # knocks are not noise: the statistical part stays near what the noise alone allows
+    assert all(s.frequency_hz.uncertainty < 3e-3 for s in result.steps)
     # the radius follows the effective (not the caliper) radius, within its uncertainty
     assert abs(result.radius_m.value - rig.effective_radius) < 3 * result.radius_m.uncertainty
     assert result.radius_m.value > RADIUS + 0.0001

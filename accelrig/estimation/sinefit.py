@@ -150,14 +150,21 @@ def _basis(tc: np.ndarray, frequency: float, harmonics: int) -> tuple[np.ndarray
     return phi, dphi
 
 
-# The products below go through einsum, and the only factorisations are of
-# p x p matrices (p = 2H + 1 or 2H + 2, tiny): a QR or SVD of the tall n x p
-# matrix runs in multithreaded LAPACK, which on a loaded machine spends ~50x
-# longer fighting for cores than computing.  With the time axis centred the
-# columns are close to orthogonal, so the normal equations lose nothing.
+# No QR or SVD of the tall n x p matrix: those run in multithreaded LAPACK,
+# which on a loaded machine spends ~50x longer fighting for cores than
+# computing.  The normal equations lose nothing here (with the time axis
+# centred the columns are close to orthogonal) and need only p x p
+# factorisations.  Gram matrices: BLAS for a few columns (single-threaded at
+# that size, fastest), einsum for many (BLAS would go multithreaded again).
+_BLAS_MAX_COLUMNS = 32
+
+
+def _gram(a: np.ndarray) -> np.ndarray:
+    return a.T @ a if a.shape[1] <= _BLAS_MAX_COLUMNS else np.einsum("ni,nj->ij", a, a)
+
 
 def _gram_factor(phi: np.ndarray):
-    gram = np.einsum("ni,nj->ij", phi, phi)
+    gram = _gram(phi)
     try:
         return np.linalg.cholesky(gram)
     except np.linalg.LinAlgError:
@@ -197,7 +204,7 @@ def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
     R^T R = J^T J, so R has J's column norms and singular values: the helper's
     covariance and its rank diagnosis are the same as for J itself.
     """
-    gram = np.einsum("ni,nj->ij", jac, jac)
+    gram = _gram(jac)
     try:
         factor = np.linalg.cholesky(gram).T
     except np.linalg.LinAlgError:

@@ -31,7 +31,7 @@ and the verdict: does the static calibration hold under motion?
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -80,6 +80,8 @@ class StepResult:
     radius_m: Estimate
     within_clearance: bool
     backlash: bool
+    play_m: float                  # play estimated from the odd harmonics when backlash is seen (0 otherwise)
+    radius_play_uncertainty_m: float  # the play's share of u(radius), common to all steps
     knock_peak: float              # largest phase-locked residual near a dead centre, m/s^2
     knock_significance: float      # chi-square p-value of the folded residuals near the dead centres
     speed_unsteady: bool
@@ -92,6 +94,7 @@ class StepResult:
     noise_sd: float = 0.0
     n_iterations: int = 0
     fit: SineFit | None = None
+    harmonics: int = DEFAULT_HARMONICS  # fitted (fewer when the rate leaves no room below Nyquist)
 
     def to_json_dict(self) -> dict:
         return {
@@ -113,6 +116,8 @@ class StepResult:
             "radius_m": self.radius_m.to_dict(),
             "within_clearance": self.within_clearance,
             "backlash": self.backlash,
+            "play_m": self.play_m,
+            "radius_play_uncertainty_m": self.radius_play_uncertainty_m,
             "knock_peak": self.knock_peak,
             "knock_significance": self.knock_significance,
             "speed_unsteady": self.speed_unsteady,
@@ -124,6 +129,7 @@ class StepResult:
             "residual_sd": self.residual_sd,
             "noise_sd": self.noise_sd,
             "n_iterations": self.n_iterations,
+            "harmonics": self.harmonics,
         }
 
 
@@ -242,13 +248,15 @@ def robust_noise_sd(residuals: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2))
 
 
-def fold_residuals(t, residuals, frequency, phase1):
+def fold_residuals(t, residuals, frequency, phase1, samples_per_bin: float = 2.0):
     """Residuals averaged in bins of crank angle (phase-locked content survives, noise averages out).
 
-    Returns (bin centres in rad of the first-harmonic phase, bin means, counts).
+    ``samples_per_bin`` is per cycle (2: a knock's ring at ~100 Hz is still
+    resolved at 2 kHz).  Returns (bin centres in rad of the first-harmonic
+    phase, bin means, counts).
     """
     samples_per_cycle = residuals.size / max(frequency * (t[-1] - t[0]), 1e-12)
-    n_bins = int(np.clip(samples_per_cycle // 2, 8, 256))
+    n_bins = int(np.clip(samples_per_cycle // samples_per_bin, 8, 4096))
     theta = np.mod(2 * np.pi * frequency * t + phase1, 2 * np.pi)
     idx = np.minimum((theta / (2 * np.pi) * n_bins).astype(int), n_bins - 1)
     counts = np.bincount(idx, minlength=n_bins)
@@ -256,6 +264,37 @@ def fold_residuals(t, residuals, frequency, phase1):
     means = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
     centres = (np.arange(n_bins) + 0.5) * 2 * np.pi / n_bins
     return centres, means, counts
+
+
+def _noise_only_covariance(t, fit: SineFit) -> SineFit:
+    """The fit with its covariance scaled to the random noise alone, for a record with knocks.
+
+    Knocks are deterministic and phase-locked: left in the residual sd they
+    would inflate every uncertainty several times over, yet they are not noise.
+    Their effect on the first harmonic is a systematic, budgeted separately
+    (the play term of the radius uncertainty).  The noise is what remains of
+    the residuals after removing their crank-angle-folded mean.
+    """
+    # one sample per cycle per bin: the template follows even a fast ring; the
+    # degrees of freedom it takes are subtracted below
+    _, means, counts = fold_residuals(t, fit.residuals, fit.frequency, float(fit.phase[0]), samples_per_bin=1.0)
+    theta = np.mod(2 * np.pi * fit.frequency * t + fit.phase[0], 2 * np.pi)
+    idx = np.minimum((theta / (2 * np.pi) * means.size).astype(int), means.size - 1)
+    cleaned = fit.residuals - means[idx]
+    dof = cleaned.size - fit.covariance.shape[0] - int(np.count_nonzero(counts))
+    if dof <= 0:
+        return fit
+    scale = float(np.sqrt(cleaned @ cleaned / dof)) / fit.residual_sd
+    if not np.isfinite(scale) or scale >= 1:
+        return fit
+    return replace(
+        fit,
+        covariance=fit.covariance * scale**2,
+        frequency_uncertainty=fit.frequency_uncertainty * scale,
+        amplitude_uncertainty=fit.amplitude_uncertainty * scale,
+        phase_uncertainty=fit.phase_uncertainty * scale,
+        offset_uncertainty=fit.offset_uncertainty * scale,
+    )
 
 
 def detect_backlash(t, residuals, frequency, phase1, noise_sd):
@@ -363,6 +402,10 @@ def analyse_step(
             f"{where}: the sine fit did not converge (start {start:.4g} Hz, ended at {fit.frequency:.4g} Hz)",
             "check that the stand ran steadily and the record holds the motion",
         )
+    noise_sd = robust_noise_sd(fit.residuals)
+    backlash, knock_peak, knock_p = detect_backlash(t, fit.residuals, fit.frequency, float(fit.phase[0]), noise_sd)
+    if backlash:
+        fit = _noise_only_covariance(t, fit)
     f = fit.frequency
     omega2 = (2 * np.pi * f) ** 2
     amp1 = float(fit.amplitude[0])
@@ -373,6 +416,18 @@ def analyse_step(
     radius = amp1 / omega2
     jac_r = np.array([-2 * radius / f, 1 / omega2])
     u_radius = float(np.sqrt(jac_r @ cov_fa @ jac_r))
+    play = u_play = 0.0
+    if backlash and fit.harmonics >= 3:
+        # The crank's kinematics have no odd harmonic above the first, so the
+        # third is the play's.  For play of size b taken up at the dead centres
+        # (a square wave of +-b/2) the third harmonic of the displacement is
+        # 2b/(3 pi) and the first 2b/pi; the first adds to the slider's motion
+        # with a phase set by how late the play is taken up, unknown here.
+        # Type B: rectangular within +-(first harmonic of the play).
+        third = float(fit.amplitude[2]) / (9 * omega2)
+        play = 1.5 * np.pi * third
+        u_play = 3 * third / np.sqrt(3)
+        u_radius = float(np.hypot(u_radius, u_play))
     model = crank_radius * omega2
     ratio = amp1 / model
     jac_q = np.array([-2 * ratio / f, 1 / model])
@@ -380,13 +435,12 @@ def analyse_step(
     # consistent with the caliper radius +- clearance at k = 2
     within = bool(abs(radius - crank_radius) <= clearance + 2 * u_radius)
 
-    # peak of the fitted waveform with its uncertainty (GUM propagation through the max)
+    # peak of the slider's motion (first h harmonics, knocks excluded) with its
+    # uncertainty (GUM propagation through the max)
     idx = [fit.parameter_names.index(f"{kind}_{k}") for k in range(1, h + 1) for kind in ("amplitude", "phase")]
     amps_phases = np.array([val for k in range(h) for val in (fit.amplitude[k], fit.phase[k])])
     peak, peak_cov = propagate_covariance(lambda p: _peak_of_waveform(p, h), amps_phases, fit.covariance[np.ix_(idx, idx)])
 
-    noise_sd = robust_noise_sd(fit.residuals)
-    backlash, knock_peak, knock_p = detect_backlash(t, fit.residuals, f, float(fit.phase[0]), noise_sd)
     unsteady, spread = speed_steadiness(t, y, f, h)
     lam = crank_radius / rod_length
     commanded_model = None if commanded_hz is None else crank_radius * (2 * np.pi * commanded_hz) ** 2
@@ -410,6 +464,8 @@ def analyse_step(
         radius_m=Estimate(float(radius), u_radius, "m"),
         within_clearance=within,
         backlash=backlash,
+        play_m=float(play),
+        radius_play_uncertainty_m=float(u_play),
         knock_peak=knock_peak,
         knock_significance=knock_p,
         speed_unsteady=unsteady,
@@ -422,6 +478,7 @@ def analyse_step(
         noise_sd=noise_sd,
         n_iterations=fit.n_iterations,
         fit=fit,
+        harmonics=fit.harmonics,
     )
 
 
@@ -473,15 +530,18 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
 def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[int]]:
     """Weighted mean radius over the steps the motor followed steadily.
 
-    The uncertainty is inflated by the Birge ratio sqrt(chi2 / dof) when the
-    steps scatter more than their own uncertainties allow (a systematic effect
-    such as a gain error shows as scatter too, and must not look precise).
+    Weights and chi-square use each step's statistical uncertainty; that part
+    is inflated by the Birge ratio sqrt(chi2 / dof) when the steps scatter more
+    than it allows (a systematic effect such as a gain error shows as scatter
+    too, and must not look precise).  The backlash share of the uncertainty is
+    the same play in every step, so it is added once, not averaged down.
     """
     used = [s for s in steps if not s.motor_limited]
     if not used:
         return Estimate(float("nan"), float("nan"), "m"), float("nan"), 0, []
     r = np.array([s.radius_m.value for s in used])
-    u = np.array([s.radius_m.uncertainty for s in used])
+    u_play = np.array([s.radius_play_uncertainty_m for s in used])
+    u = np.sqrt(np.maximum(np.array([s.radius_m.uncertainty for s in used]) ** 2 - u_play**2, 0.0))
     w = 1 / u**2
     mean = float(np.sum(w * r) / np.sum(w))
     u_mean = float(np.sqrt(1 / np.sum(w)))
@@ -489,7 +549,8 @@ def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[
     chi2 = float(np.sum(w * (r - mean) ** 2))
     if dof > 0 and chi2 > dof:
         u_mean *= float(np.sqrt(chi2 / dof))
-    return Estimate(mean, u_mean, "m"), chi2, dof, [s.index for s in used]
+    u_common = float(np.sum(w * u_play) / np.sum(w))
+    return Estimate(mean, float(np.hypot(u_mean, u_common)), "m"), chi2, dof, [s.index for s in used]
 
 
 def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used: int) -> tuple[str, str]:
