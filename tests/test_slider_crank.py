@@ -230,3 +230,34 @@ def test_cli_table_and_one_line_errors(tmp_path, capsys):
     code = main(["verify", "slider-crank", str(short), "--crank-radius", "0.00635", "--rod-length", "0.0353"])
     err = capsys.readouterr().err
     assert code == 4 and "cycles" in err and "Traceback" not in err
+
+
+def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
+    from accelrig.procedures.result import CalibrationResult
+    from accelrig.profiles import profile_from_result, save_profile
+
+    faulty = sensor(gain=[0.97, 1.01, 1.0], offset=[0.2, 0.1, -0.3])
+    rec = run(SliderCrankRig(steps=[4.0, 7.0, 10.0], clearance=0.00002), faulty, seed=6)
+    data = tmp_path / "run.csv"
+    save_recording(rec, data)
+
+    def profile_with(correction, name):
+        result = CalibrationResult(procedure="static-faces", method="truth", model="C (raw - b)",
+                                   correction=correction, parameters={})
+        path = tmp_path / name
+        save_profile(profile_from_result(result, recording=rec, device={"identity": "sim-1", "range_g": 8.0}), path)
+        return str(path)
+
+    args = ["verify", "slider-crank", str(data), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+            "--clearance", "0.00002", "--json"]
+    assert main(args + ["--profile", profile_with(faulty.correction(), "good.yaml")]) == 0
+    good = json.loads(capsys.readouterr().out)
+    assert good["verdict"] == "holds" and good["profile"].endswith("good.yaml")
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["verdict"] == "does not hold"  # the raw sensor is 3 % low on x
+    wrong_range = tmp_path / "r16.yaml"
+    result = CalibrationResult(procedure="static-faces", method="truth", model="C (raw - b)",
+                               correction=faulty.correction(), parameters={})
+    save_profile(profile_from_result(result, device={"identity": "sim-1", "range_g": 16.0}), wrong_range)
+    assert main(args + ["--profile", str(wrong_range)]) == 6
+    assert "16 g range" in capsys.readouterr().err

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from accelrig.errors import DataError
+from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank import DEFAULT_HARMONICS, SliderCrankVerification, verify_slider_crank
 from accelrig.recording import load_recording
 
@@ -56,21 +56,38 @@ def run(args) -> int:
     if args.harmonics < 1:
         raise DataError(f"--harmonics {args.harmonics} must be at least 1")
     speeds = _parse_speeds(args.speeds)
-    correction = None
-    if args.profile:
-        from accelrig.profiles import load_profile  # profiles are only needed with --profile
-
-        correction = load_profile(args.profile).correction
     recordings = [(path, load_recording(path, units=args.units, rate=args.rate)) for path in args.recordings]
+    correction = None
+    profile_warnings: list[str] = []
+    if args.profile:
+        correction, profile_warnings = _profile_correction(args.profile, recordings)
     result = verify_slider_crank(
         recordings, args.crank_radius, rod_length, args.clearance, correction=correction, speeds=speeds,
         harmonics=args.harmonics, profile=args.profile,
     )
+    result.warnings = profile_warnings + result.warnings
     if args.json:
         print(json.dumps(result.to_json_dict(), indent=2))
     else:
         print(format_report(result))
     return 0
+
+
+def _profile_correction(path: str, recordings) -> tuple:
+    """The profile's correction, after checking it fits every recording (device, range, units)."""
+    from accelrig.profiles import load_profile
+    from accelrig.profiles.apply import check_compatible
+
+    profile = load_profile(path)
+    warnings: list[str] = []
+    for label, rec in recordings:
+        if "calibrated_with" in rec.meta:
+            raise ProfileError(f"{label} is already calibrated (its metadata name a profile)",
+                               "verify the raw recording with --profile, or the calibrated one without it")
+        for warning in check_compatible(profile, rec.meta, rec.units):
+            if warning not in warnings:
+                warnings.append(warning)
+    return profile.correction, warnings
 
 
 def format_report(result: SliderCrankVerification) -> str:

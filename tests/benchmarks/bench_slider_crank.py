@@ -170,10 +170,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=1000, help="records per row of the sine-fit table")
     parser.add_argument("--runs", type=int, default=30, help="simulated stands per row of the radius table")
+    parser.add_argument("--tables", default="fits,radius", help="which tables: fits, radius or both (default)")
     args = parser.parse_args()
-    rng = np.random.default_rng(2026)
-    table_fits(args.trials, rng)
-    table_radius(args.runs)
+    tables = set(args.tables.split(","))
+    if "fits" in tables:
+        table_fits(args.trials, np.random.default_rng(2026))
+    if "radius" in tables:
+        table_radius(args.runs)
 
 
 if __name__ == "__main__":
