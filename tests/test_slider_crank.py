@@ -166,6 +166,16 @@ def test_clipping_names_the_step():
         verify_slider_crank([("sim", rec)], RADIUS, ROD)
 
 
+def test_flat_tops_count_as_clipping_when_the_file_declares_no_range():
+    rec = run(SliderCrankRig(steps=[9.0], settle=0.0))
+    acc = rec.acc.copy()
+    acc[:, 0] = np.clip(acc[:, 0], -15.0, 15.0)
+    bare = Recording(rec.t, acc)  # no scale, no range in the metadata
+    with pytest.raises(DataError, match="clipping"):
+        verify_slider_crank([("bare.csv", bare)], RADIUS, ROD)
+    verify_slider_crank([("bare.csv", Recording(rec.t, rec.acc))], RADIUS, ROD)  # unclipped passes
+
+
 def test_too_few_cycles_names_the_step():
     rig = SliderCrankRig(steps=[2.5], step_seconds=0.5)
     with pytest.raises(DataError, match=r"step 0 .*1\.\d+ cycles|step 0 .*cycles"):

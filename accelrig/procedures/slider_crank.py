@@ -218,14 +218,12 @@ def principal_axis(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def clipped_samples(rec: Recording) -> int:
-    """Samples at the sensor's full scale (any axis), on the raw recording."""
+    """Samples at the sensor's full scale (any axis); ``rec`` raw, in m/s^2 (before any correction)."""
     acc = rec.acc
-    if rec.units == "counts":
-        limit = 32767.0
-    elif "scale" in rec.meta:
-        limit = 32767.0 * float(rec.meta["scale"]) / (1.0 if rec.units == "m/s^2" else float(rec.meta.get("g", STANDARD_GRAVITY)))
+    if "scale" in rec.meta:  # int16 counts x scale
+        limit = 32767.0 * float(rec.meta["scale"])
     elif "range_g" in rec.meta:
-        limit = float(rec.meta["range_g"]) * (float(rec.meta.get("g", STANDARD_GRAVITY)) if rec.units == "m/s^2" else 1.0)
+        limit = float(rec.meta["range_g"]) * float(rec.meta.get("g", STANDARD_GRAVITY))
     else:
         limit = None
     if limit is not None:
