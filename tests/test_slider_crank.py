@@ -151,6 +151,7 @@ def test_procedure_object_guides_the_operator_step_by_step():
         assert len(proc.results) == len(results)  # results arrive as the steps do
     assert proc.next_step() is None
     verification = proc.finish()
+    assert not any(s.motor_limited for s in verification.steps)
     assert [s.commanded_hz for s in verification.steps] == speeds
     assert verification.verdict == "holds"
     fr = verification.frequency_response()
@@ -271,3 +272,14 @@ def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
     save_profile(profile_from_result(result, device={"identity": "sim-1", "range_g": 16.0}), wrong_range)
     assert main(args + ["--profile", str(wrong_range)]) == 6
     assert "16 g range" in capsys.readouterr().err
+
+
+def test_commanded_speeds_judge_the_roll_off_against_the_controller_scale():
+    # the controller's scale is 3 % off (the stand turns 0.97 x the command), and at the top step the
+    # motor runs steadily but only at 11 Hz: only the shortfall against the command can tell
+    commanded = [4.0, 7.0, 10.0, 13.5]
+    rig = SliderCrankRig(steps=[0.97 * c for c in commanded[:3]] + [11.0], max_speed=12.0)
+    result = verify_slider_crank([("sim", run(rig, seed=8))], RADIUS, ROD, speeds=commanded)
+    assert [s.motor_limited for s in result.steps] == [False, False, False, True]
+    assert result.rolloff_hz == pytest.approx(11.0, abs=0.01)
+    assert result.used_steps == [0, 1, 2]

@@ -468,7 +468,7 @@ def analyse_step(
         knock_significance=knock_p,
         speed_unsteady=unsteady,
         speed_spread_hz=spread,
-        motor_limited=bool(unsteady or (commanded_hz is not None and f < commanded_hz * (1 - SPEED_SHORTFALL))),
+        motor_limited=bool(unsteady),  # the shortfall against the commanded speeds is judged over all steps
         axis=axis.tolist(),
         axis_angles_deg=angles.tolist(),
         axis_angle_uncertainty_deg=float(np.degrees(angle_sd)),
@@ -508,14 +508,22 @@ def check_neighbours(steps: list[StepResult]) -> None:
 def mark_rolloff(steps: list[StepResult]) -> float | None:
     """Flag steps beyond the motor's limit; return the roll-off (Hz), None if the motor followed every step.
 
-    A step is beyond the limit when its speed wandered within the record, it
-    fell short of its commanded speed, or (without commanded speeds) it did not
-    turn faster than the fastest step before it while the schedule rises.  The
-    roll-off is the fastest mean speed seen in any step: where the motor tops out.
+    A step is beyond the limit when its speed wandered within the record, or
+    it fell more than SPEED_SHORTFALL short of its command, or (without
+    commanded speeds) it did not turn faster than the fastest step before it
+    while the schedule rises.  A speed controller's scale is rarely exact
+    (the paper's 100 % is "theoretically" 800 rpm), so "short" is judged
+    against the best measured/commanded ratio of all steps, not against 1.
+    The roll-off is the fastest mean speed seen in any step: where the motor
+    tops out.
     """
+    ratios = [s.frequency_hz.value / s.commanded_hz for s in steps if s.commanded_hz]
+    best_ratio = max(ratios) if ratios else None
     best = -np.inf
     for step in steps:
         f = step.frequency_hz.value
+        if step.commanded_hz and f < step.commanded_hz * best_ratio * (1 - SPEED_SHORTFALL):
+            step.motor_limited = True
         if step.commanded_hz is None and np.isfinite(best) and f < best * (1 + SPEED_SHORTFALL / 2):
             step.motor_limited = True
         if not step.motor_limited:
