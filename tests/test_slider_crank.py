@@ -283,3 +283,27 @@ def test_commanded_speeds_judge_the_roll_off_against_the_controller_scale():
     assert [s.motor_limited for s in result.steps] == [False, False, False, True]
     assert result.rolloff_hz == pytest.approx(11.0, abs=0.01)
     assert result.used_steps == [0, 1, 2]
+
+
+def test_end_to_end_static_calibration_then_verification_under_motion(tmp_path, capsys):
+    """The same simulated sensor (same seed and range): calibrated on the static rig, verified on the crank."""
+    static, profile, crank = tmp_path / "static.csv", tmp_path / "dev.yaml", tmp_path / "crank.csv"
+    assert main(["record", "sim://static?seed=5&range=8&pace=fast&rate=200", "-o", str(static)]) == 0
+    assert main(["calibrate", "static", str(static), "-o", str(profile)]) == 0
+    assert main(["record", "sim://slider-crank?seed=5&range=8&pace=fast&rate=2048&steps=3,6,9&noise=0.08",
+                 "-o", str(crank)]) == 0
+    capsys.readouterr()
+    verify = ["verify", "slider-crank", str(crank), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+              "--json"]
+    # the sim names its device after the rig, so the profile is for "another" device: refused, then forced
+    assert main(verify + ["--profile", str(profile)]) == 6
+    assert "--force" in capsys.readouterr().err
+    assert main(verify + ["--profile", str(profile), "--force"]) == 0
+    calibrated = json.loads(capsys.readouterr().out)
+    assert main(verify) == 0
+    raw = json.loads(capsys.readouterr().out)
+    assert calibrated["verdict"] == "holds"
+    assert any("forced" in w for w in calibrated["warnings"])
+    # the raw sensor's gain error along the motion shows in the radius; the calibration removes it
+    assert raw["verdict"] == "does not hold"
+    assert abs(calibrated["radius_m"]["value"] - RADIUS) < abs(raw["radius_m"]["value"] - RADIUS) / 10

@@ -28,6 +28,8 @@ def register(sub, groups) -> None:
     p.add_argument("--harmonics", type=int, default=DEFAULT_HARMONICS,
                    help=f"harmonics sharing the frequency in the fit (default {DEFAULT_HARMONICS})")
     p.add_argument("--profile", metavar="P.yaml", help="device profile whose calibration is applied first (the one verified)")
+    p.add_argument("--force", action="store_true",
+                   help="apply the profile even if it names another device, range or unit (warned)")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az when the file does not say")
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate for files without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -60,7 +62,7 @@ def run(args) -> int:
     correction = None
     profile_warnings: list[str] = []
     if args.profile:
-        correction, profile_warnings = _profile_correction(args.profile, recordings)
+        correction, profile_warnings = _profile_correction(args.profile, recordings, args.force)
     result = verify_slider_crank(
         recordings, args.crank_radius, rod_length, args.clearance, correction=correction, speeds=speeds,
         harmonics=args.harmonics, profile=args.profile,
@@ -73,7 +75,7 @@ def run(args) -> int:
     return 0
 
 
-def _profile_correction(path: str, recordings) -> tuple:
+def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
     """The profile's correction, after checking it fits every recording (device, range, units)."""
     from accelrig.profiles import load_profile
     from accelrig.profiles.apply import check_compatible
@@ -84,7 +86,7 @@ def _profile_correction(path: str, recordings) -> tuple:
         if "calibrated_with" in rec.meta:
             raise ProfileError(f"{label} is already calibrated (its metadata name a profile)",
                                "verify the raw recording with --profile, or the calibrated one without it")
-        for warning in check_compatible(profile, rec.meta, rec.units):
+        for warning in check_compatible(profile, rec.meta, rec.units, force):
             if warning not in warnings:
                 warnings.append(warning)
     return profile.correction, warnings
