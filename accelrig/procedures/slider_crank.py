@@ -38,7 +38,7 @@ from scipy import stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
-from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.procedures.result import Correction, Estimate
 from accelrig.recording import Recording
 from accelrig.units import STANDARD_GRAVITY
@@ -385,10 +385,10 @@ def analyse_step(
     try:
         start = interpolated_dft_frequency(t, y)
         span = t[-1] - t[0] + (t[-1] - t[0]) / (t.size - 1)
-        if start * span < 1.5:
+        if start * span < MIN_CYCLES:
             raise DataError(
                 f"the record holds only {start * span:.2f} cycles at {start:.3g} Hz",
-                "record at least 1.5 crank turns (better 2.5 or more) per step",
+                f"record at least {MIN_CYCLES} crank turns (better 2.5 or more) per step",
             )
         rate = (t.size - 1) / (t[-1] - t[0])
         h = int(max(1, min(harmonics, np.floor(0.45 * rate / start))))
@@ -427,9 +427,9 @@ def analyse_step(
         u_play = 3 * third / np.sqrt(3)
         u_radius = float(np.hypot(u_radius, u_play))
     model = crank_radius * omega2
-    ratio = amp1 / model
-    jac_q = np.array([-2 * ratio / f, 1 / model])
-    u_ratio = float(np.sqrt(jac_q @ cov_fa @ jac_q))
+    # measured / model first harmonic = A_1 / (r_caliper omega^2) = radius / r_caliper
+    ratio = radius / crank_radius
+    u_ratio = u_radius / crank_radius
     # consistent with the caliper radius +- clearance at k = 2
     within = bool(abs(radius - crank_radius) <= clearance + 2 * u_radius)
 
