@@ -19,7 +19,9 @@ from accelrig.errors import AccelrigError
 
 COMMAND_MODULES = (
     "accelrig.commands.devices",
+    "accelrig.commands.flash",
     "accelrig.commands.record",
+    "accelrig.commands.verify_slider_crank",
     "accelrig.commands.calibrate_static",
     "accelrig.commands.profile",
     "accelrig.commands.noise",
