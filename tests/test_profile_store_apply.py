@@ -172,9 +172,10 @@ def test_store_choose_latest_closest_and_old(tmp_path):
     assert "days older than now" in old.warnings[0]
     with pytest.raises(ProfileError, match="no stored profile for device 'dev-9'.*known devices: dev-1, dev-2"):
         store.choose("dev-9")
-    # the same creation time twice does not overwrite
-    again = store.add(truth_profile(sensor, created=dates[0]))
-    assert again != paths[0] and again.exists()
+    # the same creation time twice does not overwrite, and the one added later counts as newer
+    again = store.add(truth_profile(sensor, created=dates[2], identity="dev-1"))
+    assert again != paths[2] and again.exists()
+    assert store.choose("dev-1", now=now).stored.path == again
     with pytest.raises(ProfileError, match="does not name its device"):
         store.add(profile_from_result(make_result()))
 
