@@ -1,0 +1,1 @@
+"""Estimation: least squares with covariance, sine fits, CRB, GUM budgets and statistics."""
