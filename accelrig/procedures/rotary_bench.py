@@ -423,13 +423,14 @@ def analyse_test(
     if np.ptp(enc.theta) < 20 * setup.encoder_resolution:
         raise DataError(f"{enc.source or 'encoder'}: the angle hardly moves ({np.degrees(np.ptp(enc.theta)):.3f} deg)",
                         "is the bench running? is theta in radians?")
-    enc_fit = fit_sine(enc.t, enc.theta, frequency=frequency, harmonics=HARMONICS, fit_frequency=True)
+    peak = interpolated_dft_frequency(enc.t, enc.theta - enc.theta.mean())
+    if frequency is not None and abs(peak / frequency - 1) > 0.02:
+        raise DataError(f"excitation frequency {frequency:g} Hz not found in the encoder log: it oscillates at "
+                        f"{peak:.3f} Hz", "fix --frequency or leave it out to estimate it from the encoder")
+    enc_fit = fit_sine(enc.t, enc.theta, frequency=peak, harmonics=HARMONICS, fit_frequency=True)
     f = enc_fit.frequency
     if not enc_fit.converged:
         raise CalibrationError("the sine fit of the encoder angle did not converge", "check the encoder log")
-    if frequency is not None and abs(f / frequency - 1) > 0.02:
-        raise DataError(f"excitation frequency {frequency:g} Hz not found in the encoder log: it oscillates at {f:.3f} Hz",
-                        "fix --frequency or leave it out to estimate it from the encoder")
     if enc_fit.amplitude[0] < max(enc_fit.amplitude[1:].max(initial=0.0), 10 * enc_fit.residual_sd):
         raise DataError(f"the encoder angle is not an oscillation at {f:.3f} Hz (harmonics or noise dominate)",
                         "check the encoder log and --frequency")
@@ -466,7 +467,7 @@ def analyse_test(
             raise DataError(
                 f"axis roles contradict the data: the 'tangential' axis {AXES[i_t]} carries mainly 2f "
                 f"({seen:.2f} Hz), as a radial axis does",
-                "check --tangential and --radial (swap them?)",
+                "swap --tangential and --radial, or check the mounting",
             )
         raise DataError(
             f"excitation frequency {f:.3f} Hz not found on the tangential axis {AXES[i_t]} of {source}: "
