@@ -399,6 +399,10 @@ def analyse_test(
     n = counts.shape[0]
     warnings: list[str] = []
     source = mems.meta.get("source", "MEMS recording")
+    clipped = np.count_nonzero((counts >= 32767) | (counts <= -32768))
+    if clipped:
+        raise DataError(f"{source}: {clipped} samples sit at the int16 full scale (clipped)",
+                        "lower the oscillation angle or set a larger range")
     if encoder is None:
         encoder = EncoderLog.from_recording(mems)
 
@@ -539,9 +543,20 @@ def analyse_test(
             f"({amp_r.at_f:.0f} counts) than at 2f ({amp_r.at_2f:.0f})",
             "check --tangential and --radial",
         )
-    for axis, a in amplitudes.items():
-        if a.at_f / max(a.at_f_uncertainty, 1e-300) < 10 and axis == AXES[i_t]:
-            raise DataError(f"the tangential axis {axis} shows no clear {f:.3f} Hz line", "check the recording")
+    strongest_f = max(amplitudes, key=lambda a: amplitudes[a].at_f)
+    strongest_2f = max(amplitudes, key=lambda a: amplitudes[a].at_2f)
+    if strongest_f != AXES[i_t]:
+        raise DataError(
+            f"axis roles contradict the data: axis {strongest_f}, not the 'tangential' axis {AXES[i_t]}, carries "
+            f"the {f:.3f} Hz motion", f"use --tangential {strongest_f}",
+        )
+    if strongest_2f != AXES[i_r]:
+        raise DataError(
+            f"axis roles contradict the data: axis {strongest_2f}, not the 'radial' axis {AXES[i_r]}, carries "
+            f"the centripetal {2 * f:.3f} Hz", f"use --radial {strongest_2f}",
+        )
+    if amp_t.at_f < 10 * amp_t.at_f_uncertainty:
+        raise DataError(f"the tangential axis {AXES[i_t]} shows no clear {f:.3f} Hz line", "check the recording")
 
     # --- 6. sensitivities
     def sens(axis: str, component: str, output: float, u_output: float) -> AxisSensitivity:
