@@ -8,7 +8,8 @@ Generic: a budget is a list of contributions, each a standard uncertainty
 R = I is the textbook uncorrelated sum in quadrature; R = all ones is the
 fully correlated (linear) sum, the conservative choice of paper 001's Table 2
 (0.05 % + 0.05 % + 0.3 % = 0.4 %).  Expanded uncertainty U = k u_c, k = 2 for
-about 95 %, reported labelled as such.
+about 95 %, reported labelled as such.  The law of propagation through a
+function (J U J^T) is ``accelrig.estimation.crb.propagate_covariance``.
 """
 
 from __future__ import annotations
@@ -56,15 +57,6 @@ def combined_standard_uncertainty(
     r = correlation_matrix(u.size, correlation)
     w = c * u
     return float(np.sqrt(max(w @ r @ w, 0.0)))
-
-
-def propagate(jacobian, covariance) -> np.ndarray:
-    """Law of propagation of uncertainty for a vector output: J V J^T."""
-    j = np.atleast_2d(np.asarray(jacobian, dtype=float))
-    v = np.atleast_2d(np.asarray(covariance, dtype=float))
-    if j.shape[1] != v.shape[0] or v.shape[0] != v.shape[1]:
-        raise CalibrationError(f"Jacobian {j.shape} and covariance {v.shape} do not match")
-    return j @ v @ j.T
 
 
 @dataclass
