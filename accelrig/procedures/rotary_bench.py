@@ -444,13 +444,21 @@ def analyse_test(
     a_tan = setup.radius * omega**2 * theta0
     a_cen = setup.radius * (omega * theta0) ** 2 / 2.0
     u_r_rel = setup.radius_uncertainty / setup.radius
+    # Encoder resolution: the quantisation error of a periodic angle sampled in step with
+    # the motion repeats every period, so it does not average over periods as the fit's
+    # white-noise covariance assumes; over one period's M samples its projection on the
+    # fundamental has sd (q / sqrt 12) sqrt(2 / M).  Conservative when not in step.
+    enc_rate = (enc.t.size - 1) / (enc.t[-1] - enc.t[0])
+    samples_per_period = max(enc_rate / f, 1.0)
+    u_quant = setup.encoder_resolution / np.sqrt(12.0) * np.sqrt(2.0 / samples_per_period)
     reference = {}
     for name, value, c_theta in (("tangential", a_tan, 1.0), ("centripetal", a_cen, 2.0), ("dc", a_cen, 2.0)):
         budget = UncertaintyBudget(
             [
                 Contribution("radius", "u_r", u_r_rel),
                 Contribution("bench geometry", "u_g", setup.geometry_uncertainty),
-                Contribution("encoder amplitude", "u_theta0", u_theta0 / theta0, c_theta),
+                Contribution("encoder amplitude (fit)", "u_theta0", u_theta0 / theta0, c_theta),
+                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta),
                 Contribution("frequency", "u_f", u_f_rel, 2.0),
             ],
             correlation=0.0, relative=True, value=value, unit="m/s^2",
@@ -515,9 +523,12 @@ def analyse_test(
 
     # --- 5. amplitudes per axis
     bin_f = int(round(f * n_seg / fs))
+    # the FFT reads the bin's frequency, m / N cycles per sample: its noise level is that of a fit there
+    nu_amplitudes = nu if rate_method == "fit" else bin_f / n_seg
     amplitudes: dict[str, AxisAmplitudes] = {}
     for axis in range(3):
-        raw_fit = fit_sine(k_seg, counts[seg, axis], frequency=nu, harmonics=HARMONICS, fit_frequency=False)
+        raw_fit = fit_sine(k_seg, counts[seg, axis], frequency=nu_amplitudes, harmonics=HARMONICS,
+                           fit_frequency=False)
         if rate_method == "fit":
             filt_fit = fit_sine(k_seg, filtered[seg, axis], frequency=nu, harmonics=HARMONICS, fit_frequency=False)
             a1, a2, dc = filt_fit.amplitude[0], filt_fit.amplitude[1], filt_fit.offset
