@@ -210,12 +210,14 @@ def observations_of(index: int, sensor: str, result: RotaryTest, components) -> 
 def _setups(obs: list[Observation], tolerance: float) -> list[list[Observation]]:
     """Group repeats: same sensor, axis, component, frequency (1 %), reference amplitude within ``tolerance``."""
     groups: list[list[Observation]] = []
-    for o in sorted(obs, key=lambda o: (o.sensor, o.axis, o.component, o.frequency, o.reference)):
-        last = groups[-1][0] if groups else None
-        if (last is not None and (last.sensor, last.axis, last.component) == (o.sensor, o.axis, o.component)
-                and abs(o.frequency / last.frequency - 1) < 0.01
-                and abs(o.reference / last.reference - 1) < tolerance):
-            groups[-1].append(o)
+    for o in obs:
+        for g in groups:
+            first = g[0]
+            if ((first.sensor, first.axis, first.component) == (o.sensor, o.axis, o.component)
+                    and abs(o.frequency / first.frequency - 1) < 0.01
+                    and abs(o.reference / first.reference - 1) < tolerance):
+                g.append(o)
+                break
         else:
             groups.append([o])
     return groups
