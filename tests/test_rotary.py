@@ -214,6 +214,8 @@ def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
             assert budget["combined_standard_uncertainty"] == pytest.approx(sum(parts))  # full correlation
             assert budget["expanded_uncertainty"] == pytest.approx(2 * sum(parts))
             assert e["linearity"]["r_squared"] > 0.9999
+            # two amplitudes x two repeats: both setups found whatever order the tests come in
+            assert e["repeatability"]["setups"] == 2 and e["repeatability"]["dof"] == 2
     assert set(report["per_sensor"]) == {"S1", "S2"}
     b = report["batch"]
     assert b["overall_relative_uncertainty"] >= max(s["overall_relative_uncertainty"] * 0.99
