@@ -4,7 +4,11 @@ from scipy import stats as sps
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation.gum import (
-    Contribution, UncertaintyBudget, combined_standard_uncertainty, correlation_matrix, monte_carlo_propagate,
+    Contribution,
+    UncertaintyBudget,
+    combined_standard_uncertainty,
+    correlation_matrix,
+    monte_carlo_propagate,
 )
 from accelrig.estimation.stats import bland_altman, linear_regression, normalized_error, one_way_anova
 

@@ -1,24 +1,30 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from accelrig_drivers.sim import build_device
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
 from accelrig.errors import DataError, DeviceError
-from accelrig.procedures.rotary_bench import EncoderLog, RotarySetup, analyse_test, read_encoder_csv
+from accelrig.procedures.rotary_bench import EncoderLog, analyse_test, read_encoder_csv
 from accelrig.procedures.rotary_campaign import load_campaign, run_campaign, write_report
 from accelrig.procedures.rotary_session import RotaryBenchProcedure
 from accelrig.recording import save_recording
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.rotary import (
-    RotaryRig, encoder_samples, paper_sensor, true_sensitivity, write_encoder_csv, write_sim_campaign,
+    RotaryRig,
+    encoder_samples,
+    paper_sensor,
+    true_sensitivity,
+    write_encoder_csv,
+    write_sim_campaign,
 )
 from accelrig.sim.sensor import SimClock
-from accelrig_drivers.sim import build_device
 
 NOMINAL = 1660.0
 
@@ -235,7 +241,7 @@ def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
 
 def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):
     truth, _ = campaign
-    doc = yaml.safe_load(open(truth["yaml"]))
+    doc = yaml.safe_load(Path(truth["yaml"]).read_text())
     doc["tests"][0]["tangental"] = "x"
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc))
@@ -245,8 +251,8 @@ def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):
 
 def test_cli_campaign_writes_report(campaign, tmp_path, capsys):
     truth, _ = campaign
-    doc = yaml.safe_load(open(truth["yaml"]))
-    base = str(__import__("pathlib").Path(truth["yaml"]).parent)
+    doc = yaml.safe_load(Path(truth["yaml"]).read_text())
+    base = str(Path(truth["yaml"]).parent)
     doc["tests"] = [dict(t, mems=f"{base}/{t['mems']}", encoder=f"{base}/{t['encoder']}") for t in doc["tests"][:2]]
     small = tmp_path / "small.yaml"
     small.write_text(yaml.safe_dump(doc))

@@ -5,11 +5,12 @@ from __future__ import annotations
 import json
 import sys
 
+import numpy as np
+
 from accelrig.errors import DataError
 from accelrig.procedures.rotary_bench import RATE_METHODS, RotarySetup, analyse_files
 from accelrig.procedures.rotary_campaign import report_markdown, run_campaign, write_report
-
-import numpy as np
+from accelrig.recording import _json_default
 
 
 def register(sub, groups) -> None:
@@ -89,11 +90,3 @@ def _run_campaign(args) -> int:
     elif not args.output:
         print(report_markdown(report), end="")
     return 0
-
-
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"cannot serialise {type(value).__name__}")

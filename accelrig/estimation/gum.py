@@ -14,8 +14,8 @@ function (J U J^T) is ``accelrig.estimation.crb.propagate_covariance``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

@@ -62,6 +62,11 @@ SCAN_STEP = 1.0  # Hz
 SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
 HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
 RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
+# The paper's test plan (section 2.4) plus lower amplitudes for the linearity line:
+# (frequency Hz, oscillation angle in degrees PEAK TO PEAK)
+PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
+# Orientations of the paper's three supports (section 2.2): (tangential, radial)
+PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
 
 
 @dataclass
@@ -118,7 +123,7 @@ class EncoderLog:
                 raise DataError(f"{self.source or 'encoder'}: ref has {self.ref.size} values for {self.t.size} times")
 
     @classmethod
-    def from_recording(cls, rec: Recording) -> "EncoderLog":
+    def from_recording(cls, rec: Recording) -> EncoderLog:
         """The ``theta`` (and ``ref``) channels of a recording, timestamped by its ``t``."""
         if "theta" not in rec.channels:
             raise DataError(
@@ -127,7 +132,7 @@ class EncoderLog:
             )
         return cls(rec.t, rec.channels["theta"], rec.channels.get("ref"), rec.meta.get("source", "theta channel"))
 
-    def window(self, start: float, stop: float) -> "EncoderLog":
+    def window(self, start: float, stop: float) -> EncoderLog:
         keep = (self.t >= start) & (self.t <= stop)
         return EncoderLog(self.t[keep], self.theta[keep], None if self.ref is None else self.ref[keep], self.source)
 
@@ -174,12 +179,20 @@ def read_encoder_csv(path: str | os.PathLike) -> EncoderLog:
     return EncoderLog(data[:, col["t"]], data[:, col["theta"]], ref, str(path))
 
 
+def parse_axis(spec: str) -> tuple[int, float] | None:
+    """'x', '+y', '-z' -> (index, sign); None if ``spec`` names no axis."""
+    text = str(spec).strip().lower().replace(" ", "+")
+    sign = -1.0 if text.startswith("-") else 1.0
+    name = text.lstrip("+-")
+    return (AXES.index(name), sign) if len(name) == 1 and name in AXES else None
+
+
 def parse_axis_name(spec: str, role: str) -> int:
-    """'x' / '+x' / '-x' -> 0 ... (the sign does not matter for amplitudes)."""
-    name = str(spec).strip().lower().lstrip("+-")
-    if name not in AXES or len(name) != 1:
+    """The axis index of --tangential / --radial (the sign does not matter for amplitudes)."""
+    parsed = parse_axis(spec)
+    if parsed is None:
         raise DataError(f"--{role} {spec!r} is not a sensor axis", "use x, y or z")
-    return AXES.index(name)
+    return parsed[0]
 
 
 def mems_counts(rec: Recording) -> np.ndarray:
@@ -397,6 +410,10 @@ def analyse_test(
     i_up = 3 - i_t - i_r
     counts = mems_counts(mems)
     n = counts.shape[0]
+    if n and np.median(np.linalg.norm(counts, axis=1)) < 100:
+        # gravity alone is thousands of counts on any MEMS range: these are not counts
+        raise DataError(f"{mems.meta.get('source', 'the MEMS recording')}: the values are far too small for counts",
+                        "give a recording in counts, or its units (--units m/s2) with the counts scale in its metadata")
     warnings: list[str] = []
     source = mems.meta.get("source", "MEMS recording")
     clipped = np.count_nonzero((counts >= 32767) | (counts <= -32768))

@@ -40,7 +40,7 @@ YAML (paths relative to the YAML file; per-test keys override the defaults)::
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -49,8 +49,14 @@ import yaml
 from accelrig.errors import AccelrigError, CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.stats import linear_regression, normalized_error, one_way_anova
+from accelrig.procedures.result import _plain
 from accelrig.procedures.rotary_bench import (
-    COMPONENTS, RATE_METHODS, RotarySetup, RotaryTest, analyse_test, read_encoder_csv,
+    COMPONENTS,
+    RATE_METHODS,
+    RotarySetup,
+    RotaryTest,
+    analyse_test,
+    read_encoder_csv,
 )
 from accelrig.recording import atomic_write, load_recording
 
@@ -435,17 +441,3 @@ def write_report(report: dict, path: str | os.PathLike) -> None:
     else:
         raise DataError(f"{path}: the report format follows the suffix", "use .yaml, .yml or .md")
     atomic_write(path, lambda fh: fh.write(text), text=True)
-
-
-def _plain(value):
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return str(value)
-    return value

@@ -8,18 +8,23 @@ a campaign (repeatability, linearity, budget).  The TUI drives
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Callable, Iterator
 
 import numpy as np
 
 from accelrig.errors import DataError
 from accelrig.procedures.rotary_bench import (
-    RATE_METHODS, EncoderLog, RotarySetup, RotaryTest, analyse_test, parse_axis_name,
+    PAPER_PLAN,
+    RATE_METHODS,
+    EncoderLog,
+    RotarySetup,
+    RotaryTest,
+    analyse_test,
+    parse_axis_name,
 )
 from accelrig.procedures.rotary_campaign import Campaign, CampaignTest, analyse_campaign
 from accelrig.recording import Recording
-from accelrig.sim.rigs.rotary import PAPER_PLAN
 
 
 @dataclass(frozen=True)

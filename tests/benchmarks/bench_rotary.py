@@ -26,10 +26,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from accelrig.estimation.sinefit import sine_crb  # noqa: E402
-from accelrig.procedures.rotary_bench import EncoderLog, RotarySetup, analyse_test  # noqa: E402
+from accelrig.procedures.rotary_bench import PAPER_PLAN, EncoderLog, RotarySetup, analyse_test  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
 from accelrig.sim.rigs.rotary import (  # noqa: E402
-    PAPER_PLAN, RotaryRig, encoder_samples, paper_sensor, true_sensitivity,
+    RotaryRig,
+    encoder_samples,
+    paper_sensor,
+    true_sensitivity,
 )
 from accelrig.sim.sensor import SimClock  # noqa: E402
 

@@ -43,21 +43,19 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DataError, DeviceError
+from accelrig.procedures.rotary_bench import PAPER_ORIENTATIONS, PAPER_PLAN
+from accelrig.procedures.rotary_bench import parse_axis as parse_axis_spec
 from accelrig.recording import atomic_write
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
 
-AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
-
 
 def parse_axis(spec: str, role: str) -> tuple[int, float]:
     """'x', '+y', '-z' -> (index, sign); raises DeviceError naming the role."""
-    text = spec.strip().lower().replace(" ", "+")
-    sign = -1.0 if text.startswith("-") else 1.0
-    name = text.lstrip("+-")
-    if name not in AXIS_INDEX:
+    parsed = parse_axis_spec(spec)
+    if parsed is None:
         raise DeviceError(f"{role}={spec!r} is not a sensor axis", "use x, y or z (optionally -x, ...)")
-    return AXIS_INDEX[name], sign
+    return parsed
 
 
 class RotaryRig(Rig):
@@ -117,7 +115,7 @@ class RotaryRig(Rig):
         self.channel_names = ("theta", "ref") if self.ref else ("theta",)
 
     @classmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "RotaryRig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> RotaryRig:
         ref = url.get_int("ref", 0)
         if ref not in (0, 1):
             raise DeviceError(f"ref={ref} in {url.raw!r} must be 0 or 1")
@@ -257,11 +255,6 @@ def write_encoder_csv(path: str | os.PathLike, columns: dict[str, np.ndarray]) -
 
 # ---------------------------------------------------------------- campaigns
 
-# Orientations of the paper's three supports (section 2.2): (tangential, radial)
-PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
-# The paper's test plan (section 2.4) plus lower amplitudes for the linearity line:
-# (frequency Hz, peak-to-peak degrees)
-PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
 PAPER_SENSITIVITY = 423.0  # counts per m/s^2, paper 001's batch mean (nominal 4096 / 9.80665 = 417.7)
 
 
