@@ -94,6 +94,9 @@ def test_fit_recovers_rate_and_sensitivities(sim_test):
     doc = res.to_json_dict()
     json.dumps(doc, default=float)
     assert set(doc["sensitivity"]["x"]) >= {"value", "uncertainty", "component"}
+    common = res.to_calibration_result().to_json_dict()
+    assert common["correction"] is None  # two gains and no offsets: no canonical correction is invented
+    assert common["parameters"]["sensitivity_y"]["value"] == pytest.approx(res.sensitivity["y"].value)
 
 
 def test_scan_is_the_papers_one_hertz_grid(sim_test):
