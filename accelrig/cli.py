@@ -21,6 +21,9 @@ COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.record",
     "accelrig.commands.calibrate_rotary",
+    "accelrig.commands.calibrate_static",
+    "accelrig.commands.profile",
+    "accelrig.commands.noise",
 )
 
 GROUPS = {
