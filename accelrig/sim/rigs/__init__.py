@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.rigs.still import StillRig
+from accelrig.sim.rigs.wheel import WheelRig
 
 RIGS: dict[str, type[Rig]] = {
     "still": StillRig,
+    "wheel": WheelRig,
 }
