@@ -108,11 +108,16 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
     axis = vecs[:, 0]                       # least variance: the wheel axis seen by the sensor (step A)
     plane = centred @ vecs[:, 1:]           # gravity turns in this plane
     tau = (t - t[0]) / max(t[-1] - t[0], 1e-9) * 2 - 1
-    basis = np.polynomial.legendre.legvander(tau, DETREND_DEGREE)
-    coef, *_ = np.linalg.lstsq(basis, plane, rcond=None)
-    plane = plane - basis @ coef           # the centripetal drift is slow; gravity turns
-    amplitude = float(np.sqrt(max(np.sum(plane.var(axis=0)) - 2 * sigma**2, 0.0)))
-    angle = np.unwrap(np.arctan2(plane[:, 1], plane[:, 0]))
+    # Gravity amplitude: remove the centripetal drift closely (degree 6: r w^2 under the cubic law).
+    amplitude = float(np.sqrt(max(np.sum(_detrend(tau, plane, DETREND_DEGREE).var(axis=0)) - 2 * sigma**2, 0.0)))
+    # Turns: the angle of the gravity vector in the plane.  Only the circle's centre has to stay
+    # inside it, so a gentle detrend (degree 2) does, and it keeps the few slow turns of a weak
+    # spin; a 0.1 s moving average keeps noise from adding spurious wraps.
+    width = max(1, int(round(0.1 / period)))
+    kernel = np.ones(width) / width
+    gentle = _detrend(tau, plane, 2)
+    smooth = np.column_stack([np.convolve(gentle[:, k], kernel, mode="same") for k in range(2)])
+    angle = np.unwrap(np.arctan2(smooth[:, 1], smooth[:, 0]))
     duration = float(t[-1] - t[0])
     turns = float(abs(angle[-1] - angle[0]) / (2 * np.pi))
     tenth = max(n // 10, 2)
@@ -123,6 +128,12 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
         gravity_amplitude=amplitude, speed_start=abs(speed_start), speed_end=abs(speed_end),
         gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}, g),
     )
+
+
+def _detrend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    basis = np.polynomial.legendre.legvander(tau, degree)
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return y - basis @ coef
 
 
 def _slope(t: np.ndarray, y: np.ndarray) -> float:
