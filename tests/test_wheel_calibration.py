@@ -125,6 +125,19 @@ def test_neither_radius_nor_tilt_is_refused_with_the_reason():
         calibrate_wheel(rec)
 
 
+def test_a_mounting_that_hides_a_gain_is_refused_or_flagged():
+    # sensor flat on the wheel: its z axis reads a constant, gain_z and offset_z are one unknown
+    rec, _ = wheel_recording(misalignment_deg=(0, 0, 0), seconds=30.0)
+    with pytest.raises(CalibrationError, match="mount the sensor tilted"):
+        calibrate_wheel(rec, radius=0.28)
+    # z along the radius: x and y see only the tangential direction; gains x, y barely determined
+    rec, _ = wheel_recording(misalignment_deg=(10, 89.9, 40), seconds=30.0, seed=3)
+    result = calibrate_wheel(rec, radius=0.28)
+    assert any("gain_x is poorly determined" in w for w in result.warnings)
+    g = result.parameters["gain"]
+    assert np.allclose(g.value, TABLE_I_GAIN, atol=4 * np.array(g.uncertainty))  # honest, if large, u
+
+
 # ------------------------------------------------------------------- capture checks
 
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.crb import crb_covariance
 from accelrig.procedures.result import CalibrationResult, Correction, Estimate
 from accelrig.procedures.wheel_checks import (
     MIN_TURNS, WheelSurvey, check_capture, survey, timestamp_figures,
@@ -38,6 +39,10 @@ from accelrig.units import STANDARD_GRAVITY
 METHODS = ("joint", "paper")
 MODEL = "v = o + diag(gain) R a(t); Pedersini eq. 1-7, cubic angular velocity"
 DEFAULT_BOOTSTRAP = 20
+# A gain known worse than this (relative, k = 1) earns a warning about the mounting.
+POOR_GAIN = 5e-3
+MOUNTING_HINT = ("mount the sensor tilted on the wheel, so that every axis sees both the radial and the "
+                 "tangential direction, as the paper does with some 20-30 degrees about each axis")
 
 # Reported parameters (SI), in covariance order; "geometry" is tilt or radius, whichever is free.
 MOTION_NAMES = ["theta0", "omega0", "omega1", "omega2", "omega3"]
@@ -63,19 +68,6 @@ def free_set(radius: float | None, tilt: float | None) -> FreeSet:
     if tilt is not None and not 0 < tilt < np.pi / 2:
         raise DataError(f"tilt {np.rad2deg(tilt):g} deg must lie strictly between 0 and 90 degrees")
     return FreeSet(radius_free=radius is None, tilt_free=tilt is None)
-
-
-def crb_covariance(jacobian: np.ndarray, sigma: float) -> np.ndarray:
-    """sigma^2 (J^T J)^-1.  TEMPORARY copy until accelrig.estimation.crb lands on main."""
-    jtj = jacobian.T @ jacobian
-    d = np.sqrt(np.diag(jtj))
-    if np.any(d == 0):
-        raise CalibrationError("a parameter has no effect on the data")
-    scaled = jtj / np.outer(d, d)
-    w, vecs = np.linalg.eigh(scaled)
-    if w[0] < 1e-13 * w[-1]:
-        raise CalibrationError("the parameters are not identifiable from these data")
-    return sigma**2 * (vecs / w) @ vecs.T / np.outer(d, d)
 
 
 # ------------------------------------------------------------------------- the fit
@@ -159,7 +151,10 @@ def joint_fit(t: np.ndarray, v: np.ndarray, start: WheelState, free: FreeSet,
         raise CalibrationError("the joint fit ended at gains of mixed sign",
                                "the data do not look like a tilted wheel; check the recording") from None
     res, jw = _weighted(t, v, state, free, time_scale, g, weight)
-    cov_internal = crb_covariance(jw, 1.0)
+    try:
+        cov_internal = crb_covariance(jw, 1.0, free.names)
+    except CalibrationError as exc:
+        raise CalibrationError(exc.message, MOUNTING_HINT) from None
     m = _reporting_map(state, free, time_scale)
     return JointFit(state, m @ cov_internal @ m.T, reported_names(free), sigma,
                     res.reshape(-1, 3) / weight, it1 + it2)
@@ -173,7 +168,7 @@ def wheel_crb(t: np.ndarray, truth: WheelState, free: FreeSet, sigma, g: float =
     _, jac = model_and_jacobian(t, truth, free, time_scale, g)
     jw = (jac * weight[None, :, None]).reshape(-1, free.size)
     m = _reporting_map(truth, free, time_scale)
-    return m @ crb_covariance(jw, 1.0) @ m.T
+    return m @ crb_covariance(jw, 1.0, free.names) @ m.T
 
 
 def reported_values(state: WheelState, free: FreeSet) -> np.ndarray:
@@ -227,6 +222,12 @@ def calibrate_wheel(
                    "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb))))}
         uncertainty_source = f"parametric bootstrap of the four steps ({bootstrap} runs)"
     elapsed = time.perf_counter() - started
+    names = reported_names(free)
+    for axis in "xyz":
+        u_gain = np.sqrt(cov[names.index(f"gain_{axis}"), names.index(f"gain_{axis}")])
+        if u_gain > POOR_GAIN * state.gain["xyz".index(axis)]:
+            warnings.append(f"gain_{axis} is poorly determined (u = {u_gain:.2g}): the mounting hides it; "
+                            + MOUNTING_HINT)
     return _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
                          elapsed, radius, tilt, g, uncertainty_source)
 

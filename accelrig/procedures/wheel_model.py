@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from accelrig.estimation.crb import numerical_jacobian
 from accelrig.sim.sensor import rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 
@@ -150,17 +151,16 @@ def euler_from_rotation(rot: np.ndarray) -> np.ndarray:
 def euler_jacobian(rot: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """d(Euler angles)/d(delta) for rot(delta) = exp([delta]x) rot, at delta = 0 (3 x 3).
 
-    Central differences: the map is smooth away from phi = +-90 degrees, where
-    the Euler angles themselves stop being defined (gimbal lock).
+    Central differences of the angle change wrapped to (-pi, pi], so a psi
+    near +-180 degrees does not jump.  Smooth away from phi = +-90 degrees,
+    where the Euler angles themselves stop being defined (gimbal lock).
     """
-    jac = np.empty((3, 3))
-    for k in range(3):
-        e = np.zeros(3)
-        e[k] = step
-        plus = euler_from_rotation(rotation_from_vector(e) @ rot)
-        minus = euler_from_rotation(rotation_from_vector(-e) @ rot)
-        jac[:, k] = np.angle(np.exp(1j * (plus - minus))) / (2 * step)
-    return jac
+    centre = euler_from_rotation(rot)
+
+    def change(delta: np.ndarray) -> np.ndarray:
+        return np.angle(np.exp(1j * (euler_from_rotation(rotation_from_vector(delta) @ rot) - centre)))
+
+    return numerical_jacobian(change, np.zeros(3), step)
 
 
 def rotation_from_euler(angles: np.ndarray) -> np.ndarray:
@@ -180,7 +180,8 @@ class FreeSet:
     @property
     def names(self) -> list[str]:
         geo = (["tilt"] if self.tilt_free else []) + (["radius"] if self.radius_free else [])
-        return (["theta0", "c0", "c1", "c2", "c3"] + geo + ["rot_x", "rot_y", "rot_z"]
+        return (["theta0", "omega0", "omega1*T", "omega2*T^2", "omega3*T^3"] + geo
+                + ["mount_rotation_x", "mount_rotation_y", "mount_rotation_z"]
                 + ["gain_x", "gain_y", "gain_z", "offset_x", "offset_y", "offset_z"])
 
     @property

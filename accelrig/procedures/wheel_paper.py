@@ -222,8 +222,10 @@ def paper_calibrate(t: np.ndarray, v: np.ndarray, survey: WheelSurvey, radius: f
         state = state.canonical()
     except ValueError:
         raise CalibrationError(
-            "the four-step search ended at gains of mixed sign",
-            "the spin or the mounting is far from what the wheel model assumes; check the recording",
+            "the four-step search ended at gains of mixed sign; the sensor axes may be aligned with the "
+            "wheel, which leaves a gain inseparable from an offset",
+            "mount the sensor tilted on the wheel, so that every axis sees both the radial and the "
+            "tangential direction, as the paper does with some 20-30 degrees about each axis",
         ) from None
     w22 = np.sqrt(2.0) * sd_ry / (g * np.sin(state.tilt))
     return PaperSteps(state, T, float(amp), float(w22), speed_t, speed_s, int(sol.nfev + nfev_b))
