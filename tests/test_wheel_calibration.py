@@ -7,6 +7,7 @@ import pytest
 
 from accelrig.cli import main
 from accelrig.errors import CalibrationError
+from accelrig.profiles import load_profile
 from accelrig.procedures.wheel import (
     WheelProcedure, calibrate_wheel, free_set, plan_wheel, reported_names, wheel_crb,
 )
@@ -201,8 +202,13 @@ def test_cli_calibrate_wheel_json(tmp_path, capsys):
     rec, _ = wheel_recording(seed=7, seconds=40.0)
     path = tmp_path / "wheel.csv"
     write_csv(rec, path)
-    assert main(["calibrate", "wheel", str(path), "--radius", "0.28", "--json"]) == 0
+    profile_path = tmp_path / "imu.yaml"
+    assert main(["calibrate", "wheel", str(path), "--radius", "0.28", "--json", "-o", str(profile_path)]) == 0
     out = json.loads(capsys.readouterr().out)
+    profile = load_profile(profile_path)
+    assert np.allclose(profile.correction.bias, out["correction"]["bias"])
+    assert np.allclose(profile.correction.matrix, out["correction"]["matrix"])
+    assert profile.data["provenance"]["rig"]["radius"] == 0.28
     assert out["method"] == "joint"
     assert set(out["correction"]) >= {"matrix", "bias", "matrix_uncertainty", "bias_uncertainty"}
     for name in ("tilt_deg", "gain", "offset", "misalignment_deg", "omega0"):

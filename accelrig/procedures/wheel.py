@@ -299,8 +299,8 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
         "uncertainty": uncertainty_source,
     })
     settings = {
-        "radius": radius, "radius_given": radius is not None,
-        "tilt_deg": None if tilt is None else float(np.rad2deg(tilt)), "tilt_given": tilt is not None,
+        "rig": {"name": "wheel", "radius": float(state.radius), "radius_given": radius is not None,
+                "tilt_deg": float(np.rad2deg(state.tilt)), "tilt_given": tilt is not None},
         "g": g, "euler_convention": "R = Rz(psi) Ry(phi) Rx(theta), bench -> sensor",
         "time_origin": "first sample",
     }
