@@ -111,6 +111,10 @@ def test_tilt_given_instead_of_radius_estimates_the_radius():
     assert "tilt_deg" not in result.parameters
     assert abs(r.value - 0.28) < 4 * r.uncertainty
     assert np.allclose(result.parameters["gain"].value, TABLE_I_GAIN, atol=4 * np.array(result.parameters["gain"].uncertainty))
+    # both given: 14 free parameters, the gains a little better determined
+    both = calibrate_wheel(rec, radius=0.28, tilt_deg=45.0)
+    assert len(both.parameter_names) == 14 and "radius" not in both.parameters and "tilt_deg" not in both.parameters
+    assert np.all(np.array(both.parameters["gain"].uncertainty) <= np.array(result.parameters["gain"].uncertainty))
 
 
 def test_non_cubic_friction_still_calibrates():

@@ -30,7 +30,8 @@ from accelrig.procedures.wheel_checks import (
     MIN_TURNS, WheelSurvey, check_capture, survey, timestamp_figures,
 )
 from accelrig.procedures.wheel_model import (
-    FreeSet, WheelState, euler_jacobian, model_and_jacobian, pack, phase, predict, unpack,
+    TABLE_I_OMEGA, TABLE_I_THETA0_DEG, FreeSet, WheelState, euler_jacobian, model_and_jacobian, pack, phase,
+    predict, rotation_from_euler, unpack,
 )
 from accelrig.procedures.wheel_paper import PaperSteps, paper_calibrate
 from accelrig.recording import Recording
@@ -332,9 +333,6 @@ def plan_state(radius: float, tilt_deg: float, speed: float, seconds: float,
     """The nominal wheel for a plan: a perfect sensor (gains 1, offsets 0) mounted at
     ``mount_deg``, coasting down along the paper's Table I profile scaled to ``speed``
     and stretched over ``seconds``."""
-    from accelrig.sim.rigs.wheel import TABLE_I_OMEGA, TABLE_I_THETA0_DEG  # the paper's profile
-    from accelrig.procedures.wheel_model import rotation_from_euler
-
     stretch = 90.0 / seconds
     omega = TABLE_I_OMEGA * (speed / TABLE_I_OMEGA[0]) * stretch ** np.arange(4)
     return WheelState(np.deg2rad(TABLE_I_THETA0_DEG), omega, np.deg2rad(tilt_deg), radius,

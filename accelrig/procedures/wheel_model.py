@@ -39,6 +39,14 @@ from accelrig.units import STANDARD_GRAVITY
 
 N_MOTION = 5  # theta0, w0 .. w3
 
+# Paper 002, Table I truth: w3 = 2 urad/s^4, w2 = 500 urad/s^3, w1 = -90 mrad/s^2, w0 = 9 rad/s, ...
+TABLE_I_OMEGA = np.array([9.0, -90e-3, 500e-6, 2e-6])
+TABLE_I_THETA0_DEG = 30.0
+TABLE_I_TILT_DEG = 45.0
+TABLE_I_MISALIGNMENT_DEG = (30.0, 20.0, 25.0)
+TABLE_I_GAIN = (0.9, 1.0, 1.1)
+TABLE_I_OFFSET = (1.0, -1.0, 1.0)
+
 
 @dataclass
 class WheelState:

@@ -23,18 +23,13 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.wheel_model import bench_force, phase
+from accelrig.procedures.wheel_model import (  # noqa: F401  (Table I re-exported for tests and benchmarks)
+    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG,
+    bench_force, phase,
+)
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
-
-# Paper 002, Table I: w3 = 2 urad/s^4, w2 = 500 urad/s^3, w1 = -90 mrad/s^2, w0 = 9 rad/s.
-TABLE_I_OMEGA = np.array([9.0, -90e-3, 500e-6, 2e-6])
-TABLE_I_THETA0_DEG = 30.0
-TABLE_I_TILT_DEG = 45.0
-TABLE_I_MISALIGNMENT_DEG = (30.0, 20.0, 25.0)
-TABLE_I_GAIN = (0.9, 1.0, 1.1)
-TABLE_I_OFFSET = (1.0, -1.0, 1.0)
 
 # Default hand spin: Table I's coast-down shape started at 6 rad/s, whose peak
 # specific force (about 17 m/s^2) stays inside the +-2 g default range.
