@@ -11,12 +11,10 @@ from accelrig.profiles import load_profile
 from accelrig.procedures.wheel import (
     WheelProcedure, calibrate_wheel, free_set, plan_wheel, reported_names, wheel_crb,
 )
-from accelrig.procedures.wheel_model import WheelState, rotation_from_euler
+from accelrig.procedures.wheel_model import TABLE_I_GAIN, TABLE_I_OFFSET, TABLE_I_OMEGA, WheelState
 from accelrig.recording import Recording, write_csv
 from accelrig.sim.device import simulate
-from accelrig.sim.rigs.wheel import (
-    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, WheelRig,
-)
+from accelrig.sim.rigs.wheel import WheelRig
 from accelrig.sim.sensor import SensorModel, SimClock
 
 RATE = 200.0

@@ -6,10 +6,10 @@ import pytest
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
 from accelrig.procedures.wheel_model import (
-    FreeSet, WheelState, euler_from_rotation, model_and_jacobian, pack, predict, rotation_from_euler, unpack,
+    TABLE_I_OMEGA, FreeSet, WheelState, euler_from_rotation, model_and_jacobian, pack, predict, rotation_from_euler, unpack,
 )
 from accelrig.sim.rigs import RIGS
-from accelrig.sim.rigs.wheel import TABLE_I_OMEGA, WheelRig
+from accelrig.sim.rigs.wheel import WheelRig
 
 
 def table_i_state(**changes) -> WheelState:

@@ -21,13 +21,13 @@ from accelrig.procedures.wheel import (
     calibrate_wheel, free_set, reported_names, reported_values, wheel_crb,
 )
 from accelrig.procedures.wheel_checks import check_capture, survey
-from accelrig.procedures.wheel_model import WheelState, rotation_from_euler
+from accelrig.procedures.wheel_model import (
+    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG,
+    WheelState, rotation_from_euler,
+)
 from accelrig.procedures.wheel_paper import paper_calibrate
 from accelrig.sim.device import simulate
-from accelrig.sim.rigs.wheel import (
-    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, TABLE_I_THETA0_DEG,
-    TABLE_I_TILT_DEG, WheelRig,
-)
+from accelrig.sim.rigs.wheel import WheelRig
 from accelrig.sim.sensor import SensorModel, SimClock
 
 RADIUS = 0.28

@@ -23,9 +23,8 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.wheel_model import (  # noqa: F401  (Table I re-exported for tests and benchmarks)
-    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG,
-    bench_force, phase,
+from accelrig.procedures.wheel_model import (
+    TABLE_I_MISALIGNMENT_DEG, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG, bench_force, phase,
 )
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import rotation_xyz
