@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from accelrig.sim.rigs.base import Rig
+from accelrig.sim.rigs.static import StaticRig
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.rigs.wheel import WheelRig
 
 RIGS: dict[str, type[Rig]] = {
     "still": StillRig,
     "wheel": WheelRig,
+    "static": StaticRig,
 }
