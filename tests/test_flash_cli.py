@@ -2,37 +2,27 @@
 
 import io
 import sys
-import types
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 
 from accelrig.acquisition.driver import driver_for
-from accelrig.acquisition.flash import check_profile_for_device, profile_mismatches
 from accelrig.cli import main
 from accelrig.errors import DeviceError, ProfileError
-from accelrig.procedures.result import Correction
+from accelrig.acquisition.recorder import record
+from accelrig.procedures.result import CalibrationResult, Correction
+from accelrig.profiles import profile_from_result, save_profile
 
 URL = "serial-sim://still?seed=1&pace=fast"
 SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-still-1", "range_g": 4.0}
 
 
-@dataclass
-class ProfileShape:
-    """The attributes of accelrig.profiles.Profile that flashing uses (BRIEF contract)."""
-
-    correction: Correction
-    device: dict
-    data: dict = field(default_factory=dict)
-    units: str = "m/s^2"
-
-
 def make_profile(device=None, seed=0):
+    """A real accelrig.profiles.Profile with a random small correction, for the given device block."""
     rng = np.random.default_rng(seed)
     corr = Correction(np.eye(3) + rng.normal(0, 0.01, (3, 3)), rng.normal(0, 0.1, 3), np.diag(rng.uniform(1e-8, 1e-6, 12)))
-    dev = dict(SIM_DEVICE if device is None else device)
-    return ProfileShape(corr, dev, {"schema_version": 1, "device": dev, "seed": seed})
+    result = CalibrationResult("static_faces", "test", "C (raw - b)", corr, {}, quality={"residual_rms": 0.03})
+    return profile_from_result(result, None, device=dict(SIM_DEVICE if device is None else device))
 
 
 @pytest.mark.parametrize("scheme", ["serial-sim", "ble-sim"])
@@ -69,44 +59,29 @@ def test_refused_store_is_an_error():
 
 def test_profile_for_another_device_is_refused_unless_forced():
     with driver_for("serial-sim://still?seed=1&pace=fast") as driver:
-        info = driver.info
-    assert profile_mismatches(make_profile(), info) == ([], [])
-    for key, value, label in [("chip", "icm20948", "chip"), ("range_g", 16, "range"), ("identity", "SIM-still-2", "device identity")]:
-        other = make_profile({**SIM_DEVICE, key: value})
-        with pytest.raises(ProfileError, match=f"made for another device: {label}"):
-            check_profile_for_device(other, info)
-        notes = check_profile_for_device(other, info, force=True)
-        assert notes[0].startswith(f"FORCED despite mismatch: {label}")
-    bare = make_profile({})
-    assert any("chip not checked" in n for n in check_profile_for_device(bare, info))
+        plan = driver.plan_flash(make_profile())
+        assert not any("forced" in n for n in plan.notes)
+        for key, value, label in [("chip", "icm20948", "chip"), ("range_g", 16, "range"),
+                                  ("identity", "SIM-still-2", "device")]:
+            other = make_profile({**SIM_DEVICE, key: value})
+            with pytest.raises(ProfileError, match=label):
+                driver.plan_flash(other)
+            notes = driver.plan_flash(other, force=True).notes
+            assert any(n.startswith("forced") and label in n for n in notes)
+        bare = make_profile({})
+        assert any("cannot check the profile belongs to this device" in n for n in driver.plan_flash(bare).notes)
 
 
 # ---------------------------------------------------------------- the CLI
 
 
 @pytest.fixture
-def profile_file(tmp_path, monkeypatch):
-    """A saved profile of serial-sim://still?seed=1, loaded by the CLI through accelrig.profiles.
-
-    Until the profiles module is on this branch the loader is a stand-in that
-    keeps the contract (load_profile(path) -> object with correction/device/data).
-    """
-    profile = make_profile()
-    path = tmp_path / "p.yaml"
-    try:
-        from accelrig.profiles import profile_from_result, save_profile
-    except ImportError:
-        stand_in = types.ModuleType("accelrig.profiles")
-        stand_in.load_profile = lambda p: profile
-        monkeypatch.setitem(sys.modules, "accelrig.profiles", stand_in)
-        path.write_text("stand-in\n")
-        return path
-    from accelrig.acquisition.recorder import record
-    from accelrig.procedures.result import CalibrationResult
-
+def profile_file(tmp_path):
+    """A saved profile of serial-sim://still?seed=1, made from a recording of that device."""
     with driver_for(URL) as driver:
         rec = record(driver, seconds=0.5)
-    result = CalibrationResult("static_faces", "test", "C (raw - b)", profile.correction, {},
+    path = tmp_path / "p.yaml"
+    result = CalibrationResult("static_faces", "test", "C (raw - b)", make_profile().correction, {},
                                quality={"residual_rms": 0.03})
     save_profile(profile_from_result(result, rec), path)
     return path
@@ -155,9 +130,9 @@ def test_cli_yes_and_failed_verification(profile_file, capsys):
 def test_cli_refuses_mismatch_and_devices_without_store(profile_file, capsys):
     code = main(["flash", str(profile_file), "--device", "serial-sim://still?seed=2&pace=fast", "--yes"])
     assert code == ProfileError.exit_code
-    assert "device identity: profile 'SIM-still-1', device 'SIM-still-2'" in capsys.readouterr().err
+    assert "is for device 'SIM-still-1', not 'SIM-still-2'" in capsys.readouterr().err
     assert main(["flash", str(profile_file), "--device", "serial-sim://still?seed=2&pace=fast", "--yes", "--force"]) == 0
-    assert "FORCED despite mismatch" in capsys.readouterr().out
+    assert "forced: " in capsys.readouterr().out
     code = main(["flash", str(profile_file), "--device", "sim://still", "--force", "--dry-run"])
     assert code == DeviceError.exit_code
     assert "sim:// devices cannot store a calibration" in capsys.readouterr().err

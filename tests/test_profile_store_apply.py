@@ -102,7 +102,7 @@ def test_apply_in_counts_uses_the_scale(tmp_path):
 @pytest.mark.parametrize(
     "meta,units,message",
     [
-        ({"identity": "dev-2"}, "m/s^2", "is for device 'dev-1' but the data come from 'dev-2'"),
+        ({"identity": "dev-2"}, "m/s^2", "is for device 'dev-1', not 'dev-2'"),
         ({"identity": "dev-1", "range_g": 4.0}, "m/s^2", "is for the +-2 g range but the data were taken at +-4 g"),
         ({"identity": "dev-1"}, "g", "the data are in g but"),
     ],
@@ -224,7 +224,7 @@ def test_cli_apply_list_show_diff_validate(tmp_path, cli):
     out3 = tmp_path / "cal3.csv"
     r = run_cli("profile", "apply", str(prof), str(raw), "-o", str(out3))
     assert r.returncode != 0 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
-    assert "'dev-1' but the data come from 'dev-2'" in r.stderr and not out3.exists()
+    assert "'dev-1', not 'dev-2'" in r.stderr and not out3.exists()
     r = cli("profile", "apply", str(prof), str(raw), "-o", str(out3), "--force")
     assert r.returncode == 0 and "warning: forced" in r.stderr
 

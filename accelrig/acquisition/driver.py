@@ -82,11 +82,13 @@ class Driver(abc.ABC):
     def at_end(self) -> bool:
         return False
 
-    def plan_flash(self, profile) -> "FlashPlan":
+    def plan_flash(self, profile, force: bool = False) -> "FlashPlan":
         """Work out what storing ``profile``'s calibration on the device would write.
 
         Reads the device, writes nothing.  Drivers whose devices can hold a
-        calibration override this and ``flash``.
+        calibration override this and ``flash``; they refuse a profile made for
+        another device with ``accelrig.profiles.check_compatible`` unless
+        ``force``, and put its warnings in the plan's notes.
         """
         raise DeviceError(
             f"{self.scheme}:// devices cannot store a calibration",

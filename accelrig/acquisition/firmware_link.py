@@ -252,9 +252,12 @@ class FirmwareDriver(Driver):
             return None
         return P.CalibrationRecord.from_bytes(reply.payload[1:])
 
-    def plan_flash(self, profile) -> FlashPlan:
+    def plan_flash(self, profile, force: bool = False) -> FlashPlan:
+        from accelrig.profiles import check_compatible
+
         if self.info is None:
             raise DeviceError("plan_flash needs an opened device")
+        checks = check_compatible(profile, self.info.to_dict(), profile.units, force)
         if self.streaming:
             raise DeviceError("cannot flash while streaming", "flash from a freshly opened device")
         if not self.info.extra.get("calibration_store"):
@@ -297,6 +300,7 @@ class FirmwareDriver(Driver):
         ]
         if current is None:
             notes.append("the device holds no calibration record yet")
+        notes.extend(checks)
         return FlashPlan(device=f"{self.url.raw} ({self.identity.serial})", writes=writes, residual=residual,
                          notes=notes, payload=new.to_bytes())
 

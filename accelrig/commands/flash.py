@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 
 from accelrig.acquisition.driver import driver_for
-from accelrig.acquisition.flash import FlashPlan, FlashReport, check_profile_for_device
+from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.errors import DeviceError
 
 
@@ -86,9 +86,7 @@ def run(args) -> int:
 
     profile = load_profile(args.profile)
     with driver_for(args.device) as driver:
-        notes = check_profile_for_device(profile, driver.info, force=args.force)
-        plan = driver.plan_flash(profile)
-        plan.notes = notes + list(plan.notes)
+        plan = driver.plan_flash(profile, force=args.force)
         print(format_plan(plan))
         if args.dry_run:
             print("dry run: nothing written")

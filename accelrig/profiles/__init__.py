@@ -13,7 +13,7 @@ profiles/schema-v1.json.
 from accelrig.profiles.io import Profile, load_profile, parse_profile_text, profile_from_result, save_profile
 from accelrig.profiles.schema import SCHEMA_VERSION, json_schema, validate
 from accelrig.profiles.store import ProfileStore
-from accelrig.profiles.apply import CalibratedReader, apply_profile, calibrated
+from accelrig.profiles.apply import CalibratedReader, apply_profile, calibrated, check_compatible
 
 __all__ = [
     "CalibratedReader",
@@ -21,6 +21,7 @@ __all__ = [
     "ProfileStore",
     "apply_profile",
     "calibrated",
+    "check_compatible",
     "SCHEMA_VERSION",
     "json_schema",
     "load_profile",

@@ -30,7 +30,11 @@ def _same(a: float, b: float) -> bool:
 
 
 def check_compatible(profile: Profile, meta: dict, units: str, force: bool = False) -> list[str]:
-    """Refuse data from another device, range or unit (ProfileError) unless ``force``.
+    """Refuse data from another device, chip, range or unit (ProfileError) unless ``force``.
+
+    The one check of a profile against a device: applying, verifying and
+    flashing (every Driver.plan_flash) all go through it, so ``--force`` means
+    the same everywhere.
 
     ``meta`` is a recording's metadata or a DeviceInfo.to_dict(); ``units`` the
     units the data are in.  Returns warnings: what could not be checked, and
@@ -42,10 +46,15 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     who = f"profile {profile.path}" if profile.path else "the profile"
     data_id = meta.get("identity")
     if dev["identity"] is not None and data_id not in (None, "") and str(data_id) != dev["identity"]:
-        problems.append(f"{who} is for device {dev['identity']!r} but the data come from {str(data_id)!r}")
+        problems.append(f"{who} is for device {dev['identity']!r}, not {str(data_id)!r}")
     elif dev["identity"] is None or data_id in (None, ""):
         warnings.append("cannot check the profile belongs to this device: "
                         + ("the profile" if dev["identity"] is None else "the data") + " do not name the device")
+    data_chip = meta.get("chip")
+    if dev.get("chip") and data_chip and str(data_chip).lower() != str(dev["chip"]).lower():
+        problems.append(f"{who} is for chip {dev['chip']!r}, not {str(data_chip)!r}")
+    elif dev.get("who_am_i") is not None and meta.get("who_am_i") is not None and int(meta["who_am_i"]) != dev["who_am_i"]:
+        problems.append(f"{who} is for WHO_AM_I 0x{dev['who_am_i']:02x} but the device answers 0x{int(meta['who_am_i']):02x}")
     if dev["range_g"] is not None and meta.get("range_g") is not None and not _same(dev["range_g"], meta["range_g"]):
         problems.append(f"{who} is for the +-{dev['range_g']:g} g range but the data were taken at +-{float(meta['range_g']):g} g")
     elif dev["scale"] is not None and meta.get("scale") is not None and not _same(dev["scale"], meta["scale"]):
@@ -55,7 +64,7 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     if problems:
         if not force:
             more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-            raise ProfileError(problems[0] + more, "use --force to apply it anyway")
+            raise ProfileError(problems[0] + more, "pass --force to use it anyway")
         warnings.extend(f"forced: {p}" for p in problems)
     return warnings
 
