@@ -20,6 +20,7 @@ from accelrig.errors import AccelrigError
 COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.record",
+    "accelrig.commands.tui",
 )
 
 GROUPS = {

@@ -118,3 +118,11 @@ def test_stop_ends_a_realtime_session_promptly():
     assert time.monotonic() - t0 < 1.0
     assert session.stats().state == State.STOPPED
     assert 20 < session.stats().samples < 200
+
+
+def test_flash_on_a_sim_device_says_it_cannot_store_a_calibration():
+    session = Session("sim://still?seed=7&pace=fast&seconds=1")
+    session.start()
+    with pytest.raises(DeviceError, match="cannot store a calibration"):
+        session.plan_flash(profile=None)
+    session.stop()

@@ -30,6 +30,7 @@ import numpy as np
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
+from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.recording import Recording, default_meta
@@ -145,6 +146,8 @@ class Session:
         self._lock = threading.Lock()
         self._space = threading.Condition(self._lock)  # lossless readers made room
         self._stop = threading.Event()
+        # Held around every driver call, so a flash never interleaves with a read.
+        self._device_lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._captures: list[Capture] = []
         self._lossless: list[Reader] = []
@@ -258,11 +261,23 @@ class Session:
                 device_time=device_time,
             )
 
+    # ------------------------------------------------------------------ flashing
+    def plan_flash(self, profile) -> FlashPlan:
+        """What storing ``profile`` on the device would write (reads only; see Driver.plan_flash)."""
+        with self._device_lock:
+            return self.driver.plan_flash(profile)
+
+    def flash(self, plan: FlashPlan) -> FlashReport:
+        """Write a plan made by ``plan_flash``, between two reads of the pump."""
+        with self._device_lock:
+            return self.driver.flash(plan)
+
     # ------------------------------------------------------------------ the pump
     def _pump(self) -> None:
         try:
             while not self._stop.is_set():
-                blocks = self.driver.read(timeout=0.1)
+                with self._device_lock:
+                    blocks = self.driver.read(timeout=0.1)
                 for block in blocks:
                     if not self._wait_for_room(block.n):
                         return
@@ -316,7 +331,8 @@ class Session:
             for capture in self._captures:
                 if error:
                     capture.interrupted = error
-        try:
-            self.driver.close()
-        except AccelrigError:
-            pass
+        with self._device_lock:
+            try:
+                self.driver.close()
+            except AccelrigError:
+                pass

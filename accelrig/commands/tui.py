@@ -1,0 +1,31 @@
+"""accelrig tui [--device URL]: the guided calibration interface."""
+
+from __future__ import annotations
+
+from accelrig.errors import MissingExtraError
+
+
+def register(sub, groups) -> None:
+    p = sub.add_parser(
+        "tui",
+        help="guided calibration in the terminal (connect, live view, wizards)",
+        description="Open the terminal interface. With no --device it opens on a simulated static rig, "
+        "so it works without hardware.",
+    )
+    p.add_argument("--device", default=None,
+                   help="device URL to open first (default: sim://static, a simulated device)")
+    p.add_argument("--profile-dir", default=None,
+                   help="directory the wizards offer for saving profiles (default: the current directory)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    try:
+        import textual  # noqa: F401  (only to say clearly when the extra is missing)
+    except ModuleNotFoundError:
+        raise MissingExtraError("the TUI", "textual", "tui") from None
+    from accelrig.tui.app import DEFAULT_DEVICE, AccelrigApp
+
+    app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir)
+    app.run()
+    return int(app.return_code or 0)
