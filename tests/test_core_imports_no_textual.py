@@ -14,6 +14,8 @@ def test_core_modules_import_without_textual():
         for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
             if info.name == "accelrig.tui" or info.name.startswith("accelrig.tui."):
                 continue
+            if info.name.endswith(".__main__"):  # runs the CLI when imported
+                continue
             names.append(info.name)
     assert "accelrig.acquisition.session" in names and "accelrig.commands.tui" in names
     code = (
