@@ -109,7 +109,10 @@ def record(
         scale=info.scale,
         requested_rate=info.requested_rate,
         nominal_rate=info.nominal_rate,
+        # delivered: samples that reached us per second; device: the sampling rate
+        # including samples the link lost (gaps of known size)
         delivered_rate=(n - 1) / float(t[-1]) if n > 1 and t[-1] > 0 else None,
+        device_rate=(n - 1 + prog.missing) / float(t[-1]) if n > 1 and t[-1] > 0 else None,
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
     )
