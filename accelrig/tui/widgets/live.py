@@ -14,6 +14,7 @@ from accelrig.units import STANDARD_GRAVITY
 
 AXIS_STYLES = ("red", "green", "dodger_blue1")
 _COUNT_LIMIT = 32767
+PLOT_POINTS = 600  # points handed to a plot per refresh; more than any terminal shows
 
 
 class LiveWindow:
@@ -63,6 +64,7 @@ class LiveView(Vertical):
         self.window_seconds = window_seconds
         self._session: Session | None = None
         self._window: LiveWindow | None = None
+        self._last_stats = None
 
     def compose(self) -> ComposeResult:
         yield Static("", id="device-line")
@@ -79,6 +81,7 @@ class LiveView(Vertical):
             return
         if session is not self._session:
             self._session = session
+            self._last_stats = None
             info = session.info
             self._window = LiveWindow(session.reader(from_oldest=True), self.window_seconds,
                                       int(info.nominal_rate * self.window_seconds * 1.2) + 64)
@@ -90,11 +93,15 @@ class LiveView(Vertical):
                 f"{info.nominal_rate:g} Hz"
             )
         window = self._window
-        window.update()
+        new = window.update()
         stats = session.stats()
+        if not new and stats == self._last_stats:
+            return  # nothing changed: do not redraw
+        self._last_stats = stats
         plot = self.query_one("#axes-plot", LinePlot)
         acc = window.acc
-        idx = _decimate(window.t.size, max(plot.size.width, 1) * 2)
+        # a fixed number of points, not the widget's width: the first draw may come before layout
+        idx = _decimate(window.t.size, PLOT_POINTS)
         t = window.t[idx] - (window.t[-1] if window.t.size else 0.0)
         plot.set_series([
             Series(t, acc[idx, axis], AXIS_STYLES[axis], label) for axis, label in enumerate(("x", "y", "z"))
@@ -107,8 +114,7 @@ class LiveView(Vertical):
                 f"[red]x {recent[0]:+8.3f}[/]  [green]y {recent[1]:+8.3f}[/]  "
                 f"[dodger_blue1]z {recent[2]:+8.3f}[/]  |a| {np.linalg.norm(recent):7.3f} m/s²"
             )
-        bins = _decimate(magnitude.size, max(self.query_one("#magnitude").size.width, 1))
-        self.query_one("#magnitude", Sparkline).data = magnitude[bins].tolist()
+        self.query_one("#magnitude", Sparkline).data = magnitude[_decimate(magnitude.size, PLOT_POINTS)].tolist()
         self.query_one("#stats-line", Static).update(
             f"{_state_text(stats.state)}  rate {stats.delivered_rate:7.1f} Hz  "
             f"samples {stats.samples}  drops {stats.missing}  gaps {stats.gap_events}"

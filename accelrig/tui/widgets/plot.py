@@ -107,12 +107,16 @@ class LinePlot(Widget):
             else:
                 label = ""
             text.append(f"{label:>7} ", style="dim")
-            for col in range(plot_w):
-                bits = int(cells[row, col])
-                if bits:
-                    text.append(chr(_BRAILLE_BASE + bits), style=finite[owner[row, col]].style)
-                else:
-                    text.append(" ")
+            # one append per run of cells of the same series keeps rendering cheap
+            col = 0
+            while col < plot_w:
+                who = int(owner[row, col]) if cells[row, col] else -1
+                end = col + 1
+                while end < plot_w and (int(owner[row, end]) if cells[row, end] else -1) == who:
+                    end += 1
+                run = "".join(chr(_BRAILLE_BASE + int(b)) if b else " " for b in cells[row, col:end])
+                text.append(run, style=finite[who].style if who >= 0 else "")
+                col = end
             if row < plot_h - 1:
                 text.append("\n")
         return text
