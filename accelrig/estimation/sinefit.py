@@ -1,0 +1,408 @@
+"""Sine fits with uncertainty: IEEE Std 1057 three- and four-parameter fits, with harmonics.
+
+Model (t in the caller's time axis, seconds or sample indices)::
+
+    y(t) = offset + sum_{k=1..H} A_k cos(2 pi k f t + phi_k)
+
+* ``fit_frequency=False``: the three-parameter fit of IEEE 1057 (frequency
+  known), linear least squares on [1, cos, sin] (one pair per harmonic).
+* ``fit_frequency=True``: the four-parameter fit, solved by variable projection
+  (Golub-Pereyra): the frequency is the only nonlinear parameter; for each trial
+  frequency the offset and the cos/sin coefficients are solved exactly by QR and
+  Gauss-Newton runs on the projected residual ||P_perp(f) y|| alone.  This needs
+  no start values for the linear parameters, converges in a few iterations and
+  gives the covariance of every parameter at the end.
+* Harmonics k = 2..H share the fundamental frequency.  A slider-crank's motion
+  is not a pure sine (its second harmonic is lambda times the first); over a
+  non-integer number of cycles the harmonics are not orthogonal to the
+  fundamental, so a one-sine fit of such a signal is biased by tens of CRBs.
+* Start value (``frequency=None``): an interpolated DFT (Hann window, two-point
+  interpolation), error a few hundredths of a bin, not the bare FFT arg-max
+  whose error reaches half a bin.  The fit then runs first with one sine and
+  then with all harmonics, each stage starting where the previous one ended, so
+  a harmonic never sees a start value k times further off than the fundamental.
+
+Time is centred inside (numerical conditioning, and it decorrelates frequency
+from phase); reported phases refer to t = 0 of the caller's axis and their
+uncertainties include the frequency's contribution over that lever arm.
+
+Uncertainties are standard (k = 1), from the fit's covariance
+sigma^2 (J^T J)^-1 with sigma estimated from the residuals (RSS / (n - p)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from accelrig.errors import DataError
+
+MIN_CYCLES = 1.5  # below this the frequency and the offset cannot be told apart (IEEE 1057)
+MAX_ITERATIONS = 60
+
+
+@dataclass
+class SineFit:
+    """Outcome of :func:`fit_sine`.  Arrays indexed by harmonic: ``amplitude[0]`` is k = 1.
+
+    ``covariance`` is over ``parameter_names``: ``frequency`` (only when fitted),
+    ``offset``, then ``amplitude_k``, ``phase_k`` for k = 1..H.
+    """
+
+    frequency: float
+    frequency_uncertainty: float
+    amplitude: np.ndarray
+    amplitude_uncertainty: np.ndarray
+    phase: np.ndarray
+    phase_uncertainty: np.ndarray
+    offset: float
+    offset_uncertainty: float
+    covariance: np.ndarray
+    parameter_names: list[str]
+    residual_sd: float
+    residuals: np.ndarray
+    fitted: np.ndarray
+    n_iterations: int
+    converged: bool
+    start_frequency: float = float("nan")
+    harmonics: int = 1
+    frequency_fitted: bool = True
+
+    def model(self, t: np.ndarray) -> np.ndarray:
+        """Evaluate the fitted model at times ``t`` (same axis as the fit)."""
+        t = np.asarray(t, dtype=float)
+        y = np.full(t.shape, self.offset)
+        for k in range(1, self.harmonics + 1):
+            y = y + self.amplitude[k - 1] * np.cos(2 * np.pi * k * self.frequency * t + self.phase[k - 1])
+        return y
+
+    def to_dict(self) -> dict:
+        return {
+            "frequency": self.frequency,
+            "frequency_uncertainty": self.frequency_uncertainty,
+            "amplitude": self.amplitude.tolist(),
+            "amplitude_uncertainty": self.amplitude_uncertainty.tolist(),
+            "phase": self.phase.tolist(),
+            "phase_uncertainty": self.phase_uncertainty.tolist(),
+            "offset": self.offset,
+            "offset_uncertainty": self.offset_uncertainty,
+            "residual_sd": self.residual_sd,
+            "n_iterations": self.n_iterations,
+            "converged": self.converged,
+            "harmonics": self.harmonics,
+        }
+
+
+@dataclass
+class SineCRB:
+    """Cramér-Rao bound of a sine (with harmonics) in white noise, same parameters as SineFit."""
+
+    covariance: np.ndarray
+    parameter_names: list[str]
+    frequency_sd: float
+    amplitude_sd: np.ndarray
+    phase_sd: np.ndarray
+    offset_sd: float
+    extra: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------- input checks
+
+def _as_inputs(t, y) -> tuple[np.ndarray, np.ndarray]:
+    y = np.asarray(y, dtype=float)
+    if y.ndim != 1:
+        raise DataError(f"a sine fit needs one signal (1-D), got shape {y.shape}", "fit each axis separately")
+    t = np.arange(y.size, dtype=float) if t is None else np.asarray(t, dtype=float)
+    if t.shape != y.shape:
+        raise DataError(f"a sine fit needs one time per sample: {t.size} times for {y.size} samples")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
+        bad = int(np.count_nonzero(~(np.isfinite(t) & np.isfinite(y))))
+        raise DataError(f"the signal has {bad} NaN or infinite samples", "drop or repair them before fitting")
+    if y.size >= 2 and np.any(np.diff(t) <= 0):
+        raise DataError("the sample times are not strictly increasing", "sort the samples and drop duplicates")
+    return t, y
+
+
+def _check_harmonics(harmonics: int) -> int:
+    if int(harmonics) != harmonics or harmonics < 1:
+        raise DataError(f"harmonics must be a whole number >= 1, got {harmonics!r}")
+    return int(harmonics)
+
+
+# ---------------------------------------------------------------- model pieces
+
+def _basis(tc: np.ndarray, frequency: float, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
+    """Design matrix [1, cos wt, sin wt, cos 2wt, sin 2wt, ...] and its derivative in f."""
+    k = np.arange(1, harmonics + 1)
+    arg = 2 * np.pi * frequency * np.outer(tc, k)  # (n, H)
+    cos, sin = np.cos(arg), np.sin(arg)
+    n = tc.size
+    phi = np.empty((n, 2 * harmonics + 1))
+    phi[:, 0] = 1.0
+    phi[:, 1::2] = cos
+    phi[:, 2::2] = sin
+    lever = 2 * np.pi * np.outer(tc, k)  # d(arg)/df
+    dphi = np.zeros_like(phi)
+    dphi[:, 1::2] = -lever * sin
+    dphi[:, 2::2] = lever * cos
+    return phi, dphi
+
+
+def _project(phi: np.ndarray, y: np.ndarray):
+    q, r = np.linalg.qr(phi)
+    qy = q.T @ y
+    coef = np.linalg.solve(r, qy)
+    resid = y - q @ qy
+    return q, r, coef, resid
+
+
+def _vp_step(tc, y, frequency, harmonics):
+    """Residual, cost and the Golub-Pereyra Jacobian of the projected residual in f."""
+    phi, dphi = _basis(tc, frequency, harmonics)
+    q, r, coef, resid = _project(phi, y)
+    dc = dphi @ coef
+    # d(P_perp y)/df = -P_perp (dPhi c) - Phi^+T (dPhi^T r); the second term is
+    # Golub-Pereyra's, which Kaufman drops; kept since a one-sine fit of a
+    # slider-crank signal has large residuals.
+    jac = -(dc - q @ (q.T @ dc)) - q @ np.linalg.solve(r.T, dphi.T @ resid)
+    return resid, float(resid @ resid), jac, coef
+
+
+def _gauss_newton(tc, y, start, harmonics, span):
+    """One-dimensional Gauss-Newton on the variable projection functional, with step halving."""
+    frequency = start
+    resid, cost, jac, coef = _vp_step(tc, y, frequency, harmonics)
+    tol = 1e-11 / span  # far below any achievable frequency uncertainty
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        jj = float(jac @ jac)
+        if jj <= 0:
+            return frequency, iteration, False
+        step = -float(jac @ resid) / jj
+        for _ in range(40):
+            trial = frequency + step
+            if trial > 0:
+                t_resid, t_cost, t_jac, t_coef = _vp_step(tc, y, trial, harmonics)
+                if t_cost <= cost * (1 + 1e-14):
+                    break
+            step *= 0.5
+        else:
+            return frequency, iteration, abs(step) < tol
+        frequency, resid, cost, jac, coef = trial, t_resid, t_cost, t_jac, t_coef
+        if abs(step) < tol:
+            return frequency, iteration, True
+    return frequency, MAX_ITERATIONS, False
+
+
+def _full_jacobian(tc, frequency, coef, harmonics, fit_frequency):
+    phi, dphi = _basis(tc, frequency, harmonics)
+    if not fit_frequency:
+        return phi
+    return np.column_stack([dphi @ coef, phi])
+
+
+def _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q):
+    """Map [f, c0, a_k, b_k] (a cos + b sin about t_ref) to [f, offset, A_k, phi_k at t = 0]."""
+    a, b = coef[1::2], coef[2::2]
+    amp = np.hypot(a, b)
+    safe = np.where(amp > 0, amp, np.finfo(float).tiny)
+    k = np.arange(1, harmonics + 1)
+    phase_ref = np.arctan2(-b, a)  # a cos x + b sin x = A cos(x + phase)
+    phase = phase_ref - 2 * np.pi * k * frequency * t_ref
+    phase = np.angle(np.exp(1j * phase))  # wrap to (-pi, pi]
+    nf = 1 if fit_frequency else 0
+    p = nf + 1 + 2 * harmonics
+    g = np.zeros((p, p))  # d reported / d q
+    if fit_frequency:
+        g[0, 0] = 1.0
+    g[nf, nf] = 1.0
+    for i in range(harmonics):
+        ia, ib = nf + 1 + 2 * i, nf + 2 + 2 * i
+        g[ia, ia] = a[i] / safe[i]
+        g[ia, ib] = b[i] / safe[i]
+        g[ib, ia] = b[i] / safe[i] ** 2
+        g[ib, ib] = -a[i] / safe[i] ** 2
+        if fit_frequency:
+            g[ib, 0] = -2 * np.pi * (i + 1) * t_ref
+    cov = g @ cov_q @ g.T
+    names = (["frequency"] if fit_frequency else []) + ["offset"]
+    for i in range(1, harmonics + 1):
+        names += [f"amplitude_{i}", f"phase_{i}"]
+    return amp, phase, cov, names
+
+
+def _inverse_normal(jac: np.ndarray) -> np.ndarray:
+    """(J^T J)^-1 via the QR of J (better conditioned than forming J^T J)."""
+    _, r = np.linalg.qr(jac)
+    diag = np.abs(np.diag(r))
+    if diag.min() <= diag.max() * 1e-13:
+        raise DataError(
+            "the sine model is not identifiable from these samples",
+            "record more cycles, or fewer harmonics",
+        )
+    r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
+    return r_inv @ r_inv.T
+
+
+# ---------------------------------------------------------------- public API
+
+def interpolated_dft_frequency(t, y) -> float:
+    """Frequency of the strongest non-DC spectral peak, refined by a Hann-window interpolated DFT.
+
+    Two-point interpolation on the Hann window's main lobe: with alpha the ratio
+    of the larger neighbour to the peak bin, the offset is (2 alpha - 1) /
+    (alpha + 1) bins.  Non-uniform timestamps are first interpolated onto a
+    uniform grid of the same length (good enough for a start value).  Units are
+    cycles per unit of ``t`` (Hz for seconds, cycles per sample for indices).
+    """
+    t, y = _as_inputs(t, y)
+    n = y.size
+    if n < 8:
+        raise DataError(f"only {n} samples: a frequency estimate needs at least 8")
+    dt = (t[-1] - t[0]) / (n - 1)
+    grid = t[0] + dt * np.arange(n)
+    uniform = np.interp(grid, t, y)
+    spectrum = np.abs(np.fft.rfft((uniform - uniform.mean()) * np.hanning(n + 2)[1:-1]))
+    if spectrum.size < 3:
+        raise DataError(f"only {n} samples: too few for a spectrum")
+    peak = int(np.argmax(spectrum[1:])) + 1
+    left = spectrum[peak - 1]
+    right = spectrum[peak + 1] if peak + 1 < spectrum.size else 0.0
+    if spectrum[peak] <= 0:
+        raise DataError("the signal is constant: there is no frequency to find")
+    if right >= left:
+        alpha = right / spectrum[peak]
+        delta = (2 * alpha - 1) / (alpha + 1)
+    else:
+        alpha = left / spectrum[peak]
+        delta = -(2 * alpha - 1) / (alpha + 1)
+    delta = float(np.clip(delta, -0.5, 0.5))  # outside [-0.5, 0.5] a neighbour would be the peak
+    return (peak + delta) / (n * dt)
+
+
+def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequency: bool = True) -> SineFit:
+    """Fit offset + harmonics 1..H of one frequency to ``y`` sampled at ``t``.
+
+    ``t`` may be timestamps (s, possibly non-uniform) or sample indices (then
+    the frequency is in cycles per sample); ``None`` means sample indices.
+    ``frequency`` is the start value (the interpolated DFT when ``None``) or,
+    with ``fit_frequency=False``, the known frequency of a three-parameter fit.
+    """
+    t, y = _as_inputs(t, y)
+    harmonics = _check_harmonics(harmonics)
+    n_params = 2 * harmonics + 1 + (1 if fit_frequency else 0)
+    min_samples = max(8, 3 * n_params)
+    if y.size < min_samples:
+        raise DataError(f"only {y.size} samples: a {n_params}-parameter sine fit needs at least {min_samples}")
+    if frequency is None and not fit_frequency:
+        raise DataError("a three-parameter sine fit needs the frequency", "pass frequency= or fit_frequency=True")
+    start = interpolated_dft_frequency(t, y) if frequency is None else float(frequency)
+    if not np.isfinite(start) or start <= 0:
+        raise DataError(f"the frequency must be positive, got {start!r}")
+    span = float(t[-1] - t[0])
+    mean_dt = span / (y.size - 1)
+    cycles = start * (span + mean_dt)
+    if cycles < MIN_CYCLES:
+        raise DataError(
+            f"the record holds only {cycles:.2f} cycles at {start:.4g} cycles per unit time",
+            f"a sine fit needs at least {MIN_CYCLES} cycles: record longer",
+        )
+    if harmonics * start >= 0.5 / mean_dt:
+        raise DataError(
+            f"harmonic {harmonics} of {start:.4g} lies above the Nyquist frequency {0.5 / mean_dt:.4g}",
+            "fit fewer harmonics or sample faster",
+        )
+
+    t_ref = float(np.mean(t))
+    tc = t - t_ref
+    n_iterations = 0
+    converged = True
+    estimate = start
+    if fit_frequency:
+        stages = [1, harmonics] if harmonics > 1 else [1]
+        for stage_harmonics in stages:
+            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, span)
+            n_iterations += iters
+            converged = ok
+        if estimate * harmonics >= 0.5 / mean_dt or estimate * (span + mean_dt) < 1.0:
+            converged = False  # ran off to a frequency the record cannot support
+
+    phi, _ = _basis(tc, estimate, harmonics)
+    _, _, coef, resid = _project(phi, y)
+    dof = y.size - n_params
+    sigma2 = float(resid @ resid) / dof
+    jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
+    cov_q = sigma2 * _inverse_normal(jac)
+    amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    nf = 1 if fit_frequency else 0
+    return SineFit(
+        frequency=float(estimate),
+        frequency_uncertainty=float(sd[0]) if fit_frequency else 0.0,
+        amplitude=amp,
+        amplitude_uncertainty=sd[nf + 1::2].copy(),
+        phase=phase,
+        phase_uncertainty=sd[nf + 2::2].copy(),
+        offset=float(coef[0]),
+        offset_uncertainty=float(sd[nf]),
+        covariance=cov,
+        parameter_names=names,
+        residual_sd=float(np.sqrt(sigma2)),
+        residuals=resid,
+        fitted=y - resid,
+        n_iterations=n_iterations,
+        converged=bool(converged),
+        start_frequency=float(start),
+        harmonics=harmonics,
+        frequency_fitted=fit_frequency,
+    )
+
+
+def sine_crb(t, frequency: float, amplitude, phase, sigma: float, offset: float = 0.0,
+             fit_frequency: bool = True) -> SineCRB:
+    """Exact Cramér-Rao bound for :func:`fit_sine`'s parameters at the true values.
+
+    ``amplitude`` and ``phase`` are scalars or one value per harmonic; ``sigma``
+    is the white-noise sd.  The bound is sigma^2 (J^T J)^-1 with J the model's
+    Jacobian, mapped to the same parameters (and phase reference t = 0) as
+    :class:`SineFit`.  ``extra["rife_boorstyn_frequency_sd"]`` holds the
+    closed form for one sine on uniform samples, for comparison.
+    """
+    t = np.asarray(t, dtype=float)
+    amp = np.atleast_1d(np.asarray(amplitude, dtype=float))
+    ph = np.atleast_1d(np.asarray(phase, dtype=float))
+    if amp.shape != ph.shape:
+        raise DataError("sine_crb needs one phase per amplitude")
+    harmonics = amp.size
+    t_ref = float(np.mean(t))
+    k = np.arange(1, harmonics + 1)
+    phase_ref = ph + 2 * np.pi * k * frequency * t_ref
+    coef = np.empty(2 * harmonics + 1)
+    coef[0] = offset
+    coef[1::2] = amp * np.cos(phase_ref)
+    coef[2::2] = -amp * np.sin(phase_ref)
+    tc = t - t_ref
+    jac = _full_jacobian(tc, frequency, coef, harmonics, fit_frequency)
+    cov_q = sigma**2 * _inverse_normal(jac)
+    _, _, cov, names = _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    nf = 1 if fit_frequency else 0
+    extra = {}
+    if t.size > 1:
+        fs = (t.size - 1) / (t[-1] - t[0])
+        extra["rife_boorstyn_frequency_sd"] = rife_boorstyn_frequency_sd(amp[0], sigma, t.size, fs)
+    return SineCRB(
+        covariance=cov,
+        parameter_names=names,
+        frequency_sd=float(sd[0]) if fit_frequency else 0.0,
+        amplitude_sd=sd[nf + 1::2].copy(),
+        phase_sd=sd[nf + 2::2].copy(),
+        offset_sd=float(sd[nf]),
+        extra=extra,
+    )
+
+
+def rife_boorstyn_frequency_sd(amplitude: float, sigma: float, n: int, fs: float) -> float:
+    """Closed-form CRB (sd) of a real tone's frequency: 12 fs^2 / ((2 pi)^2 eta N (N^2 - 1)), eta = A^2 / (2 sigma^2)."""
+    eta = amplitude**2 / (2 * sigma**2)
+    return float(np.sqrt(12 * fs**2 / ((2 * np.pi) ** 2 * eta * n * (n**2 - 1))))
