@@ -15,7 +15,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Static
+from textual.widgets import DataTable, Footer, Header, Label, Static
 
 from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
@@ -72,6 +72,14 @@ def format_value(value, uncertainty) -> tuple[str, str]:
     return f"{value:.6g}", f"{uncertainty:.2g}"
 
 
+def cell_text(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.4g}"
+    if isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) for v in value):
+        return ", ".join(f"{v:.3g}" for v in value)
+    return str(value)
+
+
 def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
     identity = session.info.identity if session is not None and session.info is not None else "device"
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity)).strip("-") or "device"
@@ -101,11 +109,14 @@ class ResultsScreen(Screen):
         yield Header()
         with VerticalScroll(id="results"):
             yield Static(f"[b]{r.procedure}[/b]  method {r.method}  model {r.model}", id="results-title")
+            yield Static("s saves the profile, f flashes it to the device, n shows the next plot", id="results-status")
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
             yield Static(self.quality_text(), id="quality")
+            for key, _ in self.quality_tables():
+                yield Label(f"[b]{key}[/b]")
+                yield DataTable(id=f"quality-{key}", show_cursor=False, classes="quality-table")
             with Vertical(id="plot-box"):
                 yield LinePlot("", id="result-plot")
-            yield Static("", id="results-status")
         yield Footer()
 
     def on_mount(self) -> None:
@@ -115,6 +126,12 @@ class ResultsScreen(Screen):
         for name, estimate in self.result.parameters.items():
             value, uncertainty = format_value(estimate.value, estimate.uncertainty)
             table.add_row(name, value, uncertainty, estimate.unit)
+        for key, rows in self.quality_tables():
+            table = self.query_one(f"#quality-{key}", DataTable)
+            columns = list(rows[0])
+            table.add_columns(*columns)
+            for row in rows:
+                table.add_row(*[cell_text(row.get(c)) for c in columns])
         self.show_plot()
         try:
             from accelrig.profiles import profile_from_result
@@ -128,18 +145,31 @@ class ResultsScreen(Screen):
             self.set_status(f"[red]no profile can be made:[/] {exc}")
 
     def quality_text(self) -> str:
+        """Scalar and short numeric quality figures; tables (lists of rows) are shown separately."""
         parts = []
         for key, value in self.result.quality.items():
-            if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
-                parts.append(f"{key} {value:.4g}")
-            elif isinstance(value, (list, tuple, np.ndarray)) and np.size(value) <= 12:
-                parts.append(f"{key} [" + ", ".join(f"{v:.3g}" for v in np.ravel(value).astype(float)) + "]")
-            elif value is not None and not isinstance(value, (dict, list, tuple, np.ndarray)):
+            if isinstance(value, bool) or value is None:
                 parts.append(f"{key} {value}")
+            elif isinstance(value, (int, float, np.floating, np.integer)):
+                parts.append(f"{key} {value:.4g}")
+            elif isinstance(value, str):
+                parts.append(f"{key} {value}")
+            else:
+                try:
+                    numbers = np.asarray(value, dtype=float).ravel()
+                except (TypeError, ValueError):
+                    continue  # a table or a nested structure
+                if numbers.size <= 12:
+                    parts.append(f"{key} [" + ", ".join(f"{v:.3g}" for v in numbers) + "]")
         text = "[b]Quality:[/b] " + ("   ".join(parts) if parts else "none reported")
         for warning in self.result.warnings:
             text += f"\n[yellow]warning:[/] {warning}"
         return text
+
+    def quality_tables(self) -> list[tuple[str, list[dict]]]:
+        """Quality entries that are lists of rows (e.g. per face): shown as tables."""
+        return [(key, value) for key, value in self.result.quality.items()
+                if isinstance(value, list) and value and all(isinstance(row, dict) for row in value)]
 
     def show_plot(self) -> None:
         plot = self.query_one("#result-plot", LinePlot)

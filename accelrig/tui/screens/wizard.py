@@ -51,6 +51,8 @@ class ProcedureWizard(Screen):
         self.computing = False
         self.reported_state: State | None = None
         self._stream_line = ""
+        self._finished_source = False
+        self.result_shown = False
 
     # ------------------------------------------------------------------ subclass hooks
     def make_procedure(self):
@@ -100,6 +102,8 @@ class ProcedureWizard(Screen):
         self.finished = False
         self.computing = False
         self.reported_state = None
+        self._finished_source = False
+        self.result_shown = False
         self.query_one("#progress", ProgressBar).update(progress=0)
         self.query_one("#events", RichLog).clear()
         self.set_instruction(f"opening {self.url} ...")
@@ -148,6 +152,13 @@ class ProcedureWizard(Screen):
                     self.finished = True
                     return
                 self.handle(events)
+            if not chunk.n and stats.state == State.ENDED and not self._finished_source:
+                # a finite source (replay, scripted simulation) delivered everything:
+                # let the procedure close what is in progress (e.g. the last still pose)
+                self._finished_source = True
+                finish = getattr(self.procedure, "finish", None)
+                if finish is not None:
+                    self.handle(finish())
             if self.procedure_done():
                 self.finished = True
                 self.session.release(self.reader)
@@ -176,25 +187,35 @@ class ProcedureWizard(Screen):
             return
         self.reported_state = stats.state
         alarm = self.query_one("#wizard-alarm", Static)
-        if stats.state in (State.DISCONNECTED, State.FAILED) and not self.finished:
+        if stats.state in (State.DISCONNECTED, State.FAILED) and not (self.finished or self.result_shown):
             alarm.update(
                 f"DEVICE LOST: {stats.last_error}\n{self.capture.samples} captured samples are kept: "
                 "w writes them to a file, escape returns to connect again."
             )
             alarm.add_class("alarm")
             self.set_instruction("the device disconnected", "bold red")
-        elif stats.state == State.ENDED and not self.finished:
+        elif stats.state == State.ENDED and not (self.finished or self.result_shown or self.computing):
             alarm.update("the source ended before the procedure had enough data (w writes what was captured)")
             alarm.add_class("alarm")
         else:
             alarm.update("")
             alarm.remove_class("alarm")
 
+    def alarm_clear(self) -> None:
+        alarm = self.query_one("#wizard-alarm", Static)
+        alarm.update("")
+        alarm.remove_class("alarm")
+
     # ------------------------------------------------------------------ fit
-    @work(thread=True, exclusive=True, group="wizard-fit")
     def compute(self) -> None:
+        if self.computing:
+            return
         self.computing = True
-        self.app.call_from_thread(self.set_instruction, "enough data: computing the calibration ...", "bold green")
+        self.set_instruction("enough data: computing the calibration ...", "bold green")
+        self._fit()
+
+    @work(thread=True, exclusive=True, group="wizard-fit")
+    def _fit(self) -> None:
         try:
             result = self.procedure.result()
         except AccelrigError as exc:
@@ -212,6 +233,8 @@ class ProcedureWizard(Screen):
     def show_result(self, result, recording) -> None:
         from accelrig.tui.screens.results import ResultsScreen
 
+        self.result_shown = True
+        self.alarm_clear()
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
         self.app.push_screen(ResultsScreen(result, recording, self.session))
 
