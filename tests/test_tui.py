@@ -78,8 +78,9 @@ async def test_connect_screen_switches_device_and_shows_identity():
         await pilot.press("c")
         await pilot.pause()
         assert isinstance(app.screen, ConnectScreen)
-        await wait_for(pilot, lambda: "sim://still" in str(app.screen.query_one("#found").get_option_at_index(0).prompt)
-                       if app.screen.query_one("#found").option_count else False)
+        found = app.screen.query_one("#found")
+        await wait_for(pilot, lambda: any(str(found.get_option_at_index(i).prompt) == "sim://still"
+                                          for i in range(found.option_count)))
         url_input = app.screen.query_one("#url")
         url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
         url_input.focus()

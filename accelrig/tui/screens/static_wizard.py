@@ -12,7 +12,7 @@ from __future__ import annotations
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
@@ -51,6 +51,7 @@ class RedoScreen(ModalScreen[str | None]):
 class StaticWizard(ProcedureWizard):
     wizard_title = "static six-face calibration"
     capture_name = "static"
+    progress_label = "faces"
     BINDINGS = [
         Binding("r", "redo", "Redo a face"),
         Binding("c", "compute", "Compute"),
@@ -68,7 +69,9 @@ class StaticWizard(ProcedureWizard):
     def compose_body(self) -> ComposeResult:
         yield FaceGrid(id="faces")
         yield Static("", id="pose-state")
-        yield ProgressBar(total=1.0, show_eta=False, id="pose-progress")
+        with Horizontal(classes="bar-row"):
+            yield Label("this pose", classes="bar-label")
+            yield ProgressBar(total=1.0, show_eta=False, id="pose-progress")
 
     def on_mount(self) -> None:
         super().on_mount()
@@ -90,8 +93,10 @@ class StaticWizard(ProcedureWizard):
         if progress["still"]:
             state = (f"[green]● still[/]: {progress['current_face'] or 'not flat'} down, held "
                      f"{progress['held_seconds']:.1f} of {self.procedure.hold:g} s")
-        else:
+        elif progress["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
+        else:
+            state = "[green]all six faces done[/]: c computes again, r takes a face again"
         self.query_one("#pose-state", Static).update(
             f"{state}   faces {progress['n_done']}/6   poses {progress['n_poses']}")
         if any(event.kind == "complete" for event in events):

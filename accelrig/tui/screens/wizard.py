@@ -18,9 +18,9 @@ from pathlib import Path
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Header, ProgressBar, RichLog, Static
+from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
 from accelrig.acquisition.session import Capture, Session, State
 from accelrig.errors import AccelrigError
@@ -34,6 +34,7 @@ class ProcedureWizard(Screen):
     """Base of the wizards.  Subclasses set ``wizard_title``, make the procedure and add widgets."""
 
     wizard_title = "calibration"
+    progress_label = "progress"
     capture_name = "capture"   # default file name stem for written captures
     BINDINGS = [
         Binding("escape", "cancel", "Cancel"),
@@ -75,7 +76,9 @@ class ProcedureWizard(Screen):
         with Vertical(classes="wizard"):
             yield Static("", id="instruction")
             yield from self.compose_body()
-            yield ProgressBar(total=1.0, show_eta=False, id="progress")
+            with Horizontal(classes="bar-row"):
+                yield Label(self.progress_label, classes="bar-label")
+                yield ProgressBar(total=1.0, show_eta=False, id="progress")
             yield Static("", id="wizard-stream")
             yield Static("", id="wizard-alarm")
             yield RichLog(id="events", max_lines=200, wrap=True, markup=True)
