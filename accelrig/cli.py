@@ -21,6 +21,8 @@ COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.record",
     "accelrig.commands.tui",
+    "accelrig.commands.profile",
+    "accelrig.commands.noise",
 )
 
 GROUPS = {

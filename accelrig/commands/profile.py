@@ -1,0 +1,280 @@
+"""accelrig profile list|show|validate|diff|apply|add: device profiles on disk and in the store.
+
+PROFILE arguments are a file path, or a device identity to look up in the
+store (the latest profile, or the one closest to --date); ``apply`` also
+takes ``auto``: the profile of the device the recording names, closest in
+time to when it was recorded.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from accelrig.errors import ProfileError
+from accelrig.profiles.apply import apply_profile
+from accelrig.profiles.io import Profile, load_profile
+from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
+from accelrig.recording import load_recording, save_recording
+from accelrig.units import STANDARD_GRAVITY
+
+
+def register(sub, groups) -> None:
+    group = groups["profile"]
+
+    p = group.add_parser("list", help="list the stored profiles", description="List the profiles in the store.")
+    _store_args(p, choose=False)
+    p.add_argument("--device", help="only this device identity")
+    p.set_defaults(func=run_list)
+
+    p = group.add_parser("show", help="show a profile", description="Show a profile: device, correction, quality, noise.")
+    p.add_argument("profile", help="profile file, or a device identity in the store")
+    _store_args(p)
+    fmt = p.add_mutually_exclusive_group()
+    fmt.add_argument("--json", action="store_true", help="print the whole profile as JSON")
+    fmt.add_argument("--yaml", action="store_true", help="print the profile file as stored")
+    p.set_defaults(func=run_show)
+
+    p = group.add_parser("validate", help="check profile files against schema v1",
+                         description="Check profile files; one line per bad file naming the field, non-zero exit.")
+    p.add_argument("files", nargs="+", help="profile files")
+    p.set_defaults(func=run_validate)
+
+    p = group.add_parser("diff", help="differences between two profiles",
+                         description="Differences between two profiles, field by field; the correction with "
+                         "normalised errors E_n (k = 2). Exit 0 when equal, 1 when they differ.")
+    p.add_argument("a", help="profile file or device identity")
+    p.add_argument("b", help="profile file or device identity")
+    _store_args(p)
+    p.set_defaults(func=run_diff)
+
+    p = group.add_parser("apply", help="calibrate a recording with a profile",
+                         description="Apply a profile's correction to a recording. Refuses data from another "
+                         "device, range or unit unless --force.")
+    p.add_argument("profile", help="profile file, a device identity in the store, or 'auto' (the device "
+                   "the recording names, the profile closest to when it was recorded)")
+    p.add_argument("recording", help="raw recording (.csv or .npz)")
+    p.add_argument("-o", "--output", required=True, help="calibrated recording (.csv or .npz)")
+    p.add_argument("--force", action="store_true", help="apply even to data from another device, range or unit")
+    p.add_argument("--uncertainty", action="store_true",
+                   help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
+    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    _store_args(p)
+    p.set_defaults(func=run_apply)
+
+    p = group.add_parser("add", help="put profile files into the store",
+                         description="Validate profile files and keep copies in the store, filed by device.")
+    p.add_argument("files", nargs="+", help="profile files")
+    _store_args(p, choose=False)
+    p.set_defaults(func=run_add)
+
+
+def _store_args(p, choose: bool = True) -> None:
+    p.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
+                   "$XDG_DATA_HOME/accelrig/profiles)")
+    if choose:
+        p.add_argument("--date", help="choose the stored profile closest to this date (ISO, e.g. 2026-11-01)")
+        p.add_argument("--max-age-days", type=float, default=DEFAULT_MAX_AGE_DAYS,
+                       help=f"warn when the chosen profile is older than this (default {DEFAULT_MAX_AGE_DAYS:g})")
+
+
+def warn(message: str) -> None:
+    print(f"accelrig: warning: {message}", file=sys.stderr)
+
+
+def resolve(spec: str, args, date: str | None = None) -> Profile:
+    """A profile from a path, or from the store by device identity."""
+    path = Path(spec)
+    if path.exists() or path.suffix.lower() in (".yaml", ".yml"):
+        return load_profile(path)
+    choice = ProfileStore(args.store).choose(spec, date or args.date, args.max_age_days)
+    for w in choice.warnings:
+        warn(w)
+    return choice.stored.profile
+
+
+# ------------------------------------------------------------------ list / show / validate / add
+
+
+def run_list(args) -> int:
+    store = ProfileStore(args.store)
+    entries = store.entries(args.device)
+    if not entries:
+        print(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
+        return 0
+    rows = [("device", "created", "procedure", "method", "residual rms", "file")]
+    for e in entries:
+        rms = e.profile.data["quality"]["residual_rms"]
+        rows.append((e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
+                     "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root))))
+    _print_table(rows)
+    return 0
+
+
+def _print_table(rows) -> None:
+    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
+    for r in rows:
+        print("  ".join(str(c).ljust(w) for c, w in zip(r, widths)).rstrip())
+
+
+def _fmt(value, unc=None, digits: int = 6) -> str:
+    if isinstance(value, list):
+        if unc is None:
+            return "[" + ", ".join(_fmt(v, None, digits) for v in value) + "]"
+        return "[" + ", ".join(_fmt(v, u, digits) for v, u in zip(value, unc)) + "]"
+    text = f"{value:.{digits}g}"
+    return text if unc is None else f"{text} +- {unc:.2g}"
+
+
+def run_show(args) -> int:
+    profile = resolve(args.profile, args)
+    if args.json:
+        print(json.dumps(profile.data, indent=2))
+        return 0
+    if args.yaml:
+        from accelrig.profiles.io import dump_yaml
+
+        sys.stdout.write(dump_yaml(profile.data))
+        return 0
+    d = profile.data
+    dev, cal, prov = d["device"], d["calibration"], d["provenance"]
+    print(f"profile      {profile.path}")
+    print(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
+          + (f"  WHO_AM_I 0x{dev['who_am_i']:02X}" if dev["who_am_i"] is not None else ""))
+    rng = f"+-{dev['range_g']:g} g" if dev["range_g"] is not None else "range ?"
+    rate = f"{dev['rate']:g} Hz" if dev["rate"] is not None else "rate ?"
+    print(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
+    print(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
+    print(f"created      {prov['created']} by accelrig {prov['software_version']}"
+          + (f" from {prov['recording_samples']} samples" if prov["recording_samples"] else ""))
+    corr = cal["correction"]
+    print("correction   calibrated = C @ (raw - b), uncertainties k = 1")
+    for i in range(3):
+        print(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
+    print(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
+    if cal["parameters"]:
+        print("parameters")
+        width = max(len(n) for n in cal["parameters"])
+        for name, est in cal["parameters"].items():
+            print(f"  {name.ljust(width)}  {_fmt(est['value'], est['uncertainty'])} {est['unit']}")
+    q = d["quality"]
+    if q["residual_rms"] is not None:
+        print(f"quality      residual rms {q['residual_rms']:.4g} m/s^2"
+              + "".join(f", {k} {_fmt(v) if isinstance(v, (int, float, list)) else v}"
+                        for k, v in q.items() if k not in ("residual_rms", "sd_over_crb") and not isinstance(v, dict)))
+    if d["noise"] is not None:
+        n = d["noise"]
+        print(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
+        for axis, f in n["axes"].items():
+            dens = f["density"]
+            ug = 1e6 / STANDARD_GRAVITY
+            bi = f["bias_instability"]
+            print(f"  {axis}: {dens['value'] * ug:.1f} +- {dens['uncertainty'] * ug:.1f} ug/sqrt(Hz)"
+                  + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
+    for w in d["warnings"]:
+        print(f"warning      {w}")
+    return 0
+
+
+def run_validate(args) -> int:
+    if len(args.files) == 1:
+        p = load_profile(args.files[0])
+        print(f"{args.files[0]}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
+        return 0
+    failed = 0
+    for name in args.files:
+        try:
+            p = load_profile(name)
+        except ProfileError as exc:
+            failed += 1
+            print(f"accelrig: error: {exc}", file=sys.stderr)
+            continue
+        print(f"{name}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
+    return ProfileError.exit_code if failed else 0
+
+
+def run_add(args) -> int:
+    store = ProfileStore(args.store)
+    profiles = [load_profile(name) for name in args.files]   # all valid before any is stored
+    for p in profiles:
+        print(store.add(p))
+    return 0
+
+
+# ------------------------------------------------------------------ diff
+
+
+def _leaves(node, path=""):
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _leaves(v, f"{path}.{k}" if path else k)
+    else:
+        yield path, node
+
+
+SUMMARISED = ("calibration.correction.covariance", "calibration.parameter_covariance",
+              "calibration.correction.matrix_uncertainty", "calibration.correction.bias_uncertainty")
+
+
+def diff_profiles(a: Profile, b: Profile) -> list[str]:
+    """Human-readable differences; the correction elements with E_n (k = 2)."""
+    lines = []
+    la, lb = dict(_leaves(a.data)), dict(_leaves(b.data))
+    for key in list(la) + [k for k in lb if k not in la]:
+        va, vb = la.get(key, "(absent)"), lb.get(key, "(absent)")
+        if va == vb:
+            continue
+        if key in SUMMARISED and isinstance(va, list) and isinstance(vb, list):
+            xa, xb = np.asarray(va, dtype=float), np.asarray(vb, dtype=float)
+            if xa.shape == xb.shape:
+                lines.append(f"{key}: differs (largest change {np.max(np.abs(xa - xb)):.3g})")
+                continue
+        lines.append(f"{key}: {_short(va)} -> {_short(vb)}")
+    ca, cb = a.correction, b.correction
+    if not (np.array_equal(ca.matrix, cb.matrix) and np.array_equal(ca.bias, cb.bias)):
+        va = np.concatenate([ca.matrix.ravel(), ca.bias])
+        vb = np.concatenate([cb.matrix.ravel(), cb.bias])
+        u = np.sqrt(np.diag(ca.covariance) + np.diag(cb.covariance))
+        names = [f"C[{i}][{j}]" for i in range(3) for j in range(3)] + [f"b[{i}]" for i in range(3)]
+        lines.append("correction E_n = (A - B) / sqrt(U_A^2 + U_B^2), U = 2u (|E_n| <= 1: consistent):")
+        for name, x, y, uu in zip(names, va, vb, u):
+            en = (x - y) / (2.0 * uu) if uu > 0 else (math.inf if x != y else 0.0)
+            lines.append(f"  {name:8s} {x:+.6g} -> {y:+.6g}  E_n {en:+.2f}")
+    return lines
+
+
+def _short(value) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def run_diff(args) -> int:
+    a, b = resolve(args.a, args), resolve(args.b, args)
+    lines = diff_profiles(a, b)
+    for line in lines:
+        print(line)
+    return 1 if lines else 0
+
+
+# ------------------------------------------------------------------ apply
+
+
+def run_apply(args) -> int:
+    rec = load_recording(args.recording, units=args.units)
+    if args.profile == "auto":
+        identity = rec.meta.get("identity")
+        if not identity:
+            raise ProfileError(f"{args.recording} does not name its device, so 'auto' cannot choose a profile",
+                               "give the profile file or the device identity")
+        profile = resolve(str(identity), args, date=args.date or rec.meta.get("start_time"))
+    else:
+        profile = resolve(args.profile, args)
+    out, warnings = apply_profile(profile, rec, force=args.force, uncertainty=args.uncertainty)
+    for w in warnings:
+        warn(w)
+    save_recording(out, args.output)
+    return 0

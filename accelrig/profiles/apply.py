@@ -1,0 +1,198 @@
+"""Apply a profile's correction: to recordings, and in the acquisition path to ring-buffer chunks.
+
+The correction is only valid for the device, range and units it was made
+for (the profile records them).  ``check_compatible`` refuses anything else
+unless forced; a forced or unverifiable application comes back as warnings
+for the caller to show.  Every calibrated sample can carry its standard
+uncertainty from the correction's covariance (Correction.sample_covariance,
+vectorised here for streams).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from accelrig.acquisition.ringbuffer import Chunk, Reader
+from accelrig.errors import ProfileError
+from accelrig.procedures.result import Correction
+from accelrig.recording import Recording
+from accelrig.units import STANDARD_GRAVITY
+
+from accelrig.profiles.io import Profile
+
+UNCERTAINTY_CHANNELS = ("u_ax", "u_ay", "u_az")
+
+
+def _same(a: float, b: float) -> bool:
+    return abs(float(a) - float(b)) <= 1e-9 * max(abs(float(a)), abs(float(b)))
+
+
+def check_compatible(profile: Profile, meta: dict, units: str, force: bool = False) -> list[str]:
+    """Refuse data from another device, range or unit (ProfileError) unless ``force``.
+
+    ``meta`` is a recording's metadata or a DeviceInfo.to_dict(); ``units`` the
+    units the data are in.  Returns warnings: what could not be checked, and
+    what ``force`` let through.
+    """
+    problems: list[str] = []
+    warnings: list[str] = []
+    dev = profile.device
+    who = f"profile {profile.path}" if profile.path else "the profile"
+    data_id = meta.get("identity")
+    if dev["identity"] is not None and data_id not in (None, "") and str(data_id) != dev["identity"]:
+        problems.append(f"{who} is for device {dev['identity']!r} but the data come from {str(data_id)!r}")
+    elif dev["identity"] is None or data_id in (None, ""):
+        warnings.append("cannot check the profile belongs to this device: "
+                        + ("the profile" if dev["identity"] is None else "the data") + " do not name the device")
+    if dev["range_g"] is not None and meta.get("range_g") is not None and not _same(dev["range_g"], meta["range_g"]):
+        problems.append(f"{who} is for the +-{dev['range_g']:g} g range but the data were taken at +-{float(meta['range_g']):g} g")
+    elif dev["scale"] is not None and meta.get("scale") is not None and not _same(dev["scale"], meta["scale"]):
+        problems.append(f"{who} is for {dev['scale']:.6g} m/s^2 per count but the data use {float(meta['scale']):.6g}")
+    if units not in (profile.units, "counts"):
+        problems.append(f"the data are in {units} but {who} applies to raw {profile.units} (counts x nominal scale)")
+    if problems:
+        if not force:
+            more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
+            raise ProfileError(problems[0] + more, "use --force (force=True) to apply it anyway")
+        warnings.extend(f"forced: {p}" for p in problems)
+    return warnings
+
+
+def raw_si(rec: Recording, profile: Profile) -> np.ndarray:
+    """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes."""
+    if rec.units == "m/s^2":
+        return rec.acc
+    if rec.units == "counts":
+        scale = rec.meta.get("scale") or profile.device["scale"]
+        if scale is None:
+            raise ProfileError("the data are in counts and neither they nor the profile give the scale",
+                               "convert the data to m/s^2 or record the range")
+        return rec.acc * float(scale)
+    # g: only reached when forced; raw m/s^2 is defined with standard gravity (nominal scale).
+    return rec.acc * STANDARD_GRAVITY
+
+
+def sample_covariances(correction: Correction, raw: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) covariance of each calibrated sample from the correction's uncertainty.
+
+    Same quantity as Correction.sample_covariance (y = C (x - b), Jacobian
+    [kron(I, (x - b)^T), -C]), in closed form so a stream of millions of
+    samples costs a few array operations instead of a Python loop.
+    """
+    d = np.asarray(raw, dtype=float).reshape(-1, 3) - correction.bias
+    cov = correction.covariance
+    s_cc = cov[:9, :9].reshape(3, 3, 3, 3)   # [i, j, k, l] = cov(C_ij, C_kl)
+    s_cb = cov[:9, 9:].reshape(3, 3, 3)      # [i, j, m] = cov(C_ij, b_m)
+    s_bb = cov[9:, 9:]
+    c = correction.matrix
+    term_cc = np.einsum("nj,ijkl,nl->nik", d, s_cc, d, optimize=True)
+    a = np.einsum("nj,ijm->nim", d, s_cb, optimize=True) @ c.T   # cov(dC d, C b) part
+    return term_cc - a - np.swapaxes(a, 1, 2) + c @ s_bb @ c.T
+
+
+def sample_uncertainty(correction: Correction, raw: np.ndarray, chunk: int = 65536) -> np.ndarray:
+    """(n, 3) standard uncertainty of each calibrated axis, in bounded memory."""
+    raw = np.asarray(raw, dtype=float).reshape(-1, 3)
+    out = np.empty_like(raw)
+    for start in range(0, raw.shape[0], chunk):
+        cov = sample_covariances(correction, raw[start:start + chunk])
+        out[start:start + chunk] = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+    return out
+
+
+def apply_profile(
+    profile: Profile, rec: Recording, force: bool = False, uncertainty: bool = False
+) -> tuple[Recording, list[str]]:
+    """Calibrated copy of ``rec`` (m/s^2) and the warnings to show.
+
+    With ``uncertainty`` the standard uncertainty of each calibrated axis is
+    added as channels u_ax, u_ay, u_az.
+    """
+    warnings = check_compatible(profile, rec.meta, rec.units, force)
+    raw = raw_si(rec, profile)
+    corr = profile.correction
+    channels = dict(rec.channels)
+    if uncertainty:
+        clash = [c for c in UNCERTAINTY_CHANNELS if c in channels]
+        if clash:
+            raise ProfileError(f"the recording already has channel(s) {', '.join(clash)}",
+                               "it looks calibrated already; apply the profile to the raw recording")
+        u = sample_uncertainty(corr, raw)
+        channels.update({name: u[:, i] for i, name in enumerate(UNCERTAINTY_CHANNELS)})
+    meta = dict(rec.meta)
+    if "calibrated_with" in meta:
+        raise ProfileError("the recording is already calibrated (its metadata name a profile)",
+                           "apply the profile to the raw recording")
+    meta["units"] = "m/s^2"
+    meta["calibrated_with"] = {
+        "profile": str(profile.path) if profile.path else None,
+        "identity": profile.identity,
+        "created": profile.data["provenance"]["created"],
+        "procedure": profile.procedure,
+        "method": profile.method,
+    }
+    if warnings:
+        meta["calibration_warnings"] = list(warnings)
+    return Recording(rec.t, corr.apply(raw), "m/s^2", channels, meta), warnings
+
+
+# ------------------------------------------------------------------ acquisition path
+
+
+@dataclass
+class CalibratedChunk:
+    """A ring-buffer chunk with calibrated samples.
+
+    acc          calibrated m/s^2 (n, 3)
+    uncertainty  standard uncertainty of each calibrated axis from the correction (n, 3),
+                 or None when not asked for
+    chunk        the raw chunk (times, gaps, lost samples, channels)
+    """
+
+    acc: np.ndarray
+    uncertainty: np.ndarray | None
+    chunk: Chunk
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.chunk.t
+
+    @property
+    def n(self) -> int:
+        return self.chunk.n
+
+
+def calibrated(chunk: Chunk, profile: Profile, uncertainty: bool = False, force: bool = False) -> CalibratedChunk:
+    """Calibrate one chunk from a ring-buffer reader."""
+    check_compatible(profile, {"scale": chunk.scale}, "counts", force)
+    corr = profile.correction
+    raw = chunk.acceleration()
+    return CalibratedChunk(corr.apply(raw), sample_uncertainty(corr, raw) if uncertainty else None, chunk)
+
+
+class CalibratedReader:
+    """Wraps a ring-buffer Reader so that reads return calibrated samples.
+
+    The device (a DeviceInfo or its dict) is checked against the profile once,
+    at construction; the count scale of every chunk is checked as it arrives
+    (a range change mid-stream must not be calibrated with the old profile).
+    """
+
+    def __init__(self, reader: Reader, profile: Profile, device=None, uncertainty: bool = False,
+                 force: bool = False):
+        self.reader = reader
+        self.profile = profile
+        self.uncertainty = uncertainty
+        self.force = force
+        info = device.to_dict() if hasattr(device, "to_dict") else dict(device or {})
+        info.setdefault("scale", reader.buffer.scale)
+        self.warnings = check_compatible(profile, info, "counts", force)
+
+    @property
+    def pending(self) -> int:
+        return self.reader.pending
+
+    def read(self, max_samples: int | None = None) -> CalibratedChunk:
+        return calibrated(self.reader.read(max_samples), self.profile, self.uncertainty, self.force)

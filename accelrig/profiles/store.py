@@ -1,0 +1,149 @@
+"""The profile store: profiles kept per device identity in the user's data directory.
+
+Location: ``$ACCELRIG_HOME/profiles`` if ACCELRIG_HOME is set, else
+``$XDG_DATA_HOME/accelrig/profiles``, else ``~/.local/share/accelrig/profiles``;
+any command taking ``--store DIR`` overrides it.
+
+Layout: one directory per device identity, named by a filesystem-safe form
+of the identity plus a short hash of the exact identity (so 'AA:BB' and
+'AA_BB' never share a directory), holding one file per calibration named by
+its creation time and procedure:
+
+    profiles/sim-still-3-1f2e3d4c/20261122T032500Z-static_faces.yaml
+
+Choosing: the latest profile, or the one closest in time to a date (imucal's
+idea); a warning when the chosen one is older than a configurable age.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+from dataclasses import dataclass
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+from accelrig.errors import ProfileError
+
+from accelrig.profiles.io import Profile, load_profile, save_profile
+from accelrig.profiles.schema import parse_datetime
+
+DEFAULT_MAX_AGE_DAYS = 365.0
+
+
+def default_store_dir() -> Path:
+    home = os.environ.get("ACCELRIG_HOME")
+    if home:
+        return Path(home) / "profiles"
+    xdg = os.environ.get("XDG_DATA_HOME")
+    base = Path(xdg) if xdg else Path.home() / ".local" / "share"
+    return base / "accelrig" / "profiles"
+
+
+def device_key(identity: str) -> str:
+    """Directory name for a device identity: safe characters + 8 hex of its sha256."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", identity).strip("._") or "device"
+    digest = hashlib.sha256(identity.encode("utf-8")).hexdigest()[:8]
+    return f"{safe[:60]}-{digest}"
+
+
+@dataclass
+class StoredProfile:
+    path: Path
+    profile: Profile
+
+    @property
+    def identity(self) -> str:
+        return self.profile.identity
+
+    @property
+    def created(self) -> datetime:
+        return self.profile.created
+
+
+@dataclass
+class Choice:
+    stored: StoredProfile
+    warnings: list[str]
+
+
+class ProfileStore:
+    def __init__(self, root: str | os.PathLike | None = None):
+        self.root = Path(root) if root is not None else default_store_dir()
+
+    def device_dir(self, identity: str) -> Path:
+        return self.root / device_key(identity)
+
+    def add(self, profile: Profile) -> Path:
+        """Keep a profile for its device; returns where.  Never overwrites an existing file."""
+        identity = profile.identity
+        if identity is None:
+            raise ProfileError(
+                "the profile does not name its device (device.identity is null), so the store cannot file it",
+                "set device.identity in the profile, or keep it as a file",
+            )
+        directory = self.device_dir(identity)
+        directory.mkdir(parents=True, exist_ok=True)
+        stamp = profile.created.strftime("%Y%m%dT%H%M%SZ")
+        base = f"{stamp}-{re.sub(r'[^A-Za-z0-9_-]+', '_', profile.procedure)}"
+        path = directory / f"{base}.yaml"
+        k = 1
+        while path.exists():
+            k += 1
+            path = directory / f"{base}-{k}.yaml"
+        save_profile(profile, path, overwrite=False)
+        return path
+
+    def entries(self, identity: str | None = None) -> list[StoredProfile]:
+        """Every valid stored profile (of one device if given), oldest first.
+
+        A file that does not load is an error naming it: a store with a broken
+        file must be repaired, not silently skipped.
+        """
+        if not self.root.is_dir():
+            return []
+        dirs = [self.device_dir(identity)] if identity is not None else sorted(p for p in self.root.iterdir() if p.is_dir())
+        out = []
+        for d in dirs:
+            if not d.is_dir():
+                continue
+            for path in sorted(d.glob("*.yaml")):
+                profile = load_profile(path)
+                if identity is not None and profile.identity != identity:
+                    raise ProfileError(f"{path}: device.identity {profile.identity!r} does not belong in the "
+                                       f"directory of {identity!r}", "move the file to its device's directory")
+                out.append(StoredProfile(path, profile))
+        return sorted(out, key=lambda s: (s.created, str(s.path)))
+
+    def identities(self) -> list[str]:
+        return sorted({s.identity for s in self.entries()})
+
+    def choose(
+        self,
+        identity: str,
+        date: str | datetime | None = None,
+        max_age_days: float = DEFAULT_MAX_AGE_DAYS,
+        now: datetime | None = None,
+    ) -> Choice:
+        """The latest profile of a device, or the one closest in time to ``date``."""
+        entries = self.entries(identity)
+        if not entries:
+            known = self.identities()
+            hint = f"known devices: {', '.join(known)}" if known else f"the store {self.root} is empty"
+            raise ProfileError(f"no stored profile for device {identity!r}", hint)
+        if date is None:
+            chosen = entries[-1]
+            reference = now or datetime.now(timezone.utc)
+        else:
+            reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(timezone.utc)
+            chosen = min(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
+        warnings = []
+        age = reference - chosen.created
+        if age > timedelta(days=max_age_days):
+            when = "now" if date is None else reference.strftime("%Y-%m-%d")
+            warnings.append(
+                f"profile {chosen.path.name} is {age.days} days older than {when} "
+                f"(more than {max_age_days:g}); recalibrate the device"
+            )
+        return Choice(chosen, warnings)
