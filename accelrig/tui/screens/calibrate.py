@@ -16,6 +16,8 @@ from textual.widgets.option_list import Option
 WIZARDS = (
     ("static", "Static faces: six or more still poses (no rig needed)",
      "accelrig.procedures.static_faces", "accelrig.tui.screens.static_wizard:StaticWizard"),
+    ("wheel", "Tilted wheel: spin it and let it coast",
+     "accelrig.procedures.wheel", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
 )
 
 
