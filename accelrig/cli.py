@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.record",
     "accelrig.commands.tui",
+    "accelrig.commands.calibrate_static",
     "accelrig.commands.profile",
     "accelrig.commands.noise",
 )

@@ -12,7 +12,7 @@ from accelrig.estimation.crb import (
     propagate_covariance,
     unidentifiable_direction,
 )
-from accelrig.estimation.varpro import VarProResult, solve_linear, varpro
+from accelrig.estimation.varpro import VarProResult, separable_jacobian, solve_linear, varpro
 
 __all__ = [
     "VarProResult",
@@ -20,6 +20,7 @@ __all__ = [
     "crb_sd",
     "numerical_jacobian",
     "propagate_covariance",
+    "separable_jacobian",
     "solve_linear",
     "unidentifiable_direction",
     "varpro",

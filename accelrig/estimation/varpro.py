@@ -94,6 +94,28 @@ def solve_linear(phi_w: np.ndarray, y_w: np.ndarray, strict: bool = True) -> tup
     return c, y_w - phi_w @ c, u
 
 
+def separable_jacobian(basis: Basis, alpha: np.ndarray, linear: np.ndarray,
+                       basis_derivatives: BasisDerivatives | None = None,
+                       weights: np.ndarray | None = None) -> np.ndarray:
+    """Full Jacobian of w * Phi(alpha) c with respect to [alpha, c]: [dPhi/dalpha_k c ..., Phi].
+
+    What the covariance (and the CRB) of a separable model needs, at a fit's
+    solution or at the truth.
+    """
+    alpha = np.asarray(alpha, dtype=float).ravel()
+    linear = np.asarray(linear, dtype=float).ravel()
+    phi = np.asarray(basis(alpha), dtype=float)
+    w = np.ones(phi.shape[0]) if weights is None else np.asarray(weights, dtype=float).ravel()
+    if alpha.size == 0:
+        return w[:, None] * phi
+    if basis_derivatives is not None:
+        d = np.asarray(basis_derivatives(alpha), dtype=float)
+    else:
+        flat = numerical_jacobian(lambda a: np.asarray(basis(a), dtype=float).ravel(), alpha)
+        d = np.moveaxis(flat.reshape(*phi.shape, alpha.size), -1, 0)
+    return w[:, None] * np.hstack([(d @ linear).T, phi])
+
+
 def varpro(
     y: np.ndarray,
     basis: Basis,
@@ -180,7 +202,7 @@ def varpro(
             raise CalibrationError("the nonlinear search diverged")
     p = phi_w(alpha)
     c, r, _ = solve_linear(p, y_w)
-    full_jac = np.hstack([(dphi_w(alpha) @ c).T, p]) if n_alpha else p
+    full_jac = separable_jacobian(basis, alpha, c, basis_derivatives, w)
     rss = float(r @ r)
     dof = m - n_params
     fitted = sigma is None

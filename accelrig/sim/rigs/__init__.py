@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from accelrig.sim.rigs.base import Rig
+from accelrig.sim.rigs.static import StaticRig
 from accelrig.sim.rigs.still import StillRig
 
 RIGS: dict[str, type[Rig]] = {
     "still": StillRig,
+    "static": StaticRig,
 }

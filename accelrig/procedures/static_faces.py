@@ -1,0 +1,568 @@
+"""Six-face static calibration (paper 000): still-pose detection, operator events, result.
+
+One procedure object serves the live flow (the TUI feeds blocks as they
+arrive and shows the events) and the offline one (``detect_poses`` and
+``calibrate_static`` feed a whole recording through the same object), so a
+recording gives the same poses whichever way it is processed.
+
+Detection works on RAW data in m/s^2 (never on calibrated data: the
+calibration does not exist yet, and a wrong one must not hide motion):
+
+  dispersion  norm of the per-axis sample sd over a sliding window (0.2 s);
+  hysteresis  still when it drops below ``still_threshold`` (0.25 m/s^2, the
+              value PX4's detect_orientation uses), moving again only above
+              ``motion_factor`` x that, so noise near the threshold does not chatter;
+  edges       the window that first sees motion already contains it: the last
+              window of a pose and ``trim`` s at both ends are dropped;
+  hold        a pose counts once it has ``min_hold`` s of clean data; the live
+              flow asks for ``hold`` s (default 4) before saying "captured";
+  face        the axis with the largest |mean| within ``face_tolerance_deg``
+              of vertical; its sign names the face down (+z down: az ~ -g);
+  moved       means of 0.25 s blocks must agree with the pose's plateau within
+              ``drift_tolerance`` (0.05 m/s^2, about 0.3 degrees of tilt) or 6
+              noise sd, whichever is larger; up to ``settle`` s (1.0) off the
+              plateau (by 4.5 sd of a block mean) at either end is the hand settling or starting to lift and
+              is trimmed; a shift elsewhere (a slow tip that never trips the
+              dispersion) means the pose moved;
+  saturated   samples at the full scale of the sensor range, when known.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from accelrig.errors import CalibrationError, DataError
+from accelrig.procedures.result import CalibrationResult, Estimate
+from accelrig.procedures.static_fit import (
+    AXES,
+    FACES,
+    MODELS,
+    PoseData,
+    face_reference,
+    fit_model,
+)
+from accelrig.recording import Recording, guess_units
+from accelrig.units import STANDARD_GRAVITY
+
+
+@dataclass
+class Event:
+    """Something the operator should be told.  ``kind`` is stable (for code); ``message`` is for people."""
+
+    kind: str        # hold_still, already_done, captured, progress, complete, motion, too_short, moved,
+                     # not_flat, saturated, redo
+    message: str
+    time: float
+    face: str | None = None
+
+
+@dataclass
+class Pose:
+    """One still pose: its clean samples (raw, m/s^2) and what was found about it."""
+
+    face: str | None
+    t: np.ndarray
+    samples: np.ndarray
+    problem: str | None = None       # None for an accepted pose; else moved / saturated / not_flat / too_short
+    detail: str = ""
+
+    @property
+    def start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def stop(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.samples.mean(axis=0)
+
+    @property
+    def within_ss(self) -> float:
+        return float(np.sum((self.samples - self.mean) ** 2))
+
+    @property
+    def noise_sd(self) -> float:
+        return float(np.sqrt(self.within_ss / max(3 * (len(self.samples) - 1), 1)))
+
+
+def classify_face(mean: np.ndarray, tolerance_deg: float) -> tuple[str | None, float]:
+    """(face down, angle of the dominant axis from vertical in degrees); face None if too far off."""
+    mean = np.asarray(mean, dtype=float)
+    k = int(np.argmax(np.abs(mean)))
+    norm = float(np.linalg.norm(mean))
+    angle = float(np.degrees(np.arccos(min(abs(mean[k]) / norm, 1.0)))) if norm > 0 else 90.0
+    face = ("+" if mean[k] < 0 else "-") + AXES[k]
+    return (face if angle <= tolerance_deg else None), angle
+
+
+class StaticProcedure:
+    """Live and offline six-face procedure: feed raw samples, read events, get the result.
+
+    ``feed(t, raw)`` takes samples (n,) and (n, 3) in m/s^2 and returns the
+    events they caused; ``finish()`` closes the pose in progress at the end
+    of a recording; ``progress`` tells a UI where the operator stands;
+    ``redo(face)`` forgets a face; ``result()`` calibrates from the poses.
+    """
+
+    def __init__(self, rate: float, g: float = STANDARD_GRAVITY, hold: float = 4.0, min_hold: float = 2.0,
+                 window: float = 0.2, still_threshold: float = 0.25, motion_factor: float = 2.0,
+                 trim: float = 0.3, face_tolerance_deg: float = 25.0, drift_block: float = 0.25,
+                 drift_tolerance: float = 0.05, settle: float = 1.0, full_scale: float | None = None):
+        if not rate or rate <= 0:
+            raise DataError("the sample rate must be positive to detect still poses")
+        if min_hold > hold:
+            raise CalibrationError(f"min_hold {min_hold} s is longer than hold {hold} s")
+        self.rate, self.g, self.hold, self.min_hold = float(rate), float(g), float(hold), float(min_hold)
+        self.window_n = max(int(round(window * rate)), 5)
+        self.trim_n = int(round(trim * rate))
+        self.still_threshold, self.motion_factor = float(still_threshold), float(motion_factor)
+        self.face_tolerance_deg = face_tolerance_deg
+        self.drift_block_n = max(int(round(drift_block * rate)), 5)
+        self.drift_tolerance = drift_tolerance
+        self.settle_blocks = int(round(settle / (self.drift_block_n / self.rate)))
+        self.full_scale = full_scale
+        self.poses: list[Pose] = []          # accepted, in the order captured
+        self.rejected: list[Pose] = []       # still stretches that could not be used, with the reason
+        self._tail_t = np.empty(0)
+        self._tail_x = np.empty((0, 3))
+        self._still = False
+        self._seg_t: list[np.ndarray] = []
+        self._seg_d: list[np.ndarray] = []   # dispersion at each segment sample
+        self._seg_x: list[np.ndarray] = []
+        self._seg_n = 0
+        self._seg_face: str | None = None
+        self._seg_announced = False
+        self._seg_captured = False
+        self._seg_problem_reported = False
+        self._now = 0.0
+
+    # ------------------------------------------------------------- progress
+    @property
+    def faces_done(self) -> list[str]:
+        return [f for f in FACES if any(p.face == f for p in self.poses)]
+
+    @property
+    def missing_faces(self) -> list[str]:
+        done = set(self.faces_done)
+        return [f for f in FACES if f not in done]
+
+    @property
+    def progress(self) -> dict:
+        held = self._clean_duration() if self._still else 0.0
+        return {
+            "faces_done": self.faces_done,
+            "n_done": len(self.faces_done),
+            "n_poses": len(self.poses),
+            "missing": self.missing_faces,
+            "current_face": self._seg_face if self._still else None,
+            "still": self._still,
+            "hold_fraction": min(held / self.hold, 1.0),
+            "held_seconds": held,
+        }
+
+    def redo(self, face: str) -> list[Event]:
+        """Forget every pose of ``face`` (the operator wants to take it again)."""
+        if face not in FACES:
+            raise CalibrationError(f"{face!r} is not a face", "faces are +x, -x, +y, -y, +z, -z")
+        before = len(self.poses)
+        self.poses = [p for p in self.poses if p.face != face]
+        n = before - len(self.poses)
+        return [Event("redo", f"{face} down forgotten ({n} pose{'s' if n != 1 else ''}): put it down again",
+                      self._now, face)]
+
+    # ----------------------------------------------------------------- feed
+    def feed(self, t: np.ndarray, raw: np.ndarray) -> list[Event]:
+        t = np.asarray(t, dtype=float).ravel()
+        raw = np.asarray(raw, dtype=float).reshape(-1, 3)
+        if t.size != raw.shape[0]:
+            raise DataError("feed() needs one time per sample")
+        if t.size == 0:
+            return []
+        events: list[Event] = []
+        buf_t = np.concatenate([self._tail_t, t])
+        buf_x = np.concatenate([self._tail_x, raw])
+        offset = self._tail_t.size
+        w = self.window_n
+        dispersion = np.full(buf_t.size, np.inf)
+        if buf_t.size >= w:
+            c1 = np.vstack([np.zeros((1, 3)), np.cumsum(buf_x - buf_x[0], axis=0)])
+            c2 = np.vstack([np.zeros((1, 3)), np.cumsum((buf_x - buf_x[0]) ** 2, axis=0)])
+            s1 = c1[w:] - c1[:-w]
+            s2 = c2[w:] - c2[:-w]
+            var = np.clip((s2 - s1**2 / w) / (w - 1), 0.0, None)
+            dispersion[w - 1:] = np.sqrt(var.sum(axis=1))
+        d = dispersion[offset:]
+        # Hysteresis, vectorised: the state at each sample is set by whichever came last,
+        # a sample below the still threshold or one above the motion threshold.
+        idx = np.arange(d.size)
+        # The state carried in from the previous block acts as a decisive sample just before this one.
+        init_below, init_above = (-1, -2) if self._still else (-2, -1)
+        last_below = np.maximum.accumulate(np.where(d < self.still_threshold, idx, init_below))
+        last_above = np.maximum.accumulate(np.where(d > self.motion_factor * self.still_threshold, idx, init_above))
+        still = last_below > last_above
+        # Walk the runs of constant state.
+        edges = np.flatnonzero(np.diff(still.astype(np.int8))) + 1
+        bounds = np.concatenate([[0], edges, [d.size]])
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if still[a]:
+                if not self._still:
+                    # Still since the start of the first quiet window.
+                    first = max(offset + a - (w - 1), 0)
+                    # The quiet window that opened the pose gets that window's dispersion.
+                    self._open_segment(buf_t[first:offset + a], buf_x[first:offset + a],
+                                       np.full(offset + a - first, d[a]))
+                self._append(buf_t[offset + a:offset + b], buf_x[offset + a:offset + b], d[a:b])
+                events += self._segment_events()
+            elif self._still:
+                events += self._close_segment(motion=True)
+        keep = min(w - 1, buf_t.size)
+        self._tail_t, self._tail_x = buf_t[buf_t.size - keep:], buf_x[buf_t.size - keep:]
+        self._now = float(t[-1])
+        return events
+
+    def finish(self) -> list[Event]:
+        """End of data: close the pose in progress (a recording may end while still)."""
+        return self._close_segment(motion=False) if self._still else []
+
+    # -------------------------------------------------------------- segments
+    def _open_segment(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
+        self._still = True
+        self._seg_t, self._seg_x, self._seg_d, self._seg_n = [t], [x], [d], t.size
+        self._seg_face = None
+        self._seg_announced = self._seg_captured = self._seg_problem_reported = False
+
+    def _append(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
+        self._seg_d.append(d)
+        self._seg_t.append(t)
+        self._seg_x.append(x)
+        self._seg_n += t.size
+
+    def _clean_duration(self) -> float:
+        return max(self._seg_n - 2 * self.trim_n, 0) / self.rate
+
+    def _segment_events(self) -> list[Event]:
+        events = []
+        now = float(self._seg_t[-1][-1])
+        if not self._seg_announced and self._seg_n >= self.window_n + self.trim_n:
+            x = np.concatenate(self._seg_x)
+            self._seg_face, angle = classify_face(x.mean(axis=0), self.face_tolerance_deg)
+            self._seg_announced = True
+            face = self._seg_face
+            if face is None:
+                events.append(Event("not_flat", f"not face down ({angle:.0f} degrees off): put one face flat on the table",
+                                    now))
+            elif face in self.faces_done:
+                events.append(Event("already_done", f"{face} already done (holding it adds data)", now, face))
+            else:
+                events.append(Event("hold_still", f"hold still: {face} down", now, face))
+        if (self._seg_announced and self._seg_face is not None and not self._seg_captured
+                and self._clean_duration() >= self.hold):
+            pose, problem = self._settle(self._current_pose(end_clip=0))
+            problem = problem or self._check(pose)
+            self._seg_captured = True
+            if problem is None:
+                events.append(Event("captured", f"{self._seg_face} down captured ({self.hold:.1f} s)", now,
+                                    self._seg_face))
+                done = set(self.faces_done) | {self._seg_face}
+                events.append(Event("progress", f"{len(done)} of 6", now))
+                if len(done) == 6:
+                    events.append(Event("complete", "all six faces captured", now))
+            else:
+                self._seg_problem_reported = True
+                events.append(Event(problem[0], problem[1], now, self._seg_face))
+        return events
+
+    def _current_pose(self, end_clip: int) -> Pose:
+        """The segment's clean samples.
+
+        Handling rarely starts or stops abruptly: the dispersion creeps up
+        before it crosses the motion threshold and settles after the still
+        threshold.  Windows whose dispersion is above 1.5 x the pose's median
+        at either end hold some of that motion, so the pose ends a window
+        before the first of them (and starts after the last of them), then
+        ``trim`` more is dropped.
+        """
+        t = np.concatenate(self._seg_t)
+        x = np.concatenate(self._seg_x)
+        d = np.concatenate(self._seg_d)
+        limit = 1.5 * np.median(d)
+        start = 0
+        while start < d.size and d[start] > limit:
+            start += 1
+        start = max(start - (self.window_n - 1), 0) + self.trim_n
+        stop = d.size
+        if end_clip:
+            while stop > start and d[stop - 1] > limit:
+                stop -= 1
+            stop -= end_clip
+        stop -= self.trim_n
+        t, x = t[start:max(stop, start)], x[start:max(stop, start)]
+        face = classify_face(x.mean(axis=0), self.face_tolerance_deg)[0] if t.size else None
+        return Pose(face, t, x)
+
+    def _close_segment(self, motion: bool) -> list[Event]:
+        """Motion (or the end of data) ends the pose; keep it if it is long, flat, unmoved, unsaturated."""
+        self._still = False
+        # The window that tripped the motion threshold already holds the motion: drop it.
+        pose = self._current_pose(end_clip=self.window_n - 1 if motion else 0)
+        now = self._now
+        self._seg_t, self._seg_x, self._seg_d, self._seg_n = [], [], [], 0
+        if pose.face is not None:
+            pose, problem = self._settle(pose)
+        else:
+            problem = None
+        if pose.t.size < 2 or pose.duration < self.min_hold:
+            pose.problem, pose.detail = "too_short", f"{pose.duration:.1f} s"
+            self.rejected.append(pose)
+            if pose.face is not None and self._seg_announced and motion:
+                return [Event("too_short", f"motion detected: {pose.face} down held only {pose.duration:.1f} s, "
+                                           f"hold it {self.hold:.0f} s", now, pose.face)]
+            return []
+        if pose.face is None:
+            pose.problem = "not_flat"
+            self.rejected.append(pose)
+            return []
+        problem = problem or self._check(pose)
+        if problem is not None:
+            pose.problem, pose.detail = problem
+            self.rejected.append(pose)
+            if self._seg_problem_reported:
+                return []
+            return [Event(problem[0], problem[1], now, pose.face)]
+        self.poses.append(pose)
+        events = []
+        if not self._seg_captured:
+            events.append(Event("captured", f"{pose.face} down captured ({pose.duration:.1f} s)", now, pose.face))
+            events.append(Event("progress", f"{len(self.faces_done)} of 6", now))
+            if len(self.faces_done) == 6:
+                events.append(Event("complete", "all six faces captured", now))
+        return events
+
+    def _check(self, pose: Pose) -> tuple[str, str] | None:
+        """The capture checks: (kind, one-line message) of the first problem, or None."""
+        x = pose.samples
+        if self.full_scale is not None:
+            hit = np.any(np.abs(x) >= self.full_scale * (1 - 1e-3), axis=1)
+            if np.any(hit):
+                k = int(np.argmax(hit))
+                return ("saturated", f"{pose.face} down at t = {pose.t[k]:.1f} s: {int(hit.sum())} samples at the "
+                                     f"sensor's full scale ({self.full_scale:.2f} m/s^2): use a larger range")
+        else:
+            # Range unknown: a clipped axis sits on one value while the others show noise.
+            spread = np.ptp(x, axis=0)
+            for k in range(3):
+                if spread[k] == 0 and np.any(spread > 0) and abs(x[0, k]) > 0.5 * self.g:
+                    return ("saturated", f"{pose.face} down at t = {pose.start:.1f} s: axis {AXES[k]} stuck at "
+                                         f"{x[0, k]:.3f} m/s^2 while the others vary (clipped?): use a larger range")
+        return None
+
+    def _settle(self, pose: Pose) -> tuple[Pose, tuple[str, str] | None]:
+        """Drop settling at the start and the first lift at the end; a shift anywhere else is a move.
+
+        Block means (``drift_block`` s) are compared with their median (the
+        pose's plateau).  Up to ``settle`` s of off-plateau blocks at either
+        end are normal handling and trimmed away; any other block off the
+        plateau by more than the tolerance means the pose moved.
+        """
+        x, b = pose.samples, self.drift_block_n
+        n_blocks = x.shape[0] // b
+        if n_blocks < 3:
+            return pose, None
+        means = x[: n_blocks * b].reshape(n_blocks, b, 3).mean(axis=1)
+        deviation = np.linalg.norm(means - np.median(means, axis=0), axis=1)
+        # Edges: strict, noise-based (4.5 sd of a block mean's offset, beyond the 99.9th percentile of
+        # its norm), because a half-settled block left in biases the pose mean at the CRB level.
+        edge_off = deviation > 4.5 * pose.noise_sd / np.sqrt(b)
+        # Interior: lenient, so noise never calls a good pose 'moved'.
+        tolerance = max(self.drift_tolerance, 6.0 * pose.noise_sd * np.sqrt(2.0 / b))
+        off = deviation > tolerance
+        allowance = self.settle_blocks
+        lead = 0
+        while lead < min(allowance, n_blocks - 1) and edge_off[lead]:
+            lead += 1
+        tail = 0
+        while tail < min(allowance, n_blocks - lead - 1) and edge_off[n_blocks - 1 - tail]:
+            tail += 1
+        inner = off[lead:n_blocks - tail]
+        if np.any(inner):
+            k = lead + int(np.argmax(inner))
+            size = float(deviation.max())
+            deg = np.degrees(np.arcsin(min(size / self.g, 1.0)))
+            return pose, ("moved", f"{pose.face} down moved during the pose at t = {pose.t[k * b]:.1f} s "
+                                   f"({size:.2f} m/s^2, about {deg:.1f} degrees): hold that face still again")
+        stop = x.shape[0] - tail * b if tail else x.shape[0]
+        return Pose(pose.face, pose.t[lead * b:stop], x[lead * b:stop]), None
+
+    # ---------------------------------------------------------------- result
+    def pose_data(self) -> PoseData:
+        if not self.poses:
+            raise CalibrationError("no still pose found", "hold each face still for a few seconds")
+        return PoseData([p.face for p in self.poses], [p.mean for p in self.poses],
+                        [len(p.samples) for p in self.poses], [p.within_ss for p in self.poses], self.g)
+
+    def result(self, model: str = "auto", method: str = "vp") -> CalibrationResult:
+        missing = self.missing_faces
+        if missing:
+            found = ", ".join(self.faces_done) or "none"
+            # Say why a face that was held did not count (too short, moved, ...).
+            why = []
+            for face in missing:
+                tried = [p for p in self.rejected if p.face == face]
+                if tried:
+                    reasons = sorted({f"{p.problem.replace('_', ' ')} at t = {p.start:.1f} s" for p in tried})
+                    why.append(f"{face} held but {'; '.join(reasons)}")
+            detail = f"; {', '.join(why)}" if why else ""
+            raise CalibrationError(f"only {6 - len(missing)} of 6 faces found (have {found}; missing "
+                                   f"{', '.join(missing)}{detail})",
+                                   f"hold each missing face down still for at least {self.min_hold:g} s")
+        return build_result(self.pose_data(), self.poses, model, method, self.settings())
+
+    def settings(self) -> dict:
+        return {"g": self.g, "rate": self.rate, "hold": self.hold, "min_hold": self.min_hold,
+                "window": self.window_n / self.rate, "still_threshold": self.still_threshold,
+                "motion_factor": self.motion_factor, "trim": self.trim_n / self.rate,
+                "face_tolerance_deg": self.face_tolerance_deg, "drift_tolerance": self.drift_tolerance,
+                "settle": self.settle_blocks * self.drift_block_n / self.rate,
+                "full_scale": self.full_scale}
+
+
+# ------------------------------------------------------------------ results
+
+def build_result(data: PoseData, poses: list[Pose], model: str, method: str, settings: dict) -> CalibrationResult:
+    """Fit the requested model (or both, for auto) and package the CalibrationResult."""
+    if model not in (*MODELS, "auto"):
+        raise CalibrationError(f"unknown model {model!r}", "use paper, affine or auto")
+    if model == "affine" and method == "paper":
+        raise CalibrationError("the paper's Nelder-Mead scheme exists only for the 9-parameter model",
+                               "use --method vp with --model affine, or --model paper")
+    fits = {m: fit_model(data, m, method if m == "paper" else "vp") for m in (MODELS if model == "auto" else (model,))}
+    n_obs = 3 * int(np.sum(data.counts))
+    selection = {m: {"chi2": f.chi2, "dof": f.dof, "p_value": f.p_value, "aic": f.aic, "bic": f.bic(n_obs),
+                     "n_parameters": len(f.names)} for m, f in fits.items()}
+    chosen = min(fits.values(), key=lambda f: f.aic)
+    corr = chosen.correction
+    calibrated_residuals = [corr.apply(p.samples) - face_reference(p.face, data.g) for p in poses]
+    all_res = np.concatenate(calibrated_residuals)
+    face_rows = []
+    for p, r, lof in zip(poses, calibrated_residuals, chosen.residuals):
+        face_rows.append({"face": p.face, "start": p.start, "stop": p.stop, "n": len(p.samples),
+                          "noise_sd": p.noise_sd, "residual": (corr.matrix @ lof).tolist(),
+                          "residual_norm": float(np.linalg.norm(corr.matrix @ lof))})
+    correlation = noise_correlation_factor(poses, max(int(round(0.25 * settings["rate"])), 5), data.noise_sd)
+    quality = {
+        "residual_rms": float(np.sqrt(np.mean(all_res**2))),
+        "noise_correlation_factor": correlation,
+        "noise_sd": data.noise_sd,
+        "n_samples": int(np.sum(data.counts)),
+        "n_poses": len(poses),
+        "chi2": chosen.chi2,
+        "dof": chosen.dof,
+        "p_value": chosen.p_value,
+        "model_selection": selection,
+        "faces": face_rows,
+        "n_evaluations": chosen.n_evaluations,
+        "fit_seconds": chosen.seconds,
+    }
+    warnings = []
+    if chosen.dof > 0 and chosen.p_value < 1e-3:
+        warnings.append(f"the poses disagree with the {chosen.model} model beyond their noise (chi2 = "
+                        f"{chosen.chi2:.1f} for {chosen.dof} dof): table not level, cube not square or a pose "
+                        "not flat? The uncertainties may be too small.")
+    if correlation > 1.5:
+        warnings.append(f"the noise is correlated in time (pose means scatter {correlation:.1f} times more in "
+                        "variance than white noise predicts; a digital low-pass filter?): the uncertainties "
+                        "assume white noise and are too small by about the square root of that")
+    if chosen.extra.get("converged") is False:
+        warnings.append(f"Nelder-Mead stopped before converging: {chosen.extra.get('message')}")
+    parameters = {n: Estimate(float(v), float(u), unit)
+                  for n, v, u, unit in zip(chosen.names, chosen.values, chosen.uncertainty, chosen.units)}
+    return CalibrationResult(
+        procedure="static",
+        method=chosen.method,
+        model=chosen.model,
+        correction=corr,
+        parameters=parameters,
+        covariance=chosen.covariance,
+        parameter_names=list(chosen.names),
+        quality=quality,
+        arrays={"pose_means": data.means, "pose_references": data.references, "pose_residuals": chosen.residuals,
+                "pose_times": np.array([[p.start, p.stop] for p in poses])},
+        settings={**settings, "model_requested": model, "faces": list(data.faces)},
+        warnings=warnings,
+    )
+
+
+def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> float:
+    """Variance of block means x block length / sigma^2, pooled over poses and axes.
+
+    About 1 for white noise (the model the uncertainties assume); a low-pass
+    filtered sensor, or a pose that creeps, shows more.  nan when the poses
+    are too short for two blocks.
+    """
+    total, dof = 0.0, 0
+    for p in poses:
+        n_blocks = len(p.samples) // block
+        if n_blocks < 2:
+            continue
+        means = p.samples[: n_blocks * block].reshape(n_blocks, block, 3).mean(axis=1)
+        total += float(np.sum((means - means.mean(axis=0)) ** 2)) * block
+        dof += 3 * (n_blocks - 1)
+    return total / dof / sigma**2 if dof and sigma > 0 else float("nan")
+
+
+# ------------------------------------------------------------------ offline
+
+def _check_units(rec: Recording) -> None:
+    """Refuse data whose size at rest says the declared units are wrong, naming the flag."""
+    guess = guess_units(rec.acc)
+    if guess in ("unknown", rec.units):
+        return
+    flag = {"m/s^2": "--units m/s2", "g": "--units g", "counts": "--units counts"}[guess]
+    size = float(np.median(np.linalg.norm(rec.acc, axis=1)))
+    raise DataError(f"the data were declared as {rec.units} but look like {guess} (|a| at rest about {size:.3g})",
+                    f"use {flag}")
+
+
+def full_scale_of(rec: Recording, g: float = STANDARD_GRAVITY) -> float | None:
+    """Sensor full scale in m/s^2 from the recording's metadata, if known."""
+    scale, range_g = rec.meta.get("scale"), rec.meta.get("range_g")
+    if scale:
+        return 32767 * float(scale)
+    if range_g:
+        return float(range_g) * STANDARD_GRAVITY
+    return None
+
+
+def detect_poses(rec: Recording, g: float = STANDARD_GRAVITY, **settings) -> StaticProcedure:
+    """Run a whole recording through the procedure; returns it (``.poses``, ``.rejected``)."""
+    if len(rec) < 2:
+        raise DataError("the recording holds fewer than two samples")
+    _check_units(rec)
+    si = rec.to_si(STANDARD_GRAVITY)   # unit g means standard g; the local g is only the reference size
+    if not np.all(np.isfinite(si.acc)):
+        raise DataError("the recording holds NaN or infinite values")
+    settings.setdefault("full_scale", full_scale_of(rec))
+    proc = StaticProcedure(si.rate, g=g, **settings)
+    proc.feed(si.t, si.acc)
+    proc.finish()
+    return proc
+
+
+def calibrate_static(rec: Recording, model: str = "auto", method: str = "vp", g: float = STANDARD_GRAVITY,
+                     **settings) -> CalibrationResult:
+    """Offline six-face calibration of a recording; bad data raise one clear DataError/CalibrationError."""
+    proc = detect_poses(rec, g=g, **settings)
+    for pose in proc.rejected:
+        if pose.problem in ("moved", "saturated"):
+            raise DataError(pose.detail)
+    result = proc.result(model, method)
+    result.settings["recording"] = rec.meta.get("source") or rec.meta.get("device")
+    return result

@@ -1,0 +1,212 @@
+"""Six-face static calibration: still poses on a level surface with handling between them.
+
+Convention ("face X down"): the cube rests on its X face, so the sensor's X
+axis points DOWN and, at rest, reads -g (specific force: the axis pointing
+up reads +g).  "+z down" reads az = -g, "-z down" reads az = +g.
+
+The script, drawn once from the seeded generator: pose k is held still for
+``hold`` s; between poses the operator lifts the cube, turns it smoothly
+(minimum-jerk rotation) onto the next face, shakes it a little (a few
+m/s^2 at 2-6 Hz) and puts it down, in 1-3 s.  Each pose has a random yaw on
+the table (invisible to gravity) and an optional random tilt (``tilt``,
+degrees sd: table not level, cube not square), which a calibration that
+takes the faces as exact references cannot tell from a sensor error.
+``moved=K`` makes pose K (1-based) slowly tip by ``moved_deg`` in the middle
+of its hold, for the 'moved during pose' check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from accelrig.acquisition.url import DeviceURL
+from accelrig.errors import DeviceError
+from accelrig.procedures.static_fit import FACES
+from accelrig.sim.rigs.base import Rig
+from accelrig.sim.sensor import SensorModel
+from accelrig.units import STANDARD_GRAVITY
+
+DEFAULT_ORDER = ("+z", "-z", "+x", "-x", "+y", "-y")
+
+# Rotation (body -> world) that puts the named body axis pointing down (-z world).
+_FACE_DOWN = {
+    "+z": Rotation.from_euler("x", np.pi),
+    "-z": Rotation.identity(),
+    "+x": Rotation.from_euler("y", np.pi / 2),
+    "-x": Rotation.from_euler("y", -np.pi / 2),
+    "+y": Rotation.from_euler("x", -np.pi / 2),
+    "-y": Rotation.from_euler("x", np.pi / 2),
+}
+
+
+def parse_faces(text: str) -> tuple[str, ...]:
+    """'+z,-z,+x' -> ('+z', '-z', '+x'); a '+' arriving as a space from a URL query is restored."""
+    faces = []
+    for item in text.split(","):
+        face = item.strip().replace(" ", "+")
+        if len(face) == 1 and face in "xyz":
+            face = "+" + face
+        if face not in FACES:
+            raise DeviceError(f"{item.strip()!r} is not a face", "faces are +x, -x, +y, -y, +z, -z, comma separated")
+        faces.append(face)
+    if not faces:
+        raise DeviceError("order= names no face", "e.g. order=+z,-z,+x,-x,+y,-y")
+    return tuple(faces)
+
+
+def _min_jerk(s: np.ndarray) -> np.ndarray:
+    return s**3 * (10 - 15 * s + 6 * s**2)
+
+
+class StaticRig(Rig):
+    name = "static"
+    description = "six-face static calibration: still poses (face down) with handling motion between them"
+    options = {
+        "order": "faces down in the operator's order, comma separated (default +z,-z,+x,-x,+y,-y); repeats allowed",
+        "hold": "seconds each pose is held still (default 4)",
+        "tilt": "sd of each pose's random tilt from exactly face-down, degrees (default 0: levelled surface)",
+        "shake": "peak handling acceleration between poses, m/s^2 (default 3)",
+        "moved": "1-based pose that tips slowly in the middle of its hold (default: none)",
+        "moved_deg": "how far that pose tips, degrees (default 3)",
+    }
+
+    def __init__(self, rng: np.random.Generator, order=DEFAULT_ORDER, hold: float = 4.0, tilt_deg: float = 0.0,
+                 shake: float = 3.0, moved: int | None = None, moved_deg: float = 3.0, g: float = STANDARD_GRAVITY):
+        if hold <= 0:
+            raise DeviceError(f"hold={hold} must be positive")
+        if tilt_deg < 0 or shake < 0:
+            raise DeviceError("tilt and shake must not be negative")
+        order = tuple(order)
+        if moved is not None and not 1 <= moved <= len(order):
+            raise DeviceError(f"moved={moved} is not a pose number (1..{len(order)})")
+        self.order, self.hold, self.tilt_deg, self.shake, self.g = order, float(hold), float(tilt_deg), float(shake), g
+        self.moved, self.moved_deg = moved, float(moved_deg)
+
+        # Still orientations: face down, random yaw, small random tilt about a horizontal axis.
+        self._poses: list[dict] = []
+        self._transitions: list[dict] = []
+        t = 0.0
+        previous = None
+        for k, face in enumerate(order):
+            yaw = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi))
+            heading = rng.uniform(0, 2 * np.pi)
+            tilt = Rotation.from_rotvec(np.deg2rad(rng.normal() * tilt_deg)
+                                        * np.array([np.cos(heading), np.sin(heading), 0.0]))
+            orientation = tilt * yaw * _FACE_DOWN[face]
+            if previous is not None:
+                duration = rng.uniform(1.0, 3.0)
+                freqs = rng.uniform(2.0, 6.0, (3, 3))
+                phases = rng.uniform(0, 2 * np.pi, (3, 3))
+                amps = rng.uniform(0.3, 1.0, (3, 3))
+                amps *= shake / max(amps.sum(axis=1).max(), 1e-12)  # peak <= shake on every world axis
+                self._transitions.append(dict(start=t, stop=t + duration, a=previous, b=orientation,
+                                              lift=rng.uniform(0.03, 0.08), freqs=freqs, phases=phases, amps=amps))
+                t += duration
+            pose = dict(face=face, start=t, stop=t + self.hold, rotation=orientation, tilt_deg=float(
+                np.rad2deg(tilt.magnitude())))
+            if moved == k + 1:
+                axis = np.array([np.cos(heading + 1.0), np.sin(heading + 1.0), 0.0])
+                pose["tip"] = dict(start=t + 0.4 * self.hold, stop=t + 0.6 * self.hold,
+                                   rotvec=np.deg2rad(moved_deg) * axis)
+            self._poses.append(pose)
+            previous = orientation
+            t += self.hold
+        self.duration = t
+
+    @classmethod
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "StaticRig":
+        order = parse_faces(url.get_str("order")) if url.get_str("order") else DEFAULT_ORDER
+        return cls(rng, order=order, hold=url.get_float("hold", 4.0), tilt_deg=url.get_float("tilt", 0.0),
+                   shake=url.get_float("shake", 3.0), moved=url.get_int("moved"),
+                   moved_deg=url.get_float("moved_deg", 3.0))
+
+    def _pose_rotation(self, pose: dict, t: np.ndarray) -> Rotation:
+        tip = pose.get("tip")
+        if tip is None:
+            return Rotation.concatenate([pose["rotation"]] * t.size) if t.size else pose["rotation"]
+        s = _min_jerk(np.clip((t - tip["start"]) / (tip["stop"] - tip["start"]), 0.0, 1.0))
+        return Rotation.from_rotvec(s[:, None] * tip["rotvec"]) * pose["rotation"]
+
+    def specific_force(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float).ravel()
+        up = np.array([0.0, 0.0, self.g])
+        force = np.empty((t.size, 3))
+        # Before the first pose or after the last one the cube rests in that pose.
+        for k, pose in enumerate(self._poses):
+            lo = -np.inf if k == 0 else pose["start"]
+            hi = np.inf if k == len(self._poses) - 1 else pose["stop"]
+            mask = (t >= lo) & (t < hi)
+            if np.any(mask):
+                force[mask] = self._pose_rotation(pose, t[mask]).inv().apply(up)
+        for tr in self._transitions:
+            mask = (t >= tr["start"]) & (t < tr["stop"])
+            if not np.any(mask):
+                continue
+            tt = t[mask]
+            duration = tr["stop"] - tr["start"]
+            s = (tt - tr["start"]) / duration
+            relative = (tr["a"].inv() * tr["b"]).as_rotvec()
+            rot = tr["a"] * Rotation.from_rotvec(_min_jerk(s)[:, None] * relative)
+            # Lift: height lift * sin^4(pi s), whose acceleration (the second derivative)
+            # starts and ends at zero like a hand's: no step at the poses.
+            sin, cos = np.sin(np.pi * s), np.cos(np.pi * s)
+            lift_acc = tr["lift"] * 4 * np.pi**2 / duration**2 * sin**2 * (3 * cos**2 - sin**2)
+            envelope = np.sin(np.pi * s) ** 2  # shake fades in and out: zero at both poses
+            shake = envelope[:, None] * np.einsum(
+                "ij,nij->ni", tr["amps"], np.sin(2 * np.pi * tr["freqs"][None] * tt[:, None, None] + tr["phases"][None]))
+            world = shake + up
+            world[:, 2] += lift_acc
+            force[mask] = rot.inv().apply(world)
+        return force
+
+    def truth(self) -> dict:
+        poses = []
+        up = np.array([0.0, 0.0, 1.0])
+        for pose in self._poses:
+            entry = {
+                "face": pose["face"],
+                "start": pose["start"],
+                "stop": pose["stop"],
+                "tilt_deg": pose["tilt_deg"],
+                "rotation": pose["rotation"].as_matrix().tolist(),
+                # unit 'up' direction in the body frame: the still specific force is g times this
+                "up_body": pose["rotation"].inv().apply(up).tolist(),
+            }
+            if "tip" in pose:
+                entry["moved"] = {"start": pose["tip"]["start"], "stop": pose["tip"]["stop"],
+                                  "deg": float(np.rad2deg(np.linalg.norm(pose["tip"]["rotvec"])))}
+            poses.append(entry)
+        return {
+            "rig": self.name,
+            "g": self.g,
+            "order": list(self.order),
+            "hold": self.hold,
+            "tilt_deg": self.tilt_deg,
+            "poses": poses,
+            "transitions": [{"start": tr["start"], "stop": tr["stop"]} for tr in self._transitions],
+        }
+
+
+def sensor_with_response(response: np.ndarray, offset: np.ndarray, **kwargs) -> SensorModel:
+    """A SensorModel whose raw = K f + o has exactly the given K.
+
+    K = L Q (LQ decomposition): L lower triangular = diag(gain) T(nonorthogonality),
+    Q = R(misalignment).  Lets tests and benchmarks draw the truth inside a
+    chosen model family (e.g. the paper's C = G R) and still simulate through
+    the ordinary sensor model.
+    """
+    k = np.asarray(response, dtype=float)
+    q, r = np.linalg.qr(k.T)
+    lower, rot = r.T, q.T
+    signs = np.sign(np.diag(lower))
+    lower, rot = lower * signs, signs[:, None] * rot
+    if np.linalg.det(rot) < 0:
+        raise ValueError("response matrix must have a positive determinant")
+    gain = np.linalg.norm(lower, axis=1)
+    nonorth = np.arcsin([lower[1, 0] / lower[1, 1], lower[2, 0] / lower[2, 2], lower[2, 1] / lower[2, 2]])
+    c, b, a = Rotation.from_matrix(rot).as_euler("ZYX")
+    sensor = SensorModel(offset=offset, gain=gain, misalignment=np.array([a, b, c]), nonorthogonality=nonorth, **kwargs)
+    if not np.allclose(sensor.response_matrix, k, atol=1e-12):
+        raise ValueError("response matrix outside the sensor model's range (non-orthogonality too large)")
+    return sensor

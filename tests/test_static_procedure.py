@@ -1,0 +1,143 @@
+"""Six-face procedure: pose detection (live = offline), operator events, capture checks, bad input."""
+
+import numpy as np
+import pytest
+
+from accelrig.acquisition.url import DeviceURL
+from accelrig.errors import CalibrationError, DataError
+from accelrig.procedures.static_faces import StaticProcedure, calibrate_static, detect_poses
+from accelrig.recording import Recording
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs.static import StaticRig
+from accelrig.sim.sensor import SensorModel, SimClock
+from accelrig.units import STANDARD_GRAVITY as G
+
+
+def _record(url="sim://static", seed=0, sensor=None, rate=200.0):
+    rig = StaticRig.from_url(DeviceURL.parse(url), np.random.default_rng(seed))
+    sensor = sensor or SensorModel.random(np.random.default_rng(seed + 100))
+    return simulate(rig, sensor, SimClock(rate), seed=seed), rig, sensor
+
+
+def test_offline_poses_lie_inside_the_true_still_intervals_with_the_right_faces():
+    rec, rig, _ = _record("sim://static?order=-x,+z,+y,-z,+x,-y", seed=1)
+    proc = detect_poses(rec)
+    truth = rig.truth()["poses"]
+    assert [p.face for p in proc.poses] == [p["face"] for p in truth]
+    for pose, tp in zip(proc.poses, truth):
+        assert tp["start"] - 0.15 <= pose.start and pose.stop <= tp["stop"] + 0.01
+        assert pose.duration > 0.75 * rig.hold   # edges trimmed, not the pose thrown away
+    assert proc.rejected == []
+
+
+def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_operator():
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,+x,-x,+y,-y", seed=2)
+    offline = detect_poses(rec)
+    rng = np.random.default_rng(0)
+    proc = StaticProcedure(rec.rate)
+    events, k = [], 0
+    while k < len(rec):
+        n = int(rng.integers(1, 90))
+        events += proc.feed(rec.t[k:k + n], rec.acc[k:k + n])
+        k += n
+    events += proc.finish()
+    assert [(p.face, p.start, p.stop) for p in proc.poses] == [(p.face, p.start, p.stop) for p in offline.poses]
+    kinds = [e.kind for e in events]
+    messages = [e.message for e in events]
+    assert kinds[0] == "hold_still" and messages[0] == "hold still: +z down"
+    assert any(m.startswith("+z down captured (") for m in messages)
+    assert "+x already done (holding it adds data)" in messages
+    assert [m for k_, m in zip(kinds, messages) if k_ == "progress"][-1] == "6 of 6"
+    assert kinds[-1] == "complete"
+    assert proc.progress["n_done"] == 6 and proc.progress["n_poses"] == 7
+
+
+def test_progress_during_a_pose_and_redo():
+    rec, rig, _ = _record("sim://static?order=+z,-z&hold=4", seed=3)
+    proc = StaticProcedure(rec.rate)
+    half = int(2.0 * rec.rate)
+    proc.feed(rec.t[:half], rec.acc[:half])
+    p = proc.progress
+    assert p["still"] and p["current_face"] == "+z" and 0.3 < p["hold_fraction"] < 0.6
+    proc.feed(rec.t[half:], rec.acc[half:])
+    proc.finish()
+    assert proc.faces_done == ["+z", "-z"]
+    events = proc.redo("+z")
+    assert events[0].kind == "redo" and proc.faces_done == ["-z"]
+    with pytest.raises(CalibrationError, match="missing"):
+        proc.result()
+
+
+def test_too_short_pose_is_reported_live_and_not_used():
+    rec, _, _ = _record("sim://static?order=+z,-z,+x&hold=1.2", seed=4)
+    proc = StaticProcedure(rec.rate)
+    events = proc.feed(rec.t, rec.acc) + proc.finish()
+    assert proc.poses == []
+    assert any(e.kind == "too_short" and "held only" in e.message for e in events)
+    with pytest.raises(CalibrationError, match=r"\+z held but too short at t = "):
+        proc.result()
+
+
+def test_fewer_than_six_faces_names_the_missing_ones():
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,-y", seed=5)
+    with pytest.raises(CalibrationError) as info:
+        calibrate_static(rec)
+    assert "missing -x, +y" in str(info.value)
+
+
+def test_a_pose_that_moved_is_refused_and_says_when():
+    rec, rig, _ = _record("sim://static?moved=3&moved_deg=2", seed=6)
+    moved = rig.truth()["poses"][2]
+    with pytest.raises(DataError, match="moved") as info:
+        calibrate_static(rec)
+    when = float(str(info.value).split("t = ")[1].split(" s")[0])
+    assert moved["moved"]["start"] - 0.5 <= when <= moved["moved"]["stop"] + 0.5
+    assert moved["face"] in str(info.value)
+
+
+def test_saturated_samples_are_refused():
+    sensor = SensorModel.random(np.random.default_rng(1), range_g=1.0,
+                                offset=np.array([0.3, 0.3, 0.3]), gain=np.array([1.02, 1.02, 1.02]))
+    rec, _, _ = _record("sim://static", seed=7, sensor=sensor)
+    with pytest.raises(DataError, match="full scale"):
+        calibrate_static(rec)
+
+
+def test_clipping_without_a_known_range_is_caught_by_the_stuck_axis():
+    rec, _, _ = _record("sim://static", seed=8)
+    acc = rec.acc.copy()
+    acc[:, 2] = np.minimum(acc[:, 2], 9.0)   # the -z-down pose (az ~ +g) clips at 9.0 m/s^2
+    clipped = Recording(rec.t, acc, "m/s^2", {}, {})
+    with pytest.raises(DataError, match="stuck"):
+        calibrate_static(clipped)
+
+
+@pytest.mark.parametrize("factor,declared,flag", [(1 / G, "m/s^2", "--units g"),
+                                                 (1 / 0.000598, "m/s^2", "--units counts"),
+                                                 (1.0, "g", "--units m/s2")])
+def test_wrong_units_are_named_with_the_flag(factor, declared, flag):
+    rec, _, _ = _record("sim://static", seed=9)
+    wrong = Recording(rec.t, rec.acc * factor, declared, {}, {})
+    with pytest.raises(DataError, match=flag):
+        calibrate_static(wrong)
+
+
+def test_tilted_poses_raise_a_lack_of_fit_warning():
+    rec, _, _ = _record("sim://static?tilt=3", seed=10)
+    result = calibrate_static(rec, model="affine")
+    assert result.quality["p_value"] < 1e-3
+    assert any("table not level" in w for w in result.warnings)
+
+
+def test_correlated_noise_is_detected_and_warned_about():
+    from scipy.signal import lfilter
+
+    rec, _, _ = _record("sim://static", seed=11)
+    white = calibrate_static(rec)
+    assert 0.7 < white.quality["noise_correlation_factor"] < 1.4
+    assert not any("correlated" in w for w in white.warnings)
+    # a first-order low-pass over the raw stream, as a sensor's DLPF would apply
+    smoothed = Recording(rec.t, lfilter([0.2], [1, -0.8], rec.acc - rec.acc[0], axis=0) + rec.acc[0], "m/s^2", {}, {})
+    filtered = calibrate_static(smoothed)
+    assert filtered.quality["noise_correlation_factor"] > 3
+    assert any("correlated" in w for w in filtered.warnings)

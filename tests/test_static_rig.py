@@ -1,0 +1,82 @@
+"""sim://static: faces down in the operator's order, still poses, handling motion, truth."""
+
+import numpy as np
+import pytest
+
+from accelrig.acquisition.url import DeviceURL
+from accelrig.errors import DeviceError
+from accelrig.procedures.static_fit import face_reference
+from accelrig.sim.rigs import RIGS
+from accelrig.sim.rigs.static import StaticRig, sensor_with_response
+from accelrig.sim.sensor import SensorModel
+from accelrig.units import STANDARD_GRAVITY as G
+
+
+def _rig(url: str, seed: int = 0) -> StaticRig:
+    return RIGS["static"].from_url(DeviceURL.parse(url), np.random.default_rng(seed))
+
+
+def test_face_down_reads_minus_g_on_that_axis_and_poses_are_still():
+    rig = _rig("sim://static?order=+z,-z,+x,-x,+y,-y&hold=3")
+    truth = rig.truth()
+    assert [p["face"] for p in truth["poses"]] == ["+z", "-z", "+x", "-x", "+y", "-y"]
+    for pose in truth["poses"]:
+        t = np.linspace(pose["start"], pose["stop"] - 1e-6, 50)
+        force = rig.specific_force(t)
+        assert np.allclose(force, face_reference(pose["face"]), atol=1e-9)
+        assert np.allclose(force[0] / G, pose["up_body"])
+    assert face_reference("+z")[2] == -G and face_reference("-x")[0] == G
+
+
+def test_url_plus_signs_arriving_as_spaces_and_repeats_are_accepted():
+    rig = _rig("sim://static?order= z, x,-x, x")  # '+' decoded to ' ' by the query parser
+    assert rig.order == ("+z", "+x", "-x", "+x")
+
+
+def test_bad_options_are_refused_with_a_clear_message():
+    with pytest.raises(DeviceError, match="not a face"):
+        _rig("sim://static?order=+z,+w")
+    with pytest.raises(DeviceError, match="pose number"):
+        _rig("sim://static?moved=9")
+
+
+def test_handling_is_realistic_smooth_and_a_few_m_s2():
+    rig = _rig("sim://static", seed=3)
+    transitions = rig.truth()["transitions"]
+    assert len(transitions) == 5
+    for tr in transitions:
+        assert 1.0 <= tr["stop"] - tr["start"] <= 3.0
+        t = np.linspace(tr["start"], tr["stop"], 2000)
+        force = rig.specific_force(t)
+        linear = np.abs(np.linalg.norm(force, axis=1) - G)
+        assert 0.3 < linear.max() < 10.0
+        # no step at the ends: the force joins the still poses continuously
+        assert np.max(np.abs(np.diff(force, axis=0))) < 0.2
+
+
+def test_same_seed_same_script_and_block_independence():
+    a, b = _rig("sim://static?tilt=2", seed=7), _rig("sim://static?tilt=2", seed=7)
+    t = np.linspace(0, a.duration, 3001)
+    assert np.array_equal(a.specific_force(t), b.specific_force(t))
+    assert np.allclose(np.concatenate([a.specific_force(t[:1000]), a.specific_force(t[1000:])]), a.specific_force(t))
+    tilts = [p["tilt_deg"] for p in a.truth()["poses"]]
+    assert 0 < max(tilts) < 10
+
+
+def test_moved_pose_tips_in_the_middle_of_its_hold():
+    rig = _rig("sim://static?moved=2&moved_deg=3", seed=1)
+    pose = rig.truth()["poses"][1]
+    assert pose["moved"]["deg"] == pytest.approx(3.0)
+    before = rig.specific_force(np.array([pose["start"] + 0.1]))[0]
+    after = rig.specific_force(np.array([pose["stop"] - 0.1]))[0]
+    angle = np.degrees(np.arccos(before @ after / G**2))
+    assert angle == pytest.approx(3.0, abs=1e-6)
+
+
+def test_sensor_with_response_reproduces_any_plausible_matrix():
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        k = SensorModel.random(rng, nonorthogonality=np.deg2rad(rng.uniform(-1, 1, 3))).response_matrix
+        sensor = sensor_with_response(k, np.array([0.1, -0.2, 0.3]))
+        assert np.allclose(sensor.response_matrix, k, atol=1e-12)
+        assert np.allclose(sensor.correction().bias, [0.1, -0.2, 0.3])
