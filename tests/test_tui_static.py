@@ -101,3 +101,32 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
     assert np.all(np.abs(z_bias) < 4), z_bias
     assert profile.device["identity"] == "sim-static-3"
     assert profile.data["provenance"]["recording_samples"] > 4000
+
+
+@async_test
+async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_asks(tmp_path):
+    """i2c-sim: the real I2C driver over a register-level MPU-9250 emulator; the flash is real."""
+    pytest.importorskip("accelrig_drivers.i2c_sim", reason="the I2C driver is not installed")
+    app = AccelrigApp(device="i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3", refresh_interval=0.05,
+                      profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
+        results = app.screen
+        await wait_for(pilot, lambda: results.profile is not None)
+        driver = app.session.driver
+        before = driver.chip.read_offset_words()
+        await pilot.press("f")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        question = str(app.screen.query_one("#question").render())
+        assert "these will be written" in question and "OFFSET" in question.upper()
+        await pilot.press("n")  # cancel: nothing written
+        await wait_for(pilot, lambda: "nothing was written" in status(app))
+        assert driver.chip.read_offset_words() == before
+        await pilot.press("f")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        await pilot.press("y")
+        await wait_for(pilot, lambda: "verified" in status(app))
+        assert "written and verified" in status(app)
+        assert driver.chip.read_offset_words() != before

@@ -331,6 +331,10 @@ class Session:
             for capture in self._captures:
                 if error:
                     capture.interrupted = error
+        if state == State.ENDED:
+            # A finite source that delivered everything is still connected (an emulated
+            # chip can still be flashed); stop() releases it.
+            return
         with self._device_lock:
             try:
                 self.driver.close()

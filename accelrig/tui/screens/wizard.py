@@ -110,6 +110,9 @@ class ProcedureWizard(Screen):
         self.query_one("#progress", ProgressBar).update(progress=0)
         self.query_one("#events", RichLog).clear()
         self.set_instruction(f"opening {self.url} ...")
+        # A real device cannot be opened twice: release it before reopening.
+        if self.app.session is not None:
+            self.app.session.stop()
         self.open_device()
 
     @work(thread=True, exclusive=True, group="wizard-open")
