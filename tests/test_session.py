@@ -50,7 +50,10 @@ def test_finite_fast_source_reaches_a_lossless_reader_whole():
     np.testing.assert_allclose(rec.acc, counts * info.scale)
     # the device's true rate is +0.4 % (the sim's default rate error)
     assert stats.delivered_rate == pytest.approx(200 * 1.004, rel=2e-3)
+    # a finite source that ended is still connected (it can be flashed) until stop()
+    assert session.driver.device is not None
     session.stop()
+    assert session.driver.device is None
 
 
 def test_drops_are_counted_and_rate_reflects_them():
@@ -85,6 +88,7 @@ def test_disconnect_is_reported_and_captured_data_kept():
     assert rec.duration == pytest.approx(3.0, abs=1.5)
     assert rec.meta["interrupted"] == stats.last_error
     assert "truth" in rec.meta
+    assert session.driver.device is None  # a vanished device is released
 
 
 def test_saturation_is_counted():
