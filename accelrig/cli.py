@@ -19,8 +19,10 @@ from accelrig.errors import AccelrigError
 
 COMMAND_MODULES = (
     "accelrig.commands.devices",
+    "accelrig.commands.flash",
     "accelrig.commands.record",
     "accelrig.commands.tui",
+    "accelrig.commands.verify_slider_crank",
     "accelrig.commands.calibrate_static",
     "accelrig.commands.profile",
     "accelrig.commands.noise",

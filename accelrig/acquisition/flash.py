@@ -44,3 +44,61 @@ class FlashReport:
     readback: list[FlashWrite] = field(default_factory=list)  # current = read back, new = intended
     residual: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+
+
+# Fields of a profile's ``device`` block that must match the opened device
+# (DeviceInfo attribute, label).  who_am_i tells chip variants apart.
+_MATCHED_FIELDS = (("chip", "chip"), ("who_am_i", "WHO_AM_I"), ("range_g", "range"), ("identity", "device identity"))
+
+
+def _same(field_name: str, a, b) -> bool:
+    if field_name == "range_g":
+        try:
+            return abs(float(a) - float(b)) < 1e-9
+        except (TypeError, ValueError):
+            return False
+    if field_name == "who_am_i":
+        try:
+            return int(str(a), 0) == int(str(b), 0)
+        except ValueError:
+            return False
+    return str(a).strip().lower() == str(b).strip().lower()
+
+
+def profile_mismatches(profile, info) -> tuple[list[str], list[str]]:
+    """Compare a profile's ``device`` block with an opened device's DeviceInfo.
+
+    Returns (mismatches, unchecked): what differs, and what the profile or
+    the device does not record so could not be compared.
+    """
+    recorded = getattr(profile, "device", None) or {}
+    mismatches, unchecked = [], []
+    for field_name, label in _MATCHED_FIELDS:
+        want = recorded.get(field_name)
+        have = getattr(info, field_name, None)
+        if want is None or have is None:
+            if field_name != "who_am_i":  # only chips have one
+                unchecked.append(f"{label} not checked (the {'profile' if want is None else 'device'} does not record it)")
+            continue
+        if not _same(field_name, want, have):
+            mismatches.append(f"{label}: profile {want!r}, device {have!r}")
+    return mismatches, unchecked
+
+
+def check_profile_for_device(profile, info, force: bool = False) -> list[str]:
+    """Refuse a profile made for another chip, range or device unless ``force``.
+
+    Every flashing path (CLI, TUI, any driver) calls this before
+    ``Driver.plan_flash``; drivers do not repeat it, so ``force`` works the
+    same everywhere.  Returns notes for the plan (what was forced, what could
+    not be checked).
+    """
+    from accelrig.errors import ProfileError
+
+    mismatches, unchecked = profile_mismatches(profile, info)
+    if mismatches and not force:
+        raise ProfileError(
+            "the profile was made for another device: " + "; ".join(mismatches),
+            "flash a profile made on this device, or pass --force to write it anyway",
+        )
+    return [f"FORCED despite mismatch: {m}" for m in mismatches] + unchecked

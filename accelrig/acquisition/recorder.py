@@ -118,5 +118,8 @@ def record(
     )
     if "truth" in info.extra:
         meta["truth"] = info.extra["truth"]
+    if "link_stats" in info.extra:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
+        meta["link_stats"] = info.extra["link_stats"].as_dict()
+        meta["clock_alignment"] = info.extra.get("clock_alignment")
     channels = {name: np.concatenate(parts) for name, parts in parts_ch.items()}
     return Recording(t, acc, units, channels, meta)

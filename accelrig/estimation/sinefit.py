@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import DataError
+from accelrig.estimation.crb import crb_covariance
 
 MIN_CYCLES = 1.5  # below this the frequency and the offset cannot be told apart (IEEE 1057)
 MAX_ITERATIONS = 60
@@ -149,31 +150,73 @@ def _basis(tc: np.ndarray, frequency: float, harmonics: int) -> tuple[np.ndarray
     return phi, dphi
 
 
+# No QR or SVD of the tall n x p matrix: those run in multithreaded LAPACK,
+# which on a loaded machine spends ~50x longer fighting for cores than
+# computing.  The normal equations lose nothing here (with the time axis
+# centred the columns are close to orthogonal) and need only p x p
+# factorisations.  Gram matrices: BLAS for a few columns (single-threaded at
+# that size, fastest), einsum for many (BLAS would go multithreaded again).
+_BLAS_MAX_COLUMNS = 32
+
+
+def _gram(a: np.ndarray) -> np.ndarray:
+    return a.T @ a if a.shape[1] <= _BLAS_MAX_COLUMNS else np.einsum("ni,nj->ij", a, a)
+
+
+def _gram_factor(phi: np.ndarray):
+    gram = _gram(phi)
+    try:
+        return np.linalg.cholesky(gram)
+    except np.linalg.LinAlgError:
+        raise DataError(
+            "the sine model is not identifiable from these samples",
+            "record more cycles, or fit fewer harmonics",
+        ) from None
+
+
+def _solve_gram(chol: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    return np.linalg.solve(chol.T, np.linalg.solve(chol, rhs))
+
+
 def _project(phi: np.ndarray, y: np.ndarray):
-    q, r = np.linalg.qr(phi)
-    qy = q.T @ y
-    coef = np.linalg.solve(r, qy)
-    resid = y - q @ qy
-    return q, r, coef, resid
+    chol = _gram_factor(phi)
+    coef = _solve_gram(chol, np.einsum("ni,n->i", phi, y))
+    resid = y - np.einsum("ni,i->n", phi, coef)
+    return chol, coef, resid
 
 
 def _vp_step(tc, y, frequency, harmonics):
     """Residual, cost and the Golub-Pereyra Jacobian of the projected residual in f."""
     phi, dphi = _basis(tc, frequency, harmonics)
-    q, r, coef, resid = _project(phi, y)
-    dc = dphi @ coef
+    chol, coef, resid = _project(phi, y)
+    dc = np.einsum("ni,i->n", dphi, coef)
     # d(P_perp y)/df = -P_perp (dPhi c) - Phi^+T (dPhi^T r); the second term is
     # Golub-Pereyra's, which Kaufman drops; kept since a one-sine fit of a
-    # slider-crank signal has large residuals.
-    jac = -(dc - q @ (q.T @ dc)) - q @ np.linalg.solve(r.T, dphi.T @ resid)
+    # slider-crank signal has large residuals.  Both share Phi G^-1 (.):
+    rhs = np.einsum("ni,n->i", phi, dc) + np.einsum("ni,n->i", dphi, resid)
+    jac = -dc + np.einsum("ni,i->n", phi, _solve_gram(chol, rhs))
     return resid, float(resid @ resid), jac, coef
 
 
-def _gauss_newton(tc, y, start, harmonics, span):
+def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
+    """sigma^2 (J^T J)^-1 by the shared CRB helper, handed the p x p Cholesky factor R of J^T J.
+
+    R^T R = J^T J, so R has J's column norms and singular values: the helper's
+    covariance and its rank diagnosis are the same as for J itself.
+    """
+    gram = _gram(jac)
+    try:
+        factor = np.linalg.cholesky(gram).T
+    except np.linalg.LinAlgError:
+        factor = jac  # singular: let the helper name the unidentifiable direction
+    # unit sigma then scaled: a noise-free record (sigma2 = 0) still gets its (zero) covariance
+    return sigma2 * crb_covariance(factor, 1.0, names)
+
+
+def _gauss_newton(tc, y, start, harmonics, tol):
     """One-dimensional Gauss-Newton on the variable projection functional, with step halving."""
     frequency = start
     resid, cost, jac, coef = _vp_step(tc, y, frequency, harmonics)
-    tol = 1e-11 / span  # far below any achievable frequency uncertainty
     for iteration in range(1, MAX_ITERATIONS + 1):
         jj = float(jac @ jac)
         if jj <= 0:
@@ -199,6 +242,13 @@ def _full_jacobian(tc, frequency, coef, harmonics, fit_frequency):
     if not fit_frequency:
         return phi
     return np.column_stack([dphi @ coef, phi])
+
+
+def _internal_names(harmonics: int, fit_frequency: bool) -> list[str]:
+    names = (["frequency"] if fit_frequency else []) + ["offset"]
+    for k in range(1, harmonics + 1):
+        names += [f"cos_{k}", f"sin_{k}"]
+    return names
 
 
 def _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q):
@@ -229,19 +279,6 @@ def _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q):
     for i in range(1, harmonics + 1):
         names += [f"amplitude_{i}", f"phase_{i}"]
     return amp, phase, cov, names
-
-
-def _inverse_normal(jac: np.ndarray) -> np.ndarray:
-    """(J^T J)^-1 via the QR of J (better conditioned than forming J^T J)."""
-    _, r = np.linalg.qr(jac)
-    diag = np.abs(np.diag(r))
-    if diag.min() <= diag.max() * 1e-13:
-        raise DataError(
-            "the sine model is not identifiable from these samples",
-            "record more cycles, or fewer harmonics",
-        )
-    r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
-    return r_inv @ r_inv.T
 
 
 # ---------------------------------------------------------------- public API
@@ -321,18 +358,21 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
     if fit_frequency:
         stages = [1, harmonics] if harmonics > 1 else [1]
         for stage_harmonics in stages:
-            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, span)
+            # the final stage stops far below any achievable uncertainty; an
+            # earlier stage only has to hand a start well inside the basin
+            tol = (1e-11 if stage_harmonics == harmonics else 1e-4) / span
+            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, tol)
             n_iterations += iters
             converged = ok
         if estimate * harmonics >= 0.5 / mean_dt or estimate * (span + mean_dt) < 1.0:
             converged = False  # ran off to a frequency the record cannot support
 
     phi, _ = _basis(tc, estimate, harmonics)
-    _, _, coef, resid = _project(phi, y)
+    _, coef, resid = _project(phi, y)
     dof = y.size - n_params
     sigma2 = float(resid @ resid) / dof
     jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
-    cov_q = sigma2 * _inverse_normal(jac)
+    cov_q = _covariance(jac, sigma2, _internal_names(harmonics, fit_frequency))
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -383,7 +423,7 @@ def sine_crb(t, frequency: float, amplitude, phase, sigma: float, offset: float 
     coef[2::2] = -amp * np.sin(phase_ref)
     tc = t - t_ref
     jac = _full_jacobian(tc, frequency, coef, harmonics, fit_frequency)
-    cov_q = sigma**2 * _inverse_normal(jac)
+    cov_q = _covariance(jac, sigma**2, _internal_names(harmonics, fit_frequency))
     _, _, cov, names = _to_reported(coef, frequency, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from accelrig.sim.rigs.base import Rig
+from accelrig.sim.rigs.slider_crank import SliderCrankRig
 from accelrig.sim.rigs.static import StaticRig
 from accelrig.sim.rigs.still import StillRig
 
 RIGS: dict[str, type[Rig]] = {
     "still": StillRig,
+    "slider-crank": SliderCrankRig,
     "static": StaticRig,
 }

@@ -1,0 +1,208 @@
+"""serial://PORT: a device running accelrig-protocol firmware on a serial port (pyserial).
+
+    serial:///dev/ttyUSB0?baud=921600&rate=2048&range=4
+
+Options:
+    baud=N          line rate (default 921600); refused when too slow for the rate
+    rate=HZ         requested sample rate (default 2048); the device reports what it delivers
+    range=G         full scale +-G: 2, 4 (default), 8, 16
+    frame=N         samples per DATA frame (default 64, at most what the device allows)
+    stall=S         seconds without data before the device counts as stalled (default 2)
+    command_timeout=S   wait for a reply before retrying a command (default 0.5)
+
+serial-sim://RIG: the same driver talking through a pseudo-terminal to the
+simulated firmware (accelrig.sim.firmware) on a simulated rig, no hardware.
+It takes the serial options above, the sim:// sensor and rig options (seed,
+rate_error, jitter, noise, truth, and the rig's), and:
+    pace=realtime|fast   wall clock (default) or an emulated clock as fast as read
+    drop=P corrupt=P garbage=P   per-frame fault probabilities
+    stall_at=S stall_for=S       the device stalls (stall_for=inf: for good)
+    cal_fault=corrupt|refuse     the calibration store misbehaves
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from accelrig.acquisition import protocol as P
+from accelrig.acquisition.firmware_link import FirmwareDriver
+from accelrig.acquisition.url import DeviceURL
+from accelrig.errors import DeviceError, MissingExtraError
+
+DEFAULT_BAUD = 921600
+SERIAL_FRAME_SAMPLES = 64
+# bits per byte on a UART (start + 8 data + stop) and the COBS overhead bound
+_BITS_PER_BYTE = 10
+
+
+def _import_serial():
+    try:
+        import serial  # pyserial
+    except ImportError:
+        raise MissingExtraError("serial", "pyserial", "serial") from None
+    return serial
+
+
+class SerialDriver(FirmwareDriver):
+    scheme = "serial"
+    description = "accelrig-protocol firmware on a serial port (USB-UART, USB-CDC)"
+    extra = "serial"
+    link_name = "serial port"
+
+    def __init__(self, url):
+        super().__init__(url)
+        self._port = None
+        self.parser = P.FrameParser(self.stats)
+
+    @classmethod
+    def discover(cls) -> list[str]:
+        _import_serial()
+        from serial.tools import list_ports
+
+        return [f"serial://{p.device}" + (f"  ({p.description})" if p.description and p.description != "n/a" else "")
+                for p in sorted(list_ports.comports(), key=lambda p: p.device)]
+
+    def _link_options(self) -> set[str]:
+        return super()._link_options() | {"baud"}
+
+    def _default_frame_samples(self) -> int:
+        return SERIAL_FRAME_SAMPLES
+
+    def _transport_open(self) -> str:
+        serial = _import_serial()
+        port = self.url.target
+        if not port:
+            raise DeviceError("serial:// needs a port", "e.g. serial:///dev/ttyUSB0 or serial://COM3")
+        self.baud = self.url.get_int("baud", DEFAULT_BAUD)
+        if self.baud <= 0:
+            raise DeviceError(f"baud={self.baud} in {self.url.raw!r} must be positive")
+        try:
+            self._port = serial.Serial(port, baudrate=self.baud, timeout=0, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise DeviceError(f"cannot open serial port {port}: {exc}",
+                              "check the name and permissions; 'accelrig devices' lists the ports") from None
+        self._port.reset_input_buffer()
+        return f"{port} at {self.baud} baud"
+
+    def _check_bandwidth(self, config: P.LinkConfig) -> None:
+        n = config.samples_per_frame
+        # worst-case COBS adds one byte per 254, plus code byte and delimiter
+        frame_bytes = P.DATA_HEADER_SIZE + P.SAMPLE_SIZE * n + P.CRC_SIZE + 2 + (P.DATA_HEADER_SIZE + 6 * n) // 254
+        need = config.rate / n * frame_bytes * _BITS_PER_BYTE
+        if need > 0.9 * self.baud:
+            raise DeviceError(
+                f"{config.rate:g} Hz in frames of {n} needs {need:,.0f} baud; baud={self.baud} is too slow",
+                "use baud=921600 (or 460800), a lower rate, or a USB-CDC device",
+            )
+
+    def _send(self, body: bytes) -> None:
+        try:
+            self._port.write(P.cobs_encode(body) + b"\x00")
+        except Exception as exc:
+            raise DeviceError(f"writing to {self.url.target} failed: {exc}", "is the device still connected?") from None
+
+    def _receive(self, timeout: float) -> list:
+        port = self._port
+        try:
+            if port.timeout != timeout:  # pyserial reconfigures the tty on every change
+                port.timeout = timeout
+            data = port.read(max(port.in_waiting, 1))
+            if data:
+                waiting = port.in_waiting
+                if waiting:
+                    data += port.read(waiting)
+        except Exception as exc:  # pyserial raises SerialException / OSError when the device goes
+            raise DeviceError(f"reading {self.url.target} failed: {exc}", "is the device still connected?") from None
+        return self.parser.feed(data) if data else []
+
+    def _transport_close(self) -> None:
+        if self._port is not None:
+            try:
+                self._port.close()
+            finally:
+                self._port = None
+
+
+# ------------------------------------------------------------------ simulated firmware
+
+SIM_FAULT_OPTIONS = {"drop", "corrupt", "garbage", "stall_at", "stall_for", "cal_fault"}
+
+
+def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: set[str] = frozenset()):
+    """Build (SimFirmware, own options) from a *-sim:// URL, reusing the sim:// option parser."""
+    from accelrig.sim.firmware import LinkFaults, SimFirmware
+    from accelrig.sim.rigs import RIGS
+    from accelrig_drivers.sim import SENSOR_OPTIONS, build_device
+
+    rig_cls = RIGS.get(url.target)
+    if rig_cls is None:
+        raise DeviceError(f"unknown simulated rig {url.target!r} in {url.raw!r}",
+                          f"available: {', '.join(sorted(RIGS))}")
+    # options that mean the same as for sim:// go to its parser; rate and range the host asks for
+    shared = (SENSOR_OPTIONS - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
+    sim_url = DeviceURL(url.raw, "sim", url.target, {k: v for k, v in url.params.items() if k in shared})
+    device, _ = build_device(sim_url)
+    faults = LinkFaults(
+        drop=url.get_float("drop", 0.0), corrupt=url.get_float("corrupt", 0.0),
+        garbage=url.get_float("garbage", 0.0), stall_at=url.get_float("stall_at"),
+        stall_for=url.get_float("stall_for", 0.0),
+        cal_fault=url.get_choice("cal_fault", ("none", "corrupt", "refuse"), "none"),
+    )
+    if faults.cal_fault == "none":
+        faults.cal_fault = None
+    for name in ("drop", "corrupt", "garbage"):
+        if not 0.0 <= getattr(faults, name) <= 1.0:
+            raise DeviceError(f"{name}={getattr(faults, name)} in {url.raw!r} is not a probability")
+    firmware = SimFirmware(
+        device.rig, device.sensor, rate_error=device.clock.rate_error, jitter=device.clock.jitter,
+        seed=int(np.random.SeedSequence(device.seed).generate_state(1)[0]),
+        serial_number=f"SIM-{url.target}-{device.seed}", max_samples_per_frame=max_samples_per_frame,
+        faults=faults,
+    )
+    return firmware, shared | SIM_FAULT_OPTIONS | extra_faults | {"pace"}
+
+
+class SerialSimDriver(SerialDriver):
+    scheme = "serial-sim"
+    description = "the serial driver on a pty to simulated firmware (no hardware; demos and tests)"
+    extra = "serial"
+
+    def __init__(self, url):
+        super().__init__(url)
+        self.firmware = None
+        self.server = None
+
+    @classmethod
+    def discover(cls) -> list[str]:
+        from accelrig.sim.rigs import RIGS
+
+        return [f"serial-sim://{name}" for name in sorted(RIGS)]
+
+    def open(self):
+        self.firmware, self._sim_options = firmware_from_url(self.url, 255)
+        info = super().open()
+        info.extra["truth"] = self.firmware.truth()
+        return info
+
+    def _link_options(self) -> set[str]:
+        return super()._link_options() | self._sim_options
+
+    def _transport_open(self) -> str:
+        from accelrig.sim.firmware import PtyFirmware
+
+        pace = self.url.get_choice("pace", ("realtime", "fast"), "realtime")
+        self.server = PtyFirmware(self.firmware, pace=pace).start()
+        self.url = DeviceURL(self.url.raw, self.url.scheme, self.server.port, self.url.params)
+        try:
+            return super()._transport_open() + f" (simulated firmware, pace={pace})"
+        except Exception:
+            self.server.stop()
+            raise
+
+    def _transport_close(self) -> None:
+        try:
+            super()._transport_close()
+        finally:
+            if self.server is not None:
+                self.server.stop()
+                self.server = None

@@ -1,0 +1,309 @@
+"""Slider-crank rig and verification: physics, procedure against simulator truth, bad input, CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from accelrig.acquisition.driver import driver_for
+from accelrig.acquisition.recorder import record
+from accelrig.acquisition.url import DeviceURL
+from accelrig.cli import main
+from accelrig.errors import CalibrationError, DataError, DeviceError
+from accelrig.estimation.sinefit import fit_sine
+from accelrig.procedures.slider_crank import SliderCrankProcedure, verify_slider_crank
+from accelrig.recording import Recording, save_recording
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs import RIGS
+from accelrig.sim.rigs.slider_crank import SliderCrankRig, slider_position
+from accelrig.sim.sensor import SensorModel, SimClock
+
+RADIUS, ROD = 0.00635, 0.0353
+FS = 2048.0
+SIGMA = 0.08
+
+
+def sensor(**kw) -> SensorModel:
+    values = dict(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(SIGMA, FS))
+    values.update(kw)
+    return SensorModel(**values)
+
+
+def run(rig, sens=None, seed=1) -> Recording:
+    return simulate(rig, sens or sensor(), SimClock(FS, 0.003, 20e-6), seed=seed)
+
+
+# ---------------------------------------------------------------- rig physics
+
+def test_rig_is_registered_and_parses_its_url():
+    assert RIGS["slider-crank"] is SliderCrankRig
+    url = DeviceURL.parse("sim://slider-crank?steps=3,5&step_seconds=2&radius=0.01&rod=0.05&clearance=0.001&axis=0,1,0")
+    rig = SliderCrankRig.from_url(url, np.random.default_rng(0))
+    assert rig.steps.tolist() == [3.0, 5.0]
+    assert rig.duration == pytest.approx(2 * 2.5)
+    assert abs(rig.effective_radius - 0.01) <= 0.001 and rig.effective_radius != 0.01
+    np.testing.assert_allclose(rig.axis, [0, 1, 0])
+    for bad in ("steps=a,b", "axis=sideways", "rod=0.001", "steps=-1"):
+        with pytest.raises(DeviceError):
+            SliderCrankRig.from_url(DeviceURL.parse(f"sim://slider-crank?{bad}"), np.random.default_rng(0))
+
+
+def test_acceleration_is_the_second_derivative_of_the_exact_position():
+    rig = SliderCrankRig(steps=[4.0, 9.0], settle=0.3, step_seconds=0.7)
+    t = np.linspace(0.0, rig.duration, 200001)
+    phi = rig.crank_angle(t)[0]
+    x = slider_position(phi, RADIUS, ROD)[0]
+    numeric = np.gradient(np.gradient(x, t), t)
+    acc = rig.slider_acceleration(t)
+    # away from the kinks in speed (each ramp's start and end) the two agree closely
+    _, _, _, _, tau = rig.crank_angle(t)
+    smooth = (np.abs(tau - rig.settle) > 1e-3) & (tau > 1e-3) & (rig.segment - tau > 1e-3)
+    assert np.max(np.abs(numeric - acc)[smooth]) < 1e-4 * np.max(np.abs(acc))
+
+
+def test_first_harmonic_is_exactly_r_omega_squared_and_peak_is_r_omega2_one_plus_lambda():
+    rig = SliderCrankRig(steps=[7.0], settle=0.0, step_seconds=1.0)
+    t = np.arange(2048) / FS
+    acc = rig.slider_acceleration(t)
+    fit = fit_sine(t, acc, frequency=7.0, harmonics=6, fit_frequency=False)
+    omega2 = (2 * np.pi * 7.0) ** 2
+    assert fit.amplitude[0] == pytest.approx(RADIUS * omega2, rel=1e-9)
+    assert fit.amplitude[1] / fit.amplitude[0] == pytest.approx(RADIUS / ROD, rel=0.01)
+    assert np.max(np.abs(acc)) == pytest.approx(RADIUS * omega2 * (1 + RADIUS / ROD), rel=1e-4)
+
+
+def test_sim_driver_streams_the_step_channel():
+    url = "sim://slider-crank?pace=fast&rate=2048&range=8&steps=3,6&step_seconds=0.5&settle=0.25&truth=ideal"
+    with driver_for(url) as driver:
+        rec = record(driver)
+    step = rec.channels["step"]
+    assert set(np.unique(step)) == {-1.0, 0.0, 1.0}
+    assert np.count_nonzero(step == 1) == pytest.approx(0.5 * 2048 * 1.004, abs=3)
+    # the motion is along x, gravity along z
+    assert np.ptp(rec.acc[step == 1, 0]) > 10 * np.ptp(rec.acc[step == 1, 1])
+    assert np.mean(rec.acc[:, 2]) == pytest.approx(9.80665, abs=0.05)
+
+
+# ---------------------------------------------------------------- verification against truth
+
+def test_verification_recovers_radius_and_sees_the_motor_roll_off():
+    rig = SliderCrankRig(steps=[2.5, 5.0, 8.0, 10.0, 13.0], axis="1,0.1,0")
+    result = verify_slider_crank([("sim", run(rig))], RADIUS, ROD)
+    steady = [s for s in result.steps if s.index < 4]
+    for s in steady:
+        assert not s.motor_limited and not s.backlash
+        assert abs(s.radius_m.value - RADIUS) < 4 * s.radius_m.uncertainty
+        # frequency (rate error 0.3 % is in the timestamps: the fit sees the true speed)
+        assert abs(s.frequency_hz.value - rig.steps[s.index]) < 5 * s.frequency_hz.uncertainty + 1e-4
+        assert s.axis_angles_deg[0] == pytest.approx(np.degrees(np.arctan(0.1)), abs=0.2)
+    # the bare FFT is half a bin (about 0.5 Hz) off at 2.5 Hz
+    assert min(abs(result.steps[0].fft_peak_hz - 2.0), abs(result.steps[0].fft_peak_hz - 3.0)) < 0.01
+    top = result.steps[4]
+    assert top.motor_limited and top.speed_unsteady
+    assert result.rolloff_hz == pytest.approx(rig.actual_speeds[4], abs=0.3)
+    assert result.used_steps == [0, 1, 2, 3]
+    assert abs(result.radius_m.value - RADIUS) < 3 * result.radius_m.uncertainty
+    assert result.verdict == "holds"
+
+
+def test_clearance_and_backlash_are_reported():
+    rig = SliderCrankRig(steps=[3.0, 6.0, 9.0], clearance=0.0002, radius_offset=0.00015, backlash=0.0001)
+    result = verify_slider_crank([("sim", run(rig, seed=4))], RADIUS, ROD, clearance=0.0002)
+    assert all(s.backlash for s in result.steps)
+    assert all(s.knock_peak > 5.0 for s in result.steps)
+    # the play, from the odd harmonics the crank itself cannot make
+    assert all(0.07e-3 < s.play_m < 0.14e-3 for s in result.steps)
+    # knocks are not noise: the statistical part stays near what the noise alone allows
+    assert all(s.frequency_hz.uncertainty < 3e-3 for s in result.steps)
+    # the radius follows the effective (not the caliper) radius, within its uncertainty
+    assert abs(result.radius_m.value - rig.effective_radius) < 3 * result.radius_m.uncertainty
+    assert result.radius_m.value > RADIUS + 0.0001
+    assert all(s.within_clearance for s in result.steps)
+    assert result.verdict == "holds"
+    assert any("backlash" in w for w in result.warnings)
+
+
+def test_a_gain_error_fails_and_its_correction_passes():
+    faulty = sensor(gain=[1.03, 1.0, 1.0], offset=[0.3, -0.2, 0.1])
+    rig = SliderCrankRig(steps=[4.0, 7.0, 10.0])
+    rec = run(rig, faulty, seed=2)
+    uncorrected = verify_slider_crank([("sim", rec)], RADIUS, ROD, clearance=0.00005)
+    assert uncorrected.verdict == "does not hold"
+    assert uncorrected.radius_m.value == pytest.approx(1.03 * RADIUS, rel=0.002)
+    corrected = verify_slider_crank([("sim", rec)], RADIUS, ROD, clearance=0.00005, correction=faulty.correction())
+    assert corrected.verdict == "holds"
+
+
+def test_procedure_object_guides_the_operator_step_by_step():
+    speeds = [3.0, 6.0]
+    proc = SliderCrankProcedure(RADIUS, ROD, 0.0001, steps=speeds)
+    rig = SliderCrankRig(steps=speeds)
+    rec = run(rig, seed=5)
+    step = rec.channels["step"]
+    results = []
+    while not proc.done:
+        instruction = proc.next_step()
+        assert f"{speeds[instruction.index]:g} Hz" in instruction.text
+        rows = np.flatnonzero(step == instruction.index)
+        results.append(proc.add_step(rec.slice(rows[0], rows[-1] + 1)))
+        assert len(proc.results) == len(results)  # results arrive as the steps do
+    assert proc.next_step() is None
+    verification = proc.finish()
+    assert not any(s.motor_limited for s in verification.steps)
+    assert [s.commanded_hz for s in verification.steps] == speeds
+    assert verification.verdict == "holds"
+    fr = verification.frequency_response()
+    assert fr["frequency_hz"].shape == (2,) and np.all(fr["model_lower"] < fr["model_upper"])
+
+
+# ---------------------------------------------------------------- bad input
+
+def test_clipping_names_the_step():
+    rig = SliderCrankRig(steps=[3.0, 11.0])
+    rec = run(rig, sensor(range_g=2.0))
+    with pytest.raises(DataError, match=r"step 1 .*full scale \(clipping\)"):
+        verify_slider_crank([("sim", rec)], RADIUS, ROD)
+
+
+def test_flat_tops_count_as_clipping_when_the_file_declares_no_range():
+    rec = run(SliderCrankRig(steps=[9.0], settle=0.0))
+    acc = rec.acc.copy()
+    acc[:, 0] = np.clip(acc[:, 0], -15.0, 15.0)
+    bare = Recording(rec.t, acc)  # no scale, no range in the metadata
+    with pytest.raises(DataError, match="clipping"):
+        verify_slider_crank([("bare.csv", bare)], RADIUS, ROD)
+    verify_slider_crank([("bare.csv", Recording(rec.t, rec.acc))], RADIUS, ROD)  # unclipped passes
+
+
+def test_too_few_cycles_names_the_step():
+    rig = SliderCrankRig(steps=[2.5], step_seconds=0.5)
+    with pytest.raises(DataError, match=r"step 0 .*1\.\d+ cycles|step 0 .*cycles"):
+        verify_slider_crank([("short", run(rig))], RADIUS, ROD)
+
+
+def test_a_step_far_off_its_neighbours_is_named():
+    steps = [run(SliderCrankRig(steps=[f], settle=0.0), seed=i) for i, f in enumerate([4.0, 6.0, 8.0])]
+    bogus = run(SliderCrankRig(steps=[30.0], settle=0.0, max_speed=40.0, radius=0.001), seed=9)
+    recordings = [("a.csv", steps[0]), ("b.csv", steps[1]), ("wrong.csv", bogus), ("c.csv", steps[2])]
+    with pytest.raises(DataError, match=r"step 2 \(wrong.csv\): dominant frequency 30\.\d+ Hz disagrees"):
+        verify_slider_crank(recordings, RADIUS, ROD)
+
+
+def test_bad_geometry_and_speed_lists():
+    rec = run(SliderCrankRig(steps=[4.0], settle=0.0))
+    with pytest.raises(DataError, match="rod length"):
+        verify_slider_crank([("a", rec)], RADIUS, RADIUS / 2)
+    with pytest.raises(DataError, match="commanded speeds for 1 steps"):
+        verify_slider_crank([("a", rec)], RADIUS, ROD, speeds=[4.0, 5.0])
+    with pytest.raises((DataError, CalibrationError), match="did not move|cycles"):
+        still = Recording(rec.t, np.tile([0.0, 0.0, 9.8], (rec.t.size, 1)))
+        verify_slider_crank([("still", still)], RADIUS, ROD)
+
+
+# ---------------------------------------------------------------- CLI
+
+def test_cli_one_file_per_step_json(tmp_path, capsys):
+    paths = []
+    for i, f in enumerate([3.0, 6.0, 9.0]):
+        path = tmp_path / f"step{i}.csv"
+        rec = run(SliderCrankRig(steps=[f], settle=0.0), seed=10 + i)
+        save_recording(Recording(rec.t, rec.acc, rec.units, {}, rec.meta), path)  # no step column
+        paths.append(str(path))
+    code = main(["verify", "slider-crank", *paths, "--crank-radius", "0.00635", "--lambda", str(RADIUS / ROD),
+                 "--clearance", "0.0001", "--speeds", "3,6,9", "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["steps"]) == 3
+    for step in out["steps"]:
+        assert set(step["frequency_hz"]) >= {"value", "uncertainty"}
+        assert set(step["amplitude"]) >= {"value", "uncertainty"}
+        assert step["model_amplitude"] > 0 and isinstance(step["within_clearance"], bool)
+        assert isinstance(step["backlash"], bool)
+        assert step["radius_m"]["value"] == pytest.approx(RADIUS, abs=0.0001)
+    assert out["radius_m"]["uncertainty"] > 0
+    assert out["verdict"] == "holds"
+
+
+def test_cli_table_and_one_line_errors(tmp_path, capsys):
+    path = tmp_path / "run.csv"
+    save_recording(run(SliderCrankRig(steps=[4.0, 7.0])), path)
+    assert main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353"]) == 0
+    out = capsys.readouterr().out
+    assert "| step | f / Hz" in out and "verdict: the static calibration holds" in out
+    code = main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+                 "--speeds", "4,x"])
+    err = capsys.readouterr().err
+    assert code == 4 and err.count("\n") == 1 and "--speeds" in err
+    short = tmp_path / "short.csv"
+    save_recording(run(SliderCrankRig(steps=[2.5], step_seconds=0.4)), short)
+    code = main(["verify", "slider-crank", str(short), "--crank-radius", "0.00635", "--rod-length", "0.0353"])
+    err = capsys.readouterr().err
+    assert code == 4 and "cycles" in err and "Traceback" not in err
+
+
+def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
+    from accelrig.procedures.result import CalibrationResult
+    from accelrig.profiles import profile_from_result, save_profile
+
+    faulty = sensor(gain=[0.97, 1.01, 1.0], offset=[0.2, 0.1, -0.3])
+    rec = run(SliderCrankRig(steps=[4.0, 7.0, 10.0], clearance=0.00002), faulty, seed=6)
+    data = tmp_path / "run.csv"
+    save_recording(rec, data)
+
+    def profile_with(correction, name):
+        result = CalibrationResult(procedure="static-faces", method="truth", model="C (raw - b)",
+                                   correction=correction, parameters={})
+        path = tmp_path / name
+        save_profile(profile_from_result(result, recording=rec, device={"identity": "sim-1", "range_g": 8.0}), path)
+        return str(path)
+
+    args = ["verify", "slider-crank", str(data), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+            "--clearance", "0.00002", "--json"]
+    assert main(args + ["--profile", profile_with(faulty.correction(), "good.yaml")]) == 0
+    good = json.loads(capsys.readouterr().out)
+    assert good["verdict"] == "holds" and good["profile"].endswith("good.yaml")
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["verdict"] == "does not hold"  # the raw sensor is 3 % low on x
+    wrong_range = tmp_path / "r16.yaml"
+    result = CalibrationResult(procedure="static-faces", method="truth", model="C (raw - b)",
+                               correction=faulty.correction(), parameters={})
+    save_profile(profile_from_result(result, device={"identity": "sim-1", "range_g": 16.0}), wrong_range)
+    assert main(args + ["--profile", str(wrong_range)]) == 6
+    assert "16 g range" in capsys.readouterr().err
+
+
+def test_commanded_speeds_judge_the_roll_off_against_the_controller_scale():
+    # the controller's scale is 3 % off (the stand turns 0.97 x the command), and at the top step the
+    # motor runs steadily but only at 11 Hz: only the shortfall against the command can tell
+    commanded = [4.0, 7.0, 10.0, 13.5]
+    rig = SliderCrankRig(steps=[0.97 * c for c in commanded[:3]] + [11.0], max_speed=12.0)
+    result = verify_slider_crank([("sim", run(rig, seed=8))], RADIUS, ROD, speeds=commanded)
+    assert [s.motor_limited for s in result.steps] == [False, False, False, True]
+    assert result.rolloff_hz == pytest.approx(11.0, abs=0.01)
+    assert result.used_steps == [0, 1, 2]
+
+
+def test_end_to_end_static_calibration_then_verification_under_motion(tmp_path, capsys):
+    """The same simulated sensor (same seed and range): calibrated on the static rig, verified on the crank."""
+    static, profile, crank = tmp_path / "static.csv", tmp_path / "dev.yaml", tmp_path / "crank.csv"
+    assert main(["record", "sim://static?seed=5&range=8&pace=fast&rate=200", "-o", str(static)]) == 0
+    assert main(["calibrate", "static", str(static), "-o", str(profile)]) == 0
+    assert main(["record", "sim://slider-crank?seed=5&range=8&pace=fast&rate=2048&steps=3,6,9&noise=0.08",
+                 "-o", str(crank)]) == 0
+    capsys.readouterr()
+    verify = ["verify", "slider-crank", str(crank), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+              "--json"]
+    # the sim names its device after the rig, so the profile is for "another" device: refused, then forced
+    assert main(verify + ["--profile", str(profile)]) == 6
+    assert "--force" in capsys.readouterr().err
+    assert main(verify + ["--profile", str(profile), "--force"]) == 0
+    calibrated = json.loads(capsys.readouterr().out)
+    assert main(verify) == 0
+    raw = json.loads(capsys.readouterr().out)
+    assert calibrated["verdict"] == "holds"
+    assert any("forced" in w for w in calibrated["warnings"])
+    # the raw sensor's gain error along the motion shows in the radius; the calibration removes it
+    assert raw["verdict"] == "does not hold"
+    assert abs(calibrated["radius_m"]["value"] - RADIUS) < abs(raw["radius_m"]["value"] - RADIUS) / 10
