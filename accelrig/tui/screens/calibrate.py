@@ -18,6 +18,8 @@ WIZARDS = (
      "accelrig.procedures.static_faces", "accelrig.tui.screens.static_wizard:StaticWizard"),
     ("wheel", "Tilted wheel: spin it and let it coast",
      "accelrig.procedures.wheel", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
+    ("slider-crank", "Slider-crank stand: verify a calibration over motor speed steps",
+     "accelrig.procedures.slider_crank", "accelrig.tui.screens.slider_wizard:SliderCrankWizard"),
 )
 
 

@@ -66,6 +66,9 @@ class StaticWizard(ProcedureWizard):
     def session_info(self):
         return (self.session or self.app.session).info
 
+    def opening_instruction(self) -> str:
+        return "put the sensor down on any face and hold it still"
+
     def compose_body(self) -> ComposeResult:
         yield FaceGrid(id="faces")
         yield Static("", id="pose-state")
@@ -73,9 +76,8 @@ class StaticWizard(ProcedureWizard):
             yield Label("this pose", classes="bar-label")
             yield ProgressBar(total=1.0, show_eta=False, id="pose-progress")
 
-    def on_mount(self) -> None:
-        super().on_mount()
-        self.set_instruction("put the sensor down on any face and hold it still")
+    def begin(self) -> None:
+        self.start()
         self.query_one("#faces", FaceGrid).show(self.procedure.progress)
 
     def handle(self, events: list) -> None:

@@ -87,8 +87,7 @@ class WheelWizard(ProcedureWizard):
         yield Static("turns: waiting for rotation", id="wheel-turns")
         yield Static("speed: -", id="wheel-speed")
 
-    def on_mount(self) -> None:
-        self.sub_title = self.wizard_title
+    def begin(self) -> None:
         self.ask_geometry()
 
     @work(exclusive=True, group="wheel-setup")

@@ -67,6 +67,23 @@ class ProcedureWizard(Screen):
     def show_events(self, events: list) -> None:
         """Procedure-specific reaction to events (after they are logged)."""
 
+    def feed_chunk(self, chunk) -> list:
+        """Hand one ring-buffer chunk to the procedure; returns its events."""
+        return self.procedure.feed(chunk.t, chunk.acceleration())
+
+    def source_ended(self) -> list:
+        """A finite source delivered everything: let the procedure close what is in progress."""
+        finish = getattr(self.procedure, "finish", None)
+        return finish() if finish is not None else []
+
+    def opening_instruction(self) -> str:
+        """What the operator reads once the device streams."""
+        return "streaming: follow the instructions below"
+
+    def compute_result(self):
+        """The fit (runs in a thread worker)."""
+        return self.procedure.result()
+
     def procedure_done(self) -> bool:
         return bool(getattr(self.procedure, "done", False))
 
@@ -85,7 +102,12 @@ class ProcedureWizard(Screen):
         yield Footer()
 
     def on_mount(self) -> None:
+        # (Textual calls on_mount of every class in the MRO: subclasses override begin(), not this)
         self.sub_title = self.wizard_title
+        self.begin()
+
+    def begin(self) -> None:
+        """First thing on the screen: subclasses that need the operator's input ask it here."""
         self.start()
 
     def set_instruction(self, text: str, style: str = "bold") -> None:
@@ -133,7 +155,7 @@ class ProcedureWizard(Screen):
     def _opened(self, session: Session, reader, capture: Capture) -> None:
         self.session, self.reader, self.capture = session, reader, capture
         self.app.use_session(session)
-        self.set_instruction("streaming: follow the instructions below")
+        self.set_instruction(self.opening_instruction())
         if not getattr(self, "_timer_started", False):
             self._timer_started = True
             self.set_interval(self.app.refresh_interval, self.tick)
@@ -152,7 +174,7 @@ class ProcedureWizard(Screen):
                                "yellow")
             if chunk.n:
                 try:
-                    events = self.procedure.feed(chunk.t, chunk.acceleration())
+                    events = self.feed_chunk(chunk)
                 except AccelrigError as exc:
                     self.set_instruction(str(exc), "bold red")
                     self.finished = True
@@ -162,9 +184,7 @@ class ProcedureWizard(Screen):
                 # a finite source (replay, scripted simulation) delivered everything:
                 # let the procedure close what is in progress (e.g. the last still pose)
                 self._finished_source = True
-                finish = getattr(self.procedure, "finish", None)
-                if finish is not None:
-                    self.handle(finish())
+                self.handle(self.source_ended())
             if self.procedure_done():
                 self.finished = True
                 self.session.release(self.reader)
@@ -223,26 +243,29 @@ class ProcedureWizard(Screen):
     @work(thread=True, exclusive=True, group="wizard-fit")
     def _fit(self) -> None:
         try:
-            result = self.procedure.result()
+            result = self.compute_result()
         except AccelrigError as exc:
             self.computing = False
             self.app.call_from_thread(self.fit_failed, str(exc))
             return
         recording = self.capture.recording()
         self.computing = False
-        self.app.call_from_thread(self.show_result, result, recording)
+        self.app.call_from_thread(self._show, result, recording)
 
     def fit_failed(self, message: str) -> None:
         self.set_instruction(f"calibration failed: {message}", "bold red")
         self.log_event(f"calibration failed: {message}", "bold red")
 
-    def show_result(self, result, recording) -> None:
-        from accelrig.tui.screens.results import ResultsScreen
-
+    def _show(self, result, recording) -> None:
         self.result_shown = True
         self.alarm_clear()
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
-        self.app.push_screen(ResultsScreen(result, recording, self.session))
+        self.app.push_screen(self.result_screen(result, recording))
+
+    def result_screen(self, result, recording) -> Screen:
+        from accelrig.tui.screens.results import ResultsScreen
+
+        return ResultsScreen(result, recording, self.session)
 
     # ------------------------------------------------------------------ operator actions
     def action_cancel(self) -> None:
