@@ -93,7 +93,9 @@ class SimDriver(Driver):
             driver="sim",
             url=self.url.raw,
             chip="sim",
-            identity=f"sim-{d.rig.name}-{d.seed}",
+            # named by the sensor, not the rig: the same seed is the same simulated part on
+            # every rig, so a profile calibrated on one rig applies on another
+            identity=f"sim-{self.url.get_str('truth', 'random')}-{d.seed}",
             range_g=d.sensor.range_g,
             scale=d.sensor.scale,
             requested_rate=d.clock.nominal_rate,

@@ -295,15 +295,18 @@ def test_end_to_end_static_calibration_then_verification_under_motion(tmp_path, 
     capsys.readouterr()
     verify = ["verify", "slider-crank", str(crank), "--crank-radius", "0.00635", "--rod-length", "0.0353",
               "--json"]
-    # the sim names its device after the rig, so the profile is for "another" device: refused, then forced
-    assert main(verify + ["--profile", str(profile)]) == 6
-    assert "--force" in capsys.readouterr().err
-    assert main(verify + ["--profile", str(profile), "--force"]) == 0
+    assert main(verify + ["--profile", str(profile)]) == 0
     calibrated = json.loads(capsys.readouterr().out)
     assert main(verify) == 0
     raw = json.loads(capsys.readouterr().out)
     assert calibrated["verdict"] == "holds"
-    assert any("forced" in w for w in calibrated["warnings"])
+    # a profile of another simulated part (another seed) is refused unless forced
+    other_static, other_profile = tmp_path / "other.csv", tmp_path / "other.yaml"
+    assert main(["record", "sim://static?seed=6&range=8&pace=fast&rate=200", "-o", str(other_static)]) == 0
+    assert main(["calibrate", "static", str(other_static), "-o", str(other_profile)]) == 0
+    capsys.readouterr()
+    assert main(verify + ["--profile", str(other_profile)]) == 6
+    assert "--force" in capsys.readouterr().err
     # the raw sensor's gain error along the motion shows in the radius; the calibration removes it
     assert raw["verdict"] == "does not hold"
     assert abs(calibrated["radius_m"]["value"] - RADIUS) < abs(raw["radius_m"]["value"] - RADIUS) / 10
