@@ -47,7 +47,7 @@ async def test_live_view_shows_device_rate_and_stats():
         await wait_for(pilot, lambda: app.session is not None and app.session.stats().state == State.ENDED)
         await pilot.pause(0.2)
         assert isinstance(app.screen, LiveScreen)
-        assert "sim-still-1" in text_of(app, "#device-line")
+        assert "sim-random-1" in text_of(app, "#device-line")
         stats = text_of(app, "#stats-line")
         assert "samples 2008" in stats and "drops 0" in stats and "200.8 Hz" in stats
         now = text_of(app, "#axes-now")
@@ -89,7 +89,7 @@ async def test_connect_screen_switches_device_and_shows_identity():
         assert first.stats().state in (State.STOPPED, State.ENDED)
         await pilot.pause(0.6)
         shown = text_of(app, "#connected-device")
-        assert "sim-still-9" in shown and "±4 g" in shown and "delivered" in shown
+        assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown
         await pilot.press("escape")
         assert isinstance(app.screen, LiveScreen)
 

@@ -59,7 +59,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("s")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         await pilot.press("enter")
-        path = tmp_path / "sim-static-3-static.yaml"
+        path = tmp_path / "sim-random-3-static.yaml"
         await wait_for(pilot, lambda: "profile saved" in status(app))
         assert path.exists()
 
@@ -99,7 +99,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
     # within the procedure's stated (k = 1) uncertainty: |z| < 4 for all 12 parameters
     assert np.all(np.abs(z_matrix) < 4), z_matrix
     assert np.all(np.abs(z_bias) < 4), z_bias
-    assert profile.device["identity"] == "sim-static-3"
+    assert profile.device["identity"] == "sim-random-3"
     assert profile.data["provenance"]["recording_samples"] > 4000
 
 

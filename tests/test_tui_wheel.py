@@ -62,7 +62,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("s")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         await pilot.press("enter")
-        path = tmp_path / "sim-wheel-5-wheel.yaml"
+        path = tmp_path / "sim-random-5-wheel.yaml"
         await wait_for(pilot, lambda: path.exists())
         truth = app.session.info.extra["truth"]["sensor"]
 

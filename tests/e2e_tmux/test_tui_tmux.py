@@ -60,7 +60,7 @@ def test_static_calibration_with_keystrokes_alone(tmp_path):
     tmux.run("-f", "/dev/null", "new-session", "-d", "-s", "tui", "-x", "80", "-y", "24", *env_args, command)
     try:
         tmux.wait_for("Calibrate")          # the live view's footer
-        tmux.wait_for("sim-static-5")       # connected to the simulated device
+        tmux.wait_for("sim-random-5")       # connected to the simulated device
         tmux.keys("k")
         tmux.wait_for("Static faces")
         tmux.keys("Enter")
@@ -76,10 +76,10 @@ def test_static_calibration_with_keystrokes_alone(tmp_path):
         assert (tmp_path / "exit.txt").read_text().strip() == "exit=0", tmux.screen()
     finally:
         tmux.run("kill-server", check=False)
-    profile_path = tmp_path / "sim-static-5-static.yaml"
+    profile_path = tmp_path / "sim-random-5-static.yaml"
     assert profile_path.exists(), sorted(p.name for p in tmp_path.iterdir())
     from accelrig.profiles import load_profile
 
     profile = load_profile(profile_path)
     assert profile.data["calibration"]["procedure"] == "static"
-    assert profile.device["identity"] == "sim-static-5"
+    assert profile.device["identity"] == "sim-random-5"
