@@ -1,0 +1,257 @@
+"""Capture checks for the tilted wheel, run before any fit, and the cheap look at the
+data they need (noise level, turns, speed, gravity modulation).
+
+Each refusal is a CalibrationError whose one line tells the operator what was
+wrong with the spin and what to do.  The same survey feeds the operator
+events of WheelProcedure while the wheel turns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from accelrig.errors import CalibrationError, DataError
+from accelrig.units import STANDARD_GRAVITY
+
+MIN_TURNS = 10.0          # 20 half-turn speed samples for a 4-coefficient speed law, 16 to spare
+MIN_GRAVITY_SNR = 5.0     # g sin(alpha) over the noise sd: the phase is tracked by gravity
+MIN_CENTRIPETAL_SNR = 3.0  # change of r w^2 over the run, in noise sds: what ties gain to r
+MIN_SPEED_CHANGE = 0.02   # relative change of w^2: with a constant speed, r w^2 is an offset
+MAX_TIME_JITTER = 0.25    # timestamp scatter as a fraction of the sample period
+DETREND_DEGREE = 6        # r w(t)^2 is a sixth-degree polynomial under the cubic law
+
+
+@dataclass
+class WheelSurvey:
+    """What a quick look at a wheel recording shows (no model fit)."""
+
+    n_samples: int
+    duration: float
+    period: float                 # median sample period, s
+    noise_sd: float               # per-sample white noise, m/s^2 (second differences)
+    axis: np.ndarray              # unit vector, sensor frame, of the least-varying direction (the wheel axis)
+    turns: float                  # |net wheel angle| / 2 pi
+    gravity_amplitude: float      # amplitude of the rotating gravity component, m/s^2
+    speed_start: float            # |w| over the first tenth of the run, rad/s
+    speed_end: float              # |w| over the last tenth, rad/s
+    gaps: int = 0                 # number of gaps in the timestamps
+    missing: int = 0              # samples missing in those gaps
+    jitter: float = 0.0           # robust sd of the sample period, s
+    saturated: dict = field(default_factory=dict)  # axis name -> count
+
+    @property
+    def mean_speed(self) -> float:
+        return 2 * np.pi * self.turns / self.duration if self.duration > 0 else 0.0
+
+    def centripetal_change(self, radius: float) -> float:
+        return radius * abs(self.speed_start**2 - self.speed_end**2)
+
+
+def noise_sd(acc: np.ndarray) -> float:
+    """White-noise sd per sample from second differences (a slow signal cancels; var(d2) = 6 sigma^2).
+
+    Median absolute deviation, so a few jumps do not count as noise.
+    """
+    if acc.shape[0] < 5:
+        return 0.0
+    d2 = np.diff(acc, n=2, axis=0)
+    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) * 1.4826
+    return float(np.sqrt(np.mean(mad**2) / 6.0))
+
+
+def timestamp_figures(t: np.ndarray) -> tuple[float, int, int, float]:
+    """(median period, number of gaps, samples missing in them, robust sd of the period)."""
+    dt = np.diff(t)
+    period = float(np.median(dt))
+    gap = dt > 1.5 * period
+    missing = int(np.sum(np.rint(dt[gap] / period) - 1))
+    regular = dt[~gap]
+    jitter = float(np.median(np.abs(regular - period)) * 1.4826) if regular.size else 0.0
+    return period, int(np.count_nonzero(gap)), missing, jitter
+
+
+def saturation(acc: np.ndarray, meta: dict, g: float = STANDARD_GRAVITY) -> dict:
+    """Samples at full scale per axis.  Uses the range in the metadata when known;
+    otherwise looks for a flat top (the extreme value held by several samples)."""
+    out = {}
+    range_g = meta.get("range_g")
+    scale = meta.get("scale")
+    for k, name in enumerate("xyz"):
+        col = acc[:, k]
+        if range_g:
+            limit = float(range_g) * g - 1.5 * float(scale or 0.0)
+            count = int(np.count_nonzero(np.abs(col) >= limit * 0.9999))
+        else:
+            count = 0
+            for extreme in (col.max(), col.min()):
+                held = int(np.count_nonzero(col == extreme))
+                if held >= 5:
+                    count += held
+        if count:
+            out[name] = count
+    return out
+
+
+def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = STANDARD_GRAVITY) -> WheelSurvey:
+    """The quick look: noise, wheel axis, turns, speeds, gravity modulation, timestamps, saturation."""
+    t = np.asarray(t, dtype=float)
+    acc = np.asarray(acc, dtype=float)
+    n = t.size
+    if n < 50:
+        raise DataError(f"the recording holds {n} samples; a wheel calibration needs a run of many turns")
+    period, gaps, missing, jitter = timestamp_figures(t)
+    sigma = noise_sd(acc)
+    centred = acc - acc.mean(axis=0)
+    _, vecs = np.linalg.eigh(centred.T @ centred)
+    axis = vecs[:, 0]                       # least variance: the wheel axis seen by the sensor (step A)
+    plane = centred @ vecs[:, 1:]           # gravity turns in this plane
+    tau = (t - t[0]) / max(t[-1] - t[0], 1e-9) * 2 - 1
+    # Gravity amplitude: remove the centripetal drift closely (degree 6: r w^2 under the cubic law).
+    amplitude = float(np.sqrt(max(np.sum(_detrend(tau, plane, DETREND_DEGREE).var(axis=0)) - 2 * sigma**2, 0.0)))
+    # Turns: the angle of the gravity vector in the plane.  Only the circle's centre has to stay
+    # inside it, so a gentle detrend (degree 2) does, and it keeps the few slow turns of a weak
+    # spin; a 0.1 s moving average keeps noise from adding spurious wraps.
+    width = max(1, int(round(0.1 / period)))
+    kernel = np.ones(width) / width
+    gentle = _detrend(tau, plane, 2)
+    smooth = np.column_stack([np.convolve(gentle[:, k], kernel, mode="same") for k in range(2)])
+    angle = np.unwrap(np.arctan2(smooth[:, 1], smooth[:, 0]))
+    duration = float(t[-1] - t[0])
+    turns = float(abs(angle[-1] - angle[0]) / (2 * np.pi))
+    tenth = max(n // 10, 2)
+    speed_start = _slope(t[:tenth], angle[:tenth])
+    speed_end = _slope(t[-tenth:], angle[-tenth:])
+    return WheelSurvey(
+        n_samples=n, duration=duration, period=period, noise_sd=sigma, axis=axis, turns=turns,
+        gravity_amplitude=amplitude, speed_start=abs(speed_start), speed_end=abs(speed_end),
+        gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}, g),
+    )
+
+
+def _detrend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    basis = np.polynomial.legendre.legvander(tau, degree)
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return y - basis @ coef
+
+
+def _slope(t: np.ndarray, y: np.ndarray) -> float:
+    tc = t - t.mean()
+    denom = float(tc @ tc)
+    return float(tc @ (y - y.mean()) / denom) if denom > 0 else 0.0
+
+
+def check_capture(s: WheelSurvey, radius: float | None, g: float = STANDARD_GRAVITY) -> list[str]:
+    """Refuse a recording the wheel model cannot calibrate from; return warnings for the rest.
+
+    Order: what the operator must fix first comes first (timestamps, clipping,
+    no tilt, too few turns, too slow).
+    """
+    warnings = []
+    if s.jitter > MAX_TIME_JITTER * s.period:
+        raise CalibrationError(
+            f"the timestamps are irregular: the sample period scatters by {s.jitter * 1e3:.2f} ms "
+            f"around {s.period * 1e3:.2f} ms",
+            "record with device timestamps (sample counter), not host receive times",
+        )
+    if s.gaps:
+        warnings.append(f"{s.gaps} gap(s) in the timestamps ({s.missing} samples missing); "
+                        "the fit uses the timestamps, so the gaps only cost data")
+    if s.saturated:
+        which = ", ".join(f"{count} on {axis}" for axis, count in s.saturated.items())
+        raise CalibrationError(
+            f"samples at full scale ({which}): the wheel spun too fast for the sensor range",
+            "spin the wheel slower or record with a larger range (e.g. range 4 g)",
+        )
+    if s.gravity_amplitude < MIN_GRAVITY_SNR * s.noise_sd:
+        tilt_deg = np.rad2deg(np.arcsin(min(s.gravity_amplitude / g, 1.0)))
+        need = np.rad2deg(np.arcsin(min(MIN_GRAVITY_SNR * s.noise_sd / g, 1.0)))
+        raise CalibrationError(
+            f"the tilt is too small for gravity to modulate the signal: gravity swings by "
+            f"{s.gravity_amplitude:.3f} m/s^2 per turn (tilt about {tilt_deg:.1f} deg), "
+            f"the noise sd is {s.noise_sd:.3f} m/s^2",
+            f"tilt the wheel axis at least {max(need, 1.0):.0f} deg from the vertical (45 deg is best) and spin again",
+        )
+    if s.turns < MIN_TURNS:
+        raise CalibrationError(
+            f"too few turns: the wheel turned {s.turns:.1f} times in {s.duration:.1f} s, "
+            f"the calibration needs at least {MIN_TURNS:.0f}",
+            "spin the wheel harder and record until it has made enough turns",
+        )
+    mean_sq = 0.5 * (s.speed_start**2 + s.speed_end**2)
+    change = abs(s.speed_start**2 - s.speed_end**2)
+    if radius is not None:
+        seen = s.centripetal_change(radius)
+        if seen < MIN_CENTRIPETAL_SNR * s.noise_sd:
+            raise CalibrationError(
+                f"the rotation is too slow for the centripetal term to be seen: r w^2 changed by "
+                f"{seen:.3f} m/s^2 over the run (speed {s.speed_start:.2f} -> {s.speed_end:.2f} rad/s), "
+                f"at least {MIN_CENTRIPETAL_SNR:g} x the noise sd ({MIN_CENTRIPETAL_SNR * s.noise_sd:.3f} m/s^2) is needed",
+                "spin the wheel faster and record while it slows down",
+            )
+    if mean_sq > 0 and change / mean_sq < MIN_SPEED_CHANGE:
+        raise CalibrationError(
+            f"the wheel speed hardly changed ({s.speed_start:.2f} -> {s.speed_end:.2f} rad/s): "
+            "at a constant speed the centripetal term cannot be told from the offset",
+            "spin the wheel by hand and let it coast down while recording",
+        )
+    return warnings
+
+
+# ----------------------------------------------------------------------- half turns
+
+
+def zero_crossings(t: np.ndarray, y: np.ndarray, smooth: int, hysteresis: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times and directions (+1 up, -1 down) of the zero crossings of a noisy oscillation.
+
+    ``y`` is smoothed by a centred moving average of ``smooth`` samples; a new
+    crossing counts only once the signal has gone beyond +-``hysteresis``,
+    so noise near zero cannot split one crossing into several.
+    """
+    if smooth > 1:
+        kernel = np.ones(smooth) / smooth
+        y = np.convolve(y, kernel, mode="same")
+    state = np.where(y > hysteresis, 1, np.where(y < -hysteresis, -1, 0))
+    idx = np.flatnonzero(state)
+    if idx.size < 2:
+        return np.empty(0), np.empty(0, dtype=int)
+    filled = state[idx]
+    change = np.flatnonzero(np.diff(filled) != 0)
+    times, dirs = [], []
+    for c in change:
+        lo, hi = idx[c], idx[c + 1]      # last sample beyond the old side, first beyond the new
+        seg = y[lo:hi + 1]
+        up = filled[c + 1] > 0
+        crossing = np.flatnonzero((seg[:-1] <= 0) & (seg[1:] > 0) if up else (seg[:-1] >= 0) & (seg[1:] < 0))
+        if crossing.size == 0:
+            continue
+        i = lo + crossing[-1]
+        frac = y[i] / (y[i] - y[i + 1])
+        times.append(t[i] + frac * (t[i + 1] - t[i]))
+        dirs.append(1 if up else -1)
+    return np.asarray(times), np.asarray(dirs, dtype=int)
+
+
+def half_turn_speeds(t: np.ndarray, y: np.ndarray, mean_speed: float, period: float,
+                     gap_times: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The paper's Fig. 3 samples: the mean speed of each half turn, pi / (time between crossings).
+
+    ``y`` is the zero-mean component A sin(theta(t)).  Returns (midpoint times,
+    speeds in rad/s, crossing times, crossing directions).  Half turns that
+    straddle a gap in the timestamps are dropped.
+    """
+    turn_time = 2 * np.pi / max(mean_speed, 1e-6)
+    smooth = int(max(1, min(turn_time / 20 / period, 200)))
+    amplitude = np.sqrt(2.0) * np.std(y)
+    times, dirs = zero_crossings(t, y, smooth, 0.3 * amplitude)
+    if times.size < 2:
+        return np.empty(0), np.empty(0), times, dirs
+    start, stop = times[:-1], times[1:]
+    keep = dirs[1:] != dirs[:-1]
+    if gap_times is not None and gap_times.size:
+        straddle = np.array([np.any((gap_times > a) & (gap_times < b)) for a, b in zip(start, stop)])
+        keep &= ~straddle
+    mid = 0.5 * (start + stop)[keep]
+    speed = np.pi / (stop - start)[keep]
+    return mid, speed, times, dirs
