@@ -20,6 +20,8 @@ WIZARDS = (
      "accelrig.procedures.wheel", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
     ("slider-crank", "Slider-crank stand: verify a calibration over motor speed steps",
      "accelrig.procedures.slider_crank", "accelrig.tui.screens.slider_wizard:SliderCrankWizard"),
+    ("rotary", "Rotary bench: sensitivity per axis against the encoder",
+     "accelrig.procedures.rotary_session", "accelrig.tui.screens.rotary_wizard:RotaryWizard"),
 )
 
 
