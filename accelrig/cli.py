@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "accelrig.commands.flash",
     "accelrig.commands.record",
     "accelrig.commands.tui",
+    "accelrig.commands.calibrate_rotary",
     "accelrig.commands.calibrate_wheel",
     "accelrig.commands.verify_slider_crank",
     "accelrig.commands.calibrate_static",

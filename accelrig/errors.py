@@ -42,6 +42,20 @@ class MissingExtraError(DeviceError):
         self.extra = extra
 
 
+def require_extra(module: str, feature: str, package: str, extra: str):
+    """Import an optional dependency, or raise MissingExtraError naming the pip extra.
+
+    Drivers call this inside open()/discover(), never at module import, so every
+    driver module imports (and ``accelrig devices`` lists it) without its extra.
+    """
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingExtraError(feature, package, extra) from None
+
+
 class DataError(AccelrigError):
     """Input data are unusable: wrong file, wrong units, malformed rows, moved poses."""
 

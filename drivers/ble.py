@@ -27,7 +27,7 @@ import time
 
 from accelrig.acquisition import protocol as P
 from accelrig.acquisition.firmware_link import FirmwareDriver
-from accelrig.errors import DeviceError, MissingExtraError
+from accelrig.errors import DeviceError, require_extra
 
 SERVICE_UUID = "a5ce1000-7c2b-4f0e-9d6a-3b8e5f1c2d40"
 TX_UUID = "a5ce1001-7c2b-4f0e-9d6a-3b8e5f1c2d40"   # notify: device -> host frame bodies
@@ -38,11 +38,7 @@ REORDER_WINDOW = 8
 
 
 def _import_bleak():
-    try:
-        import bleak
-    except ImportError:
-        raise MissingExtraError("BLE", "bleak", "ble") from None
-    return bleak
+    return require_extra("bleak", "BLE", "bleak", "ble")
 
 
 def _bleak_client_factory(address, disconnected_callback):

@@ -34,7 +34,7 @@ from accelrig.acquisition.chips.timing import HostClock
 from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.registers import RegisterAccessor
-from accelrig.errors import DeviceError, MissingExtraError, ProfileError
+from accelrig.errors import DeviceError, ProfileError, require_extra
 from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible
 from accelrig.units import scale_for_range
@@ -44,11 +44,7 @@ DEFAULT_RATE = 1000.0
 
 
 def import_smbus2():
-    try:
-        import smbus2
-    except ImportError:
-        raise MissingExtraError("I2C", "smbus2", "i2c") from None
-    return smbus2
+    return require_extra("smbus2", "I2C", "smbus2", "i2c")
 
 
 class I2CDriver(Driver):

@@ -27,7 +27,7 @@ import numpy as np
 from accelrig.acquisition import protocol as P
 from accelrig.acquisition.firmware_link import FirmwareDriver
 from accelrig.acquisition.url import DeviceURL
-from accelrig.errors import DeviceError, MissingExtraError
+from accelrig.errors import DeviceError, require_extra
 
 DEFAULT_BAUD = 921600
 SERIAL_FRAME_SAMPLES = 64
@@ -36,11 +36,7 @@ _BITS_PER_BYTE = 10
 
 
 def _import_serial():
-    try:
-        import serial  # pyserial
-    except ImportError:
-        raise MissingExtraError("serial", "pyserial", "serial") from None
-    return serial
+    return require_extra("serial", "serial", "pyserial", "serial")
 
 
 class SerialDriver(FirmwareDriver):

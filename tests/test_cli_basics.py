@@ -52,3 +52,17 @@ def test_main_returns_exit_code_for_expected_error(capsys):
     code = main(["record", "sim://nosuchrig", "--seconds", "1", "-o", "/tmp/x.csv"])
     assert code != 0
     assert "unknown simulated rig 'nosuchrig'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("module, url, extra", [
+    ("serial", "serial:///dev/ttyUSB0", "serial"),
+    ("smbus2", "i2c://1/0x68?chip=mpu9250", "i2c"),
+    ("bleak", "ble://AA:BB:CC:DD:EE:FF", "ble"),
+])
+def test_missing_optional_dependency_names_the_extra(monkeypatch, capsys, module, url, extra):
+    monkeypatch.setitem(sys.modules, module, None)  # as if the package were not installed
+    code = main(["record", url, "--seconds", "1", "-o", "/tmp/never.csv"])
+    err = capsys.readouterr().err
+    assert code != 0
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"pip install 'accelrig[{extra}]'" in err

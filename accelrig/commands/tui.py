@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.errors import MissingExtraError
+from accelrig.errors import require_extra
 
 
 def register(sub, groups) -> None:
@@ -20,10 +20,7 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
-    try:
-        import textual  # noqa: F401  (only to say clearly when the extra is missing)
-    except ModuleNotFoundError:
-        raise MissingExtraError("the TUI", "textual", "tui") from None
+    require_extra("textual", "the TUI", "textual", "tui")  # says which extra is missing
     from accelrig.tui.app import DEFAULT_DEVICE, AccelrigApp
 
     app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir)

@@ -1,0 +1,92 @@
+"""accelrig calibrate rotary: the oscillating-disk bench of paper 001 (one test or a campaign)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from accelrig.errors import DataError
+from accelrig.procedures.rotary_bench import RATE_METHODS, RotarySetup, analyse_files
+from accelrig.procedures.rotary_campaign import report_markdown, run_campaign, write_report
+from accelrig.recording import _json_default
+
+
+def register(sub, groups) -> None:
+    p = groups["calibrate"].add_parser(
+        "rotary",
+        help="rotary oscillating bench (paper 001): sampling rate, sensitivity, uncertainty budget",
+        description="One test: --mems M.csv (counts, own clock) with --encoder E.csv (t,theta on an accurate "
+        "clock; or a theta channel in the MEMS file) and the geometry. A campaign: --campaign CAMPAIGN.yaml. "
+        "Sensitivities are in counts per m/s^2, uncertainties standard (k = 1) unless labelled.",
+    )
+    p.add_argument("--campaign", metavar="YAML", help="campaign file listing the tests (see docs/rotary.md)")
+    p.add_argument("--mems", metavar="FILE", help="MEMS recording (.csv or .npz), in counts")
+    p.add_argument("--encoder", metavar="FILE", help="encoder log t,theta[,ref] (s, rad, m/s^2) on an accurate clock")
+    p.add_argument("--radius", type=float, help="sensor distance from the rotation axis, m (e.g. 0.170)")
+    p.add_argument("--radius-uncertainty", type=float, default=0.0005, help="standard uncertainty of the radius, m "
+                   "(default 0.0005, paper 001)")
+    p.add_argument("--ref-radius", type=float, default=0.145, help="radius of the reference accelerometer, m")
+    p.add_argument("--tangential", help="sensor axis along the motion: x, y or z")
+    p.add_argument("--radial", help="sensor axis towards the rotation axis: x, y or z (the third sees gravity)")
+    p.add_argument("--nominal-rate", type=float, help="nominal MEMS rate, Hz (e.g. 1660)")
+    p.add_argument("--frequency", type=float, help="excitation frequency, Hz (default: from the encoder)")
+    p.add_argument("--rate-method", choices=RATE_METHODS, default="fit",
+                   help="true sampling rate by a sample-index sine fit (default) or the paper's 1 Hz FFT scan")
+    p.add_argument("--units", default="counts", help="units of the MEMS file's ax,ay,az (default counts)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("-o", "--output", metavar="REPORT", help="campaign report file (.yaml or .md), written atomically")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if args.campaign:
+        given = [f"--{n.replace('_', '-')}" for n in ("mems", "encoder", "radius", "tangential", "radial",
+                                                      "nominal_rate", "frequency") if getattr(args, n) is not None]
+        if given:
+            raise DataError(f"--campaign takes its tests from the YAML; drop {', '.join(given)}")
+        return _run_campaign(args)
+    if args.output:
+        raise DataError("-o/--output writes a campaign report", "use it with --campaign, or --json for one test")
+    missing = [f"--{n.replace('_', '-')}" for n in ("mems", "radius", "tangential", "radial", "nominal_rate")
+               if getattr(args, n) is None]
+    if missing:
+        raise DataError(f"one test needs {', '.join(missing)}", "or give --campaign CAMPAIGN.yaml")
+    setup = RotarySetup(radius=args.radius, radius_uncertainty=args.radius_uncertainty, ref_radius=args.ref_radius)
+    result = analyse_files(args.mems, args.encoder, args.tangential, args.radial, args.nominal_rate,
+                           args.frequency, args.rate_method, setup, units=args.units)
+    if args.json:
+        print(json.dumps(result.to_json_dict(), indent=2, default=_json_default))
+        return 0
+    fs = result.sample_rate
+    print(f"sample rate  {fs.value:.4f} +- {fs.uncertainty:.2g} Hz  (nominal {result.nominal_rate:g} Hz, "
+          f"by {result.rate_method})")
+    print(f"excitation   {result.frequency.value:.5f} Hz, theta0 {np.degrees(result.theta0.value):.3f} deg "
+          f"({2 * np.degrees(result.theta0.value):.2f} deg peak to peak)")
+    for axis, s in result.sensitivity.items():
+        print(f"S_{axis}          {s.value:.3f} +- {s.uncertainty:.3f} counts per m/s^2  ({s.component}, "
+              f"reference {s.reference_amplitude:.3f} m/s^2)")
+    dc = result.dc_sensitivity
+    print(f"S_{dc.axis} from DC  {dc.value:.3f} counts per m/s^2  (reported, not used: offset and tilt enter it)")
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def _run_campaign(args) -> int:
+    def progress(test, result) -> None:
+        if sys.stderr.isatty():
+            sys.stderr.write(f"\rtest {test.index + 1}: {test.label}  ")
+            sys.stderr.flush()
+
+    report = run_campaign(args.campaign, on_test=progress)
+    if sys.stderr.isatty():
+        sys.stderr.write("\n")
+    if args.output:
+        write_report(report, args.output)
+    if args.json:
+        print(json.dumps(report, indent=2, default=_json_default))
+    elif not args.output:
+        print(report_markdown(report), end="")
+    return 0

@@ -1,0 +1,697 @@
+"""Rotary oscillating bench (paper 001): sampling rate, sensitivity per axis, one test.
+
+Inputs of one test: the MEMS recording in counts on its own clock (its
+timestamps are NOT used: the procedure works in the sample-index domain), the
+encoder angle on an accurate clock (a separate ``t,theta[,ref]`` log or the
+``theta`` channel of the recording, then timestamped by the recording's ``t``),
+the radius, which axis is tangential and which radial, the nominal MEMS rate
+and optionally the excitation frequency.
+
+Processing, as the paper and with its known weaknesses made explicit:
+
+1. Reference from the encoder: a sine fit (with harmonics, on the accurate
+   clock) gives f and theta0 with uncertainties; eq. 3-4 give the tangential
+   amplitude r (2 pi f)^2 theta0 at f and the centripetal r omega0^2 / 2 at
+   2f and at DC (omega0 = 2 pi f theta0).
+2. True sampling rate: ``fit`` (default) fits the tangential axis in the
+   sample-index domain (cycles per sample nu, IEEE 1057 four-parameter fit
+   with harmonics sharing nu), fs = f / nu, u_r(fs)^2 = u_r(nu)^2 + u_r(f)^2;
+   ``scan`` is the paper's: FFT peak frequency for candidate rates nominal
+   +- 100 Hz in 1 Hz steps, pick the rate whose peak lands nearest f
+   (quantised: u = 1 Hz / sqrt(12)).
+3. 6-pole Butterworth low-pass at 40 Hz, zero phase (sosfiltfilt squares
+   the magnitude: the amplitudes at f and 2f are divided by |H|^2 there), the
+   ends trimmed by the filter's settling time, then zero-crossing trimming of
+   the tangential axis to whole periods.
+4. Amplitudes at f, 2f and DC of each axis: ``fit`` by a three-parameter fit
+   (with harmonics) at the estimated nu; ``scan`` by the paper's FFT bins of
+   the whole-period record.  Standard uncertainties come from the same model
+   fitted to the UNFILTERED whole-period record: low-pass filtering leaves the
+   noise at f untouched but shrinks the residuals, so a covariance from the
+   filtered residuals would be several times too small.
+5. Sensitivity in counts per m/s^2: tangential axis from the f component,
+   radial axis from the 2f component; the DC of the radial axis is reported
+   and not used (it carries the offset and the bench's tilt, as the paper found).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.gum import Contribution, UncertaintyBudget
+from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.procedures.result import CalibrationResult, Estimate
+from accelrig.recording import Recording, load_recording
+from accelrig.units import STANDARD_GRAVITY, normalise_unit
+
+AXES = "xyz"
+COMPONENTS = ("tangential", "centripetal", "dc")
+RATE_METHODS = ("fit", "scan")
+FILTER_ORDER = 6
+FILTER_CUTOFF = 40.0  # Hz (paper 001)
+SCAN_HALF_WIDTH = 100.0  # Hz either side of nominal (paper 001: 1560 .. 1760 Hz at 1660)
+SCAN_STEP = 1.0  # Hz
+SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
+HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
+RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
+# The paper's test plan (section 2.4) plus lower amplitudes for the linearity line:
+# (frequency Hz, oscillation angle in degrees PEAK TO PEAK)
+PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
+# Orientations of the paper's three supports (section 2.2): (tangential, radial)
+PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
+
+
+@dataclass
+class RotarySetup:
+    """Geometry and reference inputs (defaults from paper 001).
+
+    radius_uncertainty     standard uncertainty of r, m (paper: 0.5 mm, 0.3 %)
+    geometry_uncertainty   relative standard uncertainty from bench imperfections
+                           (paper: 0.06 % maximum, rectangular -> 0.06 % / sqrt(3))
+    encoder_resolution     rad (paper: 0.01 degrees); its quantisation noise is
+                           part of the encoder fit's residuals
+    frequency_uncertainty  relative, of a given --frequency used without an
+                           encoder fit of the frequency (never: the encoder
+                           always gives f); kept for the campaign's budget notes
+    ref_radius             radius of the optional reference accelerometer, m
+    """
+
+    radius: float = 0.170
+    radius_uncertainty: float = 0.0005
+    geometry_uncertainty: float = 0.0006 / np.sqrt(3.0)
+    encoder_resolution: float = float(np.deg2rad(0.01))
+    ref_radius: float = 0.145
+    filter_cutoff: float = FILTER_CUTOFF
+    g: float = STANDARD_GRAVITY
+
+    def __post_init__(self) -> None:
+        if not 0 < self.radius < 2:
+            raise DataError(f"radius {self.radius} m is not plausible", "give it in metres, e.g. 0.170")
+        if self.radius_uncertainty < 0 or self.geometry_uncertainty < 0:
+            raise DataError("uncertainties of the reference must not be negative")
+
+
+@dataclass
+class EncoderLog:
+    """Encoder angle (rad) on an accurate clock (s), and optionally a reference accelerometer (m/s^2)."""
+
+    t: np.ndarray
+    theta: np.ndarray
+    ref: np.ndarray | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        self.t = np.asarray(self.t, dtype=float)
+        self.theta = np.asarray(self.theta, dtype=float)
+        if self.t.shape != self.theta.shape or self.t.ndim != 1:
+            raise DataError(f"{self.source or 'encoder'}: one time per angle is needed")
+        if self.t.size < 16:
+            raise DataError(f"{self.source or 'encoder'}: only {self.t.size} encoder samples")
+        if np.any(np.diff(self.t) <= 0):
+            raise DataError(f"{self.source or 'encoder'}: encoder times do not increase")
+        if self.ref is not None:
+            self.ref = np.asarray(self.ref, dtype=float)
+            if self.ref.shape != self.t.shape:
+                raise DataError(f"{self.source or 'encoder'}: ref has {self.ref.size} values for {self.t.size} times")
+
+    @classmethod
+    def from_recording(cls, rec: Recording) -> EncoderLog:
+        """The ``theta`` (and ``ref``) channels of a recording, timestamped by its ``t``."""
+        if "theta" not in rec.channels:
+            raise DataError(
+                f"{rec.meta.get('source', 'the MEMS recording')} has no 'theta' channel",
+                "give the encoder log with --encoder E.csv (columns t,theta)",
+            )
+        return cls(rec.t, rec.channels["theta"], rec.channels.get("ref"), rec.meta.get("source", "theta channel"))
+
+    def window(self, start: float, stop: float) -> EncoderLog:
+        keep = (self.t >= start) & (self.t <= stop)
+        return EncoderLog(self.t[keep], self.theta[keep], None if self.ref is None else self.ref[keep], self.source)
+
+
+def read_encoder_csv(path: str | os.PathLike) -> EncoderLog:
+    """Read an encoder log: header with ``t`` (s, accurate clock) and ``theta`` (rad), optional ``ref``."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such file") from None
+    except (IsADirectoryError, UnicodeDecodeError):
+        raise DataError(f"{path}: not a CSV text file") from None
+    header = None
+    rows = []
+    for lineno, line in enumerate(io.StringIO(text), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = [f.strip() for f in next(csv.reader([s]))]
+        if header is None:
+            header = fields
+            missing = [c for c in ("t", "theta") if c not in header]
+            if missing:
+                raise DataError(f"{path}:{lineno}: encoder log lacks column(s) {', '.join(missing)}",
+                                "an encoder log needs a header t,theta (seconds, radians)")
+            continue
+        if len(fields) != len(header):
+            raise DataError(f"{path}:{lineno}: expected {len(header)} values, got {len(fields)}")
+        try:
+            rows.append([float(f) for f in fields])
+        except ValueError:
+            raise DataError(f"{path}:{lineno}: a value is not a number") from None
+    if header is None or not rows:
+        raise DataError(f"{path}: no encoder samples", "an encoder log needs a header t,theta and data rows")
+    data = np.asarray(rows)
+    if not np.all(np.isfinite(data)):
+        raise DataError(f"{path}: holds NaN or infinite values")
+    col = {n: i for i, n in enumerate(header)}
+    ref = data[:, col["ref"]] if "ref" in col else None
+    if np.any(np.diff(data[:, col["t"]]) <= 0):
+        k = int(np.argmax(np.diff(data[:, col["t"]]) <= 0))
+        raise DataError(f"{path}: time t does not increase at data row {k + 2}")
+    return EncoderLog(data[:, col["t"]], data[:, col["theta"]], ref, str(path))
+
+
+def parse_axis(spec: str) -> tuple[int, float] | None:
+    """'x', '+y', '-z' -> (index, sign); None if ``spec`` names no axis."""
+    text = str(spec).strip().lower().replace(" ", "+")
+    sign = -1.0 if text.startswith("-") else 1.0
+    name = text.lstrip("+-")
+    return (AXES.index(name), sign) if len(name) == 1 and name in AXES else None
+
+
+def parse_axis_name(spec: str, role: str) -> int:
+    """The axis index of --tangential / --radial (the sign does not matter for amplitudes)."""
+    parsed = parse_axis(spec)
+    if parsed is None:
+        raise DataError(f"--{role} {spec!r} is not a sensor axis", "use x, y or z")
+    return parsed[0]
+
+
+def mems_counts(rec: Recording) -> np.ndarray:
+    """The MEMS samples in counts (n, 3): counts as recorded, or m/s^2 / g back through meta['scale']."""
+    if rec.units == "counts":
+        return rec.acc
+    scale = rec.meta.get("scale")
+    if not scale:
+        raise DataError(
+            f"{rec.meta.get('source', 'the MEMS recording')} is in {rec.units} and has no counts scale",
+            "sensitivity is in counts per m/s^2: give the recording in counts (--units counts)",
+        )
+    return rec.to_si().acc / float(scale)
+
+
+# ------------------------------------------------------------------ results
+
+
+@dataclass
+class AxisAmplitudes:
+    """Components of one axis over the whole-period record, counts (filter gain corrected)."""
+
+    at_f: float
+    at_f_uncertainty: float
+    at_2f: float
+    at_2f_uncertainty: float
+    dc: float
+    dc_uncertainty: float
+
+
+@dataclass
+class AxisSensitivity:
+    """Sensitivity of one axis in counts per m/s^2 from one component.
+
+    ``noise_uncertainty`` and ``reference_uncertainty`` are relative (k = 1);
+    ``uncertainty`` is absolute (k = 1), their root sum of squares.
+    """
+
+    axis: str
+    component: str
+    value: float
+    uncertainty: float
+    output_amplitude: float  # counts
+    reference_amplitude: float  # m/s^2
+    noise_uncertainty: float
+    reference_uncertainty: float
+
+    def to_dict(self) -> dict:
+        return {
+            "value": self.value, "uncertainty": self.uncertainty, "component": self.component,
+            "unit": "counts/(m/s^2)", "output_amplitude_counts": self.output_amplitude,
+            "reference_amplitude": self.reference_amplitude,
+            "relative_uncertainty_noise": self.noise_uncertainty,
+            "relative_uncertainty_reference": self.reference_uncertainty,
+        }
+
+
+@dataclass
+class RotaryTest:
+    """Outcome of one rotary test."""
+
+    rate_method: str
+    sample_rate: Estimate
+    nominal_rate: float
+    frequency: Estimate
+    theta0: Estimate
+    reference: dict  # component -> {"value", "uncertainty", "budget"}
+    amplitudes: dict[str, AxisAmplitudes]
+    sensitivity: dict[str, AxisSensitivity]  # the used ones: tangential axis, radial axis
+    dc_sensitivity: AxisSensitivity
+    tangential_axis: str
+    radial_axis: str
+    up_axis: str
+    n_periods: int
+    n_samples: int
+    filter_gain: dict
+    quality: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    bland_altman: dict | None = None
+    arrays: dict = field(default_factory=dict)
+
+    def to_json_dict(self) -> dict:
+        return {
+            "procedure": "rotary",
+            "rate_method": self.rate_method,
+            "sample_rate_hz": {"value": self.sample_rate.value, "uncertainty": self.sample_rate.uncertainty,
+                               "nominal": self.nominal_rate},
+            "frequency_hz": {"value": self.frequency.value, "uncertainty": self.frequency.uncertainty},
+            "theta0_rad": {"value": self.theta0.value, "uncertainty": self.theta0.uncertainty},
+            "reference": {k: {kk: vv for kk, vv in v.items()} for k, v in self.reference.items()},
+            "sensitivity": {axis: s.to_dict() for axis, s in self.sensitivity.items()},
+            "dc_sensitivity": {self.radial_axis: self.dc_sensitivity.to_dict(),
+                               "note": "from the radial axis's DC part: carries the offset and the bench tilt; "
+                                       "reported, not used (paper 001)"},
+            "amplitudes_counts": {a: vars(v) for a, v in self.amplitudes.items()},
+            "axes": {"tangential": self.tangential_axis, "radial": self.radial_axis, "up": self.up_axis},
+            "n_periods": self.n_periods,
+            "n_samples": self.n_samples,
+            "filter_gain_squared": self.filter_gain,
+            "quality": self.quality,
+            "bland_altman": self.bland_altman,
+            "warnings": list(self.warnings),
+        }
+
+    def to_calibration_result(self) -> CalibrationResult:
+        """As the common result type.  No canonical correction: one test gives two
+        gains and no offsets, and accelrig never fills the rest with guesses."""
+        params = {"sample_rate": self.sample_rate, "frequency": self.frequency}
+        for axis, s in self.sensitivity.items():
+            params[f"sensitivity_{axis}"] = Estimate(s.value, s.uncertainty, "counts/(m/s^2)")
+        return CalibrationResult(
+            procedure="rotary", method=f"rotary bench, rate by {self.rate_method}", model="q_o = S a_ref",
+            correction=None, parameters=params, quality=dict(self.quality),
+            settings={"tangential": self.tangential_axis, "radial": self.radial_axis,
+                      "nominal_rate": self.nominal_rate},
+            warnings=list(self.warnings),
+        )
+
+
+# ------------------------------------------------------------------ pieces
+
+
+def butterworth(fs: float, cutoff: float = FILTER_CUTOFF):
+    if cutoff >= fs / 2:
+        raise DataError(f"the {cutoff:g} Hz low-pass is above the Nyquist frequency of {fs:.1f} Hz")
+    return signal.butter(FILTER_ORDER, cutoff, fs=fs, output="sos")
+
+
+def zero_phase_gain(sos, frequency: float, fs: float) -> float:
+    """|H(f)|^2: the gain of the forward-backward (sosfiltfilt) filter at ``frequency``."""
+    _, h = signal.sosfreqz(sos, worN=[frequency], fs=fs)
+    return float(np.abs(h[0]) ** 2)
+
+
+def scan_sample_rate(y: np.ndarray, frequency: float, nominal_rate: float,
+                     half_width: float = SCAN_HALF_WIDTH, step: float = SCAN_STEP) -> tuple[float, float]:
+    """The paper's rate scan (Fig. 3): FFT peak frequency for each candidate rate, keep the best.
+
+    For a candidate fs_c the spectral peak sits at bin m (independent of fs_c)
+    and reads m fs_c / N Hz; the rate whose reading is nearest the excitation
+    frequency wins.  Returns (rate, standard uncertainty): the 1 Hz grid is a
+    rectangular quantisation (step / sqrt(12)) and the peak bin adds at most
+    one sample of the N in the record.
+    """
+    n = y.size
+    spectrum = np.abs(np.fft.rfft(y - y.mean()))
+    m = int(np.argmax(spectrum[1:])) + 1
+    candidates = np.arange(nominal_rate - half_width, nominal_rate + half_width + step / 2, step)
+    errors = np.abs(m * candidates / n - frequency)
+    best = int(np.argmin(errors))
+    if best in (0, candidates.size - 1):
+        raise CalibrationError(
+            f"the rate scan ended at the edge of its range ({candidates[best]:.0f} Hz, nominal {nominal_rate:g} +- "
+            f"{half_width:g} Hz)",
+            "check --nominal-rate and --frequency, or use --rate-method fit",
+        )
+    rate = float(candidates[best])
+    u = float(np.sqrt(step**2 / 12.0 + (rate / n) ** 2 / 3.0))
+    return rate, u
+
+
+def whole_periods(y: np.ndarray, period_samples: float, start: int, stop: int) -> tuple[int, int, int]:
+    """Zero-crossing trimming: first and last upward zero crossing of ``y`` (mean removed)
+    inside [start, stop), so the slice holds whole periods.  Returns (first, last, periods)."""
+    seg = y[start:stop] - np.mean(y[start:stop])
+    up = np.flatnonzero((seg[:-1] < 0) & (seg[1:] >= 0)) + 1
+    # a crossing closer than half a period to the previous kept one is noise on a slow slope
+    kept = []
+    for k in up:
+        if not kept or k - kept[-1] > 0.5 * period_samples:
+            kept.append(int(k))
+    if len(kept) < 3:
+        raise CalibrationError(
+            f"only {max(len(kept) - 1, 0)} whole periods found on the tangential axis after trimming",
+            "record longer (the paper records 40 s) or check --tangential",
+        )
+    return start + kept[0], start + kept[-1], len(kept) - 1
+
+
+def _fft_components(y: np.ndarray, bin_f: int) -> tuple[float, float, float]:
+    """Amplitudes at bins m, 2m and the DC of a whole-period record (paper's FFT)."""
+    n = y.size
+    spectrum = np.fft.rfft(y)
+    a1 = 2.0 * np.abs(spectrum[bin_f]) / n
+    a2 = 2.0 * np.abs(spectrum[2 * bin_f]) / n if 2 * bin_f < spectrum.size else float("nan")
+    return float(a1), float(a2), float(spectrum[0].real / n)
+
+
+# ------------------------------------------------------------------ the test
+
+
+def analyse_test(
+    mems: Recording,
+    encoder: EncoderLog | None,
+    tangential: str,
+    radial: str,
+    nominal_rate: float,
+    frequency: float | None = None,
+    rate_method: str = "fit",
+    setup: RotarySetup | None = None,
+    keep_arrays: bool = False,
+) -> RotaryTest:
+    """Process one rotary test (see the module docstring)."""
+    setup = setup or RotarySetup()
+    if rate_method not in RATE_METHODS:
+        raise DataError(f"rate method {rate_method!r} is not one of {', '.join(RATE_METHODS)}")
+    if not nominal_rate or nominal_rate <= 0:
+        raise DataError("the nominal MEMS rate must be positive", "give --nominal-rate HZ")
+    if frequency is not None and frequency <= 0:
+        raise DataError(f"--frequency {frequency} must be positive")
+    i_t = parse_axis_name(tangential, "tangential")
+    i_r = parse_axis_name(radial, "radial")
+    if i_t == i_r:
+        raise DataError(f"--tangential {tangential} and --radial {radial} name the same axis")
+    i_up = 3 - i_t - i_r
+    counts = mems_counts(mems)
+    n = counts.shape[0]
+    if n and np.median(np.linalg.norm(counts, axis=1)) < 100:
+        # gravity alone is thousands of counts on any MEMS range: these are not counts
+        raise DataError(f"{mems.meta.get('source', 'the MEMS recording')}: the values are far too small for counts",
+                        "give a recording in counts, or its units (--units m/s2) with the counts scale in its metadata")
+    warnings: list[str] = []
+    source = mems.meta.get("source", "MEMS recording")
+    clipped = np.count_nonzero((counts >= 32767) | (counts <= -32768))
+    if clipped:
+        raise DataError(f"{source}: {clipped} samples sit at the int16 full scale (clipped)",
+                        "lower the oscillation angle or set a larger range")
+    if encoder is None:
+        encoder = EncoderLog.from_recording(mems)
+
+    # --- overlap: the MEMS start is the only thing its clock is trusted for
+    mems_start = float(mems.t[0])
+    mems_stop = mems_start + (n - 1) / nominal_rate
+    overlap = min(mems_stop, encoder.t[-1]) - max(mems_start, encoder.t[0])
+    if overlap <= 0:
+        raise DataError(
+            f"the encoder log ({encoder.t[0]:.3f} .. {encoder.t[-1]:.3f} s) and the MEMS record "
+            f"({mems_start:.3f} .. {mems_stop:.3f} s) do not overlap in time",
+            "record both during the same test, with times on one clock",
+        )
+    if overlap < 0.5 * (mems_stop - mems_start):
+        raise DataError(
+            f"the encoder log covers only {overlap:.2f} s of the {mems_stop - mems_start:.2f} s MEMS record",
+            "record the encoder for the whole test",
+        )
+    enc = encoder.window(max(mems_start, encoder.t[0]), min(mems_stop, encoder.t[-1]))
+
+    # --- 1. reference from the encoder
+    if np.ptp(enc.theta) < 20 * setup.encoder_resolution:
+        raise DataError(f"{enc.source or 'encoder'}: the angle hardly moves ({np.degrees(np.ptp(enc.theta)):.3f} deg)",
+                        "is the bench running? is theta in radians?")
+    peak = interpolated_dft_frequency(enc.t, enc.theta - enc.theta.mean())
+    if frequency is not None and abs(peak / frequency - 1) > 0.02:
+        raise DataError(f"excitation frequency {frequency:g} Hz not found in the encoder log: it oscillates at "
+                        f"{peak:.3f} Hz", "fix --frequency or leave it out to estimate it from the encoder")
+    enc_fit = fit_sine(enc.t, enc.theta, frequency=peak, harmonics=HARMONICS, fit_frequency=True)
+    f = enc_fit.frequency
+    if not enc_fit.converged:
+        raise CalibrationError("the sine fit of the encoder angle did not converge", "check the encoder log")
+    if enc_fit.amplitude[0] < max(enc_fit.amplitude[1:].max(initial=0.0), 10 * enc_fit.residual_sd):
+        raise DataError(f"the encoder angle is not an oscillation at {f:.3f} Hz (harmonics or noise dominate)",
+                        "check the encoder log and --frequency")
+    theta0, u_theta0 = float(enc_fit.amplitude[0]), float(enc_fit.amplitude_uncertainty[0])
+    u_f_rel = enc_fit.frequency_uncertainty / f
+    omega = 2 * np.pi * f
+    a_tan = setup.radius * omega**2 * theta0
+    a_cen = setup.radius * (omega * theta0) ** 2 / 2.0
+    u_r_rel = setup.radius_uncertainty / setup.radius
+    # Encoder resolution: the quantisation error of a periodic angle sampled in step with
+    # the motion repeats every period, so it does not average over periods as the fit's
+    # white-noise covariance assumes.  Within a period, theta(t + T/2) = -theta(t) and
+    # rounding is odd, so errors half a period apart are equal and opposite and add
+    # alike on the fundamental: M samples per period give M / 2 independent errors and
+    # an amplitude sd of (q / sqrt 12) sqrt(2 / (M / 2)).  (Simulated with M = 200: 17 ppm
+    # predicted with M, 26 ppm seen, 24 ppm with M / 2.)  Conservative when not in step.
+    enc_rate = (enc.t.size - 1) / (enc.t[-1] - enc.t[0])
+    independent_per_period = max(enc_rate / f / 2.0, 1.0)
+    u_quant = setup.encoder_resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
+    reference = {}
+    for name, value, c_theta in (("tangential", a_tan, 1.0), ("centripetal", a_cen, 2.0), ("dc", a_cen, 2.0)):
+        budget = UncertaintyBudget(
+            [
+                Contribution("radius", "u_r", u_r_rel),
+                Contribution("bench geometry", "u_g", setup.geometry_uncertainty),
+                Contribution("encoder amplitude (fit)", "u_theta0", u_theta0 / theta0, c_theta),
+                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta),
+                Contribution("frequency", "u_f", u_f_rel, 2.0),
+            ],
+            correlation=0.0, relative=True, value=value, unit="m/s^2",
+        )
+        reference[name] = {"value": value, "uncertainty": budget.absolute(budget.combined),
+                           "relative_uncertainty": budget.combined, "budget": budget.to_dict()}
+
+    # --- 2. the MEMS must show the excitation where expected
+    y_t = counts[:, i_t]
+    nu_expected = f / nominal_rate
+    index = np.arange(n, dtype=float)
+    if n < 8 or nu_expected * n < 3:
+        raise DataError(f"{source}: {n} samples hold fewer than 3 periods of {f:.3f} Hz", "record longer")
+    nu_peak = interpolated_dft_frequency(index, y_t - y_t.mean())
+    if abs(nu_peak / nu_expected - 1) > 0.1:
+        seen = nu_peak * nominal_rate
+        if abs(nu_peak / (2 * nu_expected) - 1) < 0.1:
+            raise DataError(
+                f"axis roles contradict the data: the 'tangential' axis {AXES[i_t]} carries mainly 2f "
+                f"({seen:.2f} Hz), as a radial axis does",
+                "swap --tangential and --radial, or check the mounting",
+            )
+        raise DataError(
+            f"excitation frequency {f:.3f} Hz not found on the tangential axis {AXES[i_t]} of {source}: "
+            f"its strongest line is at {seen:.3f} Hz (at the nominal rate {nominal_rate:g} Hz)",
+            "check --tangential, --nominal-rate and that the encoder log belongs to this test",
+        )
+
+    # --- 3. sampling rate
+    if rate_method == "fit":
+        rate_fit = fit_sine(index, y_t, frequency=nu_peak, harmonics=HARMONICS, fit_frequency=True)
+        if not rate_fit.converged:
+            raise CalibrationError("the sample-index sine fit of the tangential axis did not converge")
+        nu = rate_fit.frequency
+        fs = f / nu
+        u_fs = fs * float(np.sqrt((rate_fit.frequency_uncertainty / nu) ** 2 + u_f_rel**2))
+
+    # --- 4. filter with the rate the method found, trim
+    if rate_method == "scan":
+        # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
+        fs_for_filter = nominal_rate
+    else:
+        fs_for_filter = fs
+    sos = butterworth(fs_for_filter, setup.filter_cutoff)
+    filtered = signal.sosfiltfilt(sos, counts, axis=0)
+    settle = int(np.ceil(SETTLE_SECONDS * fs_for_filter))
+    if n - 2 * settle < 4 * fs_for_filter / f:
+        raise DataError(f"{source}: {n / nominal_rate:.1f} s is too short", "record at least 5 s per test")
+    period = fs_for_filter / f
+    first, last, periods = whole_periods(filtered[:, i_t], period, settle, n - settle)
+    seg = slice(first, last)
+    if rate_method == "scan":
+        fs, u_fs = scan_sample_rate(filtered[seg, i_t], f, nominal_rate)
+        nu = f / fs
+        if abs(fs / nominal_rate - 1) > 1e-3:  # refilter at the scanned rate (the cutoff moves with fs)
+            sos = butterworth(fs, setup.filter_cutoff)
+            filtered = signal.sosfiltfilt(sos, counts, axis=0)
+    gain_f = zero_phase_gain(sos, f, fs)
+    gain_2f = zero_phase_gain(sos, 2 * f, fs)
+    n_seg = last - first
+    k_seg = index[seg]
+
+    # --- 5. amplitudes per axis
+    bin_f = int(round(f * n_seg / fs))
+    # the FFT reads the bin's frequency, m / N cycles per sample: its noise level is that of a fit there
+    nu_amplitudes = nu if rate_method == "fit" else bin_f / n_seg
+    amplitudes: dict[str, AxisAmplitudes] = {}
+    for axis in range(3):
+        raw_fit = fit_sine(k_seg, counts[seg, axis], frequency=nu_amplitudes, harmonics=HARMONICS,
+                           fit_frequency=False)
+        if rate_method == "fit":
+            filt_fit = fit_sine(k_seg, filtered[seg, axis], frequency=nu, harmonics=HARMONICS, fit_frequency=False)
+            a1, a2, dc = filt_fit.amplitude[0], filt_fit.amplitude[1], filt_fit.offset
+        else:
+            a1, a2, dc = _fft_components(filtered[seg, axis], bin_f)
+        amplitudes[AXES[axis]] = AxisAmplitudes(
+            at_f=float(a1 / gain_f), at_f_uncertainty=float(raw_fit.amplitude_uncertainty[0] / gain_f),
+            at_2f=float(a2 / gain_2f), at_2f_uncertainty=float(raw_fit.amplitude_uncertainty[1] / gain_2f),
+            dc=float(dc), dc_uncertainty=float(raw_fit.offset_uncertainty),
+        )
+
+    # --- axis roles against the data
+    amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
+    if amp_t.at_2f > amp_t.at_f:
+        raise DataError(
+            f"axis roles contradict the data: the 'tangential' axis {AXES[i_t]} carries more at 2f "
+            f"({amp_t.at_2f:.0f} counts) than at f ({amp_t.at_f:.0f})",
+            "check --tangential and --radial",
+        )
+    if amp_r.at_f > amp_r.at_2f:
+        raise DataError(
+            f"axis roles contradict the data: the 'radial' axis {AXES[i_r]} carries more at f "
+            f"({amp_r.at_f:.0f} counts) than at 2f ({amp_r.at_2f:.0f})",
+            "check --tangential and --radial",
+        )
+    strongest_f = max(amplitudes, key=lambda a: amplitudes[a].at_f)
+    strongest_2f = max(amplitudes, key=lambda a: amplitudes[a].at_2f)
+    if strongest_f != AXES[i_t]:
+        raise DataError(
+            f"axis roles contradict the data: axis {strongest_f}, not the 'tangential' axis {AXES[i_t]}, carries "
+            f"the {f:.3f} Hz motion", f"use --tangential {strongest_f}",
+        )
+    if strongest_2f != AXES[i_r]:
+        raise DataError(
+            f"axis roles contradict the data: axis {strongest_2f}, not the 'radial' axis {AXES[i_r]}, carries "
+            f"the centripetal {2 * f:.3f} Hz", f"use --radial {strongest_2f}",
+        )
+    if amp_t.at_f < 10 * amp_t.at_f_uncertainty:
+        raise DataError(f"the tangential axis {AXES[i_t]} shows no clear {f:.3f} Hz line", "check the recording")
+
+    # --- 6. sensitivities
+    def sens(axis: str, component: str, output: float, u_output: float) -> AxisSensitivity:
+        ref = reference[component]
+        value = output / ref["value"]
+        u_noise = u_output / output
+        u_ref = ref["relative_uncertainty"]
+        return AxisSensitivity(axis, component, float(value), float(abs(value) * np.hypot(u_noise, u_ref)),
+                               float(output), float(ref["value"]), float(u_noise), float(u_ref))
+
+    sensitivity = {
+        AXES[i_t]: sens(AXES[i_t], "tangential", amp_t.at_f, amp_t.at_f_uncertainty),
+        AXES[i_r]: sens(AXES[i_r], "centripetal", amp_r.at_2f, amp_r.at_2f_uncertainty),
+    }
+    dc_sens = sens(AXES[i_r], "dc", abs(amp_r.dc), amp_r.dc_uncertainty)
+    s_radial = sensitivity[AXES[i_r]].value
+    radial_at_f = amp_r.at_f / s_radial
+    if radial_at_f > RADIAL_F_LIMIT * (a_tan / 49.0):
+        warnings.append(
+            f"the radial axis {AXES[i_r]} carries {radial_at_f:.3f} m/s^2 at f (the paper's mounting limit is "
+            f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
+        )
+    up_counts = amplitudes[AXES[i_up]].dc
+    quality = {
+        "encoder_residual_sd_rad": enc_fit.residual_sd,
+        "encoder_harmonic_distortion": float(np.sqrt(np.sum(enc_fit.amplitude[1:] ** 2)) / theta0),
+        "radial_axis_at_f_m_s2": float(radial_at_f),
+        "tangential_axis_at_2f_m_s2": float(amp_t.at_2f / sensitivity[AXES[i_t]].value),
+        "up_axis_dc_counts": float(up_counts),
+        "up_axis_dc_over_g": float(up_counts / setup.g),
+        "rate_offset_from_nominal": float(fs / nominal_rate - 1),
+    }
+    if rate_method == "fit":
+        quality["rate_fit_residual_sd_counts"] = rate_fit.residual_sd
+        quality["rate_fit_iterations"] = rate_fit.n_iterations
+
+    bland = None
+    if enc.ref is not None:
+        bland = _bland_altman_reference(enc, enc_fit, setup)
+
+    arrays = {}
+    if keep_arrays:
+        arrays = {"filtered_tangential": filtered[seg, i_t], "filtered_radial": filtered[seg, i_r]}
+    return RotaryTest(
+        rate_method=rate_method,
+        sample_rate=Estimate(float(fs), float(u_fs), "Hz"),
+        nominal_rate=float(nominal_rate),
+        frequency=Estimate(float(f), float(enc_fit.frequency_uncertainty), "Hz"),
+        theta0=Estimate(theta0, u_theta0, "rad"),
+        reference=reference,
+        amplitudes=amplitudes,
+        sensitivity=sensitivity,
+        dc_sensitivity=dc_sens,
+        tangential_axis=AXES[i_t],
+        radial_axis=AXES[i_r],
+        up_axis=AXES[i_up],
+        n_periods=periods,
+        n_samples=n_seg,
+        filter_gain={"at_f": gain_f, "at_2f": gain_2f},
+        quality=quality,
+        warnings=warnings,
+        bland_altman=bland,
+        arrays=arrays,
+    )
+
+
+def _bland_altman_reference(enc: EncoderLog, enc_fit: SineFit, setup: RotarySetup) -> dict:
+    """Encoder-derived tangential acceleration at the reference radius against the reference
+    accelerometer, sample by sample on the encoder's clock (after the same low-pass)."""
+    from accelrig.estimation.stats import bland_altman
+
+    t = enc.t
+    fs = (t.size - 1) / (t[-1] - t[0])
+    omega = 2 * np.pi * enc_fit.frequency
+    accel = np.zeros_like(t)
+    for k in range(1, enc_fit.harmonics + 1):
+        accel -= (k * omega) ** 2 * enc_fit.amplitude[k - 1] * np.cos(k * omega * t + enc_fit.phase[k - 1])
+    accel *= setup.ref_radius
+    ref = enc.ref
+    if setup.filter_cutoff < fs / 2:
+        ref = signal.sosfiltfilt(butterworth(fs, setup.filter_cutoff), ref)
+    settle = int(np.ceil(SETTLE_SECONDS * fs))
+    keep = slice(settle, t.size - settle)
+    ba = bland_altman(ref[keep], accel[keep])
+    out = ba.to_dict()
+    out["compared"] = "reference accelerometer minus encoder tangential acceleration at ref_radius, m/s^2"
+    out["ref_radius"] = setup.ref_radius
+    return out
+
+
+def analyse_files(
+    mems_path: str | os.PathLike,
+    encoder_path: str | os.PathLike | None,
+    tangential: str,
+    radial: str,
+    nominal_rate: float,
+    frequency: float | None = None,
+    rate_method: str = "fit",
+    setup: RotarySetup | None = None,
+    units: str | None = None,
+) -> RotaryTest:
+    """Load the MEMS recording (counts; a file without ``t`` gets k / nominal_rate) and the encoder log."""
+    if units is not None:
+        normalise_unit(units)
+    mems = load_recording(mems_path, units=units, rate=nominal_rate)
+    encoder = read_encoder_csv(encoder_path) if encoder_path else None
+    return analyse_test(mems, encoder, tangential, radial, nominal_rate, frequency, rate_method, setup)

@@ -1,0 +1,343 @@
+"""The encoder-driven oscillating disk of paper 001 (Chiominto et al., Sensors 2025).
+
+A servo motor swings a horizontal disk about a vertical axis with
+theta(t) = theta0 cos(2 pi f t + phase).  A MEMS on the disk at radius r feels
+
+    tangential   a_t = r theta''   = -r (2 pi f)^2 theta0 cos(2 pi f t + phase)   (at f)
+    centripetal  a_c = r theta'^2  = (r omega0^2 / 2)(1 - cos(4 pi f t + 2 phase)) (DC + 2f)
+
+with omega0 = 2 pi f theta0 (paper eq. 3-4; the centripetal part points to
+the axis).  The third axis points up and reads +g.
+
+Axis mapping: ``tangential=x`` means the sensor's +x axis points along the
+direction of increasing theta; ``radial=y`` means +y points towards the
+rotation axis, so it reads +a_c.  A leading '-' flips an axis.
+
+``amplitude_deg`` is PEAK TO PEAK, as the paper's "oscillation angle":
+34 degrees at 5 Hz is theta0 = 17 degrees, 49 m/s^2 tangential and 15 m/s^2
+centripetal peak at r = 170 mm.
+
+How sim://rotary delivers its clocks.  The MEMS samples on its own clock
+(SimClock with a rate_error): the procedure treats the MEMS timestamps as
+untrustworthy and uses sample indices only.  The encoder lives on an accurate
+clock and reaches the procedure one of two ways:
+
+* as the ``theta`` channel of the MEMS recording, sampled at the MEMS's TRUE
+  sample instants (SimDevice evaluates channels at true times) -- the
+  recording's ``t`` column is then the logger's accurate timestamp of each
+  encoder reading (the sim reports the true instants plus the clock jitter);
+* as a separate encoder CSV ``t,theta[,ref]`` on the accurate clock at its own
+  rate, written by :func:`write_encoder_csv` (this is how a PLC log arrives).
+
+``ref=1`` adds a ``ref`` channel: a reference (IEPE-like) accelerometer at
+``ref_radius`` reading the tangential acceleration there, with a small gain
+error drawn from the seed (in truth()).  The encoder reading is quantised to
+``encoder_deg`` (paper: 0.01 degrees).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from accelrig.acquisition.url import DeviceURL
+from accelrig.errors import DataError, DeviceError
+from accelrig.procedures.rotary_bench import PAPER_ORIENTATIONS, PAPER_PLAN
+from accelrig.procedures.rotary_bench import parse_axis as parse_axis_spec
+from accelrig.recording import atomic_write
+from accelrig.sim.rigs.base import Rig
+from accelrig.units import STANDARD_GRAVITY
+
+
+def parse_axis(spec: str, role: str) -> tuple[int, float]:
+    """'x', '+y', '-z' -> (index, sign); raises DeviceError naming the role."""
+    parsed = parse_axis_spec(spec)
+    if parsed is None:
+        raise DeviceError(f"{role}={spec!r} is not a sensor axis", "use x, y or z (optionally -x, ...)")
+    return parsed
+
+
+class RotaryRig(Rig):
+    name = "rotary"
+    description = "encoder-driven oscillating disk (paper 001): tangential at f, centripetal at DC + 2f"
+    options = {
+        "radius": "sensor distance from the rotation axis, m (default 0.170)",
+        "frequency": "oscillation frequency, Hz (default 5)",
+        "amplitude_deg": "oscillation angle PEAK TO PEAK, degrees, as in the paper (default 34)",
+        "tangential": "sensor axis along the motion: x (default), y, z, or -x ...",
+        "radial": "sensor axis pointing to the rotation axis: y (default), ... ; the third axis points up",
+        "seconds": "length of the run, s (default 40, as the paper's tests)",
+        "ref": "1 adds a 'ref' channel: reference accelerometer at ref_radius (default 0)",
+        "ref_radius": "radius of the reference accelerometer, m (default 0.145)",
+        "encoder_deg": "encoder resolution, degrees (default 0.01)",
+    }
+
+    def __init__(
+        self,
+        radius: float = 0.170,
+        frequency: float = 5.0,
+        amplitude_deg: float = 34.0,
+        tangential: str = "x",
+        radial: str = "y",
+        duration: float | None = 40.0,
+        ref: bool = False,
+        ref_radius: float = 0.145,
+        encoder_deg: float = 0.01,
+        phase: float = 0.0,
+        ref_gain_error: float = 0.0,
+        g: float = STANDARD_GRAVITY,
+    ):
+        if not 0 < radius < 2:
+            raise DeviceError(f"radius={radius} m is not a plausible disk radius", "give it in metres, e.g. 0.170")
+        if not 0 < frequency < 100:
+            raise DeviceError(f"frequency={frequency} Hz is outside 0 .. 100 Hz")
+        if not 0 < amplitude_deg <= 360:
+            raise DeviceError(f"amplitude_deg={amplitude_deg} is outside 0 .. 360 degrees (peak to peak)")
+        if encoder_deg < 0:
+            raise DeviceError(f"encoder_deg={encoder_deg} must not be negative")
+        self.t_axis, self.t_sign = parse_axis(tangential, "tangential")
+        self.r_axis, self.r_sign = parse_axis(radial, "radial")
+        if self.t_axis == self.r_axis:
+            raise DeviceError(f"tangential={tangential!r} and radial={radial!r} are the same axis")
+        self.up_axis = 3 - self.t_axis - self.r_axis
+        self.radius = float(radius)
+        self.frequency = float(frequency)
+        self.amplitude_deg = float(amplitude_deg)
+        self.theta0 = np.deg2rad(amplitude_deg) / 2.0  # peak-to-peak -> peak
+        self.duration = duration
+        self.ref = bool(ref)
+        self.ref_radius = float(ref_radius)
+        self.encoder_rad = np.deg2rad(encoder_deg)
+        self.phase = float(phase)
+        self.ref_gain_error = float(ref_gain_error)
+        self.g = g
+        self.channel_names = ("theta", "ref") if self.ref else ("theta",)
+
+    @classmethod
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> RotaryRig:
+        ref = url.get_int("ref", 0)
+        if ref not in (0, 1):
+            raise DeviceError(f"ref={ref} in {url.raw!r} must be 0 or 1")
+        return cls(
+            radius=url.get_float("radius", 0.170),
+            frequency=url.get_float("frequency", 5.0),
+            amplitude_deg=url.get_float("amplitude_deg", 34.0),
+            tangential=url.get_str("tangential", "x"),
+            radial=url.get_str("radial", "y"),
+            duration=url.get_float("seconds", 40.0),
+            ref=bool(ref),
+            ref_radius=url.get_float("ref_radius", 0.145),
+            encoder_deg=url.get_float("encoder_deg", 0.01),
+            # the motor starts anywhere in its cycle; the reference sensor is good to ~0.1 %
+            phase=float(rng.uniform(-np.pi, np.pi)),
+            ref_gain_error=float(rng.normal(0.0, 1e-3)),
+        )
+
+    # ------------------------------------------------------------ motion law
+    @property
+    def omega(self) -> float:
+        return 2 * np.pi * self.frequency
+
+    def angle(self, t: np.ndarray) -> np.ndarray:
+        return self.theta0 * np.cos(self.omega * np.asarray(t, dtype=float) + self.phase)
+
+    def angular_velocity(self, t: np.ndarray) -> np.ndarray:
+        return -self.omega * self.theta0 * np.sin(self.omega * np.asarray(t, dtype=float) + self.phase)
+
+    def angular_acceleration(self, t: np.ndarray) -> np.ndarray:
+        return -self.omega**2 * self.angle(t)
+
+    def specific_force(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        force = np.zeros((t.size, 3))
+        force[:, self.t_axis] = self.t_sign * self.radius * self.angular_acceleration(t)
+        force[:, self.r_axis] = self.r_sign * self.radius * self.angular_velocity(t) ** 2
+        force[:, self.up_axis] = self.g
+        return force
+
+    def encoder_reading(self, t: np.ndarray) -> np.ndarray:
+        theta = self.angle(t)
+        if self.encoder_rad > 0:
+            theta = np.round(theta / self.encoder_rad) * self.encoder_rad
+        return theta
+
+    def ref_reading(self, t: np.ndarray) -> np.ndarray:
+        return (1.0 + self.ref_gain_error) * self.ref_radius * self.angular_acceleration(t)
+
+    def channels(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        out = {"theta": self.encoder_reading(t)}
+        if self.ref:
+            out["ref"] = self.ref_reading(t)
+        return out
+
+    # ------------------------------------------------------------ truth
+    @property
+    def tangential_amplitude(self) -> float:
+        return self.radius * self.omega**2 * self.theta0
+
+    @property
+    def centripetal_amplitude(self) -> float:
+        """Amplitude of the 2f component, equal to the DC part: r omega0^2 / 2."""
+        return self.radius * (self.omega * self.theta0) ** 2 / 2.0
+
+    def truth(self) -> dict:
+        names = "xyz"
+        return {
+            "rig": self.name,
+            "radius": self.radius,
+            "frequency": self.frequency,
+            "amplitude_deg_peak_to_peak": self.amplitude_deg,
+            "theta0_rad": self.theta0,
+            "phase_rad": self.phase,
+            "tangential_axis": ("-" if self.t_sign < 0 else "") + names[self.t_axis],
+            "radial_axis": ("-" if self.r_sign < 0 else "") + names[self.r_axis],
+            "up_axis": names[self.up_axis],
+            "tangential_amplitude": self.tangential_amplitude,
+            "centripetal_amplitude": self.centripetal_amplitude,
+            "centripetal_dc": self.centripetal_amplitude,
+            "ref": self.ref,
+            "ref_radius": self.ref_radius,
+            "ref_gain_error": self.ref_gain_error,
+            "encoder_deg": float(np.rad2deg(self.encoder_rad)),
+            "g": self.g,
+        }
+
+
+def true_sensitivity(truth: dict) -> dict[str, float]:
+    """Counts per m/s^2 of each axis from a simulation's meta["truth"].
+
+    The rotary bench measures, on axis i, the response to a force along body
+    axis i: K[i, i] / scale with raw = K f + o (K = C^-1 of the sensor's true
+    canonical correction).  Cross-axis terms land at other frequencies (the
+    radial 2f on the tangential axis, gravity at DC) and do not enter.
+    """
+    sensor = truth["sensor"]
+    k = np.linalg.inv(np.asarray(sensor["correction"]["matrix"], dtype=float))
+    return {name: float(k[i, i] / sensor["scale"]) for i, name in enumerate("xyz")}
+
+
+def encoder_samples(
+    rig: RotaryRig, seconds: float, rate: float = 1000.0, start: float = 0.0,
+    ref_noise: float = 0.0, rng: np.random.Generator | None = None,
+) -> dict[str, np.ndarray]:
+    """The encoder log on the accurate clock: {"t", "theta"[, "ref"]} sampled at ``rate`` Hz.
+
+    ``ref_noise`` (m/s^2 sd) adds white noise to the reference accelerometer;
+    it needs ``rng``.
+    """
+    if seconds <= 0 or rate <= 0:
+        raise DataError("an encoder log needs a positive length and rate")
+    t = start + np.arange(int(np.floor(seconds * rate))) / rate
+    out = {"t": t, "theta": rig.encoder_reading(t)}
+    if rig.ref:
+        ref = rig.ref_reading(t)
+        if ref_noise > 0:
+            if rng is None:
+                raise ValueError("ref_noise needs an rng")
+            ref = ref + rng.standard_normal(t.size) * ref_noise
+        out["ref"] = ref
+    return out
+
+
+def write_encoder_csv(path: str | os.PathLike, columns: dict[str, np.ndarray]) -> None:
+    """Write an encoder log (``t,theta[,ref]``) as CSV, atomically."""
+    names = list(columns)
+    data = np.column_stack([columns[n] for n in names])
+
+    def _write(fh) -> None:
+        fh.write("# encoder log: t in s on the accurate clock, theta in rad, ref in m/s^2\n")
+        fh.write(",".join(names) + "\n")
+        np.savetxt(fh, data, fmt=["%.9f"] + ["%.12g"] * (len(names) - 1), delimiter=",")
+
+    atomic_write(path, _write, text=True)
+
+
+# ---------------------------------------------------------------- campaigns
+
+PAPER_SENSITIVITY = 423.0  # counts per m/s^2, paper 001's batch mean (nominal 4096 / 9.80665 = 417.7)
+
+
+def paper_sensor(rng: np.random.Generator, noise_sd: float = 0.03, rate: float = 1660.0):
+    """An LSM6DSR-like part at +-8 g: sensitivity near 423 counts per m/s^2 (paper 001, 1.3 %
+    above the nominal 417.7), per-axis spread 0.3 %, sub-degree misalignment, offsets of a few mg."""
+    from accelrig.sim.sensor import SensorModel
+
+    nominal = 2**15 / (8.0 * STANDARD_GRAVITY)
+    gain = PAPER_SENSITIVITY / nominal * (1.0 + rng.normal(0.0, 0.003, 3))
+    return SensorModel(
+        offset=rng.uniform(-0.1, 0.1, 3), gain=gain, misalignment=np.deg2rad(rng.uniform(-0.1, 0.1, 3)),
+        noise_density=SensorModel.noise_density_for_sd(noise_sd, rate), range_g=8.0,
+    )
+
+
+def write_sim_campaign(
+    directory: str | os.PathLike,
+    n_sensors: int = 2,
+    repeats: int = 2,
+    seconds: float = 10.0,
+    seed: int = 0,
+    plan=PAPER_PLAN,
+    orientations=PAPER_ORIENTATIONS,
+    nominal_rate: float = 1660.0,
+    rate_error: tuple[float, float] = (0.002, 0.005),
+    radius: float = 0.170,
+    true_radius_sd: float = 0.0,
+    ref: bool = True,
+    rate_method: str = "fit",
+) -> dict:
+    """Write a simulated campaign (MEMS CSVs in counts, encoder logs, campaign.yaml) into ``directory``.
+
+    Each sensor gets its own clock (rate error drawn in ``rate_error``) and, with
+    ``true_radius_sd`` > 0, each mounting its own true radius around the nominal
+    one given to the procedure (what the reference uncertainty must cover).
+    Returns the truth: {"sensors": {name: {axis: counts per m/s^2}}, "rates": ..., "yaml": path}.
+    """
+    import yaml
+
+    from accelrig.recording import save_recording
+    from accelrig.sim.device import simulate
+    from accelrig.sim.sensor import SimClock
+
+    directory = os.fspath(directory)
+    os.makedirs(directory, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    tests, truth = [], {"sensors": {}, "rates": {}, "radius": {}}
+    for s in range(n_sensors):
+        name = f"S{s + 1}"
+        sensor = paper_sensor(rng, rate=nominal_rate)
+        clock = SimClock(nominal_rate, float(rng.uniform(*rate_error)), 0.0)
+        truth["rates"][name] = clock.true_rate
+        for tangential, radial in orientations:
+            r_true = radius + rng.normal(0.0, true_radius_sd) if true_radius_sd > 0 else radius
+            truth["radius"][f"{name}-{tangential}{radial}"] = r_true
+            for frequency, amplitude in plan:
+                for rep in range(repeats):
+                    rig = RotaryRig(radius=r_true, frequency=frequency, amplitude_deg=amplitude,
+                                    tangential=tangential, radial=radial, duration=seconds, ref=ref,
+                                    phase=float(rng.uniform(-np.pi, np.pi)),
+                                    ref_gain_error=float(rng.normal(0.0, 1e-3)))
+                    label = f"{name}_{tangential}{radial}_{frequency:g}hz_{amplitude:g}deg_r{rep + 1}"
+                    rec = simulate(rig, sensor, clock, seconds=seconds, seed=int(rng.integers(2**31)), units="counts")
+                    truth["sensors"][name] = true_sensitivity(rec.meta["truth"])
+                    # the MEMS file carries no timestamps of its own: t = k / nominal rate
+                    rec.t = rec.t[0] + np.arange(len(rec)) / nominal_rate
+                    rec.channels = {}
+                    rec.meta.pop("truth")
+                    save_recording(rec, os.path.join(directory, label + ".csv"))
+                    enc = encoder_samples(rig, seconds, 1000.0, ref_noise=0.02, rng=rng)
+                    write_encoder_csv(os.path.join(directory, label + "_enc.csv"), enc)
+                    tests.append({"sensor": name, "label": label, "mems": label + ".csv",
+                                  "encoder": label + "_enc.csv", "tangential": tangential, "radial": radial,
+                                  "frequency": frequency})
+    doc = {
+        "name": f"simulated LSM6DSR batch (seed {seed})",
+        "nominal_rate": nominal_rate, "radius": radius, "radius_uncertainty": 0.0005,
+        "ref_radius": 0.145, "rate_method": rate_method, "units": "counts",
+        "components": ["tangential", "centripetal"], "correlation": 1.0, "coverage_factor": 2,
+        "tests": tests,
+    }
+    path = os.path.join(directory, "campaign.yaml")
+    atomic_write(path, lambda fh: yaml.safe_dump(doc, fh, sort_keys=False), text=True)
+    truth["yaml"] = path
+    return truth

@@ -1,0 +1,293 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from accelrig_drivers.sim import build_device
+
+from accelrig.acquisition.url import DeviceURL
+from accelrig.cli import main
+from accelrig.errors import DataError, DeviceError
+from accelrig.procedures.rotary_bench import EncoderLog, analyse_test, read_encoder_csv
+from accelrig.procedures.rotary_campaign import load_campaign, run_campaign, write_report
+from accelrig.procedures.rotary_session import RotaryBenchProcedure
+from accelrig.recording import save_recording
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs.rotary import (
+    RotaryRig,
+    encoder_samples,
+    paper_sensor,
+    true_sensitivity,
+    write_encoder_csv,
+    write_sim_campaign,
+)
+from accelrig.sim.sensor import SimClock
+
+NOMINAL = 1660.0
+
+
+def make_test(seed=0, seconds=5.0, frequency=5.0, amplitude=34.0, rate_error=0.0037, tangential="x", radial="y",
+              ref=False):
+    rng = np.random.default_rng(seed)
+    sensor = paper_sensor(rng)
+    clock = SimClock(NOMINAL, rate_error, 0.0)
+    rig = RotaryRig(frequency=frequency, amplitude_deg=amplitude, tangential=tangential, radial=radial,
+                    duration=seconds, ref=ref, phase=float(rng.uniform(-np.pi, np.pi)), ref_gain_error=0.001)
+    rec = simulate(rig, sensor, clock, seconds=seconds, seed=seed, units="counts")
+    truth = true_sensitivity(rec.meta["truth"])
+    enc = EncoderLog(**encoder_samples(rig, seconds, 1000.0, ref_noise=0.02 if ref else 0.0, rng=rng))
+    return rec, enc, truth, clock, rig
+
+
+# ---------------------------------------------------------------- rig
+
+
+def test_rig_reproduces_the_papers_accelerations():
+    rig = RotaryRig(radius=0.170, frequency=5.0, amplitude_deg=34.0, phase=0.0)
+    t = np.linspace(0, 1, 20001)
+    f = rig.specific_force(t)
+    # 34 degrees peak to peak at 5 Hz, r = 170 mm: 49 m/s^2 tangential, 15 m/s^2 peak centripetal
+    assert np.max(np.abs(f[:, 0])) == pytest.approx(49.78, abs=0.01)
+    assert np.max(f[:, 1]) == pytest.approx(14.77, abs=0.01)
+    assert np.min(f[:, 1]) >= 0  # points to the axis: never negative
+    assert np.allclose(f[:, 2], 9.80665)
+    assert rig.centripetal_amplitude == pytest.approx(np.max(f[:, 1]) / 2, rel=1e-6)
+
+
+def test_rig_url_options_and_channels():
+    device, _ = build_device(DeviceURL.parse("sim://rotary?ref=1&tangential=z&radial=x&frequency=8&amplitude_deg=13"
+                                             "&rate=1660&range=8&seconds=2"))
+    block = device.next_block(100, 0.0)
+    assert set(block.channels) == {"theta", "ref"}
+    assert device.truth()["rig"]["up_axis"] == "y"
+    with pytest.raises(DeviceError, match="same axis"):
+        build_device(DeviceURL.parse("sim://rotary?tangential=x&radial=x"))
+    with pytest.raises(DeviceError, match="unknown option"):
+        build_device(DeviceURL.parse("sim://rotary?radious=0.2"))
+
+
+# ---------------------------------------------------------------- one test
+
+
+@pytest.fixture(scope="module")
+def sim_test():
+    return make_test(seed=11, ref=True)
+
+
+def test_fit_recovers_rate_and_sensitivities(sim_test):
+    rec, enc, truth, clock, rig = sim_test
+    res = analyse_test(rec, enc, "x", "y", NOMINAL)
+    assert abs(res.sample_rate.value - clock.true_rate) < 4 * res.sample_rate.uncertainty
+    assert res.sample_rate.uncertainty < 0.01  # Hz: far below the 1 Hz grid of the paper's scan
+    for axis in ("x", "y"):
+        s = res.sensitivity[axis]
+        assert s.value == pytest.approx(truth[axis], rel=5e-4)
+        # u holds the radius (0.3 %): a stated uncertainty, not the scatter
+        assert s.uncertainty / s.value == pytest.approx(0.003, rel=0.05)
+    assert res.sensitivity["x"].component == "tangential" and res.sensitivity["y"].component == "centripetal"
+    assert res.filter_gain["at_f"] == pytest.approx(1.0, abs=1e-9)
+    assert res.bland_altman["bias"] == pytest.approx(0.0, abs=0.01)
+    assert res.bland_altman["proportional_slope"] == pytest.approx(0.001, abs=3e-4)  # the ref's gain error
+    doc = res.to_json_dict()
+    json.dumps(doc, default=float)
+    assert set(doc["sensitivity"]["x"]) >= {"value", "uncertainty", "component"}
+    common = res.to_calibration_result().to_json_dict()
+    assert common["correction"] is None  # two gains and no offsets: no canonical correction is invented
+    assert common["parameters"]["sensitivity_y"]["value"] == pytest.approx(res.sensitivity["y"].value)
+
+
+def test_scan_is_the_papers_one_hertz_grid(sim_test):
+    rec, enc, truth, clock, _ = sim_test
+    res = analyse_test(rec, enc, "x", "y", NOMINAL, rate_method="scan")
+    assert res.sample_rate.value == float(round(res.sample_rate.value))
+    assert abs(res.sample_rate.value - clock.true_rate) <= 1.0
+    # the 1 Hz grid (1 / sqrt 12) and at most one sample of the whole-period record
+    assert 1 / np.sqrt(12) <= res.sample_rate.uncertainty <= np.hypot(1 / np.sqrt(12), NOMINAL / res.n_samples)
+    assert res.sensitivity["x"].value == pytest.approx(truth["x"], rel=5e-4)
+
+
+def test_theta_channel_instead_of_an_encoder_log(sim_test):
+    rec, enc, truth, clock, _ = sim_test
+    res = analyse_test(rec, None, "x", "y", NOMINAL, frequency=5.0)
+    assert abs(res.sample_rate.value - clock.true_rate) < 0.01
+    assert res.sensitivity["y"].value == pytest.approx(truth["y"], rel=5e-4)
+
+
+def test_other_orientation_and_frequency():
+    rec, enc, truth, clock, _ = make_test(seed=5, frequency=8.0, amplitude=13.0, tangential="z", radial="x",
+                                          rate_error=-0.0025)
+    res = analyse_test(rec, enc, "z", "x", NOMINAL)
+    assert res.up_axis == "y"
+    assert res.sensitivity["z"].value == pytest.approx(truth["z"], rel=5e-4)
+    assert res.sensitivity["x"].value == pytest.approx(truth["x"], rel=1e-3)
+
+
+def test_bad_inputs_say_what_is_wrong(sim_test):
+    rec, enc, _, _, _ = sim_test
+    late = EncoderLog(enc.t + 100.0, enc.theta)
+    with pytest.raises(DataError, match="do not overlap"):
+        analyse_test(rec, late, "x", "y", NOMINAL)
+    with pytest.raises(DataError, match="8 Hz not found"):
+        analyse_test(rec, enc, "x", "y", NOMINAL, frequency=8.0)
+    with pytest.raises(DataError, match="axis roles contradict"):
+        analyse_test(rec, enc, "y", "x", NOMINAL)
+    with pytest.raises(DataError, match="axis roles contradict"):
+        analyse_test(rec, enc, "z", "y", NOMINAL)
+    with pytest.raises(DataError, match="same axis"):
+        analyse_test(rec, enc, "x", "x", NOMINAL)
+    other, *_ = make_test(seed=12, seconds=3.0, frequency=8.0, amplitude=13.0)
+    with pytest.raises(DataError, match=r"5.000 Hz not found on the tangential axis x .* strongest line is at 7.9"):
+        analyse_test(other, enc, "x", "y", NOMINAL)
+    clipped = rec.slice(0, len(rec))
+    clipped.acc = clipped.acc.copy()
+    clipped.acc[10, 0] = 32767
+    with pytest.raises(DataError, match="clipped"):
+        analyse_test(clipped, enc, "x", "y", NOMINAL)
+
+
+def test_encoder_csv_roundtrip_and_errors(tmp_path):
+    rig = RotaryRig(duration=2.0)
+    path = tmp_path / "enc.csv"
+    write_encoder_csv(path, encoder_samples(rig, 2.0, 500.0))
+    log = read_encoder_csv(path)
+    assert log.t.size == 1000 and log.ref is None
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,angle\n0,0\n")
+    with pytest.raises(DataError, match="lacks column"):
+        read_encoder_csv(bad)
+
+
+# ---------------------------------------------------------------- CLI
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rotary")
+    rec, enc, truth, clock, rig = make_test(seed=3, seconds=4.0)
+    rec.t = np.arange(len(rec)) / NOMINAL
+    rec.channels = {}
+    save_recording(rec, d / "m.csv")
+    write_encoder_csv(d / "e.csv", encoder_samples(rig, 4.0, 1000.0))
+    return d, truth, clock
+
+
+def test_cli_json(files, capsys):
+    d, truth, clock = files
+    code = main(["calibrate", "rotary", "--mems", str(d / "m.csv"), "--encoder", str(d / "e.csv"), "--radius", "0.170",
+                 "--tangential", "x", "--radial", "y", "--nominal-rate", "1660", "--frequency", "5", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert abs(doc["sample_rate_hz"]["value"] - clock.true_rate) < 0.01
+    assert doc["sensitivity"]["x"]["component"] == "tangential"
+    assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
+
+
+def test_cli_bad_input_is_one_line(files):
+    d, _, _ = files
+    r = run_cli("calibrate", "rotary", "--mems", str(d / "m.csv"), "--encoder", str(d / "e.csv"), "--radius", "0.170",
+                "--tangential", "y", "--radial", "x", "--nominal-rate", "1660")
+    assert r.returncode == 4
+    assert r.stderr.count("\n") == 1 and "axis roles contradict" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_cli_missing_arguments(capsys):
+    assert main(["calibrate", "rotary", "--mems", "m.csv", "--tangential", "x"]) == 4
+    assert "needs --radius" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- campaign and session
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    d = tmp_path_factory.mktemp("campaign")
+    truth = write_sim_campaign(d, n_sensors=2, repeats=2, seconds=2.5, seed=7, plan=((5.0, 34.0), (5.0, 16.0)),
+                               orientations=(("x", "y"),))
+    return truth, run_campaign(truth["yaml"])
+
+
+def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
+    truth, report = campaign
+    assert len(report["tests"]) == 8
+    for sensor in ("S1", "S2"):
+        for axis in ("x", "y"):
+            e = report["per_axis"][sensor][axis]
+            assert e["mean_sensitivity"] == pytest.approx(truth["sensors"][sensor][axis], rel=2e-3)
+            budget = e["budget"]
+            parts = [c["uncertainty"] for c in budget["contributions"]]
+            assert [c["symbol"] for c in budget["contributions"]] == ["u_r", "u_l", "u_ref"]
+            assert budget["combined_standard_uncertainty"] == pytest.approx(sum(parts))  # full correlation
+            assert budget["expanded_uncertainty"] == pytest.approx(2 * sum(parts))
+            assert e["linearity"]["r_squared"] > 0.9999
+            # two amplitudes x two repeats: both setups found whatever order the tests come in
+            assert e["repeatability"]["setups"] == 2 and e["repeatability"]["dof"] == 2
+    assert set(report["per_sensor"]) == {"S1", "S2"}
+    b = report["batch"]
+    assert b["overall_relative_uncertainty"] >= max(s["overall_relative_uncertainty"] * 0.99
+                                                    for s in report["per_sensor"].values()) / np.sqrt(2)
+    assert report["normalized_error"][0]["sensors"] == ["S1", "S2"]
+    assert "p_value" in report["anova"]["across_sensors"]
+    assert len(report["bland_altman"]) == 8
+    write_report(report, tmp_path / "r.md")
+    write_report(report, tmp_path / "r.yaml")
+    assert "Table 3" in (tmp_path / "r.md").read_text()
+    assert yaml.safe_load((tmp_path / "r.yaml").read_text())["batch"]["mean_sensitivity"] == pytest.approx(
+        b["mean_sensitivity"])
+    with pytest.raises(DataError, match="suffix"):
+        write_report(report, tmp_path / "r.txt")
+    assert not (tmp_path / "r.txt").exists()
+
+
+def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):
+    truth, _ = campaign
+    doc = yaml.safe_load(Path(truth["yaml"]).read_text())
+    doc["tests"][0]["tangental"] = "x"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(doc))
+    with pytest.raises(DataError, match=r"tests\[0\]: unknown key\(s\) tangental"):
+        load_campaign(bad)
+
+
+def test_cli_campaign_writes_report(campaign, tmp_path, capsys):
+    truth, _ = campaign
+    doc = yaml.safe_load(Path(truth["yaml"]).read_text())
+    base = str(Path(truth["yaml"]).parent)
+    doc["tests"] = [dict(t, mems=f"{base}/{t['mems']}", encoder=f"{base}/{t['encoder']}") for t in doc["tests"][:2]]
+    small = tmp_path / "small.yaml"
+    small.write_text(yaml.safe_dump(doc))
+    out = tmp_path / "report.md"
+    assert main(["calibrate", "rotary", "--campaign", str(small), "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "Group results (Table 3)" in text
+    # two tests of one amplitude: no line can be drawn, and the report says so instead of inventing u_l
+    assert "linearity not evaluated" in text
+    assert main(["calibrate", "rotary", "--campaign", str(small), "--mems", "x.csv"]) == 4
+    assert "drop --mems" in capsys.readouterr().err
+
+
+def test_session_steps_and_yields_each_result():
+    proc = RotaryBenchProcedure("x", "y", NOMINAL, plan=((5.0, 34.0), (5.0, 16.0)), repeats=2, seconds=3.0)
+    assert proc.next_step().instruction.startswith("Set the motor to 5 Hz, 34 degrees peak to peak")
+    rng = np.random.default_rng(9)
+    sensor = paper_sensor(rng)
+    clock = SimClock(NOMINAL, 0.003, 0.0)
+
+    def acquire(step):
+        rig = RotaryRig(frequency=step.frequency, amplitude_deg=step.amplitude_deg, duration=step.seconds,
+                        phase=float(rng.uniform(-3, 3)))
+        rec = simulate(rig, sensor, clock, seconds=step.seconds, seed=int(rng.integers(1000)), units="counts")
+        return rec, EncoderLog(**encoder_samples(rig, step.seconds, 1000.0))
+
+    seen = [(step.index, result.sensitivity["x"].value) for step, result in proc.run(acquire)]
+    assert [i for i, _ in seen] == [0, 1, 2, 3] and proc.done and proc.next_step() is None
+    report = proc.report()
+    assert report["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
+    with pytest.raises(DataError, match="done"):
+        proc.submit(*acquire(proc.steps[0]))
