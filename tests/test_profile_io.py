@@ -108,6 +108,20 @@ def test_result_without_correction_is_refused():
         profile_from_result(res)
 
 
+def test_non_finite_quality_figures_are_kept_as_unknown():
+    res = make_result()
+    res.quality["sd_over_crb"] = {"gain_x": float("nan")}
+    p = profile_from_result(res)
+    assert p.data["quality"]["sd_over_crb"] == {"gain_x": None}
+
+
+def test_non_finite_estimate_is_a_bug_reported_in_one_line():
+    res = make_result()
+    res.parameters["gain_x"] = Estimate(float("nan"), 1e-4, "1")
+    with pytest.raises(ProfileError, match=r"calibration\.parameters\.gain_x\.value: expected a number or a list"):
+        profile_from_result(res)
+
+
 def test_unknown_device_fields_are_null_not_guessed():
     p = profile_from_result(make_result())
     assert p.device["identity"] is None and p.device["range_g"] is None
@@ -223,6 +237,16 @@ def test_not_a_profile(tmp_path, text, message):
         load_profile(path)
 
 
+def test_duplicate_key_is_refused_with_its_line(tmp_path, profile):
+    text = dump_yaml(profile.data)
+    text = text.replace("  g: 9.80665\n", "  g: 9.80665\n  g: 9.81\n", 1)
+    lineno = text.splitlines().index("  g: 9.81") + 1
+    path = tmp_path / "dup.yaml"
+    path.write_text(text)
+    with pytest.raises(ProfileError, match=f"dup.yaml:{lineno}: calibration.g: key given twice"):
+        load_profile(path)
+
+
 def test_missing_and_binary_files(tmp_path):
     with pytest.raises(ProfileError, match="no such profile"):
         load_profile(tmp_path / "none.yaml")
@@ -260,7 +284,7 @@ def test_json_schema_refuses_unknown_keys_everywhere_but_open_maps():
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     matrix=st.lists(st.lists(finite, min_size=3, max_size=3), min_size=3, max_size=3),
     bias=st.lists(finite, min_size=3, max_size=3),
@@ -287,3 +311,32 @@ def test_round_trip_property(tmp_path, matrix, bias, scale, names, warnings, see
     assert loaded.data == profile.data
     np.testing.assert_array_equal(loaded.correction.matrix, m)
     np.testing.assert_array_equal(loaded.correction.covariance, res.correction.covariance)
+
+
+# ------------------------------------------------------------------- example profiles
+
+EXAMPLE_FILES = sorted((REPO / "profiles").glob("example-*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=[p.name for p in EXAMPLE_FILES])
+def test_example_profile_round_trips(tmp_path, path):
+    profile = load_profile(path)
+    assert path.read_text() == dump_yaml(profile.data), "examples are written by profiles/make_examples.py"
+    save_profile(profile, tmp_path / path.name)
+    again = load_profile(tmp_path / path.name)
+    assert again.data == profile.data
+    assert (tmp_path / path.name).read_text() == path.read_text()
+    assert profile.noise is not None and profile.data["provenance"]["recording_hash"]
+
+
+def test_examples_exist_for_the_installed_methods():
+    """One example per calibration method installed; none for a method that is not (regenerate with
+    python profiles/make_examples.py)."""
+    import importlib.util
+    import runpy
+
+    examples = runpy.run_path(str(REPO / "profiles" / "make_examples.py"))["EXAMPLES"]
+    installed = {name for name, (module, _, _) in examples.items() if importlib.util.find_spec(module) is not None}
+    present = {p.name[len("example-"):-len(".yaml")] for p in EXAMPLE_FILES}
+    assert present <= set(examples), f"stale example files: {present - set(examples)}"
+    assert installed <= present, f"regenerate: python profiles/make_examples.py (missing {installed - present})"

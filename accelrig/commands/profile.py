@@ -162,10 +162,12 @@ def run_show(args) -> int:
         for name, est in cal["parameters"].items():
             print(f"  {name.ljust(width)}  {_fmt(est['value'], est['uncertainty'])} {est['unit']}")
     q = d["quality"]
-    if q["residual_rms"] is not None:
-        print(f"quality      residual rms {q['residual_rms']:.4g} m/s^2"
-              + "".join(f", {k} {_fmt(v) if isinstance(v, (int, float, list)) else v}"
-                        for k, v in q.items() if k not in ("residual_rms", "sd_over_crb") and not isinstance(v, dict)))
+    for key, value in q.items():
+        if value is None:
+            continue
+        shown = f"{value:.4g}" if isinstance(value, float) else _short(value)
+        unit = " m/s^2" if key == "residual_rms" else ""
+        print(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
         n = d["noise"]
         print(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
@@ -208,39 +210,42 @@ def run_add(args) -> int:
 # ------------------------------------------------------------------ diff
 
 
-def _leaves(node, path=""):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _leaves(v, f"{path}.{k}" if path else k)
-    else:
-        yield path, node
-
-
 SUMMARISED = ("calibration.correction.covariance", "calibration.parameter_covariance",
               "calibration.correction.matrix_uncertainty", "calibration.correction.bias_uncertainty")
 
 
+def _diff_node(a, b, path: str, lines: list[str]) -> None:
+    if a == b:
+        return
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in list(a) + [k for k in b if k not in a]:
+            child = f"{path}.{key}" if path else key
+            if key not in b:
+                lines.append(f"{child}: only in A")
+            elif key not in a:
+                lines.append(f"{child}: only in B")
+            else:
+                _diff_node(a[key], b[key], child, lines)
+        return
+    if path in SUMMARISED and isinstance(a, list) and isinstance(b, list):
+        xa, xb = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        if xa.shape == xb.shape:
+            lines.append(f"{path}: differs (largest change {np.max(np.abs(xa - xb)):.3g})")
+            return
+    lines.append(f"{path}: {_short(a)} -> {_short(b)}")
+
+
 def diff_profiles(a: Profile, b: Profile) -> list[str]:
     """Human-readable differences; the correction elements with E_n (k = 2)."""
-    lines = []
-    la, lb = dict(_leaves(a.data)), dict(_leaves(b.data))
-    for key in list(la) + [k for k in lb if k not in la]:
-        va, vb = la.get(key, "(absent)"), lb.get(key, "(absent)")
-        if va == vb:
-            continue
-        if key in SUMMARISED and isinstance(va, list) and isinstance(vb, list):
-            xa, xb = np.asarray(va, dtype=float), np.asarray(vb, dtype=float)
-            if xa.shape == xb.shape:
-                lines.append(f"{key}: differs (largest change {np.max(np.abs(xa - xb)):.3g})")
-                continue
-        lines.append(f"{key}: {_short(va)} -> {_short(vb)}")
+    lines: list[str] = []
+    _diff_node(a.data, b.data, "", lines)
     ca, cb = a.correction, b.correction
     if not (np.array_equal(ca.matrix, cb.matrix) and np.array_equal(ca.bias, cb.bias)):
         va = np.concatenate([ca.matrix.ravel(), ca.bias])
         vb = np.concatenate([cb.matrix.ravel(), cb.bias])
         u = np.sqrt(np.diag(ca.covariance) + np.diag(cb.covariance))
         names = [f"C[{i}][{j}]" for i in range(3) for j in range(3)] + [f"b[{i}]" for i in range(3)]
-        lines.append("correction E_n = (A - B) / sqrt(U_A^2 + U_B^2), U = 2u (|E_n| <= 1: consistent):")
+        lines.append("correction A -> B, E_n = (A - B) / sqrt(U_A^2 + U_B^2), U = 2u (|E_n| <= 1: consistent):")
         for name, x, y, uu in zip(names, va, vb, u):
             en = (x - y) / (2.0 * uu) if uu > 0 else (math.inf if x != y else 0.0)
             lines.append(f"  {name:8s} {x:+.6g} -> {y:+.6g}  E_n {en:+.2f}")

@@ -39,6 +39,7 @@ BIAS_INSTABILITY_FACTOR = 0.664   # IEEE 952: sigma_min = 0.664 B for flicker no
 SLOPE_TOLERANCE = 0.1             # how far a log-log slope may stray from -1/2 or +1/2 ...
 SLOPE_SIGMAS = 2.0                # ... beyond its own statistical scatter
 MIN_SAMPLES = 64
+MIN_EDF_BIAS = 20.0              # trust a minimum only where sigma is known to ~16 %
 
 
 @dataclass
@@ -186,18 +187,23 @@ def axis_noise(curve: AllanCurve) -> AxisNoise:
     density_u = density * float(np.min(r[points]))
     notes: list[str] = []
 
-    # Bias instability: only where the curve really flattened away from the white line
-    # (for pure white noise the minimum is just the last point still falling).
+    # Bias instability: the minimum over the points with enough degrees of freedom to trust
+    # (flicker edf >= MIN_EDF_BIAS), and only where the curve really flattened away from the
+    # white line: for pure white noise the minimum is just the last point still falling.
     white_line = density / np.sqrt(2.0 * curve.tau)
-    k_min = int(np.argmin(curve.adev))
+    edf_flicker = np.array([flicker_edf(curve.n_samples, float(m)) for m in curve.m])
+    candidates = np.flatnonzero(edf_flicker >= MIN_EDF_BIAS)
     bias = bias_tau = None
-    flattened = curve.adev[k_min] > white_line[k_min] * (1.0 + 3.0 * r[k_min])
-    if k_min < curve.tau.size - 1 and flattened:
-        b = curve.adev[k_min] / BIAS_INSTABILITY_FACTOR
-        u_rel = _relative(flicker_edf(curve.n_samples, float(curve.m[k_min])))
-        bias = Estimate(float(b), float(b * u_rel), "m/s^2")
-        bias_tau = float(curve.tau[k_min])
-    else:
+    k_min = int(np.argmin(curve.adev))
+    if candidates.size >= 2:
+        k_min = int(candidates[np.argmin(curve.adev[candidates])])
+        flattened = curve.adev[k_min] > white_line[k_min] * (1.0 + 3.0 * r[k_min])
+        turned = k_min < candidates[-1] or slope[k_min - 1] > -0.25
+        if flattened and turned:
+            b = curve.adev[k_min] / BIAS_INSTABILITY_FACTOR
+            bias = Estimate(float(b), float(b * _relative(edf_flicker[k_min])), "m/s^2")
+            bias_tau = float(curve.tau[k_min])
+    if bias is None:
         notes.append("bias instability not reached: the Allan deviation is still falling at the longest tau")
 
     # Rate random walk: >= 2 slopes at +1/2 after the minimum, clearly above it.
@@ -284,6 +290,12 @@ def noise_figures(rec: Recording) -> NoiseReport:
             "an Allan deviation needs evenly spaced samples; record again without gaps",
         )
     rate = rec.rate
+    for i, axis in enumerate(AXES):
+        if np.ptp(rec.acc[:, i]) == 0:
+            raise DataError(
+                f"axis {axis} never changes ({rec.acc[0, i]:g} m/s^2 throughout): no noise to measure",
+                "the sensor's noise is below one count at this range, or the axis is stuck",
+            )
     curves = {axis: allan_deviation(rec.acc[:, i], rate) for i, axis in enumerate(AXES)}
     axes = {axis: axis_noise(curves[axis]) for axis in AXES}
     return NoiseReport(rate, n, rec.duration, curves, axes, rec.content_hash())

@@ -55,7 +55,7 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     if problems:
         if not force:
             more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-            raise ProfileError(problems[0] + more, "use --force (force=True) to apply it anyway")
+            raise ProfileError(problems[0] + more, "use --force to apply it anyway")
         warnings.extend(f"forced: {p}" for p in problems)
     return warnings
 
@@ -110,6 +110,9 @@ def apply_profile(
     With ``uncertainty`` the standard uncertainty of each calibrated axis is
     added as channels u_ax, u_ay, u_az.
     """
+    if "calibrated_with" in rec.meta:
+        raise ProfileError("the recording is already calibrated (its metadata name a profile)",
+                           "apply the profile to the raw recording")
     warnings = check_compatible(profile, rec.meta, rec.units, force)
     raw = raw_si(rec, profile)
     corr = profile.correction
@@ -122,9 +125,6 @@ def apply_profile(
         u = sample_uncertainty(corr, raw)
         channels.update({name: u[:, i] for i, name in enumerate(UNCERTAINTY_CHANNELS)})
     meta = dict(rec.meta)
-    if "calibrated_with" in meta:
-        raise ProfileError("the recording is already calibrated (its metadata name a profile)",
-                           "apply the profile to the raw recording")
     meta["units"] = "m/s^2"
     meta["calibrated_with"] = {
         "profile": str(profile.path) if profile.path else None,

@@ -10,6 +10,7 @@ and the field.
 from __future__ import annotations
 
 import copy
+import math
 import os
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -138,7 +139,7 @@ def profile_from_result(
     if dev["scale"] is None and dev["range_g"] is not None:
         dev["scale"] = scale_for_range(dev["range_g"])
 
-    settings = {k: _plain(v) for k, v in result.settings.items()}
+    settings = {k: _known(_plain(v)) for k, v in result.settings.items()}
     rig = settings.pop("rig", None)
     if rig is None:
         rig = settings.pop("geometry", None)
@@ -146,7 +147,7 @@ def profile_from_result(
         rig = {"description": rig}
     g = float(settings.get("g", meta.get("g", STANDARD_GRAVITY)))
 
-    quality = {k: _plain(v) for k, v in result.quality.items()}
+    quality = {k: _known(_plain(v)) for k, v in result.quality.items()}
     quality.setdefault("residual_rms", None)
     names = [str(n) for n in result.parameter_names]
     pcov = None
@@ -192,6 +193,17 @@ def profile_from_result(
             "this is a bug in the procedure or in accelrig.profiles; please report it",
         ) from None
     return Profile(data)
+
+
+def _known(value):
+    """NaN or infinite figures in the open maps (settings, quality) mean 'not known': keep them as null."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [_known(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _known(v) for k, v in value.items()}
+    return value
 
 
 def _normal_datetime(value) -> str | None:
@@ -240,6 +252,7 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
         where = f":{mark.line + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise ProfileError(f"{source}{where}: not valid YAML ({problem})") from None
+    _refuse_duplicate_keys(text, source)
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: not a profile (expected a mapping at the top level, got {type(data).__name__})")
     _check_version(data, source)
@@ -248,6 +261,27 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
     except ProfileError as exc:
         raise ProfileError(f"{source}: {exc.message}", exc.hint) from None
     return data
+
+
+def _refuse_duplicate_keys(text: str, source: str) -> None:
+    """A key given twice would silently keep the last value: refuse it, naming the line.
+
+    Walks the composed node tree (yaml.compose with the SafeLoader builds nodes, never objects).
+    """
+    stack = [(yaml.compose(text, Loader=yaml.SafeLoader), "")]
+    while stack:
+        node, path = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key, value in node.value:
+                name = key.value if isinstance(key, yaml.ScalarNode) else str(key.value)
+                child = f"{path}.{name}" if path else name
+                if name in seen:
+                    raise ProfileError(f"{source}:{key.start_mark.line + 1}: {child}: key given twice")
+                seen.add(name)
+                stack.append((value, child))
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend((v, f"{path}[{i}]") for i, v in enumerate(node.value))
 
 
 def _check_version(data: dict, source: str) -> None:

@@ -48,6 +48,11 @@ def device_key(identity: str) -> str:
     return f"{safe[:60]}-{digest}"
 
 
+def _sequence(path: Path) -> int:
+    match = re.search(r"-(\d+)$", path.stem)
+    return int(match.group(1)) if match else 1
+
+
 @dataclass
 class StoredProfile:
     path: Path
@@ -114,7 +119,8 @@ class ProfileStore:
                     raise ProfileError(f"{path}: device.identity {profile.identity!r} does not belong in the "
                                        f"directory of {identity!r}", "move the file to its device's directory")
                 out.append(StoredProfile(path, profile))
-        return sorted(out, key=lambda s: (s.created, str(s.path)))
+        # Same creation second: the file added later (higher -N suffix) counts as newer.
+        return sorted(out, key=lambda s: (s.created, _sequence(s.path)))
 
     def identities(self) -> list[str]:
         return sorted({s.identity for s in self.entries()})
