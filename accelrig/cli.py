@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "accelrig.commands.devices",
     "accelrig.commands.flash",
     "accelrig.commands.record",
+    "accelrig.commands.tui",
     "accelrig.commands.calibrate_rotary",
     "accelrig.commands.calibrate_wheel",
     "accelrig.commands.verify_slider_crank",

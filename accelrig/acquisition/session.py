@@ -1,0 +1,342 @@
+"""A live acquisition session: one device pumped into a ring buffer by a thread.
+
+The TUI uses it now and the daemon will reuse it, so it knows nothing of any
+user interface.  A Session
+
+* opens a driver (``open``, synchronous: errors reach the caller as DeviceError),
+* pumps its blocks into a bounded RingBuffer from its own thread (``start``),
+* counts what a person must see: delivered rate, samples reported missing by
+  the device or link, gap events, saturated samples, the connection state and
+  the last error,
+* survives a disconnect: the pump stops, the state says so, the error is kept,
+  and everything a Capture collected so far stays available,
+* hands out readers: plain ones (a live view that may fall behind and is told
+  how much it lost) and lossless ones, which the pump waits for before it
+  overwrites samples they have not read (a procedure fed from a fast simulated
+  or replayed source must not lose data; a real device that is held back
+  reports the loss itself as a gap, so nothing is ever hidden).
+"""
+
+from __future__ import annotations
+
+import enum
+import threading
+import time
+import traceback
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from accelrig.acquisition.block import Block
+from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
+from accelrig.acquisition.flash import FlashPlan, FlashReport
+from accelrig.acquisition.ringbuffer import Reader, RingBuffer
+from accelrig.errors import AccelrigError, DeviceError
+from accelrig.recording import Recording, default_meta
+
+# int16 full scale: a sample at either limit may have been clipped by the sensor.
+_COUNT_MAX = 32767
+_COUNT_MIN = -32768
+
+
+class State(str, enum.Enum):
+    CLOSED = "closed"              # not opened yet
+    OPEN = "open"                  # opened, not pumping
+    STREAMING = "streaming"        # the pump thread is delivering
+    ENDED = "ended"                # a finite source delivered everything
+    DISCONNECTED = "disconnected"  # the device went away (DeviceError while reading)
+    FAILED = "failed"              # an unexpected error in the pump (a bug; message kept)
+    STOPPED = "stopped"            # stopped by the caller
+
+
+@dataclass(frozen=True)
+class SessionStats:
+    """A consistent snapshot of the session's counters."""
+
+    state: State
+    samples: int                # samples received
+    delivered_rate: float       # samples received per second of device time, recent window, Hz
+    missing: int                # samples the device or link reported lost
+    gap_events: int             # gaps reported (including gaps of unknown size)
+    saturated: int              # samples with an axis at the int16 limit
+    last_error: str | None
+    device_time: float          # s of device time since the first sample
+
+
+class Capture:
+    """Every sample from the moment it began until ``end()``, kept in memory.
+
+    Filled by the session's pump thread, so nothing is lost whatever the
+    readers do; survives a disconnect (``interrupted`` then holds the reason).
+    """
+
+    def __init__(self, info: DeviceInfo):
+        self.info = info
+        self._lock = threading.Lock()
+        self._counts: list[np.ndarray] = []
+        self._t: list[np.ndarray] = []
+        self._channels: dict[str, list[np.ndarray]] = {name: [] for name in info.channels}
+        self._gaps: list[dict] = []
+        self.samples = 0
+        self.active = True
+        self.interrupted: str | None = None
+
+    def _append(self, block: Block) -> None:
+        with self._lock:
+            if block.gap_before:
+                self._gaps.append({"index": self.samples, "missing": int(block.gap_before), "cause": "device/link"})
+            self._counts.append(block.counts)
+            self._t.append(block.t)
+            for name in self._channels:
+                self._channels[name].append(block.channels[name])
+            self.samples += block.n
+
+    def end(self) -> None:
+        self.active = False
+
+    def recording(self) -> Recording:
+        """What was captured so far, in m/s^2 (counts x nominal scale)."""
+        with self._lock:
+            if not self.samples:
+                raise DeviceError(f"nothing was captured from {self.info.url}")
+            counts = np.concatenate(self._counts)
+            t = np.concatenate(self._t)
+            channels = {name: np.concatenate(parts) for name, parts in self._channels.items()}
+            gaps = list(self._gaps)
+        t0 = float(t[0])
+        t = t - t0
+        info = self.info
+        meta = default_meta(
+            device=info.url,
+            identity=info.identity,
+            driver=info.driver,
+            chip=info.chip,
+            who_am_i=info.who_am_i,
+            range_g=info.range_g,
+            scale=info.scale,
+            requested_rate=info.requested_rate,
+            nominal_rate=info.nominal_rate,
+            delivered_rate=(t.size - 1) / float(t[-1]) if t.size > 1 and t[-1] > 0 else None,
+            start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            gaps=gaps,
+        )
+        if self.interrupted:
+            meta["interrupted"] = self.interrupted
+        if "truth" in info.extra:
+            meta["truth"] = info.extra["truth"]
+        return Recording(t, counts.astype(float) * info.scale, "m/s^2", channels, meta)
+
+
+class Session:
+    """One device, one pump thread, one ring buffer."""
+
+    RATE_WINDOW = 2.0  # s of device time over which the delivered rate is measured
+
+    def __init__(self, url: str | None = None, driver: Driver | None = None, buffer_seconds: float = 30.0):
+        if (url is None) == (driver is None):
+            raise ValueError("give a device URL or a driver, not both")
+        self.driver = driver if driver is not None else driver_for(url)
+        self.url = self.driver.url.raw
+        self.buffer_seconds = buffer_seconds
+        self.info: DeviceInfo | None = None
+        self.ring: RingBuffer | None = None
+        self.state = State.CLOSED
+        self.last_error: str | None = None
+        self._lock = threading.Lock()
+        self._space = threading.Condition(self._lock)  # lossless readers made room
+        self._stop = threading.Event()
+        # Held around every driver call, so a flash never interleaves with a read.
+        self._device_lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._captures: list[Capture] = []
+        self._lossless: list[Reader] = []
+        self._samples = 0
+        self._missing = 0
+        self._gap_events = 0
+        self._saturated = 0
+        self._t_first: float | None = None
+        self._t_last: float | None = None
+        self._rate_marks: deque[tuple[float, int]] = deque()  # (device time, samples before it)
+
+    # ------------------------------------------------------------------ lifecycle
+    def open(self) -> DeviceInfo:
+        """Connect the device (blocking); raises DeviceError with the driver's message."""
+        if self.info is not None:
+            return self.info
+        try:
+            self.info = self.driver.open()
+        except AccelrigError:
+            self.driver.close()
+            raise
+        self.driver.info = self.info
+        capacity = max(int(self.info.nominal_rate * self.buffer_seconds), 4096)
+        self.ring = RingBuffer(capacity, self.info.scale, self.info.channels)
+        self.state = State.OPEN
+        return self.info
+
+    def start(self) -> None:
+        """Open if needed and start the pump thread."""
+        self.open()
+        if self._thread is not None:
+            return
+        self.state = State.STREAMING
+        self._thread = threading.Thread(target=self._pump, name=f"accelrig pump {self.url}", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop pumping and release the device; captured data stay."""
+        self._stop.set()
+        with self._space:
+            self._space.notify_all()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        if self.state in (State.OPEN, State.STREAMING, State.CLOSED):
+            self.state = State.STOPPED
+        self.driver.close()
+
+    @property
+    def running(self) -> bool:
+        return self.state == State.STREAMING
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait for the pump to finish (end of a finite source, disconnect); True if it did."""
+        if self._thread is None:
+            return True
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    # ------------------------------------------------------------------ data
+    def reader(self, from_oldest: bool = False, lossless: bool = False) -> Reader:
+        """A new reader of the ring buffer.
+
+        lossless  the pump waits rather than overwrite samples this reader has
+                  not read yet; release it with ``release(reader)`` when done.
+        """
+        if self.ring is None:
+            raise DeviceError("the session is not open")
+        with self._lock:
+            reader = self.ring.reader(from_oldest=from_oldest)
+            if lossless:
+                self._lossless.append(reader)
+        return reader
+
+    def release(self, reader: Reader) -> None:
+        with self._space:
+            if reader in self._lossless:
+                self._lossless.remove(reader)
+            self._space.notify_all()
+
+    def notify_read(self) -> None:
+        """Tell the pump a lossless reader made room (call after reading)."""
+        with self._space:
+            self._space.notify_all()
+
+    def begin_capture(self) -> Capture:
+        """Start keeping every sample from now on (see Capture)."""
+        if self.info is None:
+            raise DeviceError("the session is not open")
+        capture = Capture(self.info)
+        with self._lock:
+            self._captures.append(capture)
+        return capture
+
+    def stats(self) -> SessionStats:
+        with self._lock:
+            rate = 0.0
+            if self._rate_marks and self._t_last is not None:
+                t_then, n_then = self._rate_marks[0]
+                span = self._t_last - t_then
+                if span > 0:
+                    rate = (self._samples - n_then - 1) / span
+            device_time = 0.0 if self._t_first is None else self._t_last - self._t_first
+            return SessionStats(
+                state=self.state,
+                samples=self._samples,
+                delivered_rate=rate,
+                missing=self._missing,
+                gap_events=self._gap_events,
+                saturated=self._saturated,
+                last_error=self.last_error,
+                device_time=device_time,
+            )
+
+    # ------------------------------------------------------------------ flashing
+    def plan_flash(self, profile) -> FlashPlan:
+        """What storing ``profile`` on the device would write (reads only; see Driver.plan_flash)."""
+        with self._device_lock:
+            return self.driver.plan_flash(profile)
+
+    def flash(self, plan: FlashPlan) -> FlashReport:
+        """Write a plan made by ``plan_flash``, between two reads of the pump."""
+        with self._device_lock:
+            return self.driver.flash(plan)
+
+    # ------------------------------------------------------------------ the pump
+    def _pump(self) -> None:
+        try:
+            while not self._stop.is_set():
+                with self._device_lock:
+                    blocks = self.driver.read(timeout=0.1)
+                for block in blocks:
+                    if not self._wait_for_room(block.n):
+                        return
+                    self._take(block)
+                if self.driver.at_end and not blocks:
+                    self._finish(State.ENDED, None)
+                    return
+        except AccelrigError as exc:
+            # The device went away (unplugged, link lost): say so, keep the data.
+            self._finish(State.DISCONNECTED, str(exc))
+        except Exception as exc:  # a bug in a driver: report it rather than die silently
+            traceback.print_exc()
+            self._finish(State.FAILED, f"{type(exc).__name__}: {exc}")
+
+    def _wait_for_room(self, n: int) -> bool:
+        ring = self.ring
+        with self._space:
+            while self._lossless and not self._stop.is_set():
+                slowest = min(r.cursor for r in self._lossless)
+                if ring.head + n - slowest <= ring.capacity:
+                    return True
+                self._space.wait(0.05)
+            return not self._stop.is_set()
+
+    def _take(self, block: Block) -> None:
+        self.ring.write(block)
+        saturated = int(np.count_nonzero(
+            ((block.counts >= _COUNT_MAX) | (block.counts <= _COUNT_MIN)).any(axis=1)))
+        with self._lock:
+            if block.gap_before:
+                self._gap_events += 1
+                self._missing += max(int(block.gap_before), 0)
+            if block.n:
+                if self._t_first is None:
+                    self._t_first = float(block.t[0])
+                self._rate_marks.append((float(block.t[0]), self._samples))
+                self._t_last = float(block.t[-1])
+                while len(self._rate_marks) > 1 and self._t_last - self._rate_marks[1][0] >= self.RATE_WINDOW:
+                    self._rate_marks.popleft()
+            self._samples += block.n
+            self._saturated += saturated
+            captures = [c for c in self._captures if c.active]
+            self._captures = captures
+        for capture in captures:
+            capture._append(block)
+
+    def _finish(self, state: State, error: str | None) -> None:
+        with self._lock:
+            self.state = state
+            self.last_error = error
+            for capture in self._captures:
+                if error:
+                    capture.interrupted = error
+        if state == State.ENDED:
+            # A finite source that delivered everything is still connected (an emulated
+            # chip can still be flashed); stop() releases it.
+            return
+        with self._device_lock:
+            try:
+                self.driver.close()
+            except AccelrigError:
+                pass

@@ -1,0 +1,72 @@
+"""Pick a calibration procedure; only procedures this installation has are offered."""
+
+from __future__ import annotations
+
+import importlib
+
+from textual import on
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical
+from textual.screen import Screen
+from textual.widgets import Footer, Header, Label, OptionList, Static
+from textual.widgets.option_list import Option
+
+# (key, title, procedure module the wizard drives, wizard screen "module:Class")
+WIZARDS = (
+    ("static", "Static faces: six or more still poses (no rig needed)",
+     "accelrig.procedures.static_faces", "accelrig.tui.screens.static_wizard:StaticWizard"),
+    ("wheel", "Tilted wheel: spin it and let it coast",
+     "accelrig.procedures.wheel", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
+    ("slider-crank", "Slider-crank stand: verify a calibration over motor speed steps",
+     "accelrig.procedures.slider_crank", "accelrig.tui.screens.slider_wizard:SliderCrankWizard"),
+    ("rotary", "Rotary bench: sensitivity per axis against the encoder",
+     "accelrig.procedures.rotary_session", "accelrig.tui.screens.rotary_wizard:RotaryWizard"),
+)
+
+
+def available_wizards() -> list[tuple[str, str, str]]:
+    """(key, title, screen path) of the wizards whose procedure is installed."""
+    found = []
+    for key, title, procedure_module, screen in WIZARDS:
+        try:
+            importlib.import_module(procedure_module)
+        except ModuleNotFoundError as exc:
+            if exc.name and procedure_module.startswith(exc.name):
+                continue  # this procedure is not part of this installation
+            raise
+        found.append((key, title, screen))
+    return found
+
+
+def wizard_screen(path: str, *args, **kwargs):
+    module_name, class_name = path.split(":")
+    return getattr(importlib.import_module(module_name), class_name)(*args, **kwargs)
+
+
+class CalibrateMenu(Screen):
+    BINDINGS = [Binding("escape", "back", "Back")]
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Vertical(id="calibrate-box"):
+            wizards = available_wizards()
+            if wizards:
+                yield Label("Choose a calibration (enter starts it):")
+                yield OptionList(*[Option(title, id=key) for key, title, _ in wizards], id="wizards")
+            else:
+                yield Static("No calibration procedure is installed in this version of accelrig.")
+            yield Static("", id="calibrate-status")
+        yield Footer()
+
+    @on(OptionList.OptionSelected, "#wizards")
+    def start(self, event: OptionList.OptionSelected) -> None:
+        screens = {key: screen for key, _, screen in available_wizards()}
+        session = self.app.session
+        if session is None or session.info is None:
+            self.query_one("#calibrate-status", Static).update("[red]connect a device first (c on the live view)[/]")
+            return
+        self.app.switch_screen(wizard_screen(screens[event.option.id], session))
+
+    def action_back(self) -> None:
+        self.app.pop_screen()

@@ -1,0 +1,126 @@
+"""Connect: pick a driver and device (found or typed), see identity, range and delivered rate."""
+
+from __future__ import annotations
+
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Button, Footer, Header, Input, Label, OptionList, Static
+from textual.widgets.option_list import Option
+
+from accelrig.acquisition.driver import load_drivers
+from accelrig.errors import AccelrigError
+
+URL_HINT = "sim://static?seed=1   replay://run.csv   i2c://1/0x68   serial:///dev/ttyUSB0   ble://AA:BB:..."
+
+
+class ConnectScreen(Screen):
+    BINDINGS = [
+        Binding("escape", "back", "Back"),
+        Binding("r", "rescan", "Rescan"),
+    ]
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Vertical(id="connect-box"):
+            yield Label("Devices found (enter picks one; r scans again, including BLE):")
+            yield OptionList(id="found")
+            yield Label("Device URL:")
+            with Horizontal(id="url-row"):
+                yield Input(placeholder=URL_HINT, id="url")
+                yield Button("Connect", id="do-connect", variant="primary")
+            yield Static("", id="connect-status")
+            yield Static("", id="connected-device")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#url", Input).value = self.app.device
+        self.scan()
+        self.show_device()
+        self.set_interval(0.5, self.show_device)
+
+    @work(thread=True, exclusive=True, group="scan")
+    def scan(self) -> None:
+        """Ask every installed driver what it can find (a BLE scan takes a few seconds)."""
+        self.app.call_from_thread(self._set_status, "scanning ...")
+        found: list[tuple[str, str]] = []
+        problems: list[str] = []
+        try:
+            drivers = load_drivers()
+        except AccelrigError as exc:
+            self.app.call_from_thread(self._set_status, str(exc))
+            return
+        for scheme in sorted(drivers):
+            cls = drivers[scheme]
+            try:
+                for url in cls.discover():
+                    found.append((url, cls.description))
+            except AccelrigError as exc:
+                problems.append(f"{scheme}://: {exc}")
+        self.app.call_from_thread(self._show_found, found, problems)
+
+    def _show_found(self, found: list[tuple[str, str]], problems: list[str]) -> None:
+        options = self.query_one("#found", OptionList)
+        options.clear_options()
+        options.add_options([Option(f"{url}", id=url) for url, _ in found])
+        self._set_status("\n".join(problems) if problems else f"{len(found)} device(s) found")
+
+    def _set_status(self, text: str) -> None:
+        self.query_one("#connect-status", Static).update(text)
+
+    @on(OptionList.OptionSelected, "#found")
+    def pick(self, event: OptionList.OptionSelected) -> None:
+        url_input = self.query_one("#url", Input)
+        url_input.value = event.option.id
+        url_input.focus()
+
+    @on(Input.Submitted, "#url")
+    @on(Button.Pressed, "#do-connect")
+    def connect(self) -> None:
+        url = self.query_one("#url", Input).value.strip()
+        if not url:
+            self._set_status("type a device URL first, e.g. sim://static")
+            return
+        self._set_status(f"connecting to {url} ...")
+        self.open_device(url)
+
+    @work(thread=True, exclusive=True, group="open")
+    def open_device(self, url: str) -> None:
+        from accelrig.tui.app import open_session
+
+        try:
+            session = open_session(url, self.app.buffer_seconds)
+        except AccelrigError as exc:
+            self.app.call_from_thread(self._set_status, f"[red]cannot connect:[/] {exc}")
+            return
+        self.app.call_from_thread(self._connected, session)
+
+    def _connected(self, session) -> None:
+        self.app.use_session(session)
+        self._set_status(f"[green]connected[/] to {session.url} (escape returns to the live view)")
+        self.show_device()
+
+    def show_device(self) -> None:
+        session = self.app.session
+        box = self.query_one("#connected-device", Static)
+        if session is None or session.info is None:
+            box.update("no device connected")
+            return
+        info = session.info
+        stats = session.stats()
+        box.update(
+            f"[b]Connected:[/b] {info.url}\n"
+            f"  driver {info.driver}   chip {info.chip}   identity {info.identity}"
+            + (f"   WHO_AM_I 0x{info.who_am_i:02x}" if info.who_am_i is not None else "")
+            + f"\n  range ±{info.range_g:g} g   nominal {info.nominal_rate:g} Hz   "
+            f"delivered {stats.delivered_rate:.1f} Hz   state {stats.state.value}"
+            + (f"\n  [red]{stats.last_error}[/]" if stats.last_error else "")
+        )
+
+    def action_rescan(self) -> None:
+        self.scan()
+
+    def action_back(self) -> None:
+        self.app.pop_screen()

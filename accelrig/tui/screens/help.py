@@ -1,0 +1,42 @@
+"""The help screen: every key that works on the screen below, and what it does."""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import VerticalScroll
+from textual.screen import ModalScreen, Screen
+from textual.widgets import Static
+
+INTRO = (
+    "[b]accelrig[/b] calibrates 3-axis accelerometers.  Connect a device (c), watch it live, "
+    "then run a calibration wizard (k).  Every wizard step can be cancelled (escape) "
+    "and redone; captured data are kept if the device disconnects."
+)
+
+
+class HelpScreen(ModalScreen):
+    BINDINGS = [Binding("escape,q,question_mark,f1", "close", "Close help")]
+
+    def __init__(self, below: Screen):
+        super().__init__()
+        self.below = below
+
+    def compose(self) -> ComposeResult:
+        rows = []
+        seen = set()
+        for key, active in self.below.active_bindings.items():
+            binding = active.binding
+            if not binding.description or (binding.action, binding.description) in seen:
+                continue
+            seen.add((binding.action, binding.description))
+            shown = binding.key_display or self.app.get_key_display(binding)
+            rows.append(f"  [b]{shown:>10}[/b]  {binding.description}")
+        with VerticalScroll(id="help-box"):
+            yield Static(INTRO, id="help-intro")
+            yield Static("[b]Keys on this screen[/b]\n" + "\n".join(rows), id="help-keys")
+            yield Static("[dim]tab / shift+tab move between fields, enter activates, "
+                         "the mouse works too.  escape closes this help.[/dim]")
+
+    def action_close(self) -> None:
+        self.dismiss()

@@ -1,0 +1,274 @@
+"""Results of any procedure: parameters with uncertainty, quality, plots; save and flash.
+
+Everything shown comes from the CalibrationResult; the profile is made and
+saved by accelrig.profiles, the flash plan by the device's driver.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical, VerticalScroll
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Label, Static
+
+from accelrig.acquisition.flash import FlashPlan
+from accelrig.acquisition.session import Session
+from accelrig.errors import AccelrigError
+from accelrig.procedures.result import CalibrationResult
+from accelrig.recording import Recording
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.widgets.plot import LinePlot, Series
+
+SERIES_STYLES = ("red", "green", "dodger_blue1", "yellow", "magenta", "cyan")
+
+
+def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
+    """How to draw ``arrays[name]``: against its x array when the result gives one.
+
+    Convention used by the procedures' ``arrays``: ``NAME`` (1-D or n x k)
+    and optionally ``NAME_x`` or a shared ``t`` / ``frequency`` of the same
+    length as the x axis; otherwise samples are drawn against their index.
+    """
+    y = np.asarray(arrays[name], dtype=float)
+    if y.ndim == 0 or y.size < 2 or y.ndim > 2:
+        return None
+    n = y.shape[0]
+    x = None
+    x_name = "index"
+    for candidate in (f"{name}_x", "t", "frequency"):
+        if candidate != name and candidate in arrays and np.asarray(arrays[candidate]).shape == (n,):
+            x, x_name = np.asarray(arrays[candidate], dtype=float), candidate
+            break
+    if x is None:
+        x = np.arange(n, dtype=float)
+    columns = y.reshape(n, -1)
+    labels = ("x", "y", "z") if columns.shape[1] == 3 else tuple(str(i) for i in range(columns.shape[1]))
+    series = [
+        Series(x, columns[:, k], SERIES_STYLES[k % len(SERIES_STYLES)], labels[k] if columns.shape[1] > 1 else "")
+        for k in range(columns.shape[1])
+    ]
+    return x_name, series
+
+
+def plottable(arrays: dict) -> list[str]:
+    names = []
+    for name in arrays:
+        if name.endswith("_x") or name in ("t", "frequency"):
+            continue
+        if plot_series(name, arrays) is not None:
+            names.append(name)
+    return names
+
+
+def format_value(value, uncertainty) -> tuple[str, str]:
+    if np.ndim(value):
+        return (", ".join(f"{v:.6g}" for v in np.ravel(value)), ", ".join(f"{u:.2g}" for u in np.ravel(uncertainty)))
+    return f"{value:.6g}", f"{uncertainty:.2g}"
+
+
+def cell_text(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.4g}"
+    if isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) for v in value):
+        return ", ".join(f"{v:.3g}" for v in value)
+    return str(value)
+
+
+def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
+    identity = session.info.identity if session is not None and session.info is not None else "device"
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity)).strip("-") or "device"
+    return f"{safe}-{result.procedure}.yaml"
+
+
+class ResultsScreen(Screen):
+    BINDINGS = [
+        Binding("s", "save", "Save profile"),
+        Binding("f", "flash", "Flash"),
+        Binding("n", "next_plot", "Next plot"),
+        Binding("escape", "close", "Close"),
+    ]
+
+    def __init__(self, result: CalibrationResult, recording: Recording | None, session: Session | None):
+        super().__init__()
+        self.result = result
+        self.recording = recording
+        self.session = session
+        self.plots = plottable(result.arrays)
+        self.plot_index = 0
+        self.profile = None
+        self.saved_path: Path | None = None
+
+    def compose(self) -> ComposeResult:
+        r = self.result
+        yield Header()
+        with VerticalScroll(id="results"):
+            yield Static(f"[b]{r.procedure}[/b]  method {r.method}  model {r.model}", id="results-title")
+            yield Static("s saves the profile, f flashes it to the device, n shows the next plot", id="results-status")
+            yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
+            yield Static(self.quality_text(), id="quality")
+            for key, _ in self.quality_tables():
+                yield Label(f"[b]{key}[/b]")
+                yield DataTable(id=f"quality-{key}", show_cursor=False, classes="quality-table")
+            with Vertical(id="plot-box"):
+                yield LinePlot("", id="result-plot")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.sub_title = "results"
+        table = self.query_one("#parameters", DataTable)
+        table.add_columns("parameter", "value", "u (k=1)", "unit")
+        for name, estimate in self.result.parameters.items():
+            value, uncertainty = format_value(estimate.value, estimate.uncertainty)
+            table.add_row(name, value, uncertainty, estimate.unit)
+        for key, rows in self.quality_tables():
+            table = self.query_one(f"#quality-{key}", DataTable)
+            columns = list(rows[0])
+            table.add_columns(*columns)
+            for row in rows:
+                table.add_row(*[cell_text(row.get(c)) for c in columns])
+        self.show_plot()
+        try:
+            from accelrig.profiles import profile_from_result
+        except ModuleNotFoundError:
+            self.set_status("[red]profiles are not part of this installation:[/] the result cannot be saved")
+            return
+        device = self.session.info.to_dict() if self.session is not None and self.session.info else None
+        try:
+            self.profile = profile_from_result(self.result, self.recording, device=device)
+        except AccelrigError as exc:
+            self.set_status(f"[red]no profile can be made:[/] {exc}")
+
+    def quality_text(self) -> str:
+        """Scalar and short numeric quality figures; tables (lists of rows) are shown separately."""
+        parts = []
+        for key, value in self.result.quality.items():
+            if isinstance(value, bool) or value is None:
+                parts.append(f"{key} {value}")
+            elif isinstance(value, (int, float, np.floating, np.integer)):
+                parts.append(f"{key} {value:.4g}")
+            elif isinstance(value, str):
+                parts.append(f"{key} {value}")
+            else:
+                try:
+                    numbers = np.asarray(value, dtype=float).ravel()
+                except (TypeError, ValueError):
+                    continue  # a table or a nested structure
+                if numbers.size <= 12:
+                    parts.append(f"{key} [" + ", ".join(f"{v:.3g}" for v in numbers) + "]")
+        text = "[b]Quality:[/b] " + ("   ".join(parts) if parts else "none reported")
+        for warning in self.result.warnings:
+            text += f"\n[yellow]warning:[/] {warning}"
+        return text
+
+    def quality_tables(self) -> list[tuple[str, list[dict]]]:
+        """Quality entries that are lists of rows (e.g. per face): shown as tables."""
+        return [(key, value) for key, value in self.result.quality.items()
+                if isinstance(value, list) and value and all(isinstance(row, dict) for row in value)]
+
+    def show_plot(self) -> None:
+        plot = self.query_one("#result-plot", LinePlot)
+        if not self.plots:
+            plot.title = "(this result has no plots)"
+            plot.set_series([])
+            return
+        name = self.plots[self.plot_index % len(self.plots)]
+        x_name, series = plot_series(name, self.result.arrays)
+        plot.title = f"{name}  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)"
+        plot.x_label = x_name
+        plot.set_series(series)
+
+    def set_status(self, text: str) -> None:
+        self.query_one("#results-status", Static).update(text)
+
+    def action_next_plot(self) -> None:
+        self.plot_index += 1
+        self.show_plot()
+
+    # ------------------------------------------------------------------ save
+    def action_save(self) -> None:
+        if self.profile is None:
+            self.set_status("[red]there is no profile to save[/] (see the message above)")
+            return
+        self.save_flow()
+
+    @work(exclusive=True, group="save")
+    async def save_flow(self) -> None:
+        from accelrig.profiles import save_profile
+
+        default = str(Path(self.app.profile_dir) / default_profile_name(self.result, self.session))
+        path = await self.app.push_screen_wait(PathScreen("Save the profile to:", default))
+        if path is None:
+            self.set_status("not saved")
+            return
+        target = Path(path).expanduser()
+        if target.exists():
+            if not await self.app.push_screen_wait(ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
+                self.set_status(f"not saved: {target} kept as it was")
+                return
+        try:
+            save_profile(self.profile, target, overwrite=True)
+        except (AccelrigError, OSError) as exc:
+            self.set_status(f"[red]not saved:[/] {exc}")
+            return
+        self.saved_path = target
+        self.set_status(f"[green]profile saved to[/] {target}")
+
+    # ------------------------------------------------------------------ flash
+    def action_flash(self) -> None:
+        if self.profile is None:
+            self.set_status("[red]there is no profile to flash[/]")
+            return
+        if self.session is None:
+            self.set_status("[red]no device is connected[/]")
+            return
+        self.set_status("reading the device to plan the flash ...")
+        self.plan_flash()
+
+    @work(thread=True, exclusive=True, group="flash")
+    def plan_flash(self) -> None:
+        try:
+            plan = self.session.plan_flash(self.profile)
+        except AccelrigError as exc:
+            self.app.call_from_thread(self.set_status, f"[red]cannot flash:[/] {exc}")
+            return
+        self.app.call_from_thread(self.confirm_flash, plan)
+
+    @work(exclusive=True, group="flash-confirm")
+    async def confirm_flash(self, plan: FlashPlan) -> None:
+        if await self.app.push_screen_wait(ConfirmScreen(describe_plan(plan), "Write", "Cancel")):
+            self.set_status("writing ...")
+            self.write_flash(plan)
+        else:
+            self.set_status("flash cancelled: nothing was written")
+
+    @work(thread=True, exclusive=True, group="flash")
+    def write_flash(self, plan: FlashPlan) -> None:
+        try:
+            report = self.session.flash(plan)
+        except AccelrigError as exc:
+            self.app.call_from_thread(self.set_status, f"[red]flash failed:[/] {exc}")
+            return
+        verdict = "[green]written and verified[/]" if report.verified else "[red]written but NOT verified[/]"
+        self.app.call_from_thread(self.set_status, f"{verdict}: " + "; ".join(
+            f"{w.target} {w.current}" for w in report.readback) + ("\n" + "\n".join(report.notes) if report.notes else ""))
+
+    def action_close(self) -> None:
+        self.app.pop_screen()
+
+
+def describe_plan(plan: FlashPlan) -> str:
+    lines = [f"[b]Flash {plan.device}[/b]: these will be written:"]
+    for write in plan.writes:
+        lines.append(f"  {write.target}: {write.current} -> {write.new}  {write.meaning}")
+    if plan.residual:
+        lines.append("Stays in the host profile (the device cannot hold it):")
+        lines.extend(f"  {k}: {v}" for k, v in plan.residual.items())
+    lines.extend(plan.notes)
+    lines.append("Write to the device?")
+    return "\n".join(lines)

@@ -1,0 +1,137 @@
+"""A small line plot drawn with Unicode braille dots (2 x 4 dots per cell).
+
+Textual has no plotting widget and a plotting dependency would be heavy for a
+few curves; braille gives eight dots per terminal cell, enough to see a trace,
+a decay or a frequency response.  Each series has its own colour; where two
+series share a cell the one drawn last wins.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from rich.text import Text
+from textual.widget import Widget
+
+_BRAILLE_BASE = 0x2800
+# dot bit for (column 0..1, row 0..3) inside one braille cell
+_DOT_BITS = np.array([[0x01, 0x02, 0x04, 0x40], [0x08, 0x10, 0x20, 0x80]])
+
+
+@dataclass
+class Series:
+    x: np.ndarray
+    y: np.ndarray
+    style: str
+    label: str = ""
+    join: bool = True   # draw lines between points (False: points only)
+
+
+class LinePlot(Widget):
+    """Plots one or more series; the y range is fixed (``y_range``) or follows the data."""
+
+    DEFAULT_CSS = """
+    LinePlot { height: 8; }
+    """
+
+    def __init__(self, title: str = "", y_range: tuple[float, float] | None = None, x_label: str = "",
+                 *, id: str | None = None, classes: str | None = None):
+        super().__init__(id=id, classes=classes)
+        self.title = title
+        self.y_range = y_range
+        self.x_label = x_label
+        self.series: list[Series] = []
+
+    def set_series(self, series: list[Series]) -> None:
+        self.series = series
+        self.refresh()
+
+    def render(self) -> Text:
+        width, height = self.size.width, self.size.height
+        label_width = 8
+        plot_w, plot_h = max(width - label_width, 1), max(height - 1, 1)
+        text = Text(no_wrap=True, overflow="crop")
+        header = Text(self.title, style="bold")
+        for s in self.series:
+            if s.label:
+                header.append("  ")
+                header.append("━ " + s.label, style=s.style)
+        text.append_text(header)
+        finite = [s for s in self.series if s.x.size]
+        if not finite:
+            text.append("\n(no data yet)", style="dim")
+            return text
+        xs = np.concatenate([s.x for s in finite])
+        ys = np.concatenate([s.y for s in finite])
+        good = np.isfinite(xs) & np.isfinite(ys)
+        if not good.any():
+            text.append("\n(no finite data)", style="dim")
+            return text
+        x0, x1 = float(xs[good].min()), float(xs[good].max())
+        if self.y_range is not None:
+            y0, y1 = self.y_range
+        else:
+            y0, y1 = float(ys[good].min()), float(ys[good].max())
+            pad = 0.05 * (y1 - y0) if y1 > y0 else max(abs(y0) * 0.05, 1e-9)
+            y0, y1 = y0 - pad, y1 + pad
+        if x1 <= x0:
+            x1 = x0 + 1.0
+        if self.x_label:
+            text.append(f"  {self.x_label} {x0:.3g} .. {x1:.3g}", style="dim")
+        text.append("\n")
+        dots_w, dots_h = plot_w * 2, plot_h * 4
+        cells = np.zeros((plot_h, plot_w), dtype=np.int32)
+        owner = np.full((plot_h, plot_w), -1, dtype=np.int32)
+        for index, s in enumerate(finite):
+            ok = np.isfinite(s.x) & np.isfinite(s.y)
+            if not ok.any():
+                continue
+            px = np.round((s.x[ok] - x0) / (x1 - x0) * (dots_w - 1)).astype(int)
+            py = np.round((y1 - np.clip(s.y[ok], y0, y1)) / (y1 - y0) * (dots_h - 1)).astype(int)
+            if s.join and px.size > 1:
+                px, py = _join(px, py)
+            px = np.clip(px, 0, dots_w - 1)
+            py = np.clip(py, 0, dots_h - 1)
+            rows, cols = py // 4, px // 2
+            bits = _DOT_BITS[px % 2, py % 4]
+            np.bitwise_or.at(cells, (rows, cols), bits)
+            owner[rows, cols] = index
+        top = f"{y1:>7.3g}"
+        bottom = f"{y0:>7.3g}"
+        for row in range(plot_h):
+            if row == 0:
+                label = top
+            elif row == plot_h - 1:
+                label = bottom
+            else:
+                label = ""
+            text.append(f"{label:>7} ", style="dim")
+            # one append per run of cells of the same series keeps rendering cheap
+            col = 0
+            while col < plot_w:
+                who = int(owner[row, col]) if cells[row, col] else -1
+                end = col + 1
+                while end < plot_w and (int(owner[row, end]) if cells[row, end] else -1) == who:
+                    end += 1
+                run = "".join(chr(_BRAILLE_BASE + int(b)) if b else " " for b in cells[row, col:end])
+                text.append(run, style=finite[who].style if who >= 0 else "")
+                col = end
+            if row < plot_h - 1:
+                text.append("\n")
+        return text
+
+
+def _join(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fill in the dots between consecutive points so a fast change stays a line."""
+    steps = np.maximum(np.abs(np.diff(px)), np.abs(np.diff(py)))
+    steps = np.maximum(steps, 1)
+    if steps.max() == 1:
+        return px, py
+    out_x, out_y = [px[:1]], [py[:1]]
+    # vectorised interpolation: for each segment, steps[i] points excluding its start
+    seg = np.repeat(np.arange(steps.size), steps)
+    frac = (np.arange(seg.size) - np.repeat(np.cumsum(steps) - steps, steps) + 1) / np.repeat(steps, steps)
+    out_x.append(np.round(px[seg] + frac * (px[seg + 1] - px[seg])).astype(int))
+    out_y.append(np.round(py[seg] + frac * (py[seg + 1] - py[seg])).astype(int))
+    return np.concatenate(out_x), np.concatenate(out_y)

@@ -1,0 +1,132 @@
+"""The threaded acquisition Session: rate, drops, disconnects, lossless readers, captures."""
+
+import time
+
+import numpy as np
+import pytest
+
+from accelrig.acquisition.session import Session, State
+from accelrig.errors import DeviceError
+
+
+def _drain(session, reader, until_state=None, timeout=10.0):
+    """Read everything a reader gets until the pump stops; returns the concatenated counts."""
+    parts = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        chunk = reader.read()
+        session.notify_read()
+        if chunk.n:
+            parts.append(chunk.counts)
+        elif not session.running:
+            chunk = reader.read()
+            if chunk.n:
+                parts.append(chunk.counts)
+            break
+        else:
+            time.sleep(0.005)
+    return np.concatenate(parts) if parts else np.zeros((0, 3), np.int16)
+
+
+def test_finite_fast_source_reaches_a_lossless_reader_whole():
+    # 20 s at 200 Hz = ~4000 samples through a ring of 4096 -- a fast source
+    # would overrun a plain reader; a lossless one gets every sample.
+    session = Session("sim://still?seed=2&pace=fast&seconds=40", buffer_seconds=1.0)
+    info = session.open()
+    assert info.chip == "sim"
+    reader = session.reader(lossless=True)
+    capture = session.begin_capture()
+    session.start()
+    counts = _drain(session, reader)
+    assert session.wait(5)
+    stats = session.stats()
+    assert stats.state == State.ENDED
+    assert stats.last_error is None
+    assert reader.lost_total == 0
+    assert counts.shape[0] == stats.samples == capture.samples
+    assert stats.samples == int(np.floor(40 * 200 * 1.004)) or abs(stats.samples - 40 * 200 * 1.004) < 50
+    rec = capture.recording()
+    assert len(rec) == stats.samples
+    np.testing.assert_allclose(rec.acc, counts * info.scale)
+    # the device's true rate is +0.4 % (the sim's default rate error)
+    assert stats.delivered_rate == pytest.approx(200 * 1.004, rel=2e-3)
+    # a finite source that ended is still connected (it can be flashed) until stop()
+    assert session.driver.device is not None
+    session.stop()
+    assert session.driver.device is None
+
+
+def test_drops_are_counted_and_rate_reflects_them():
+    session = Session("sim://still?seed=3&pace=fast&seconds=30&drop=0.2&block=50", buffer_seconds=60)
+    session.open()
+    capture = session.begin_capture()
+    session.start()
+    assert session.wait(10)
+    stats = session.stats()
+    assert stats.gap_events > 0
+    # whole 50-sample blocks are lost; consecutive losses arrive as one gap
+    assert stats.missing % 50 == 0 and stats.missing >= 50 * stats.gap_events
+    # only blocks lost at the very end (no later block to carry the gap) go uncounted
+    total = int(np.floor(30 * 200 * 1.004))
+    assert total - 250 <= stats.samples + stats.missing <= total
+    assert stats.delivered_rate < 0.95 * 200  # a fifth of the blocks never arrived
+    rec = capture.recording()
+    assert sum(g["missing"] for g in rec.meta["gaps"]) == stats.missing
+
+
+def test_disconnect_is_reported_and_captured_data_kept():
+    session = Session("sim://still?seed=4&pace=fast&disconnect_after=3")
+    session.open()
+    capture = session.begin_capture()
+    session.start()
+    assert session.wait(10)
+    stats = session.stats()
+    assert stats.state == State.DISCONNECTED
+    assert "disconnected" in stats.last_error
+    assert capture.interrupted == stats.last_error
+    rec = capture.recording()
+    assert rec.duration == pytest.approx(3.0, abs=1.5)
+    assert rec.meta["interrupted"] == stats.last_error
+    assert "truth" in rec.meta
+    assert session.driver.device is None  # a vanished device is released
+
+
+def test_saturation_is_counted():
+    # a 2 g sensor standing on a 3 g shaker would clip; the still rig at 2 g range does not
+    session = Session("sim://still?seed=5&pace=fast&seconds=2")
+    session.start()
+    session.wait(5)
+    assert session.stats().saturated == 0
+    # A sensor lying with z up reads ~1 g; with range=2 and 'noise' huge it clips often.
+    noisy = Session("sim://still?seed=5&pace=fast&seconds=2&noise=30")
+    noisy.start()
+    noisy.wait(5)
+    assert noisy.stats().saturated > 0
+
+
+def test_open_errors_reach_the_caller_as_one_line():
+    session = Session("sim://no-such-rig")
+    with pytest.raises(DeviceError, match="unknown simulated rig"):
+        session.open()
+    with pytest.raises(DeviceError, match="not open"):
+        session.reader()
+
+
+def test_stop_ends_a_realtime_session_promptly():
+    session = Session("sim://still?seed=6")
+    session.start()
+    time.sleep(0.3)
+    assert session.running
+    t0 = time.monotonic()
+    session.stop()
+    assert time.monotonic() - t0 < 1.0
+    assert session.stats().state == State.STOPPED
+    assert 20 < session.stats().samples < 200
+
+
+def test_flash_on_a_sim_device_says_it_cannot_store_a_calibration():
+    session = Session("sim://still?seed=7&pace=fast&seconds=1")
+    session.start()
+    with pytest.raises(DeviceError, match="cannot store a calibration"):
+        session.plan_flash(profile=None)
+    session.stop()

@@ -1,0 +1,142 @@
+"""The TUI shell driven with Textual's Pilot: live view, help, connect, disconnect, errors."""
+
+import asyncio
+import functools
+
+import pytest
+
+pytest.importorskip("textual")
+
+from accelrig.acquisition.session import State  # noqa: E402
+from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.connect import ConnectScreen  # noqa: E402
+from accelrig.tui.screens.help import HelpScreen  # noqa: E402
+from accelrig.tui.screens.live import LiveScreen  # noqa: E402
+
+def async_test(fn):
+    """Run an async test with asyncio.run (no pytest-asyncio needed)."""
+
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        return asyncio.run(fn(*args, **kwargs))
+
+    return run
+
+
+FINITE = "sim://still?seed=1&pace=fast&seconds=10"
+
+
+async def wait_for(pilot, condition, timeout=10.0):
+    """Let the app run until ``condition()`` holds."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not condition():
+        if loop.time() > deadline:
+            raise AssertionError("timed out waiting for the app")
+        await pilot.pause(0.05)
+
+
+def text_of(app, selector):
+    return str(app.screen.query_one(selector).render())
+
+
+@async_test
+async def test_live_view_shows_device_rate_and_stats():
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None and app.session.stats().state == State.ENDED)
+        await pilot.pause(0.2)
+        assert isinstance(app.screen, LiveScreen)
+        assert "sim-random-1" in text_of(app, "#device-line")
+        stats = text_of(app, "#stats-line")
+        assert "samples 2008" in stats and "drops 0" in stats and "200.8 Hz" in stats
+        now = text_of(app, "#axes-now")
+        assert "z   +9." in now or "z  +9." in now
+        assert text_of(app, "#warning-line") == ""
+
+
+@async_test
+async def test_help_lists_the_keys_of_the_screen_below():
+    app = AccelrigApp(device=FINITE)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("question_mark")
+        await pilot.pause()
+        assert isinstance(app.screen, HelpScreen)
+        keys = text_of(app, "#help-keys")
+        for description in ("Connect", "Calibrate", "Pause view", "Quit", "Help"):
+            assert description in keys
+        await pilot.press("escape")
+        assert isinstance(app.screen, LiveScreen)
+
+
+@async_test
+async def test_connect_screen_switches_device_and_shows_identity():
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        first = app.session
+        await pilot.press("c")
+        await pilot.pause()
+        assert isinstance(app.screen, ConnectScreen)
+        found = app.screen.query_one("#found")
+        await wait_for(pilot, lambda: any(str(found.get_option_at_index(i).prompt) == "sim://still"
+                                          for i in range(found.option_count)))
+        url_input = app.screen.query_one("#url")
+        url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
+        url_input.focus()
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.session is not first)
+        assert first.stats().state in (State.STOPPED, State.ENDED)
+        await pilot.pause(0.6)
+        shown = text_of(app, "#connected-device")
+        assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown
+        await pilot.press("escape")
+        assert isinstance(app.screen, LiveScreen)
+
+
+@async_test
+async def test_a_bad_url_is_said_on_screen_and_nothing_crashes():
+    app = AccelrigApp(device="sim://no-such-rig")
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.connect_error is not None)
+        await pilot.pause(0.2)
+        assert "unknown simulated rig" in text_of(app, "#device-line")
+        await pilot.press("c")
+        await pilot.pause()
+        url_input = app.screen.query_one("#url")
+        url_input.value = "nonsense"
+        url_input.focus()
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: "cannot connect" in text_of(app, "#connect-status"))
+        assert "not a device URL" in text_of(app, "#connect-status")
+
+
+@async_test
+async def test_disconnect_is_said_on_the_live_view():
+    app = AccelrigApp(device="sim://still?seed=2&pace=fast&disconnect_after=2", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None and app.session.stats().state == State.DISCONNECTED)
+        await pilot.pause(0.2)
+        warning = text_of(app, "#warning-line")
+        assert "DEVICE DISCONNECTED" in warning and "disconnected" in warning
+        assert "disconnected" in text_of(app, "#stats-line")
+
+
+@async_test
+async def test_saturation_warning():
+    app = AccelrigApp(device="sim://still?seed=3&pace=fast&seconds=3&noise=30", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None and app.session.stats().state == State.ENDED)
+        await pilot.pause(0.2)
+        assert "SATURATION" in text_of(app, "#warning-line")
+
+
+def test_cli_says_which_extra_is_missing_without_textual(monkeypatch, capsys):
+    import sys
+
+    from accelrig.cli import main
+
+    monkeypatch.setitem(sys.modules, "textual", None)  # import textual now fails as if not installed
+    assert main(["tui"]) == 3
+    err = capsys.readouterr().err
+    assert "the TUI needs the Python package 'textual'" in err and "accelrig[tui]" in err

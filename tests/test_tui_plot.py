@@ -1,0 +1,63 @@
+"""The braille line plot: dots land where the data say."""
+
+import asyncio
+
+import numpy as np
+import pytest
+
+pytest.importorskip("textual")
+
+from textual.app import App  # noqa: E402
+
+from accelrig.tui.widgets.plot import LinePlot, Series, _join  # noqa: E402
+
+BASE = 0x2800
+
+
+class PlotApp(App):
+    def compose(self):
+        yield LinePlot("test", y_range=(0.0, 1.0), id="plot")
+
+
+def rows_of(plot) -> list[str]:
+    return plot.render().plain.split("\n")[1:]  # drop the title row
+
+
+def test_a_rising_line_goes_from_bottom_left_to_top_right():
+    async def run():
+        app = PlotApp()
+        async with app.run_test(size=(28, 6)) as pilot:
+            plot = app.query_one("#plot")
+            plot.styles.height = 5
+            await pilot.pause()
+            plot.set_series([Series(np.array([0.0, 1.0]), np.array([0.0, 1.0]), "red")])
+            await pilot.pause()
+            rows = rows_of(plot)
+            cells = [row[8:] for row in rows]  # after the 8-character axis labels
+            width = plot.size.width - 8
+            assert len(cells) == plot.size.height - 1 == 4
+            # bottom-left cell holds the lowest-left dot (dot 7: bit 0x40), top-right the highest-right (dot 4: 0x08)
+            assert ord(cells[-1][0]) - BASE & 0x40
+            assert ord(cells[0][width - 1]) - BASE & 0x08
+            # joined: every column has a dot somewhere
+            for col in range(width):
+                assert any(ord(c[col]) > BASE for c in cells if col < len(c))
+            assert rows[0].strip().startswith("1") and rows[-1].strip().startswith("0")
+
+    asyncio.run(run())
+
+
+def test_points_only_series_are_not_joined_and_nan_is_skipped():
+    px, py = _join(np.array([0, 10]), np.array([0, 0]))
+    assert list(px) == list(range(11)) and set(py) == {0}
+
+    async def run():
+        app = PlotApp()
+        async with app.run_test(size=(28, 6)) as pilot:
+            plot = app.query_one("#plot")
+            plot.set_series([Series(np.array([0.0, 0.5, 1.0]), np.array([0.5, np.nan, 0.5]), "red", join=False)])
+            await pilot.pause()
+            dots = sum(ord(ch) > BASE for row in rows_of(plot) for ch in row)
+            assert dots == 2
+
+    asyncio.run(run())

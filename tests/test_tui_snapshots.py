@@ -1,0 +1,102 @@
+"""Snapshots of the main screens at fixed sizes.
+
+The device is a seeded, finite simulation at pace=fast: the screens are taken
+once it has ended, so every number and trace on them is deterministic.
+Regenerate after an intended change with ``pytest --snapshot-update`` and look
+at the SVGs before committing them.
+"""
+
+import asyncio
+
+import pytest
+
+pytest.importorskip("textual")
+
+from accelrig.acquisition.session import State  # noqa: E402
+from accelrig.tui.app import AccelrigApp  # noqa: E402
+
+FINITE = "sim://still?seed=1&pace=fast&seconds=10"
+
+
+async def until_ended(pilot):
+    app = pilot.app
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + 10
+    while app.session is None or app.session.stats().state != State.ENDED:
+        assert loop.time() < deadline, "the simulated device did not end"
+        await pilot.pause(0.05)
+    await pilot.pause(0.3)  # let the refresh timer draw the final state
+
+
+def test_live_80x24(snap_compare):
+    assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(80, 24),
+                        run_before=until_ended)
+
+
+def test_live_120x40(snap_compare):
+    assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(120, 40),
+                        run_before=until_ended)
+
+
+def test_help_80x24(snap_compare):
+    async def open_help(pilot):
+        await until_ended(pilot)
+        await pilot.press("question_mark")
+        await pilot.pause(0.2)
+
+    assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(80, 24),
+                        run_before=open_help)
+
+
+def _static_installed():
+    try:
+        import accelrig.procedures.static_faces  # noqa: F401
+        import accelrig.profiles  # noqa: F401
+    except ModuleNotFoundError:
+        return False
+    return True
+
+
+needs_static = pytest.mark.skipif(not _static_installed(), reason="the static procedure or profiles are not installed")
+
+
+@needs_static
+def test_static_wizard_done_80x24(snap_compare):
+    from accelrig.tui.screens.results import ResultsScreen
+
+    async def run_wizard(pilot):
+        app = pilot.app
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 30
+        while app.session is None:
+            await pilot.pause(0.05)
+        await pilot.press("k", "enter")
+        while not isinstance(app.screen, ResultsScreen):
+            assert loop.time() < deadline, "the wizard did not finish"
+            await pilot.pause(0.05)
+        await pilot.press("escape")
+        await pilot.pause(0.3)
+
+    assert snap_compare(AccelrigApp(device="sim://static?seed=3&pace=fast", refresh_interval=0.05),
+                        terminal_size=(80, 24), run_before=run_wizard)
+
+
+@needs_static
+def test_static_results_120x40(snap_compare):
+    from accelrig.acquisition.driver import driver_for
+    from accelrig.acquisition.recorder import record
+    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.tui.screens.results import ResultsScreen
+
+    with driver_for("sim://static?seed=3&pace=fast") as driver:
+        recording = record(driver)
+    result = calibrate_static(recording)
+    # the fit's wall-clock time is the one figure that differs between runs
+    result.quality["fit_seconds"] = 0.01
+
+    async def show(pilot):
+        await until_ended(pilot)
+        pilot.app.push_screen(ResultsScreen(result, recording, None))
+        await pilot.pause(0.3)
+
+    assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(120, 40), run_before=show)

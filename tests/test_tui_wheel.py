@@ -1,0 +1,73 @@
+"""The wheel wizard end to end on sim://wheel, keyboard only: the saved profile matches the truth."""
+
+import asyncio
+import functools
+
+import numpy as np
+import pytest
+
+pytest.importorskip("textual")
+pytest.importorskip("accelrig.procedures.wheel", reason="the wheel procedure is not installed")
+
+from accelrig.profiles import load_profile  # noqa: E402
+from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
+from accelrig.tui.screens.dialogs import PathScreen  # noqa: E402
+from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
+from accelrig.tui.screens.wheel_wizard import WheelSetupScreen, WheelWizard  # noqa: E402
+
+DEVICE = "sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05"
+
+
+def async_test(fn):
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        return asyncio.run(fn(*args, **kwargs))
+
+    return run
+
+
+async def wait_for(pilot, condition, timeout=40.0):
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not condition():
+        if loop.time() > deadline:
+            raise AssertionError("timed out waiting for the app")
+        await pilot.pause(0.05)
+
+
+@async_test
+async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
+    app = AccelrigApp(device=DEVICE, refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        menu = app.screen.query_one("#wizards")
+        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, WheelSetupScreen))
+        # a bad radius is refused on the spot
+        await pilot.press("x", "enter", "enter")
+        assert "is not a number" in str(app.screen.query_one("#setup-status").render())
+        await pilot.press("backspace", *"0.28", "enter", "enter")  # radius measured, tilt estimated
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
+        wizard = app.screen_stack[-2]
+        assert isinstance(wizard, WheelWizard)
+        assert wizard.procedure.done and wizard.reader.lost_total == 0
+        assert "turns, need" in str(wizard.query_one("#wheel-turns").render())
+        assert "rad/s" in str(wizard.query_one("#wheel-speed").render())
+        results = app.screen
+        await wait_for(pilot, lambda: results.profile is not None)
+        await pilot.press("s")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        await pilot.press("enter")
+        path = tmp_path / "sim-random-5-wheel.yaml"
+        await wait_for(pilot, lambda: path.exists())
+        truth = app.session.info.extra["truth"]["sensor"]
+
+    parameters = load_profile(path).data["calibration"]["parameters"]
+    for name in ("gain", "offset"):
+        value = np.array(parameters[name]["value"])
+        u = np.array(parameters[name]["uncertainty"])
+        assert np.all(np.abs(value - np.array(truth[name])) < 4 * u), (name, value, truth[name], u)

@@ -1,0 +1,173 @@
+"""The wizard machinery (any procedure object) and the results screen, driven with Pilot.
+
+The procedure here is a small real estimator written for the test: the mean
+of a still sensor with its standard uncertainty.  It exercises everything a
+wizard does with a procedure (feed, events, progress, done, result in a
+worker, results, disconnect) without depending on any one calibration.
+"""
+
+import asyncio
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+pytest.importorskip("textual")
+
+from accelrig.acquisition.session import State  # noqa: E402
+from accelrig.procedures.result import CalibrationResult, Correction, Estimate  # noqa: E402
+from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
+from accelrig.tui.screens.wizard import ProcedureWizard  # noqa: E402
+
+
+def async_test(fn):
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        return asyncio.run(fn(*args, **kwargs))
+
+    return run
+
+
+async def wait_for(pilot, condition, timeout=15.0):
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not condition():
+        if loop.time() > deadline:
+            raise AssertionError("timed out waiting for the app")
+        await pilot.pause(0.05)
+
+
+@dataclass
+class Event:
+    kind: str
+    message: str
+    progress: float = 0.0
+
+
+class MeanProcedure:
+    """Collects ``seconds`` of still data; result: the mean per axis with u = sd / sqrt(n)."""
+
+    def __init__(self, seconds: float):
+        self.seconds = seconds
+        self.parts = []
+        self.t0 = None
+        self.done = False
+        self.fed = 0
+
+    def feed(self, t, raw):
+        if self.t0 is None:
+            self.t0 = t[0]
+            events = [Event("instruction", "hold the sensor still")]
+        else:
+            events = []
+        self.parts.append(raw)
+        self.fed += len(t)
+        progress = min((t[-1] - self.t0) / self.seconds, 1.0)
+        events.append(Event("progress", f"{progress:.0%} of {self.seconds:g} s", progress))
+        if progress >= 1.0:
+            self.done = True
+            events.append(Event("ready", "enough data"))
+        return events
+
+    def result(self):
+        data = np.concatenate(self.parts)
+        mean, u = data.mean(axis=0), data.std(axis=0, ddof=1) / np.sqrt(len(data))
+        return CalibrationResult(
+            procedure="mean", method="sample mean", model="constant",
+            correction=Correction(np.eye(3), np.zeros(3), np.zeros((12, 12))),
+            parameters={f"mean_{a}": Estimate(float(m), float(s), "m/s^2") for a, m, s in zip("xyz", mean, u)},
+            quality={"residual_rms": float(data.std(axis=0).mean()), "n_samples": len(data)},
+            arrays={"residuals": data - mean},
+        )
+
+
+class MeanWizard(ProcedureWizard):
+    wizard_title = "mean of a still sensor"
+    capture_name = "mean"
+
+    def __init__(self, session, seconds):
+        super().__init__(session)
+        self.seconds = seconds
+
+    def make_procedure(self):
+        return MeanProcedure(self.seconds)
+
+
+async def open_wizard(app, pilot, seconds):
+    await wait_for(pilot, lambda: app.session is not None)
+    wizard = MeanWizard(app.session, seconds)
+    app.push_screen(wizard)
+    return wizard
+
+
+@async_test
+async def test_wizard_feeds_every_sample_then_fits_and_shows_results():
+    # pace=fast through a 1-second ring: only the lossless reader keeps up
+    app = AccelrigApp(device="sim://still?seed=11&pace=fast&seconds=60", refresh_interval=0.05, buffer_seconds=1)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=20)
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
+        procedure = wizard.procedure
+        # every sample up to the moment it had enough reached the procedure, none lost
+        assert wizard.reader.lost_total == 0
+        assert procedure.fed == wizard.reader.cursor
+        assert procedure.fed >= 20 * 200
+        truth = app.session.info.extra["truth"]["sensor"]
+        await wait_for(pilot, lambda: app.screen.query_one("#parameters").row_count == 3)
+        mean_z = procedure.result().parameters["mean_z"]
+        # a real estimate: the z reading of a level sensor is g * gain_z + offset_z within a few u
+        assert mean_z.uncertainty < 0.01
+        assert abs(mean_z.value - 9.80665) < 0.5
+        assert truth is not None
+        assert "residual_rms" in str(app.screen.query_one("#quality").render())
+
+
+@async_test
+async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
+    app = AccelrigApp(device="sim://still?seed=12&pace=fast&disconnect_after=3", refresh_interval=0.05,
+                      profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=30)
+        await wait_for(pilot, lambda: wizard.session is not None
+                       and wizard.session.stats().state == State.DISCONNECTED)
+        await pilot.pause(0.3)
+        alarm = str(wizard.query_one("#wizard-alarm").render())
+        assert "DEVICE LOST" in alarm and "disconnected" in alarm
+        assert wizard.capture.samples > 500
+        assert f"{wizard.capture.samples} captured samples are kept" in alarm
+        assert not isinstance(app.screen, ResultsScreen)
+        # write the kept data
+        await pilot.press("w")
+        await pilot.pause(0.2)
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: (tmp_path / "mean-capture.csv").exists())
+        from accelrig.recording import load_recording
+
+        rec = load_recording(tmp_path / "mean-capture.csv")
+        assert len(rec) == wizard.capture.samples
+        assert "disconnected" in rec.meta["interrupted"]
+
+
+@async_test
+async def test_cancel_asks_first_and_returns_to_the_live_view():
+    from accelrig.tui.screens.live import LiveScreen
+
+    # a source that ends before the procedure has enough: said on screen, and the app
+    # falls idle, so Pilot's key presses (which wait for an idle process) stay quick
+    app = AccelrigApp(device="sim://still?seed=13&pace=fast&seconds=3", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=600)
+        await wait_for(pilot, lambda: wizard.session is not None and wizard.session.stats().state == State.ENDED)
+        await pilot.pause(0.2)
+        assert "source ended before the procedure had enough data" in str(wizard.query_one("#wizard-alarm").render())
+        await pilot.press("escape")
+        await pilot.pause(0.1)
+        await pilot.press("n")  # stay
+        await pilot.pause(0.1)
+        assert app.screen is wizard
+        await pilot.press("escape")
+        await pilot.pause(0.1)
+        await pilot.press("y")
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
