@@ -57,6 +57,12 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         assert wizard.procedure.done and wizard.reader.lost_total == 0
         assert "turns, need" in str(wizard.query_one("#wheel-turns").render())
         assert "rad/s" in str(wizard.query_one("#wheel-speed").render())
+        # the speed plot holds the procedure's trace: a coast-down over the run, one point per half turn
+        (trace,) = wizard.query_one("#speed-plot").series
+        times, speeds = wizard.procedure.speed_trace()
+        assert np.array_equal(trace.x, times) and np.array_equal(trace.y, speeds)
+        assert speeds.size >= 40 and times[-1] > 25.0
+        assert np.polyfit(times, speeds, 1)[0] < 0 and speeds[-1] < 0.9 * speeds[0]
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
         await pilot.press("s")

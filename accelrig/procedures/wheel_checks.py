@@ -40,6 +40,7 @@ class WheelSurvey:
     missing: int = 0              # samples missing in those gaps
     jitter: float = 0.0           # robust sd of the sample period, s
     saturated: dict = field(default_factory=dict)  # axis name -> count
+    angle: np.ndarray | None = field(default=None, repr=False)  # unwrapped wheel angle per sample, rad
 
     @property
     def mean_speed(self) -> float:
@@ -126,8 +127,24 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
     return WheelSurvey(
         n_samples=n, duration=duration, period=period, noise_sd=sigma, axis=axis, turns=turns,
         gravity_amplitude=amplitude, speed_start=abs(speed_start), speed_end=abs(speed_end),
-        gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}, g),
+        gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}, g), angle=angle,
     )
+
+
+def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|w| over each full turn of the survey's angle, one value every half turn:
+    (midpoint times, speeds rad/s).  A full turn, not a half, because the angle of
+    gravity seen from a slightly wrong circle centre runs fast on one half turn and
+    slow on the other; over a whole turn that cancels."""
+    swept = np.abs(angle - angle[0])
+    # the swept angle is monotone up to noise; the running maximum makes it strictly usable for interp
+    swept = np.maximum.accumulate(swept)
+    marks = np.arange(np.pi, swept[-1], np.pi)
+    if marks.size < 3:
+        return np.zeros(0), np.zeros(0)
+    crossings = np.interp(marks, swept, t)
+    span = crossings[2:] - crossings[:-2]
+    return 0.5 * (crossings[2:] + crossings[:-2]), 2 * np.pi / span
 
 
 def _detrend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:

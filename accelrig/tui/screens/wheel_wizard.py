@@ -2,8 +2,10 @@
 
 Asks the measured radius (and tilt, when known; blank = estimated), tells
 the operator to spin the wheel and let it coast, shows the turns counted and
-the speed as the procedure reports them, says when enough data are in, then
-fits in a worker and opens the results.  r starts again from a new spin.
+the speed as the procedure reports them, plots the procedure's speed trace
+(one full-turn speed every half turn) so the coast-down shows as it happens,
+says when enough data are in, then fits in a worker and opens the results.
+r starts again from a new spin.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from textual.widgets import Input, Label, Static
 
 from accelrig.procedures.wheel import WheelProcedure
 from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.widgets.plot import LinePlot, Series
 
 
 def parse_optional_float(text: str, what: str, low: float, high: float) -> float | None:
@@ -86,6 +89,7 @@ class WheelWizard(ProcedureWizard):
         yield Static("", id="wheel-geometry")
         yield Static("turns: waiting for rotation", id="wheel-turns")
         yield Static("speed: -", id="wheel-speed")
+        yield LinePlot("wheel speed (rad/s)", x_label="s", id="speed-plot")
 
     def begin(self) -> None:
         self.ask_geometry()
@@ -103,16 +107,23 @@ class WheelWizard(ProcedureWizard):
         self.start()
 
     def show_events(self, events: list) -> None:
+        speed_seen = False
         for event in events:
-            if event.kind != "progress":
-                continue
-            # the procedure reports turns and speed as separate progress lines
-            target = "#wheel-speed" if event.message.startswith("speed") else "#wheel-turns"
-            self.query_one(target, Static).update(event.message)
+            if event.turns is not None:
+                self.query_one("#wheel-turns", Static).update(event.message)
+            if event.speed is not None:
+                self.query_one("#wheel-speed", Static).update(event.message)
+                speed_seen = True
+        if speed_seen:  # the procedure recomputed its speed trace at this look
+            times, speeds = self.procedure.speed_trace()
+            self.query_one("#speed-plot", LinePlot).set_series([Series(times, speeds, "yellow")])
 
     def action_restart(self) -> None:
         if self.computing:
             return
         if self.session is not None and self.reader is not None:
             self.session.release(self.reader)
+        self.query_one("#speed-plot", LinePlot).set_series([])
+        self.query_one("#wheel-turns", Static).update("turns: waiting for rotation")
+        self.query_one("#wheel-speed", Static).update("speed: -")
         self.start()
