@@ -8,6 +8,10 @@ import pytest
 pytest.importorskip("textual")
 pytest.importorskip("accelrig.procedures.slider_crank", reason="the slider-crank procedure is not installed")
 
+from accelrig.recording import Recording, save_recording  # noqa: E402
+from accelrig.sim.device import simulate  # noqa: E402
+from accelrig.sim.rigs.slider_crank import SliderCrankRig  # noqa: E402
+from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.slider_wizard import SliderCrankWizard, SliderSetupScreen, VerificationScreen  # noqa: E402
@@ -48,7 +52,8 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
-        await pilot.press(*"0.00635", "enter", *"0.0353", "enter", *"0.0002", "enter", *"3,6,9", "enter", "enter")
+        await pilot.press(*"0.00635", "enter", *"0.0353", "enter", *"0.0002", "enter", *"3,6,9", "enter", "enter",
+                          "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, SliderCrankWizard)
@@ -64,15 +69,72 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
 
 
 @async_test
-async def test_a_device_without_step_marks_is_refused_with_a_message():
+async def test_a_bad_profile_is_refused_and_a_device_without_step_marks_asks_for_space():
     app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
         # a profile that cannot be read is refused in the setup, naming the problem
-        await pilot.press(*"0.006", "enter", *"0.035", "enter", "enter", "enter", *"nope.yaml", "enter")
+        await pilot.press(*"0.006", "enter", *"0.035", "enter", "enter", "enter", "enter", *"nope.yaml", "enter")
         status = app.screen.query_one("#setup-status")
         await wait_for(pilot, lambda: "nope.yaml" in str(status.render()))
         await pilot.press(*["backspace"] * len("nope.yaml"), "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard))
-        await wait_for(pilot, lambda: "marks no motor steps" in str(app.screen.query_one("#instruction").render()))
-        assert "accelrig verify slider-crank" in str(app.screen.query_one("#instruction").render())
+        await wait_for(pilot, lambda: "Press space to capture 2 s" in str(app.screen.query_one("#instruction").render()))
+        assert not app.screen.marked
+
+
+# A real rig without step marks, played back at its own pace (looping, so the test need not
+# catch the first pass): a slider-crank recording whose step channel was dropped.  Each step runs
+# STEP_SECONDS after a SETTLE ramp; the test presses space while the motor runs steadily, as an
+# operator would, and CAPTURE seconds are taken from that moment.
+STEPS = (3.0, 6.0, 9.0)
+SETTLE, STEP_SECONDS, CAPTURE, RATE = 0.3, 2.5, 1.0, 1000.0
+SEGMENT = SETTLE + STEP_SECONDS
+
+
+def unmarked_recording(path):
+    rig = SliderCrankRig(steps=STEPS, step_seconds=STEP_SECONDS, settle=SETTLE, clearance=0.0002,
+                         radius_offset=0.00012)
+    rec = simulate(rig, SensorModel(range_g=8.0), SimClock(nominal_rate=RATE), seed=7)
+    assert "step" in rec.channels
+    save_recording(Recording(rec.t, rec.acc, rec.units, {}, {"rate": RATE}), path)
+    return rig
+
+
+@async_test
+async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path):
+    rig = unmarked_recording(tmp_path / "unmarked.csv")
+    url = f"replay://{tmp_path / 'unmarked.csv'}?pace=realtime&block=50&loop=1"
+    app = AccelrigApp(device=url, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await start_wizard(app, pilot)
+        # (fields filled and submitted directly: at realtime each Pilot key press waits about 2 s for
+        # an idle process, and the first step would be gone by then)
+        for field, value in (("radius", "0.00635"), ("rod", "0.0353"), ("clearance", "0.0002"),
+                             ("steps", "3,6,9"), ("seconds", f"{CAPTURE:g}")):
+            app.screen.query_one(f"#setup-{field}").value = value
+        await app.screen.query_one("#setup-profile").action_submit()
+        await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.capture is not None)
+        wizard = app.screen
+        assert not wizard.marked and "Press space to capture 1 s" in str(wizard.query_one("#instruction").render())
+
+        def steady(index):
+            """The stream is in step ``index``'s steady run, with room for the whole capture."""
+            into = (wizard.capture.samples / RATE) % (SEGMENT * len(STEPS)) - index * SEGMENT
+            return SETTLE + 0.1 <= into <= SEGMENT - CAPTURE - 0.5
+
+        for index in range(len(STEPS)):
+            await wait_for(pilot, lambda: steady(index))
+            await pilot.press("space")  # returns once the process idles: the capture has run by then
+            if index < len(STEPS) - 1:
+                await wait_for(pilot, lambda: len(wizard.procedure.results) == index + 1)
+                # the response plot fills in as the steps are taken
+                assert wizard.query_one("#fr-plot").series[1].x.size == index + 1
+        await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
+        verification = app.screen.verification
+        assert wizard.reader.lost_total == 0
+    assert [round(s.frequency_hz.value) for s in verification.steps] == [3, 6, 9]
+    # each step is the capture's seconds of steady running after the key press
+    assert all(abs(s.n_samples - CAPTURE * RATE) <= 2 and not s.speed_unsteady for s in verification.steps)
+    assert abs(verification.radius_m.value - rig.effective_radius) < 4 * verification.radius_m.uncertainty
+    assert verification.verdict == "holds"

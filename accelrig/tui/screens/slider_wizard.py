@@ -1,15 +1,18 @@
 """The slider-crank wizard: drives accelrig.procedures.slider_crank.SliderCrankProcedure.
 
-Asks the stand's geometry (caliper crank radius, rod length, clearance) and
-the motor speed steps, lists the steps, tells the operator the next speed,
-and takes each step's samples as the stand marks it: the device's ``step``
-channel carries the index of the step running steadily (-1 while the motor
-settles), so a step is complete when its index ends.  Each step is analysed
-by the procedure as it completes and the frequency response plot fills in;
-after the last step the verification opens.
+Asks the stand's geometry (caliper crank radius, rod length, clearance), the
+motor speed steps and the seconds to capture per step, lists the steps, tells
+the operator the next speed, and takes each step's samples one of two ways:
 
-Devices without a ``step`` channel are refused with a message: for them,
-record each step and use ``accelrig verify slider-crank``.
+* a stand that marks its steps (a ``step`` channel carrying the index of the
+  step running steadily, -1 while the motor settles): each step as its index
+  ends, no key needed;
+* any other device (a real rig without step marks): the operator sets the
+  speed, waits until the motor runs steadily and presses space; the next
+  seconds of the stream are the step.
+
+Each step is analysed by the procedure as it is taken and the frequency
+response plot fills in; after the last step the verification opens.
 """
 
 from __future__ import annotations
@@ -24,11 +27,16 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen, Screen
 from textual.widgets import DataTable, Footer, Header, Input, Label, Static
 
-from accelrig.errors import AccelrigError, DeviceError
+from accelrig.errors import AccelrigError
 from accelrig.procedures.slider_crank import DEFAULT_STEPS_HZ, SliderCrankProcedure
 from accelrig.recording import Recording
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
+
+
+# Seconds of steady running captured per step with space: the procedure needs at least 1 s;
+# twice that halves the variance of the first harmonic and is still quick at the bench.
+DEFAULT_CAPTURE_SECONDS = 2.0
 
 
 @dataclass
@@ -77,6 +85,8 @@ class SliderSetupScreen(ModalScreen[dict | None]):
               ("clearance", "Clearance on the radius, m (blank: 0):", "e.g. 0.0001"),
               ("steps", "Motor speed steps, Hz (blank: " + ",".join(f"{s:g}" for s in DEFAULT_STEPS_HZ) + "):",
                "e.g. 2.5,4,6,8"),
+              ("seconds", f"Seconds captured per step with space, for a device that marks no steps "
+               f"(blank: {DEFAULT_CAPTURE_SECONDS:g}):", f"{DEFAULT_CAPTURE_SECONDS:g}"),
               ("profile", "Profile whose calibration is verified (blank: raw data):", "e.g. sensor.yaml"))
 
     def compose(self) -> ComposeResult:
@@ -101,6 +111,8 @@ class SliderSetupScreen(ModalScreen[dict | None]):
                 "rod": parse_number(value["rod"], "rod length", 1e-4, 10.0),
                 "clearance": parse_number(value["clearance"], "clearance", 0.0, 0.1, default=0.0),
                 "steps": parse_steps(value["steps"]),
+                "seconds": parse_number(value["seconds"], "seconds per step", 0.5, 600.0,
+                                        default=DEFAULT_CAPTURE_SECONDS),
                 "profile": value["profile"].strip() or None,
                 "correction": None,
             }
@@ -121,21 +133,21 @@ class SliderCrankWizard(ProcedureWizard):
     wizard_title = "slider-crank verification"
     capture_name = "slider-crank"
     progress_label = "steps"
+    BINDINGS = [Binding("space", "capture_step", "Capture step")]
 
     def __init__(self, session):
         super().__init__(session)
         self.setup: dict | None = None
+        self.marked = False      # the device marks its steps (a 'step' channel)
+        self.armed = False       # space pressed: the coming seconds are the step
         self._pending_t: list[np.ndarray] = []
         self._pending_acc: list[np.ndarray] = []
         self._pending_step: list[np.ndarray] = []
 
     def make_procedure(self) -> SliderCrankProcedure:
         info = (self.session or self.app.session).info
-        if "step" not in info.channels:
-            raise DeviceError(
-                f"{info.url} marks no motor steps (no 'step' channel)",
-                "record each step with 'accelrig record' and check them with 'accelrig verify slider-crank'",
-            )
+        self.marked = "step" in info.channels
+        self.armed = False
         self._pending_t, self._pending_acc, self._pending_step = [], [], []
         self.meta = {k: v for k, v in info.to_dict().items() if k != "extra"}
         return SliderCrankProcedure(self.setup["radius"], self.setup["rod"], self.setup["clearance"],
@@ -166,17 +178,60 @@ class SliderCrankWizard(ProcedureWizard):
             self.show_steps()
 
     def opening_instruction(self) -> str:
-        return self.procedure.next_step().text
+        return self.step_prompt(self.procedure.next_step())
+
+    def step_prompt(self, step) -> str:
+        if self.marked:
+            return step.text + " (the stand marks the step: it is taken when it ends)"
+        return step.text + f" Press space to capture {self.setup['seconds']:g} s."
 
     # ------------------------------------------------------------------ taking steps
+    def action_capture_step(self) -> None:
+        if self.procedure is None or self.procedure.done or self.session is None or self.finished:
+            return
+        if self.marked:
+            self.log_event("this stand marks its steps in its 'step' channel: each is taken when it ends", "yellow")
+            return
+        if self._finished_source:
+            self.log_event("the source has ended: there is nothing more to capture (escape, then connect again)",
+                           "yellow")
+            return
+        self.armed = True
+        self._pending_t, self._pending_acc = [], []
+        step = self.procedure.next_step()
+        self.set_instruction(f"capturing step {step.index + 1} for {self.setup['seconds']:g} s: keep the speed ...")
+
     def feed_chunk(self, chunk) -> list:
+        if not self.marked:
+            return self._capture_manual(chunk)
         self._pending_t.append(chunk.t)
         self._pending_acc.append(chunk.acceleration())
         self._pending_step.append(chunk.channels["step"])
         return self._take_complete_steps(end_of_data=False)
 
     def source_ended(self) -> list:
+        if not self.marked:
+            if self.armed:
+                self.armed = False
+                return [Note("problem", "the source ended during the capture: the step was not taken")]
+            return []
         return self._take_complete_steps(end_of_data=True)
+
+    def _capture_manual(self, chunk) -> list:
+        """Between space presses the stream is only watched; after one, the next seconds are the step."""
+        if not self.armed:
+            return []
+        self._pending_t.append(chunk.t)
+        self._pending_acc.append(chunk.acceleration())
+        t = np.concatenate(self._pending_t)
+        seconds = self.setup["seconds"]
+        if t[-1] - t[0] < seconds:
+            return []
+        keep = t - t[0] <= seconds
+        acc = np.concatenate(self._pending_acc)[keep]
+        self.armed = False
+        self._pending_t, self._pending_acc = [], []
+        return self._add_step(Recording(t[keep], acc, "m/s^2", {}, dict(self.meta)))
 
     def _take_complete_steps(self, end_of_data: bool) -> list:
         if not self._pending_t:
@@ -213,7 +268,8 @@ class SliderCrankWizard(ProcedureWizard):
         try:
             result = self.procedure.add_step(recording, label=f"step {index + 1}")
         except AccelrigError as exc:
-            return [Note("problem", f"step {index + 1} not kept: {exc}")]
+            again = "" if self.marked else "; press space to capture it again"
+            return [Note("problem", f"step {index + 1} not kept: {exc}{again}")]
         self.show_steps()
         self.show_response()
         notes = [Note("captured", f"step {index + 1}: {result.frequency_hz.value:.3f} Hz, first harmonic "
@@ -222,7 +278,7 @@ class SliderCrankWizard(ProcedureWizard):
                       (index + 1) / total)]
         following = self.procedure.next_step()
         if following is not None:
-            notes.append(Note("instruction", following.text))
+            notes.append(Note("instruction", self.step_prompt(following)))
         else:
             notes.append(Note("ready", "all steps captured"))
         return notes
