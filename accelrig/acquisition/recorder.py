@@ -116,6 +116,8 @@ def record(
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
     )
+    if info.extra.get("hardware_bias_removed") is not None:
+        meta["hardware_bias_removed"] = list(info.extra["hardware_bias_removed"])
     if "truth" in info.extra:
         meta["truth"] = info.extra["truth"]
     if "link_stats" in info.extra:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)

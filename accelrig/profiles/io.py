@@ -155,6 +155,14 @@ def profile_from_result(
         pcov = np.asarray(result.covariance, dtype=float).tolist()
 
     corr = result.correction
+    warnings = [str(w) for w in result.warnings]
+    removed = meta.get("hardware_bias_removed")
+    if removed is not None:
+        # The data came from a chip with flashed offsets; a profile describes the
+        # sensor as it powers up, so the bias the chip removed is added back.
+        corr = Correction(corr.matrix, corr.bias + np.asarray(removed, dtype=float), corr.covariance)
+        warnings.append("recorded with flashed offsets removing " + ", ".join(f"{v:.4g}" for v in removed)
+                        + " m/s^2 in hardware; the profile's bias is for the sensor at power-up")
     data = {
         "schema_version": SCHEMA_VERSION,
         "device": dev,
@@ -172,7 +180,7 @@ def profile_from_result(
         },
         "quality": quality,
         "noise": None,
-        "warnings": [str(w) for w in result.warnings],
+        "warnings": warnings,
         "provenance": {
             "created": created or utc_now(),
             "software_version": __version__,
