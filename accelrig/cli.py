@@ -31,6 +31,8 @@ COMMAND_MODULES = (
     "accelrig.commands.noise",
 )
 
+HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash")
+
 GROUPS = {
     "calibrate": "compute a calibration from a recording",
     "verify": "verify a calibration under motion",
@@ -61,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
         if not group.choices:
             sub._name_parser_map.pop(name, None)
             sub._choices_actions = [a for a in sub._choices_actions if a.dest != name]
+    # --help lists commands in the order a newcomer uses them
+    order = {name: i for i, name in enumerate(HELP_ORDER)}
+    sub._choices_actions.sort(key=lambda a: order.get(a.dest, len(order)))
     return parser
 
 
