@@ -22,7 +22,7 @@ import yaml
 from accelrig import __version__
 from accelrig.errors import ProfileError
 from accelrig.procedures.result import CalibrationResult, Correction, _plain
-from accelrig.recording import Recording, atomic_write
+from accelrig.recording import Recording, atomic_write, read_text_file
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
 from accelrig.profiles.schema import SCHEMA_VERSION, format_datetime, parse_datetime, validate
@@ -313,14 +313,5 @@ def _check_version(data: dict, source: str) -> None:
 def load_profile(path: str | os.PathLike) -> Profile:
     """Read and validate a profile; one ProfileError naming the file and the field on any problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ProfileError(f"{path}: no such profile") from None
-    except IsADirectoryError:
-        raise ProfileError(f"{path}: is a directory, not a profile") from None
-    except UnicodeDecodeError:
-        raise ProfileError(f"{path}: not a text file, so not a YAML profile") from None
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read ({exc.strerror})") from None
+    text = read_text_file(path, ProfileError, "a YAML profile")
     return Profile(parse_profile_text(text, str(path)), path)
