@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from accelrig import __version__
@@ -29,6 +30,8 @@ COMMAND_MODULES = (
     "accelrig.commands.profile",
     "accelrig.commands.noise",
 )
+
+HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash")
 
 GROUPS = {
     "calibrate": "compute a calibration from a recording",
@@ -60,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
         if not group.choices:
             sub._name_parser_map.pop(name, None)
             sub._choices_actions = [a for a in sub._choices_actions if a.dest != name]
+    # --help lists commands in the order a newcomer uses them
+    order = {name: i for i, name in enumerate(HELP_ORDER)}
+    sub._choices_actions.sort(key=lambda a: order.get(a.dest, len(order)))
     return parser
 
 
@@ -87,6 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("accelrig: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader went away (e.g. `accelrig profile show X | head`): not an error;
+        # point stdout at devnull so the interpreter's final flush stays quiet
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

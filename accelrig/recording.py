@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from accelrig import __version__
-from accelrig.errors import DataError
+from accelrig.errors import AccelrigError, DataError
 from accelrig.units import STANDARD_GRAVITY, normalise_unit, to_si
 
 META_PREFIX = "# accelrig-meta:"
@@ -125,15 +125,32 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
     (Hz) supplies times for a file without a ``t`` column.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DataError(f"{path}: is a directory, not a CSV file") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{path}: not a text file", "give a CSV recording or a .npz written by accelrig") from None
+    header, data, meta = read_table(path, ACC_COLUMNS, "a recording CSV", "t,ax,ay,az")
+    col = {name: i for i, name in enumerate(header)}
+    acc = data[:, [col[c] for c in ACC_COLUMNS]]
+    if "t" in col:
+        t = data[:, col["t"]]
+    else:
+        rate = rate or meta.get("delivered_rate") or meta.get("nominal_rate")
+        if not rate:
+            raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
+        t = np.arange(data.shape[0]) / float(rate)
+    channels = {name: data[:, i] for name, i in col.items() if name not in ("t",) + ACC_COLUMNS}
+    file_units = meta.get("units", "m/s^2")
+    rec_units = normalise_unit(units) if units else normalise_unit(file_units)
+    meta.setdefault("source", str(path))
+    meta["units"] = rec_units
+    return Recording(t, acc, rec_units, channels, meta)
 
+
+def read_table(path: Path, required: tuple[str, ...], what: str, example: str) -> tuple[list[str], np.ndarray, dict]:
+    """Parse an interchange table: (header, float data (n, columns), metadata).
+
+    ``#`` comments are skipped, accelrig's ``# accelrig-meta:`` line is read;
+    every malformed line is an error naming the file and line.  A ``t``
+    column, when present, must increase.
+    """
+    text = read_text_file(path, DataError, what)
     meta: dict = {}
     header: list[str] | None = None
     header_line = 0
@@ -153,7 +170,7 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
         if header is None:
             header = [f.strip() for f in fields]
             header_line = lineno
-            _check_header(path, lineno, header)
+            _check_header(path, lineno, header, required, what, example)
             continue
         if len(fields) != len(header):
             raise DataError(
@@ -165,32 +182,34 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
             bad = next(f for f in fields if not _is_float(f))
             raise DataError(f"{path}:{lineno}: {bad.strip()!r} is not a number") from None
     if header is None:
-        raise DataError(f"{path}: empty file", "a recording CSV needs a header row t,ax,ay,az and data rows")
+        raise DataError(f"{path}: empty file", f"{what} needs a header row {example} and data rows")
     if not rows:
         raise DataError(f"{path}: header on line {header_line} but no data rows")
-
     data = np.asarray(rows, dtype=float)
     if not np.all(np.isfinite(data)):
         bad_row = int(np.argmax(~np.all(np.isfinite(data), axis=1)))
         raise DataError(f"{path}: row {bad_row + 1} of the data holds a NaN or infinite value")
-    col = {name: i for i, name in enumerate(header)}
-    acc = data[:, [col[c] for c in ACC_COLUMNS]]
-    if "t" in col:
-        t = data[:, col["t"]]
+    if "t" in header:
+        t = data[:, header.index("t")]
         if t.size > 1 and not np.all(np.diff(t) > 0):
             k = int(np.argmax(np.diff(t) <= 0))
             raise DataError(f"{path}: time t does not increase at data row {k + 2}", "sort the file or fix the timestamps")
-    else:
-        rate = rate or meta.get("delivered_rate") or meta.get("nominal_rate")
-        if not rate:
-            raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
-        t = np.arange(data.shape[0]) / float(rate)
-    channels = {name: data[:, i] for name, i in col.items() if name not in ("t",) + ACC_COLUMNS}
-    file_units = meta.get("units", "m/s^2")
-    rec_units = normalise_unit(units) if units else normalise_unit(file_units)
-    meta.setdefault("source", str(path))
-    meta["units"] = rec_units
-    return Recording(t, acc, rec_units, channels, meta)
+    return header, data, meta
+
+
+def read_text_file(path: str | os.PathLike, error: type[AccelrigError] = DataError, what: str = "a CSV file") -> str:
+    """A whole text file, or ``error`` in one line saying why not (missing, a directory, binary)."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a directory, not {what}") from None
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a text file, so not {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read ({exc.strerror})") from None
 
 
 def _is_float(text: str) -> bool:
@@ -201,14 +220,15 @@ def _is_float(text: str) -> bool:
         return False
 
 
-def _check_header(path: Path, lineno: int, header: list[str]) -> None:
+def _check_header(path: Path, lineno: int, header: list[str], required: tuple[str, ...], what: str,
+                  example: str) -> None:
     if any(_is_float(h) for h in header):
-        raise DataError(f"{path}:{lineno}: the first row holds numbers, not column names", "add a header row t,ax,ay,az")
-    missing = [c for c in ACC_COLUMNS if c not in header]
+        raise DataError(f"{path}:{lineno}: the first row holds numbers, not column names", f"add a header row {example}")
+    missing = [c for c in required if c not in header]
     if missing:
         raise DataError(
             f"{path}:{lineno}: header lacks column(s) {', '.join(missing)}",
-            "a recording CSV needs columns ax,ay,az (and t)",
+            f"{what} needs a header {example}",
         )
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:

@@ -281,5 +281,7 @@ class I2CDriver(Driver):
                 "the register layout is not what this driver assumes for this part; keep the bias in the host profile",
             )
         self.applied_offsets = plan.residual
+        # from now on the chip's output already lacks this much bias (see profiles.correction_for)
+        self.info.extra["hardware_bias_removed"] = list(plan.residual["bias_removed_m_s2"])
         return FlashReport(device=plan.device, verified=True, readback=readback, residual=plan.residual,
                            notes=list(plan.notes))

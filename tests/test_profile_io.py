@@ -248,7 +248,7 @@ def test_duplicate_key_is_refused_with_its_line(tmp_path, profile):
 
 
 def test_missing_and_binary_files(tmp_path):
-    with pytest.raises(ProfileError, match="no such profile"):
+    with pytest.raises(ProfileError, match="none.yaml: no such file"):
         load_profile(tmp_path / "none.yaml")
     (tmp_path / "bin.yaml").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ProfileError, match="not a text file"):

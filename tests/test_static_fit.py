@@ -16,7 +16,8 @@ from accelrig.procedures.static_fit import (
 )
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
-from accelrig.sim.sensor import SensorModel, SimClock, rotation_xyz
+from accelrig.geometry import rotation_xyz
+from accelrig.sim.sensor import SensorModel, SimClock
 
 
 def _paper_truth(rng):

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from accelrig.acquisition.driver import Driver
+from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.ringbuffer import RingBuffer
 from accelrig.errors import DeviceError
 from accelrig.recording import Recording, default_meta
@@ -99,6 +99,19 @@ def record(
     counts = np.concatenate(parts_counts)
     t = np.concatenate(parts_t) - t0
     acc = counts.astype(float) if units == "counts" else counts.astype(float) * info.scale
+    meta = recording_meta(info, t, gaps, prog.missing)
+    channels = {name: np.concatenate(parts) for name, parts in parts_ch.items()}
+    return Recording(t, acc, units, channels, meta)
+
+
+def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: int) -> dict:
+    """A recording's metadata from the device that made it (one place, for record() and TUI captures).
+
+    ``t`` are the sample times from 0; ``gaps`` the gaps met; ``missing`` the
+    samples they held (known sizes).
+    """
+    n = t.size
+    span = float(t[-1]) if n > 1 else 0.0
     meta = default_meta(
         device=info.url,
         identity=info.identity,
@@ -111,15 +124,16 @@ def record(
         nominal_rate=info.nominal_rate,
         # delivered: samples that reached us per second; device: the sampling rate
         # including samples the link lost (gaps of known size)
-        delivered_rate=(n - 1) / float(t[-1]) if n > 1 and t[-1] > 0 else None,
-        device_rate=(n - 1 + prog.missing) / float(t[-1]) if n > 1 and t[-1] > 0 else None,
+        delivered_rate=(n - 1) / span if span > 0 else None,
+        device_rate=(n - 1 + missing) / span if span > 0 else None,
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
     )
+    if info.extra.get("hardware_bias_removed") is not None:  # flashed chip offsets (profiles.correction_for)
+        meta["hardware_bias_removed"] = list(info.extra["hardware_bias_removed"])
     if "truth" in info.extra:
         meta["truth"] = info.extra["truth"]
     if "link_stats" in info.extra:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
         meta["link_stats"] = info.extra["link_stats"].as_dict()
         meta["clock_alignment"] = info.extra.get("clock_alignment")
-    channels = {name: np.concatenate(parts) for name, parts in parts_ch.items()}
-    return Recording(t, acc, units, channels, meta)
+    return meta

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import enum
 import threading
-import time
 import traceback
 from collections import deque
 from dataclasses import dataclass
@@ -33,7 +32,8 @@ from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
 from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
-from accelrig.recording import Recording, default_meta
+from accelrig.acquisition.recorder import recording_meta
+from accelrig.recording import Recording
 
 # int16 full scale: a sample at either limit may have been clipped by the sensor.
 _COUNT_MAX = 32767
@@ -106,26 +106,10 @@ class Capture:
             gaps = list(self._gaps)
         t0 = float(t[0])
         t = t - t0
-        info = self.info
-        meta = default_meta(
-            device=info.url,
-            identity=info.identity,
-            driver=info.driver,
-            chip=info.chip,
-            who_am_i=info.who_am_i,
-            range_g=info.range_g,
-            scale=info.scale,
-            requested_rate=info.requested_rate,
-            nominal_rate=info.nominal_rate,
-            delivered_rate=(t.size - 1) / float(t[-1]) if t.size > 1 and t[-1] > 0 else None,
-            start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            gaps=gaps,
-        )
+        meta = recording_meta(self.info, t, gaps, sum(max(int(g["missing"]), 0) for g in gaps))
         if self.interrupted:
             meta["interrupted"] = self.interrupted
-        if "truth" in info.extra:
-            meta["truth"] = info.extra["truth"]
-        return Recording(t, counts.astype(float) * info.scale, "m/s^2", channels, meta)
+        return Recording(t, counts.astype(float) * self.info.scale, "m/s^2", channels, meta)
 
 
 class Session:

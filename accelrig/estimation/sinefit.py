@@ -216,7 +216,7 @@ def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
 def _gauss_newton(tc, y, start, harmonics, tol):
     """One-dimensional Gauss-Newton on the variable projection functional, with step halving."""
     frequency = start
-    resid, cost, jac, coef = _vp_step(tc, y, frequency, harmonics)
+    resid, cost, jac, _ = _vp_step(tc, y, frequency, harmonics)
     for iteration in range(1, MAX_ITERATIONS + 1):
         jj = float(jac @ jac)
         if jj <= 0:
@@ -225,13 +225,13 @@ def _gauss_newton(tc, y, start, harmonics, tol):
         for _ in range(40):
             trial = frequency + step
             if trial > 0:
-                t_resid, t_cost, t_jac, t_coef = _vp_step(tc, y, trial, harmonics)
+                t_resid, t_cost, t_jac, _ = _vp_step(tc, y, trial, harmonics)
                 if t_cost <= cost * (1 + 1e-14):
                     break
             step *= 0.5
         else:
             return frequency, iteration, abs(step) < tol
-        frequency, resid, cost, jac, coef = trial, t_resid, t_cost, t_jac, t_coef
+        frequency, resid, cost, jac = trial, t_resid, t_cost, t_jac
         if abs(step) < tol:
             return frequency, iteration, True
     return frequency, MAX_ITERATIONS, False

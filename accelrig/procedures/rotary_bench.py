@@ -36,8 +36,6 @@ Processing, as the paper and with its known weaknesses made explicit:
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,7 +47,7 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.procedures.result import CalibrationResult, Estimate
-from accelrig.recording import Recording, load_recording
+from accelrig.recording import Recording, load_recording, read_table
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 
 AXES = "xyz"
@@ -140,42 +138,9 @@ class EncoderLog:
 def read_encoder_csv(path: str | os.PathLike) -> EncoderLog:
     """Read an encoder log: header with ``t`` (s, accurate clock) and ``theta`` (rad), optional ``ref``."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
-    except (IsADirectoryError, UnicodeDecodeError):
-        raise DataError(f"{path}: not a CSV text file") from None
-    header = None
-    rows = []
-    for lineno, line in enumerate(io.StringIO(text), start=1):
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        fields = [f.strip() for f in next(csv.reader([s]))]
-        if header is None:
-            header = fields
-            missing = [c for c in ("t", "theta") if c not in header]
-            if missing:
-                raise DataError(f"{path}:{lineno}: encoder log lacks column(s) {', '.join(missing)}",
-                                "an encoder log needs a header t,theta (seconds, radians)")
-            continue
-        if len(fields) != len(header):
-            raise DataError(f"{path}:{lineno}: expected {len(header)} values, got {len(fields)}")
-        try:
-            rows.append([float(f) for f in fields])
-        except ValueError:
-            raise DataError(f"{path}:{lineno}: a value is not a number") from None
-    if header is None or not rows:
-        raise DataError(f"{path}: no encoder samples", "an encoder log needs a header t,theta and data rows")
-    data = np.asarray(rows)
-    if not np.all(np.isfinite(data)):
-        raise DataError(f"{path}: holds NaN or infinite values")
+    header, data, _ = read_table(path, ("t", "theta"), "an encoder log", "t,theta (seconds, radians)")
     col = {n: i for i, n in enumerate(header)}
     ref = data[:, col["ref"]] if "ref" in col else None
-    if np.any(np.diff(data[:, col["t"]]) <= 0):
-        k = int(np.argmax(np.diff(data[:, col["t"]]) <= 0))
-        raise DataError(f"{path}: time t does not increase at data row {k + 2}")
     return EncoderLog(data[:, col["t"]], data[:, col["theta"]], ref, str(path))
 
 

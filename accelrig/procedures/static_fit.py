@@ -44,7 +44,7 @@ from scipy.stats import chi2 as chi2_dist
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
 from accelrig.procedures.result import Correction
-from accelrig.sim.sensor import rotation_xyz
+from accelrig.geometry import rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")

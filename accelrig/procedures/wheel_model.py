@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.estimation.crb import numerical_jacobian
-from accelrig.sim.sensor import rotation_xyz
+from accelrig.geometry import rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 
 N_MOTION = 5  # theta0, w0 .. w3

@@ -69,6 +69,22 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     return warnings
 
 
+def correction_for(profile: Profile, meta: dict | None) -> Correction:
+    """The profile's correction for data from a device that already removes part of the bias.
+
+    A profile always holds the correction of the sensor as it powers up
+    (factory trim).  A chip whose offset registers were flashed subtracts
+    ``meta['hardware_bias_removed']`` (m/s^2, raw frame) before the data leave
+    it, so on its data the host must subtract only what is left:
+    C (raw_hw - (b - removed)).  Subtracting b again would remove it twice.
+    """
+    corr = profile.correction
+    removed = (meta or {}).get("hardware_bias_removed")
+    if removed is None:
+        return corr
+    return Correction(corr.matrix, corr.bias - np.asarray(removed, dtype=float), corr.covariance)
+
+
 def raw_si(rec: Recording, profile: Profile) -> np.ndarray:
     """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes."""
     if rec.units == "m/s^2":
@@ -124,7 +140,7 @@ def apply_profile(
                            "apply the profile to the raw recording")
     warnings = check_compatible(profile, rec.meta, rec.units, force)
     raw = raw_si(rec, profile)
-    corr = profile.correction
+    corr = correction_for(profile, rec.meta)
     channels = dict(rec.channels)
     if uncertainty:
         clash = [c for c in UNCERTAINTY_CHANNELS if c in channels]
@@ -173,10 +189,15 @@ class CalibratedChunk:
         return self.chunk.n
 
 
-def calibrated(chunk: Chunk, profile: Profile, uncertainty: bool = False, force: bool = False) -> CalibratedChunk:
-    """Calibrate one chunk from a ring-buffer reader."""
+def calibrated(chunk: Chunk, profile: Profile, uncertainty: bool = False, force: bool = False,
+               device: dict | None = None) -> CalibratedChunk:
+    """Calibrate one chunk from a ring-buffer reader.
+
+    ``device`` (DeviceInfo.to_dict(), or its ``extra``) tells whether the device
+    removes part of the bias in hardware (flashed offsets): see correction_for.
+    """
     check_compatible(profile, {"scale": chunk.scale}, "counts", force)
-    corr = profile.correction
+    corr = correction_for(profile, device)
     raw = chunk.acceleration()
     return CalibratedChunk(corr.apply(raw), sample_uncertainty(corr, raw) if uncertainty else None, chunk)
 
@@ -198,10 +219,11 @@ class CalibratedReader:
         info = device.to_dict() if hasattr(device, "to_dict") else dict(device or {})
         info.setdefault("scale", reader.buffer.scale)
         self.warnings = check_compatible(profile, info, "counts", force)
+        self.device = {"hardware_bias_removed": (info.get("extra") or {}).get("hardware_bias_removed")}
 
     @property
     def pending(self) -> int:
         return self.reader.pending
 
     def read(self, max_samples: int | None = None) -> CalibratedChunk:
-        return calibrated(self.reader.read(max_samples), self.profile, self.uncertainty, self.force)
+        return calibrated(self.reader.read(max_samples), self.profile, self.uncertainty, self.force, self.device)

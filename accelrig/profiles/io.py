@@ -22,7 +22,7 @@ import yaml
 from accelrig import __version__
 from accelrig.errors import ProfileError
 from accelrig.procedures.result import CalibrationResult, Correction, _plain
-from accelrig.recording import Recording, atomic_write
+from accelrig.recording import Recording, atomic_write, read_text_file
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
 from accelrig.profiles.schema import SCHEMA_VERSION, format_datetime, parse_datetime, validate
@@ -155,6 +155,14 @@ def profile_from_result(
         pcov = np.asarray(result.covariance, dtype=float).tolist()
 
     corr = result.correction
+    warnings = [str(w) for w in result.warnings]
+    removed = meta.get("hardware_bias_removed")
+    if removed is not None:
+        # The data came from a chip with flashed offsets; a profile describes the
+        # sensor as it powers up, so the bias the chip removed is added back.
+        corr = Correction(corr.matrix, corr.bias + np.asarray(removed, dtype=float), corr.covariance)
+        warnings.append("recorded with flashed offsets removing " + ", ".join(f"{v:.4g}" for v in removed)
+                        + " m/s^2 in hardware; the profile's bias is for the sensor at power-up")
     data = {
         "schema_version": SCHEMA_VERSION,
         "device": dev,
@@ -172,7 +180,7 @@ def profile_from_result(
         },
         "quality": quality,
         "noise": None,
-        "warnings": [str(w) for w in result.warnings],
+        "warnings": warnings,
         "provenance": {
             "created": created or utc_now(),
             "software_version": __version__,
@@ -305,14 +313,5 @@ def _check_version(data: dict, source: str) -> None:
 def load_profile(path: str | os.PathLike) -> Profile:
     """Read and validate a profile; one ProfileError naming the file and the field on any problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ProfileError(f"{path}: no such profile") from None
-    except IsADirectoryError:
-        raise ProfileError(f"{path}: is a directory, not a profile") from None
-    except UnicodeDecodeError:
-        raise ProfileError(f"{path}: not a text file, so not a YAML profile") from None
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read ({exc.strerror})") from None
+    text = read_text_file(path, ProfileError, "a YAML profile")
     return Profile(parse_profile_text(text, str(path)), path)

@@ -199,17 +199,22 @@ class AccelChip(abc.ABC):
     def fifo_overflowed(self) -> bool:
         """Read (and so clear) the overflow status."""
 
-    @abc.abstractmethod
-    def fifo_count(self) -> int: ...
+    # Both register maps name these fields alike (fifo_count, fifo_r_w, xa/ya/za_offset),
+    # so the chips share one implementation; banks are the register map's business.
+    def fifo_count(self) -> int:
+        return self.regs.fifo_count
 
-    @abc.abstractmethod
     def fifo_read(self, length: int) -> bytes:
         """Burst-read ``length`` bytes from the FIFO data port (I2C_RDWR)."""
+        return self.regs.fifo_r_w(length)
 
-    @abc.abstractmethod
     def read_offset_words(self) -> list[int]:
         """The three offset register pairs as unsigned 16-bit words."""
+        return [self.regs.xa_offset[0], self.regs.ya_offset[0], self.regs.za_offset[0]]
 
-    @abc.abstractmethod
     def write_offset_words(self, words: list[int]) -> None:
         """Write the three offset register pairs (each read back and compared)."""
+        x, y, z = words
+        self.regs.xa_offset = (x,)
+        self.regs.ya_offset = (y,)
+        self.regs.za_offset = (z,)

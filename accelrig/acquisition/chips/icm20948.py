@@ -110,18 +110,3 @@ class ICM20948(AccelChip):
 
     def fifo_overflowed(self) -> bool:
         return bool(self.regs.int_status_2 & 0x1F)
-
-    def fifo_count(self) -> int:
-        return self.regs.fifo_count
-
-    def fifo_read(self, length: int) -> bytes:
-        return self.regs.fifo_r_w(length)
-
-    def read_offset_words(self) -> list[int]:
-        return [self.regs.xa_offset[0], self.regs.ya_offset[0], self.regs.za_offset[0]]
-
-    def write_offset_words(self, words: list[int]) -> None:
-        x, y, z = words
-        self.regs.xa_offset = (x,)
-        self.regs.ya_offset = (y,)
-        self.regs.za_offset = (z,)

@@ -105,18 +105,3 @@ class MPU9250(AccelChip):
 
     def fifo_overflowed(self) -> bool:
         return bool(self.regs.int_status & FIFO_OFLOW_INT)
-
-    def fifo_count(self) -> int:
-        return self.regs.fifo_count
-
-    def fifo_read(self, length: int) -> bytes:
-        return self.regs.fifo_r_w(length)
-
-    def read_offset_words(self) -> list[int]:
-        return [self.regs.xa_offset[0], self.regs.ya_offset[0], self.regs.za_offset[0]]
-
-    def write_offset_words(self, words: list[int]) -> None:
-        x, y, z = words
-        self.regs.xa_offset = (x,)
-        self.regs.ya_offset = (y,)
-        self.regs.za_offset = (z,)

@@ -27,7 +27,7 @@ from accelrig.procedures.wheel_model import (
     TABLE_I_MISALIGNMENT_DEG, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG, bench_force, phase,
 )
 from accelrig.sim.rigs.base import Rig
-from accelrig.sim.sensor import rotation_xyz
+from accelrig.geometry import rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 
 # Default hand spin: Table I's coast-down shape started at 6 rad/s, whose peak
