@@ -7,7 +7,6 @@ import errno
 import numpy as np
 import pytest
 
-smbus2 = pytest.importorskip("smbus2")
 from smbus2 import i2c_msg  # noqa: E402
 
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402

@@ -7,7 +7,6 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip("smbus2")
 
 from accelrig.acquisition.chips.icm20948 import ICM20948  # noqa: E402
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402

@@ -7,7 +7,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-pytest.importorskip("smbus2")
 
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-smbus2 = pytest.importorskip("smbus2")
+import smbus2  # noqa: E402
 
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402
 from accelrig.acquisition.registers import (  # noqa: E402

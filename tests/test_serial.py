@@ -16,7 +16,6 @@ from accelrig.errors import DeviceError, MissingExtraError
 from accelrig.sim.firmware import PtyFirmware, deliverable_rate
 from accelrig_drivers.serial import SerialDriver, firmware_from_url
 
-pytest.importorskip("serial")
 
 
 def make_firmware(options="seed=3", max_n=255):

@@ -1,39 +1,17 @@
 """The TUI shell driven with Textual's Pilot: live view, help, connect, disconnect, errors."""
 
-import asyncio
-import functools
 
-import pytest
 
-pytest.importorskip("textual")
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.connect import ConnectScreen  # noqa: E402
 from accelrig.tui.screens.help import HelpScreen  # noqa: E402
 from accelrig.tui.screens.live import LiveScreen  # noqa: E402
-
-def async_test(fn):
-    """Run an async test with asyncio.run (no pytest-asyncio needed)."""
-
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
+from tui_support import async_test, wait_for  # noqa: E402
 
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
-
-
-async def wait_for(pilot, condition, timeout=10.0):
-    """Let the app run until ``condition()`` holds."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
 
 
 def text_of(app, selector):

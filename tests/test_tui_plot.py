@@ -3,9 +3,7 @@
 import asyncio
 
 import numpy as np
-import pytest
 
-pytest.importorskip("textual")
 
 from textual.app import App  # noqa: E402
 

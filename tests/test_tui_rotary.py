@@ -1,38 +1,17 @@
 """The rotary bench wizard end to end on sim://rotary: each step's sensitivity matches the truth."""
 
-import asyncio
-import functools
 
-import pytest
 
-pytest.importorskip("textual")
-pytest.importorskip("accelrig.procedures.rotary_session", reason="the rotary bench procedure is not installed")
 
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotarySetupScreen, RotaryWizard  # noqa: E402
+from tui_support import async_test, wait_for  # noqa: E402
 
 # realtime: a step is recorded from the moment the operator presses space, as on a real bench
 # (a pace=fast source would have run out before the first key press)
 DEVICE = "sim://rotary?seed=2&range=8&rate=1000&seconds=60"
-
-
-def async_test(fn):
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
-
-
-async def wait_for(pilot, condition, timeout=30.0):
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
 
 
 @async_test

@@ -1,12 +1,7 @@
 """The slider-crank wizard end to end on sim://slider-crank, keyboard only: the radius matches the truth."""
 
-import asyncio
-import functools
 
-import pytest
 
-pytest.importorskip("textual")
-pytest.importorskip("accelrig.procedures.slider_crank", reason="the slider-crank procedure is not installed")
 
 from accelrig.recording import Recording, save_recording  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
@@ -15,26 +10,10 @@ from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.slider_wizard import SliderCrankWizard, SliderSetupScreen, VerificationScreen  # noqa: E402
+from tui_support import async_test, wait_for  # noqa: E402
 
 # an ideal sensor: the raw data are the truth, so no profile is needed to verify the stand itself
 DEVICE = "sim://slider-crank?seed=5&range=8&pace=fast&rate=2048&steps=3,6,9&noise=0.08&clearance=0.0002&truth=ideal"
-
-
-def async_test(fn):
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
-
-
-async def wait_for(pilot, condition, timeout=30.0):
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
 
 
 async def start_wizard(app, pilot):

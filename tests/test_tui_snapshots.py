@@ -8,9 +8,7 @@ at the SVGs before committing them.
 
 import asyncio
 
-import pytest
 
-pytest.importorskip("textual")
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
@@ -48,19 +46,8 @@ def test_help_80x24(snap_compare):
                         run_before=open_help)
 
 
-def _static_installed():
-    try:
-        import accelrig.procedures.static_faces  # noqa: F401
-        import accelrig.profiles  # noqa: F401
-    except ModuleNotFoundError:
-        return False
-    return True
 
 
-needs_static = pytest.mark.skipif(not _static_installed(), reason="the static procedure or profiles are not installed")
-
-
-@needs_static
 def test_static_wizard_done_80x24(snap_compare):
     from accelrig.tui.screens.results import ResultsScreen
 
@@ -81,7 +68,6 @@ def test_static_wizard_done_80x24(snap_compare):
                         terminal_size=(80, 24), run_before=run_wizard)
 
 
-@needs_static
 def test_static_results_120x40(snap_compare):
     from accelrig.acquisition.driver import driver_for
     from accelrig.acquisition.recorder import record

@@ -1,39 +1,17 @@
 """The static wizard end to end on a simulated rig, keyboard only: the saved profile matches the truth."""
 
-import asyncio
-import functools
 
 import numpy as np
-import pytest
 
-pytest.importorskip("textual")
-pytest.importorskip("accelrig.procedures.static_faces", reason="the static procedure is not installed")
-pytest.importorskip("accelrig.profiles", reason="accelrig.profiles is not installed")
 
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
+from tui_support import async_test, wait_for  # noqa: E402
 
 DEVICE = "sim://static?seed=3&pace=fast"
-
-
-def async_test(fn):
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
-
-
-async def wait_for(pilot, condition, timeout=30.0):
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
 
 
 def status(app):
@@ -106,7 +84,6 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
 @async_test
 async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_asks(tmp_path):
     """i2c-sim: the real I2C driver over a register-level MPU-9250 emulator; the flash is real."""
-    pytest.importorskip("accelrig_drivers.i2c_sim", reason="the I2C driver is not installed")
     app = AccelrigApp(device="i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3", refresh_interval=0.05,
                       profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:

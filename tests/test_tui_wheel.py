@@ -1,13 +1,8 @@
 """The wheel wizard end to end on sim://wheel, keyboard only: the saved profile matches the truth."""
 
-import asyncio
-import functools
 
 import numpy as np
-import pytest
 
-pytest.importorskip("textual")
-pytest.importorskip("accelrig.procedures.wheel", reason="the wheel procedure is not installed")
 
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
@@ -15,25 +10,9 @@ from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.dialogs import PathScreen  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wheel_wizard import WheelSetupScreen, WheelWizard  # noqa: E402
+from tui_support import async_test, wait_for  # noqa: E402
 
 DEVICE = "sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05"
-
-
-def async_test(fn):
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
-
-
-async def wait_for(pilot, condition, timeout=40.0):
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
 
 
 @async_test

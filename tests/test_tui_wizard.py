@@ -6,37 +6,17 @@ wizard does with a procedure (feed, events, progress, done, result in a
 worker, results, disconnect) without depending on any one calibration.
 """
 
-import asyncio
-import functools
 from dataclasses import dataclass
 
 import numpy as np
-import pytest
 
-pytest.importorskip("textual")
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.procedures.result import CalibrationResult, Correction, Estimate  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wizard import ProcedureWizard  # noqa: E402
-
-
-def async_test(fn):
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-
-    return run
-
-
-async def wait_for(pilot, condition, timeout=15.0):
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        if loop.time() > deadline:
-            raise AssertionError("timed out waiting for the app")
-        await pilot.pause(0.05)
+from tui_support import async_test, wait_for  # noqa: E402
 
 
 @dataclass

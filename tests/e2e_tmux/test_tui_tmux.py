@@ -14,9 +14,6 @@ import time
 
 import pytest
 
-pytest.importorskip("textual")
-pytest.importorskip("accelrig.procedures.static_faces", reason="the static procedure is not installed")
-pytest.importorskip("accelrig.profiles", reason="accelrig.profiles is not installed")
 
 if shutil.which("tmux") is None:
     pytest.skip("tmux is not installed (CI installs it: apt-get install tmux)", allow_module_level=True)
