@@ -35,6 +35,7 @@ RX_UUID = "a5ce1002-7c2b-4f0e-9d6a-3b8e5f1c2d40"   # write: host -> device comma
 SCAN_SECONDS = 3.0
 MAX_BACKOFF = 8.0
 REORDER_WINDOW = 8
+LOOP_STOP_SECONDS = 5.0  # how long close() waits for the link's event loop thread to end
 
 
 def _import_bleak():
@@ -44,6 +45,20 @@ def _import_bleak():
 def _bleak_client_factory(address, disconnected_callback):
     bleak = _import_bleak()
     return bleak.BleakClient(address, disconnected_callback=disconnected_callback)
+
+
+def _run_loop(loop: asyncio.AbstractEventLoop) -> None:
+    try:
+        loop.run_forever()
+    finally:
+        loop.close()
+
+
+async def _disconnect_quietly(client) -> None:
+    try:
+        await client.disconnect()
+    except Exception:  # the error that made us drop the link is the one to report
+        pass
 
 
 class BleDriver(FirmwareDriver):
@@ -108,7 +123,7 @@ class BleDriver(FirmwareDriver):
         if self.backoff <= 0:
             raise DeviceError(f"backoff={self.backoff} in {self.url.raw!r} must be positive")
         self._loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self._loop.run_forever, name="ble-link", daemon=True)
+        self._thread = threading.Thread(target=_run_loop, args=(self._loop,), name="ble-link", daemon=True)
         self._thread.start()
         try:
             self._call(self._connect(), timeout=20.0)
@@ -135,15 +150,21 @@ class BleDriver(FirmwareDriver):
         self._inbox.append(bytes(data))
         self._arrived.set()
 
-    def _on_disconnect(self, _client) -> None:
-        if self._closing:
+    def _on_disconnect(self, client) -> None:
+        # Only the link in use reconnects: a client dropped on purpose (a failed
+        # connect, a late callback from the previous link) must not start another loop.
+        if self._closing or client is not self.client:
             return
         self._loop.call_soon_threadsafe(lambda: self._loop.create_task(self._reconnect()))
 
     async def _connect(self) -> None:
         client = self.client_factory(self.url.target, self._on_disconnect)
         await client.connect()
-        await client.start_notify(TX_UUID, self._on_notify)
+        try:
+            await client.start_notify(TX_UUID, self._on_notify)
+        except BaseException:
+            await _disconnect_quietly(client)  # connected but unusable: do not leave it connected
+            raise
         self.client = client
 
     async def _reconnect(self) -> None:
@@ -165,6 +186,10 @@ class BleDriver(FirmwareDriver):
                 return
             except Exception as exc:  # bleak raises BleakError, TimeoutError, OSError ...
                 last_error = str(exc) or type(exc).__name__
+                # connected but START failed: drop that link before the next attempt
+                client, self.client = self.client, None
+                if client is not None:
+                    await _disconnect_quietly(client)
                 delay = min(delay * 2, MAX_BACKOFF)
         self._failure = DeviceError(
             f"BLE {self.url.target} disconnected and did not come back within {self.reconnect_limit:g} s "
@@ -212,8 +237,9 @@ class BleDriver(FirmwareDriver):
     def _stop_loop(self) -> None:
         if self._loop is not None:
             self._loop.call_soon_threadsafe(self._loop.stop)
-            self._thread.join(timeout=5)
-            self._loop.close()
+            # The thread closes its loop when run_forever() returns; closing it from here
+            # while a slow callback still runs would raise "Cannot close a running event loop".
+            self._thread.join(timeout=LOOP_STOP_SECONDS)
             self._loop = None
 
     def _transport_close(self) -> None:

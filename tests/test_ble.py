@@ -181,3 +181,59 @@ def test_devices_command_lists_links_and_never_hangs():
     for scheme in ("serial://", "ble://", "serial-sim://still", "ble-sim://still"):
         assert scheme in r.stdout
     assert time.monotonic() - start < 15
+
+
+class NotifyRefusingClient(ScriptedClient):
+    """Connects, then refuses to subscribe (as bleak does when the TX characteristic is missing)."""
+
+    async def start_notify(self, char, callback):
+        raise OSError("characteristic not found")
+
+
+def clients_driver(kinds, **options):
+    """A BleDriver whose factory hands out one client of each kind in turn; returns (driver, clients)."""
+    firmware, _ = firmware_from_url(DeviceURL.parse("ble-sim://still?seed=1"), 37)
+    query = "&".join(f"{k}={v}" for k, v in {"rate": 100, "frame": 10, **options}.items())
+    kinds = iter(kinds)
+    made = []
+
+    def factory(addr, cb):
+        made.append(next(kinds)(addr, cb, [], firmware))
+        return made[-1]
+
+    return BleDriver(DeviceURL.parse(f"ble://AA:BB:CC:DD:EE:FF?{query}"), client_factory=factory), made
+
+
+def test_connect_whose_subscription_fails_disconnects_the_client():
+    driver, made = clients_driver([NotifyRefusingClient])
+    with pytest.raises(DeviceError, match="characteristic not found"):
+        driver.open()
+    assert len(made) == 1 and not made[0].is_connected
+    assert driver.reconnect_attempts == []  # dropping it on purpose is not a link loss
+    assert driver._loop is None
+
+
+def test_reconnect_whose_subscription_fails_disconnects_that_client_and_retries():
+    driver, made = clients_driver([ScriptedClient, NotifyRefusingClient, ScriptedClient], backoff=0.01)
+    with driver:
+        first = made[0]
+        first.disconnected_callback(first)  # the link drops
+        deadline = time.monotonic() + 5
+        while driver.stats.reconnects < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert driver.stats.reconnects == 1
+        assert driver.reconnect_attempts == [0.01, 0.02]
+        assert not made[1].is_connected
+        assert driver.client is made[2] and made[2].is_connected
+
+
+def test_close_does_not_close_an_event_loop_that_is_still_running(monkeypatch):
+    monkeypatch.setattr(ble, "LOOP_STOP_SECONDS", 0.05)
+    driver = scripted_driver([])
+    driver.open()
+    loop, thread = driver._loop, driver._thread
+    loop.call_soon_threadsafe(time.sleep, 0.5)  # a callback (a stuck bleak call) that outlasts the join
+    driver._stop_loop()  # used to raise RuntimeError: Cannot close a running event loop
+    assert thread.is_alive() and not loop.is_closed() and driver._loop is None
+    thread.join(2)
+    assert loop.is_closed()  # the thread closed it when it ended

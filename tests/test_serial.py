@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -161,3 +162,49 @@ def test_wall_clock_pace_for_demos():
     assert time.monotonic() - start >= 0.55  # it really took the time
     assert len(rec) == pytest.approx(0.6 * true_rate, abs=2)
     assert rec.meta["gaps"] == []
+
+
+def _fd_is_open(fd):
+    try:
+        os.fstat(fd)
+        return True
+    except OSError:
+        return False
+
+
+def test_pty_firmware_stop_twice_leaves_reused_fd_numbers_alone(tmp_path):
+    server = PtyFirmware(make_firmware(), pace="fast").start()
+    master, slave = server.master, server.slave
+    server.stop()
+    assert server.master == server.slave == -1
+    assert not _fd_is_open(master) and not _fd_is_open(slave)
+    # the lowest free numbers go to the next files opened: the pty's old ones
+    others = [os.open(tmp_path / name, os.O_CREAT | os.O_RDWR) for name in ("a", "b")]
+    try:
+        assert set(others) == {master, slave}
+        server.stop()
+        assert all(_fd_is_open(fd) for fd in others)
+    finally:
+        for fd in others:
+            os.close(fd)
+
+
+def test_pty_firmware_stop_keeps_the_pty_open_while_its_thread_still_writes():
+    firmware = make_firmware()
+    produce = firmware.produce
+    busy = threading.Event()
+
+    def slow_produce(device_time):
+        busy.set()
+        time.sleep(0.5)  # stands for a thread stuck in os.write/select on the master
+        return produce(device_time)
+
+    firmware.produce = slow_produce
+    server = PtyFirmware(firmware, pace="fast").start()
+    master = server.master
+    assert busy.wait(2)
+    server.stop(timeout=0.05)
+    assert server._thread.is_alive() and _fd_is_open(master) and server.master == master
+    server._thread.join(2)
+    assert server.master == server.slave == -1  # closed by the thread once it ended
+    assert server.error is None

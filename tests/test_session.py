@@ -1,11 +1,14 @@
 """The threaded acquisition Session: rate, drops, disconnects, lossless readers, captures."""
 
+import threading
 import time
 
 import numpy as np
 import pytest
 
+from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.session import Session, State
+from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
 
 
@@ -130,3 +133,58 @@ def test_flash_on_a_sim_device_says_it_cannot_store_a_calibration():
     with pytest.raises(DeviceError, match="cannot store a calibration"):
         session.plan_flash(profile=None)
     session.stop()
+
+
+class SlowReadDriver(Driver):
+    """A driver whose read() outlasts the stop() timeout; it records whether close() ran mid-read."""
+
+    scheme = "slow-read"
+    description = "test double"
+
+    def __init__(self, read_seconds=0.5, open_error=None):
+        super().__init__(DeviceURL.parse("slow-read://x"))
+        self.read_seconds = read_seconds
+        self.open_error = open_error
+        self.reading = threading.Event()
+        self.in_read = False
+        self.closed_during_read = False
+        self.closes = 0
+
+    def open(self):
+        if self.open_error is not None:
+            raise self.open_error
+        return DeviceInfo(driver="slow-read", url="slow-read://x", chip="test", identity="x",
+                          range_g=4.0, scale=1e-3, requested_rate=100.0, nominal_rate=100.0)
+
+    def read(self, timeout=0.1):
+        self.in_read = True
+        self.reading.set()
+        time.sleep(self.read_seconds)
+        self.in_read = False
+        return []
+
+    def close(self):
+        self.closes += 1
+        self.closed_during_read |= self.in_read
+
+
+def test_stop_whose_join_times_out_waits_for_the_read_before_closing():
+    driver = SlowReadDriver(read_seconds=0.5)
+    session = Session(driver=driver)
+    session.start()
+    assert driver.reading.wait(2)
+    session.stop(timeout=0.05)
+    assert driver.closes == 1 and not driver.closed_during_read
+    assert "did not stop within 0.05 s" in session.stats().last_error
+    assert session._thread is not None  # kept, so it can still be joined
+    assert session.wait(2)
+
+
+@pytest.mark.parametrize("error", [RuntimeError("driver bug"), KeyboardInterrupt()])
+def test_open_that_fails_any_way_releases_the_driver(error):
+    driver = SlowReadDriver(open_error=error)
+    session = Session(driver=driver)
+    with pytest.raises(type(error)):
+        session.open()
+    assert driver.closes == 1
+    assert session.state == State.CLOSED

@@ -150,8 +150,13 @@ class Session:
             return self.info
         try:
             self.info = self.driver.open()
-        except AccelrigError:
-            self.driver.close()
+        except BaseException:
+            # Whatever stopped open() (a DeviceError, a driver bug, Ctrl-C) may have left a
+            # half-open link behind (a pty and its thread, a BLE connection): release it.
+            try:
+                self.driver.close()
+            except Exception:
+                pass  # the open() error is the one worth reporting
             raise
         self.driver.info = self.info
         capacity = max(int(self.info.nominal_rate * self.buffer_seconds), 4096)
@@ -173,11 +178,21 @@ class Session:
         self._stop.set()
         with self._space:
             self._space.notify_all()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout)
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+            if thread.is_alive():
+                # The pump is still inside driver.read(); say so, and keep the thread
+                # handle so wait() can still join it and start() does not pump twice.
+                with self._lock:
+                    self.last_error = (f"the pump did not stop within {timeout:g} s: a driver read was "
+                                       f"still running; the device was closed only after it returned")
         if self.state in (State.OPEN, State.STREAMING, State.CLOSED):
             self.state = State.STOPPED
-        self.driver.close()
+        # The pump reads under the device lock: closing without it could pull the
+        # device from under a read still in progress.
+        with self._device_lock:
+            self.driver.close()
 
     @property
     def running(self) -> bool:

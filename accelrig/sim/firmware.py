@@ -274,11 +274,24 @@ class PtyFirmware:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def stop(self) -> None:
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop serving and close the pty; safe to call more than once."""
         self._stop.set()
         if self._thread.is_alive():
-            self._thread.join(timeout=5)
-        for fd in (self.master, self.slave):
+            self._thread.join(timeout)
+        if self._thread.is_alive():
+            # Still inside select/os.write on the master: closing now would let its fd
+            # number be reused by another file under it.  _run closes both when it ends.
+            return
+        self._close_pty()
+
+    def _close_pty(self) -> None:
+        # -1 marks a closed fd, so a second call never closes a number reused since
+        for name in ("master", "slave"):
+            fd = getattr(self, name)
+            if fd < 0:
+                continue
+            setattr(self, name, -1)
             try:
                 os.close(fd)
             except OSError:
@@ -339,6 +352,9 @@ class PtyFirmware:
                     return
         except BaseException as exc:  # surfaced to tests; the host sees a stalled device
             self.error = exc
+        finally:
+            if self._stop.is_set():  # stop() may have given up waiting for this thread
+                self._close_pty()
 
 
 class SimBleClient:
