@@ -18,7 +18,6 @@ from accelrig.acquisition.ringbuffer import Chunk, Reader
 from accelrig.errors import ProfileError
 from accelrig.procedures.result import Correction
 from accelrig.recording import Recording
-from accelrig.units import STANDARD_GRAVITY
 
 from accelrig.profiles.io import Profile
 
@@ -86,17 +85,16 @@ def correction_for(profile: Profile, meta: dict | None) -> Correction:
 
 
 def raw_si(rec: Recording, profile: Profile) -> np.ndarray:
-    """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes."""
-    if rec.units == "m/s^2":
-        return rec.acc
-    if rec.units == "counts":
-        scale = rec.meta.get("scale") or profile.device["scale"]
-        if scale is None:
+    """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes.
+
+    Counts without a scale of their own take the profile's (same device, checked).
+    """
+    if rec.units == "counts" and not rec.meta.get("scale"):
+        if profile.device["scale"] is None:
             raise ProfileError("the data are in counts and neither they nor the profile give the scale",
                                "convert the data to m/s^2 or record the range")
-        return rec.acc * float(scale)
-    # g: only reached when forced; raw m/s^2 is defined with standard gravity (nominal scale).
-    return rec.acc * STANDARD_GRAVITY
+        rec = Recording(rec.t, rec.acc, rec.units, rec.channels, {**rec.meta, "scale": profile.device["scale"]})
+    return rec.to_si().acc
 
 
 def sample_covariances(correction: Correction, raw: np.ndarray) -> np.ndarray:
