@@ -21,7 +21,7 @@ from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.errors import DataError, DeviceError
 from accelrig.recording import load_recording
-from accelrig.units import STANDARD_GRAVITY, scale_for_range
+from accelrig.units import MEMS_RANGES_G, STANDARD_GRAVITY, scale_for_range
 
 
 class ReplayDriver(Driver):
@@ -56,7 +56,7 @@ class ReplayDriver(Driver):
             si = rec.to_si().acc
             if not scale:
                 peak = float(np.max(np.abs(si))) / STANDARD_GRAVITY
-                range_g = next((r for r in (2.0, 4.0, 8.0, 16.0) if peak < r * 0.999), 16.0)
+                range_g = next((r for r in MEMS_RANGES_G if peak < r * 0.999), MEMS_RANGES_G[-1])
                 scale = scale_for_range(range_g)
             counts = np.rint(si / scale)
         self._counts = np.clip(counts, -32768, 32767).astype(np.int16)

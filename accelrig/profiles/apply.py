@@ -4,8 +4,8 @@ The correction is only valid for the device, range and units it was made
 for (the profile records them).  ``check_compatible`` refuses anything else
 unless forced; a forced or unverifiable application comes back as warnings
 for the caller to show.  Every calibrated sample can carry its standard
-uncertainty from the correction's covariance (Correction.sample_covariance,
-vectorised here for streams).
+uncertainty from the correction's covariance (Correction.sample_covariances,
+applied in bounded chunks here for streams).
 """
 
 from __future__ import annotations
@@ -97,30 +97,12 @@ def raw_si(rec: Recording, profile: Profile) -> np.ndarray:
     return rec.to_si().acc
 
 
-def sample_covariances(correction: Correction, raw: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) covariance of each calibrated sample from the correction's uncertainty.
-
-    Same quantity as Correction.sample_covariance (y = C (x - b), Jacobian
-    [kron(I, (x - b)^T), -C]), in closed form so a stream of millions of
-    samples costs a few array operations instead of a Python loop.
-    """
-    d = np.asarray(raw, dtype=float).reshape(-1, 3) - correction.bias
-    cov = correction.covariance
-    s_cc = cov[:9, :9].reshape(3, 3, 3, 3)   # [i, j, k, l] = cov(C_ij, C_kl)
-    s_cb = cov[:9, 9:].reshape(3, 3, 3)      # [i, j, m] = cov(C_ij, b_m)
-    s_bb = cov[9:, 9:]
-    c = correction.matrix
-    term_cc = np.einsum("nj,ijkl,nl->nik", d, s_cc, d, optimize=True)
-    a = np.einsum("nj,ijm->nim", d, s_cb, optimize=True) @ c.T   # cov(dC d, C b) part
-    return term_cc - a - np.swapaxes(a, 1, 2) + c @ s_bb @ c.T
-
-
 def sample_uncertainty(correction: Correction, raw: np.ndarray, chunk: int = 65536) -> np.ndarray:
     """(n, 3) standard uncertainty of each calibrated axis, in bounded memory."""
     raw = np.asarray(raw, dtype=float).reshape(-1, 3)
     out = np.empty_like(raw)
     for start in range(0, raw.shape[0], chunk):
-        cov = sample_covariances(correction, raw[start:start + chunk])
+        cov = correction.sample_covariances(raw[start:start + chunk])
         out[start:start + chunk] = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     return out
 
