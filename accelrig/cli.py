@@ -37,7 +37,7 @@ GROUPS = {
     "calibrate": "compute a calibration from a recording",
     "verify": "verify a calibration under motion",
     "plan": "predict achievable uncertainties before taking data",
-    "profile": "device profiles: list, show, validate, diff, apply",
+    "profile": "device profiles: list, show, validate, diff, apply, add",
 }
 
 

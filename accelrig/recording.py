@@ -20,6 +20,7 @@ import io
 import json
 import os
 import tempfile
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,12 +81,19 @@ class Recording:
             raise DataError("a recording needs at least two samples with increasing times to have a rate")
         return (len(self) - 1) / self.duration
 
-    def to_si(self, g: float | None = None) -> "Recording":
-        """The same recording with acc in m/s^2 (counts need meta['scale'])."""
+    def to_si(self, check_units: bool = True) -> "Recording":
+        """The same recording with acc in m/s^2: raw = counts x nominal scale (meta['scale']).
+
+        Unit g is standard g (9.80665 m/s^2) by definition, as the nominal
+        scale is; a local g is only the size of the reference, never a unit.
+        With ``check_units`` (the default), data whose size says the declared
+        units are wrong are refused, naming the --units flag to use.
+        """
+        if check_units:
+            check_declared_units(self)
         if self.units == "m/s^2":
             return self
-        g = g if g is not None else float(self.meta.get("g", STANDARD_GRAVITY))
-        acc = to_si(self.acc, self.units, self.meta.get("scale"), g)
+        acc = to_si(self.acc, self.units, self.meta.get("scale"), STANDARD_GRAVITY)
         return Recording(self.t, acc, "m/s^2", dict(self.channels), dict(self.meta))
 
     def slice(self, start: int, stop: int) -> "Recording":
@@ -286,8 +294,8 @@ def load_native(path: str | os.PathLike) -> Recording:
             return Recording(z["t"], z["acc"], meta.get("units", "m/s^2"), channels, meta)
     except FileNotFoundError:
         raise DataError(f"{path}: no such file") from None
-    except (ValueError, KeyError, OSError) as exc:
-        raise DataError(f"{path}: not an accelrig .npz recording ({exc})") from None
+    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataError(f"{path}: not an accelrig .npz recording ({exc or type(exc).__name__})") from None
 
 
 def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None) -> Recording:
@@ -347,3 +355,20 @@ def guess_units(acc: np.ndarray) -> str:
     if m > 100.0:
         return "counts"
     return "unknown"
+
+
+def check_declared_units(rec: Recording) -> None:
+    """Refuse data whose size says the declared units are wrong, naming the flag to use.
+
+    Catches the common slips (a file in g read as m/s^2, counts read as g);
+    data whose size fits no unit (strong motion) pass: the procedures' own
+    checks judge them.
+    """
+    guess = guess_units(rec.acc)
+    if guess in ("unknown", rec.units):
+        return
+    flag = {"m/s^2": "--units m/s2", "g": "--units g", "counts": "--units counts"}[guess]
+    size = float(np.median(np.linalg.norm(rec.acc, axis=1)))
+    raise DataError(f"the data were declared as {rec.units} but look like {guess} (median |a| about {size:.3g})",
+                    f"use {flag}")
+

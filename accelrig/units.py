@@ -8,6 +8,9 @@ from accelrig.errors import DataError
 
 STANDARD_GRAVITY = 9.80665  # m/s^2, the default g; a local g is an option (--g)
 
+# The full-scale settings of MEMS accelerometers (+-g), in the order of their 2-bit register code.
+MEMS_RANGES_G = (2.0, 4.0, 8.0, 16.0)
+
 # Accepted spellings of the acceleration units a file or flag may declare.
 _UNIT_ALIASES = {
     "m/s2": "m/s^2",

@@ -21,7 +21,7 @@ from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.errors import DataError, DeviceError
 from accelrig.recording import load_recording
-from accelrig.units import STANDARD_GRAVITY, scale_for_range
+from accelrig.units import MEMS_RANGES_G, STANDARD_GRAVITY, scale_for_range
 
 
 class ReplayDriver(Driver):
@@ -56,7 +56,7 @@ class ReplayDriver(Driver):
             si = rec.to_si().acc
             if not scale:
                 peak = float(np.max(np.abs(si))) / STANDARD_GRAVITY
-                range_g = next((r for r in (2.0, 4.0, 8.0, 16.0) if peak < r * 0.999), 16.0)
+                range_g = next((r for r in MEMS_RANGES_G if peak < r * 0.999), MEMS_RANGES_G[-1])
                 scale = scale_for_range(range_g)
             counts = np.rint(si / scale)
         self._counts = np.clip(counts, -32768, 32767).astype(np.int16)
@@ -64,14 +64,22 @@ class ReplayDriver(Driver):
         self._period = float(self._t[-1] + (self._t[-1] - self._t[0]) / (len(rec) - 1))
         self._channels = rec.channels
         self._scale = float(scale)
+        # the source's gaps are facts of the stream: each one is replayed on the block it precedes
+        self._gaps = {int(g["index"]): int(g["missing"]) for g in rec.meta.get("gaps") or []
+                      if isinstance(g, dict) and "index" in g and "missing" in g}
         self._t0 = time.monotonic()
         rate = rec.rate
+        # the replayed device is the one that made the recording: its identity, chip,
+        # and whether its chip already removed part of the bias (flashed offsets)
+        extra = {"source": url.target, "meta": rec.meta}
+        if rec.meta.get("hardware_bias_removed") is not None:
+            extra["hardware_bias_removed"] = list(rec.meta["hardware_bias_removed"])
         self.info = DeviceInfo(
             driver="replay", url=url.raw, chip=str(rec.meta.get("chip", "replay")),
-            identity=str(rec.meta.get("device", url.target)),
-            range_g=round(self._scale * 32768 / STANDARD_GRAVITY, 3), scale=self._scale,
-            requested_rate=rate, nominal_rate=float(rec.meta.get("nominal_rate", rate)),
-            channels=tuple(rec.channels), extra={"source": url.target, "meta": rec.meta},
+            identity=str(rec.meta.get("identity") or rec.meta.get("device") or url.target),
+            range_g=float(rec.meta.get("range_g") or round(self._scale * 32768 / STANDARD_GRAVITY, 3)),
+            scale=self._scale, requested_rate=rate, nominal_rate=float(rec.meta.get("nominal_rate", rate)),
+            who_am_i=rec.meta.get("who_am_i"), channels=tuple(rec.channels), extra=extra,
         )
         return self.info
 
@@ -98,11 +106,16 @@ class ReplayDriver(Driver):
         host = time.monotonic()
         while self._pos < stop:
             end = min(stop, self._pos + self.block)
+            # a block ends where a recorded gap begins, so the gap lands on the right sample
+            later_gaps = [i for i in self._gaps if self._pos < i < end]
+            if later_gaps:
+                end = min(later_gaps)
             sl = slice(self._pos, end)
             offset = self._loops * self._period
             blocks.append(Block(
                 seq=self._seq, counter=self._loops * n_total + self._pos, host_time=host,
                 counts=self._counts[sl], scale=self._scale, t=self._t[sl] + offset,
+                gap_before=self._gaps.get(self._pos, 0),
                 channels={k: v[sl] for k, v in self._channels.items()},
             ))
             self._seq += 1

@@ -28,6 +28,7 @@ from accelrig.errors import DeviceError
 from accelrig.sim.device import Faults, SimDevice
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.sensor import SensorModel, SimClock
+from accelrig.units import MEMS_RANGES_G
 
 SENSOR_OPTIONS = {
     "seed", "pace", "rate", "rate_error", "jitter", "range", "noise", "truth", "block", "drop",
@@ -50,7 +51,7 @@ def build_device(url) -> tuple[SimDevice, str]:
     if not 1.0 <= rate <= 10000.0:
         raise DeviceError(f"rate={rate} Hz in {url.raw!r} is outside 1 .. 10000 Hz")
     range_g = url.get_float("range", 2.0)
-    if range_g not in (2.0, 4.0, 8.0, 16.0):
+    if range_g not in MEMS_RANGES_G:
         raise DeviceError(f"range={range_g:g} in {url.raw!r} is not a MEMS range", "use 2, 4, 8 or 16")
     block = url.get_int("block", 256)
     if not 1 <= block <= 65536:

@@ -4,6 +4,8 @@ import sys
 import pytest
 
 from accelrig import __version__
+from accelrig.acquisition.driver import driver_for
+from accelrig.acquisition.recorder import record
 from accelrig.cli import main
 from accelrig.recording import read_csv
 
@@ -65,3 +67,20 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch, capsys, module
     assert code != 0
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"pip install 'accelrig[{extra}]'" in err
+
+
+def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsys):
+    """A file in g without a units note is read as m/s^2: noise, verify and both calibrations refuse it."""
+    with driver_for("sim://still?seed=1&pace=fast") as d:
+        rec = record(d, samples=4000)
+    path = tmp_path / "in_g.csv"
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665:.6f},{b / 9.80665:.6f},{c / 9.80665:.6f}"
+                                                 for t, (a, b, c) in zip(rec.t, rec.acc)) + "\n")
+    for args in (["noise", str(path)],
+                 ["calibrate", "static", str(path)],
+                 ["calibrate", "wheel", str(path), "--radius", "0.28"],
+                 ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"]):
+        code = main(args)
+        err = capsys.readouterr().err
+        assert code != 0, args
+        assert "look like g" in err and "--units g" in err and err.count("\n") == 1, (args, err)

@@ -19,7 +19,7 @@ from accelrig.acquisition.ringbuffer import RingBuffer
 from accelrig.errors import ProfileError
 from accelrig.procedures.result import CalibrationResult, Correction
 from accelrig.profiles import load_profile, profile_from_result, save_profile
-from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_covariances, sample_uncertainty
+from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_uncertainty
 from accelrig.profiles.store import ProfileStore, default_store_dir, device_key
 from accelrig.recording import Recording, read_csv, write_csv
 from accelrig.sim.device import simulate
@@ -60,9 +60,15 @@ def test_sample_covariances_equal_the_per_sample_definition():
     a = rng.standard_normal((12, 12)) * 1e-3
     corr = Correction(np.eye(3) + 0.02 * rng.standard_normal((3, 3)), rng.standard_normal(3), a @ a.T)
     raw = rng.standard_normal((50, 3)) * 9.8
-    fast = sample_covariances(corr, raw)
+    fast = corr.sample_covariances(raw)
     for k in range(raw.shape[0]):
-        np.testing.assert_allclose(fast[k], corr.sample_covariance(raw[k]), rtol=1e-10, atol=1e-18)
+        # the definition: Jacobian of y = C (x - b) with respect to [C.ravel(), b]
+        d = raw[k] - corr.bias
+        jac = np.zeros((3, 12))
+        for i in range(3):
+            jac[i, 3 * i:3 * i + 3] = d
+        jac[:, 9:] = -corr.matrix
+        np.testing.assert_allclose(fast[k], jac @ corr.covariance @ jac.T, rtol=1e-10, atol=1e-18)
     np.testing.assert_allclose(sample_uncertainty(corr, raw, chunk=7),
                                np.sqrt(np.diagonal(fast, axis1=1, axis2=2)), rtol=1e-12)
 

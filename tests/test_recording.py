@@ -148,3 +148,37 @@ def test_replay_plays_back_the_file(tmp_path):
     assert len(back) == 300
     np.testing.assert_allclose(back.acc, original.acc, atol=1e-6)
     np.testing.assert_allclose(back.t, original.t, atol=1e-8)
+
+
+@pytest.mark.parametrize("content", [b"", b"PK\x03\x04 truncated zip"])
+def test_empty_or_corrupt_npz_is_one_clear_error(tmp_path, content):
+    p = tmp_path / "e.npz"
+    p.write_bytes(content)
+    with pytest.raises(DataError, match="not an accelrig .npz recording"):
+        load_recording(p)
+
+
+def test_declared_units_are_checked_before_any_conversion(tmp_path):
+    rec = sample_recording()
+    in_g = Recording(rec.t, rec.acc / 9.80665, "m/s^2", {}, {})
+    with pytest.raises(DataError, match=r"declared as m/s\^2 but look like g .*use --units g"):
+        in_g.to_si()
+    counts = Recording(rec.t, rec.acc / 0.000598, "g", {}, {"scale": 0.000598})
+    with pytest.raises(DataError, match="use --units counts"):
+        counts.to_si()
+    np.testing.assert_allclose(Recording(rec.t, rec.acc / 9.80665, "g").to_si().acc, rec.acc)
+
+
+def test_replay_keeps_the_device_its_gaps_and_flashed_offsets(tmp_path):
+    with driver_for("sim://still?seed=2&pace=fast&rate=1000&drop=0.2&block=50") as d:
+        original = record(d, samples=3000)
+    original.meta["hardware_bias_removed"] = [0.01, -0.02, 0.03]
+    save_recording(original, tmp_path / "r.csv")
+    with driver_for(f"replay://{tmp_path / 'r.csv'}?pace=fast&block=64") as d:
+        assert d.info.identity == original.meta["identity"]
+        back = record(d)
+    assert back.meta["identity"] == original.meta["identity"]
+    assert back.meta["hardware_bias_removed"] == [0.01, -0.02, 0.03]
+    assert [(g["index"], g["missing"]) for g in back.meta["gaps"]] == \
+        [(g["index"], g["missing"]) for g in original.meta["gaps"]]
+    assert len(original.meta["gaps"]) > 0

@@ -97,10 +97,10 @@ async def test_wizard_feeds_every_sample_then_fits_and_shows_results():
         truth = app.session.info.extra["truth"]["sensor"]
         await wait_for(pilot, lambda: app.screen.query_one("#parameters").row_count == 3)
         mean_z = procedure.result().parameters["mean_z"]
-        # a real estimate: the z reading of a level sensor is g * gain_z + offset_z within a few u
-        assert mean_z.uncertainty < 0.01
-        assert abs(mean_z.value - 9.80665) < 0.5
-        assert truth is not None
+        # a real estimate: the raw z reading of a level sensor, (C^-1 (0, 0, g) + b)_z, within 4 u
+        expected = (np.linalg.inv(truth["correction"]["matrix"]) @ [0, 0, 9.80665])[2] + truth["correction"]["bias"][2]
+        assert 0 < mean_z.uncertainty < 0.01
+        assert abs(mean_z.value - expected) < 4 * mean_z.uncertainty
         assert "residual_rms" in str(app.screen.query_one("#quality").render())
 
 

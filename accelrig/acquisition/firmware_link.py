@@ -20,10 +20,10 @@ from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.timebase import StreamClock
 from accelrig.errors import DeviceError
 from accelrig.units import scale_for_range
+from accelrig.units import MEMS_RANGES_G
 
 # URL options every firmware device understands
 LINK_OPTIONS = {"rate", "range", "frame", "stall", "command_timeout"}
-RANGES_G = (2, 4, 8, 16)
 
 
 class FirmwareDriver(Driver):
@@ -79,7 +79,7 @@ class FirmwareDriver(Driver):
         if not 1.0 <= rate <= 10000.0:
             raise DeviceError(f"rate={rate:g} in {url.raw!r} is outside 1 .. 10000 Hz")
         range_g = url.get_int("range", 4)
-        if range_g not in RANGES_G:
+        if range_g not in MEMS_RANGES_G:
             raise DeviceError(f"range={range_g} in {url.raw!r} is not a MEMS range", "use 2, 4, 8 or 16")
         self.stall_timeout = url.get_float("stall", 2.0)
         self.command_timeout = url.get_float("command_timeout", 0.5)

@@ -52,17 +52,22 @@ class Correction:
         """Calibrate samples (n, 3) in m/s^2."""
         return (np.asarray(raw, dtype=float) - self.bias) @ self.matrix.T
 
-    def sample_covariance(self, raw: np.ndarray) -> np.ndarray:
-        """Covariance (3 x 3) of one calibrated sample due to the correction's uncertainty.
+    def sample_covariances(self, raw: np.ndarray) -> np.ndarray:
+        """(n, 3, 3) covariance of each calibrated sample due to the correction's uncertainty.
 
-        y = C (x - b); dy/dC_ij = (x - b)_j e_i, dy/db = -C.
+        y = C (x - b); dy/dC_ij = (x - b)_j e_i, dy/db = -C, i.e. the Jacobian
+        [kron(I, (x - b)^T), -C] sandwiching the covariance, in closed form so
+        a stream of millions of samples costs a few array operations.
         """
-        d = np.asarray(raw, dtype=float).reshape(3) - self.bias
-        jac = np.zeros((3, 12))
-        for i in range(3):
-            jac[i, 3 * i:3 * i + 3] = d
-        jac[:, 9:] = -self.matrix
-        return jac @ self.covariance @ jac.T
+        d = np.asarray(raw, dtype=float).reshape(-1, 3) - self.bias
+        cov = self.covariance
+        s_cc = cov[:9, :9].reshape(3, 3, 3, 3)   # [i, j, k, l] = cov(C_ij, C_kl)
+        s_cb = cov[:9, 9:].reshape(3, 3, 3)      # [i, j, m] = cov(C_ij, b_m)
+        s_bb = cov[9:, 9:]
+        c = self.matrix
+        term_cc = np.einsum("nj,ijkl,nl->nik", d, s_cc, d, optimize=True)
+        a = np.einsum("nj,ijm->nim", d, s_cb, optimize=True) @ c.T   # cov(dC d, C b) part
+        return term_cc - a - np.swapaxes(a, 1, 2) + c @ s_bb @ c.T
 
     def to_dict(self) -> dict:
         return {

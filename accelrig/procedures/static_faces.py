@@ -43,7 +43,7 @@ from accelrig.procedures.static_fit import (
     face_reference,
     fit_model,
 )
-from accelrig.recording import Recording, guess_units
+from accelrig.recording import Recording
 from accelrig.units import STANDARD_GRAVITY
 
 
@@ -520,17 +520,6 @@ def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> flo
 
 # ------------------------------------------------------------------ offline
 
-def _check_units(rec: Recording) -> None:
-    """Refuse data whose size at rest says the declared units are wrong, naming the flag."""
-    guess = guess_units(rec.acc)
-    if guess in ("unknown", rec.units):
-        return
-    flag = {"m/s^2": "--units m/s2", "g": "--units g", "counts": "--units counts"}[guess]
-    size = float(np.median(np.linalg.norm(rec.acc, axis=1)))
-    raise DataError(f"the data were declared as {rec.units} but look like {guess} (|a| at rest about {size:.3g})",
-                    f"use {flag}")
-
-
 def full_scale_of(rec: Recording, g: float = STANDARD_GRAVITY) -> float | None:
     """Sensor full scale in m/s^2 from the recording's metadata, if known."""
     scale, range_g = rec.meta.get("scale"), rec.meta.get("range_g")
@@ -545,8 +534,7 @@ def detect_poses(rec: Recording, g: float = STANDARD_GRAVITY, **settings) -> Sta
     """Run a whole recording through the procedure; returns it (``.poses``, ``.rejected``)."""
     if len(rec) < 2:
         raise DataError("the recording holds fewer than two samples")
-    _check_units(rec)
-    si = rec.to_si(STANDARD_GRAVITY)   # unit g means standard g; the local g is only the reference size
+    si = rec.to_si()   # refuses data in other units than declared; unit g means standard g
     if not np.all(np.isfinite(si.acc)):
         raise DataError("the recording holds NaN or infinite values")
     settings.setdefault("full_scale", full_scale_of(rec))

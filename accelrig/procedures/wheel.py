@@ -190,7 +190,7 @@ def reported_values(state: WheelState, free: FreeSet) -> np.ndarray:
 
 
 def _prepare(recording: Recording, g: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rec = recording.to_si(g)
+    rec = recording.to_si()  # unit g is standard g: the canonical raw is counts x nominal scale
     t = rec.t - rec.t[0]
     v = rec.acc
     period, _, _, _ = timestamp_figures(t)

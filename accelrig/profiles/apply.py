@@ -4,8 +4,8 @@ The correction is only valid for the device, range and units it was made
 for (the profile records them).  ``check_compatible`` refuses anything else
 unless forced; a forced or unverifiable application comes back as warnings
 for the caller to show.  Every calibrated sample can carry its standard
-uncertainty from the correction's covariance (Correction.sample_covariance,
-vectorised here for streams).
+uncertainty from the correction's covariance (Correction.sample_covariances,
+applied in bounded chunks here for streams).
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from accelrig.acquisition.ringbuffer import Chunk, Reader
 from accelrig.errors import ProfileError
 from accelrig.procedures.result import Correction
 from accelrig.recording import Recording
-from accelrig.units import STANDARD_GRAVITY
 
 from accelrig.profiles.io import Profile
 
@@ -86,35 +85,16 @@ def correction_for(profile: Profile, meta: dict | None) -> Correction:
 
 
 def raw_si(rec: Recording, profile: Profile) -> np.ndarray:
-    """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes."""
-    if rec.units == "m/s^2":
-        return rec.acc
-    if rec.units == "counts":
-        scale = rec.meta.get("scale") or profile.device["scale"]
-        if scale is None:
+    """The recording's samples as raw m/s^2 (counts x nominal scale), what the correction takes.
+
+    Counts without a scale of their own take the profile's (same device, checked).
+    """
+    if rec.units == "counts" and not rec.meta.get("scale"):
+        if profile.device["scale"] is None:
             raise ProfileError("the data are in counts and neither they nor the profile give the scale",
                                "convert the data to m/s^2 or record the range")
-        return rec.acc * float(scale)
-    # g: only reached when forced; raw m/s^2 is defined with standard gravity (nominal scale).
-    return rec.acc * STANDARD_GRAVITY
-
-
-def sample_covariances(correction: Correction, raw: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) covariance of each calibrated sample from the correction's uncertainty.
-
-    Same quantity as Correction.sample_covariance (y = C (x - b), Jacobian
-    [kron(I, (x - b)^T), -C]), in closed form so a stream of millions of
-    samples costs a few array operations instead of a Python loop.
-    """
-    d = np.asarray(raw, dtype=float).reshape(-1, 3) - correction.bias
-    cov = correction.covariance
-    s_cc = cov[:9, :9].reshape(3, 3, 3, 3)   # [i, j, k, l] = cov(C_ij, C_kl)
-    s_cb = cov[:9, 9:].reshape(3, 3, 3)      # [i, j, m] = cov(C_ij, b_m)
-    s_bb = cov[9:, 9:]
-    c = correction.matrix
-    term_cc = np.einsum("nj,ijkl,nl->nik", d, s_cc, d, optimize=True)
-    a = np.einsum("nj,ijm->nim", d, s_cb, optimize=True) @ c.T   # cov(dC d, C b) part
-    return term_cc - a - np.swapaxes(a, 1, 2) + c @ s_bb @ c.T
+        rec = Recording(rec.t, rec.acc, rec.units, rec.channels, {**rec.meta, "scale": profile.device["scale"]})
+    return rec.to_si().acc
 
 
 def sample_uncertainty(correction: Correction, raw: np.ndarray, chunk: int = 65536) -> np.ndarray:
@@ -122,7 +102,7 @@ def sample_uncertainty(correction: Correction, raw: np.ndarray, chunk: int = 655
     raw = np.asarray(raw, dtype=float).reshape(-1, 3)
     out = np.empty_like(raw)
     for start in range(0, raw.shape[0], chunk):
-        cov = sample_covariances(correction, raw[start:start + chunk])
+        cov = correction.sample_covariances(raw[start:start + chunk])
         out[start:start + chunk] = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     return out
 

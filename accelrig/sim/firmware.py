@@ -38,6 +38,7 @@ from accelrig.errors import DeviceError
 from accelrig.sim.device import SimDevice
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel, SimClock
+from accelrig.units import MEMS_RANGES_G
 
 BOOT_US = 2_500_000  # device timer value when the simulated sensor took sample 0
 TIMER_HZ = 1_000_000  # the firmware paces samples with a 1 MHz timer: rates are 1e6 / integer
@@ -151,7 +152,7 @@ class SimFirmware:
             except DeviceError:
                 return [self._ack(kind, P.STATUS_BAD_FRAME)]
             frame_ok = 1 <= want.samples_per_frame <= self.identity.max_samples_per_frame
-            if want.range_g not in (2, 4, 8, 16) or not frame_ok or not 1.0 <= want.rate <= 10000.0 or self.streaming:
+            if want.range_g not in MEMS_RANGES_G or not frame_ok or not 1.0 <= want.rate <= 10000.0 or self.streaming:
                 return [self._ack(kind, P.STATUS_BAD_VALUE)]
             self.sensor.range_g = float(want.range_g)
             self.config = P.LinkConfig(want.range_g, deliverable_rate(want.rate), want.samples_per_frame)

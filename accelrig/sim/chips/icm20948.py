@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from accelrig.sim.chips.emulator import ChipEmulator, Layout
+from accelrig.units import MEMS_RANGES_G
 
 PWR_MGMT_1 = 0x06
 FIFO_RST = 0x68
@@ -44,7 +45,7 @@ class ICM20948Emulator(ChipEmulator):
         return not self.get(0, 0x69) & 0x1F
 
     def range_g(self) -> float:
-        return (2.0, 4.0, 8.0, 16.0)[(self.get(2, 0x14) >> 1) & 3]
+        return MEMS_RANGES_G[(self.get(2, 0x14) >> 1) & 3]
 
     def output_rate(self) -> float:
         if not self.get(2, 0x14) & 0x01:       # ACCEL_FCHOICE = 0: DLPF bypassed

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from accelrig.sim.chips.emulator import ChipEmulator, Layout
+from accelrig.units import MEMS_RANGES_G
 
 PWR_MGMT_1 = 0x6B
 USER_CTRL = 0x6A
@@ -44,7 +45,7 @@ class MPU9250Emulator(ChipEmulator):
         return not self.get(0, 0x1A) & 0x40
 
     def range_g(self) -> float:
-        return (2.0, 4.0, 8.0, 16.0)[(self.get(0, 0x1C) >> 3) & 3]
+        return MEMS_RANGES_G[(self.get(0, 0x1C) >> 3) & 3]
 
     def output_rate(self) -> float:
         if self.get(0, 0x1D) & 0x08:          # ACCEL_FCHOICE_B: DLPF bypassed
