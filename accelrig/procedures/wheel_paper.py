@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from accelrig.errors import CalibrationError
+from accelrig.geometry import rot_x, rot_y, rot_z
 from accelrig.procedures.wheel_checks import WheelSurvey, half_turn_speeds
 from accelrig.procedures.wheel_model import (
     WheelState, bench_force, euler_from_rotation, phase, rotation_from_euler,
@@ -44,21 +45,6 @@ class PaperSteps:
     speed_time: np.ndarray         # Fig. 3: midpoints of half turns
     speed_samples: np.ndarray      # Fig. 3: mean speed of each half turn
     n_function_evaluations: int
-
-
-def rot_x(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def rot_y(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def rot_z(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
 def realign_z(v: np.ndarray) -> np.ndarray:
