@@ -202,6 +202,31 @@ def test_bad_geometry_and_speed_lists():
         verify_slider_crank([("still", still)], RADIUS, ROD)
 
 
+def test_a_still_recording_given_as_a_step_is_refused(tmp_path, capsys):
+    """No crank motion: the noise 'fit' is refused by name instead of reporting a radius."""
+    still = simulate(RIGS["static"](np.random.default_rng(0), hold=4.0), sensor(), SimClock(FS), seconds=2.0, seed=3)
+    moving = run(SliderCrankRig(steps=[4.0], settle=0.0))
+    with pytest.raises(DataError, match=r"step 1 \(still.csv\): no crank motion: the first harmonic .* not clearly above"):
+        verify_slider_crank([("moving.csv", moving), ("still.csv", still)], RADIUS, ROD)
+    path = tmp_path / "still.csv"
+    save_recording(still, path)
+    code = main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353"])
+    err = capsys.readouterr().err
+    assert code == 4 and err.count("\n") == 1 and "no crank motion" in err
+
+
+def test_a_slow_drift_fitted_below_two_cycles_is_refused():
+    # a pose change inside the record: a large, significant "sine" of about one cycle, not a crank
+    t = np.arange(4096) / FS
+    rng = np.random.default_rng(0)
+    acc = np.zeros((t.size, 3))
+    acc[:, 2] = 9.8 * np.cos(2 * np.pi * 0.8 * t) + rng.normal(0, SIGMA, t.size)
+    acc[:, 0] = rng.normal(0, SIGMA, t.size)
+    acc[:, 1] = rng.normal(0, SIGMA, t.size)
+    with pytest.raises(DataError, match=r"step 0 \(pose\): .*cycles"):
+        verify_slider_crank([("pose", Recording(t, acc))], RADIUS, ROD)
+
+
 # ---------------------------------------------------------------- CLI
 
 def test_cli_one_file_per_step_json(tmp_path, capsys):
@@ -231,7 +256,17 @@ def test_cli_table_and_one_line_errors(tmp_path, capsys):
     save_recording(run(SliderCrankRig(steps=[4.0, 7.0])), path)
     assert main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353"]) == 0
     out = capsys.readouterr().out
-    assert "| step | f / Hz" in out and "verdict: the static calibration holds" in out
+    assert "| step | f / Hz" in out and "verdict: the static calibration holds under motion" in out
+    assert "r = 6.350 mm (no clearance given)" in out
+    # one step: inconclusive, exit 1, said in a sentence
+    code = main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+                 "--clearance", "0.0002", "--speeds", "4,7.5"])
+    out = capsys.readouterr().out
+    assert "r = 6.350 mm (clearance +- 0.200 mm)" in out
+    code = main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353",
+                 "--speeds", "4,14"])
+    out = capsys.readouterr().out
+    assert code == 1 and "verdict: inconclusive, whether the static calibration holds under motion is not decided" in out
     code = main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353",
                  "--speeds", "4,x"])
     err = capsys.readouterr().err
@@ -264,7 +299,7 @@ def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
     assert main(args + ["--profile", profile_with(faulty.correction(), "good.yaml")]) == 0
     good = json.loads(capsys.readouterr().out)
     assert good["verdict"] == "holds" and good["profile"].endswith("good.yaml")
-    assert main(args) == 0
+    assert main(args) == 1  # a verdict other than "holds" exits 1
     assert json.loads(capsys.readouterr().out)["verdict"] == "does not hold"  # the raw sensor is 3 % low on x
     wrong_range = tmp_path / "r16.yaml"
     result = CalibrationResult(procedure="static-faces", method="truth", model="C (raw - b)",
@@ -297,7 +332,7 @@ def test_end_to_end_static_calibration_then_verification_under_motion(tmp_path, 
               "--json"]
     assert main(verify + ["--profile", str(profile)]) == 0
     calibrated = json.loads(capsys.readouterr().out)
-    assert main(verify) == 0
+    assert main(verify) == 1
     raw = json.loads(capsys.readouterr().out)
     assert calibrated["verdict"] == "holds"
     # a profile of another simulated part (another seed) is refused unless forced

@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from accelrig.errors import DataError
-from accelrig.procedures.wheel import DEFAULT_BOOTSTRAP, METHODS, calibrate_wheel, plan_wheel
+from accelrig.procedures.wheel import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, calibrate_wheel, plan_wheel
 from accelrig.recording import load_recording
 from accelrig.units import STANDARD_GRAVITY
 
@@ -26,6 +26,9 @@ def register(sub, groups) -> None:
                    help="joint maximum likelihood (default) or the paper's four steps")
     p.add_argument("--bootstrap", type=int, default=DEFAULT_BOOTSTRAP,
                    help=f"runs of the parametric bootstrap giving the paper method's uncertainties (default {DEFAULT_BOOTSTRAP})")
+    p.add_argument("--cross-axis-sd", type=float, default=DEFAULT_CROSS_AXIS_SD,
+                   help="prior sd of the correction's off-diagonal (cross-axis) terms, which the wheel does not "
+                   f"observe (default {DEFAULT_CROSS_AXIS_SD:.4f}: the datasheet +-2 %% as a uniform bound)")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     p.add_argument("--g", type=float, default=STANDARD_GRAVITY, help="local gravity, m/s^2 (default 9.80665)")
@@ -57,7 +60,7 @@ def run_calibrate(args) -> int:
         raise DataError(f"--radius {args.radius} must be a positive distance in metres")
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     result = calibrate_wheel(rec, radius=args.radius, tilt_deg=args.tilt_deg, method=args.method, g=args.g,
-                             bootstrap=args.bootstrap)
+                             bootstrap=args.bootstrap, cross_axis_sd=args.cross_axis_sd)
     if args.output:
         # profiles validate and write atomically: nothing half-written on error
         from accelrig.profiles import profile_from_result, save_profile

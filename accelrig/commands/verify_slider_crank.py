@@ -17,6 +17,8 @@ def register(sub, groups) -> None:
         "or one recording with a 'step' column. Per step: PCA to the axis of motion, interpolated-DFT start, "
         "sine fit with harmonics by variable projection, crank radius from the first harmonic against the "
         "caliper radius +- clearance.",
+        epilog="Exit status: 0 when the calibration holds under motion, 1 when it does not hold or the verdict is "
+        "inconclusive, 2-6 when the input or the analysis fails (one line on stderr).",
     )
     p.add_argument("recordings", nargs="+", metavar="STEP.csv", help="recordings (.csv or .npz), in step order")
     p.add_argument("--crank-radius", type=float, required=True, metavar="M", help="caliper crank radius, m")
@@ -72,7 +74,7 @@ def run(args) -> int:
         print(json.dumps(result.to_json_dict(), indent=2))
     else:
         print(format_report(result))
-    return 0
+    return 0 if result.verdict == "holds" else 1
 
 
 def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
@@ -95,8 +97,9 @@ def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
 def format_report(result: SliderCrankVerification) -> str:
     """Human-readable frequency response table and verdict (mm and degrees at the edge)."""
     lines = [
-        f"slider-crank verification: r = {result.crank_radius * 1e3:.3f} mm +- {result.clearance * 1e3:.3f} mm, "
-        f"l = {result.rod_length * 1e3:.2f} mm, lambda = {result.lam:.4f}"
+        f"slider-crank verification: r = {result.crank_radius * 1e3:.3f} mm ("
+        + (f"clearance +- {result.clearance * 1e3:.3f} mm" if result.clearance > 0 else "no clearance given")
+        + f"), l = {result.rod_length * 1e3:.2f} mm, lambda = {result.lam:.4f}"
         + (f", profile {result.profile}" if result.profile else ""),
         "",
         "| step | f / Hz | u(f) / Hz | FFT peak / Hz | A1 / m/s^2 | model r w^2 | ratio | radius / mm | u / mm | "
@@ -123,5 +126,8 @@ def format_report(result: SliderCrankVerification) -> str:
     )
     for w in result.warnings:
         lines.append(f"warning: {w}")
-    lines.append(f"verdict: the static calibration {result.verdict} under motion: {result.verdict_reason}")
+    verdict = {"holds": "the static calibration holds under motion",
+               "does not hold": "the static calibration does not hold under motion",
+               "inconclusive": "inconclusive, whether the static calibration holds under motion is not decided"}
+    lines.append(f"verdict: {verdict.get(result.verdict, result.verdict)}: {result.verdict_reason}")
     return "\n".join(lines)

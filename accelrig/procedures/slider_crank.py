@@ -56,6 +56,13 @@ KNOCK_CONCENTRATION = 4.0
 # A neighbour check flags a step whose frequency is off the line through its
 # neighbours by more than this many typical step spacings.
 NEIGHBOUR_FACTOR = 3.0
+# A step must hold crank motion: its first harmonic at least this many times its own
+# uncertainty (a still sensor gives a "fit" of the noise at a few u), and at least
+# MIN_STEP_CYCLES cycles of the *fitted* frequency (a static recording with pose changes
+# fits a slow "sine" whose start frequency passed the 1.5-cycle check).  2 cycles, not
+# more: the paper's own first step, 2.5 Hz for 1 s, must pass.
+MIN_AMPLITUDE_SNR = 10.0
+MIN_STEP_CYCLES = 2.0
 
 
 @dataclass
@@ -362,6 +369,25 @@ def _peak_of_waveform(amps_phases: np.ndarray, harmonics: int) -> float:
     return float(np.max(np.abs(wave)))
 
 
+def check_crank_motion(where: str, fit: SineFit, t: np.ndarray) -> None:
+    """Refuse a step with no crank motion in it (a still or static recording given as a step)."""
+    amp1, u_amp1 = float(fit.amplitude[0]), float(fit.amplitude_uncertainty[0])
+    if not amp1 >= MIN_AMPLITUDE_SNR * u_amp1:
+        raise DataError(
+            f"{where}: no crank motion: the first harmonic {amp1:.3g} +- {u_amp1:.2g} m/s^2 at {fit.frequency:.4g} Hz "
+            f"is not clearly above the noise (needs {MIN_AMPLITUDE_SNR:g} u)",
+            "record while the crank turns steadily at the step's speed",
+        )
+    span = t[-1] - t[0] + (t[-1] - t[0]) / (t.size - 1)
+    cycles = fit.frequency * span
+    if cycles < MIN_STEP_CYCLES:
+        raise DataError(
+            f"{where}: no steady crank motion: the record holds only {cycles:.2f} cycles of the fitted "
+            f"{fit.frequency:.4g} Hz (needs {MIN_STEP_CYCLES:g})",
+            "record at least 2 (better 3) crank turns per step while the crank turns steadily",
+        )
+
+
 def analyse_step(
     t: np.ndarray,
     acc: np.ndarray,
@@ -396,6 +422,7 @@ def analyse_step(
     except DataError as exc:
         raise DataError(f"{where}: {exc.message}", exc.hint) from None
     if not fit.converged:
+        check_crank_motion(where, fit, t)  # a "fit" of noise alone often wanders: name the real cause
         raise CalibrationError(
             f"{where}: the sine fit did not converge (start {start:.4g} Hz, ended at {fit.frequency:.4g} Hz)",
             "check that the stand ran steadily and the record holds the motion",
@@ -405,6 +432,7 @@ def analyse_step(
     if backlash:
         fit = _noise_only_covariance(t, fit)
     f = fit.frequency
+    check_crank_motion(where, fit, t)
     omega2 = (2 * np.pi * f) ** 2
     amp1 = float(fit.amplitude[0])
     i_f = fit.parameter_names.index("frequency")

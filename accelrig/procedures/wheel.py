@@ -46,6 +46,11 @@ POOR_GAIN = 5e-3
 # too little for its centre (the detrended centripetal term) to be placed, and the turn
 # speeds are off by 7-20 % on the simulator (a few percent after three turns, 0.2 % at thirty).
 TRACE_MIN_TURNS = 3.0
+# The wheel cannot observe the sensor's own cross-axis sensitivity: a skew of its axes is absorbed
+# by the mounting rotation R (eq. 1-7 carry only diag(gain) R).  The correction keeps C off-diagonal
+# at 0 but with this prior sd: the MPU-9250 and ICM-20948 datasheets bound cross-axis sensitivity by
+# +-2 %, read as a uniform distribution (sd = 0.02 / sqrt(3)).
+DEFAULT_CROSS_AXIS_SD = 0.02 / np.sqrt(3)
 MOUNTING_HINT = ("mount the sensor tilted on the wheel, so that every axis sees both the radial and the "
                  "tangential direction, as the paper does with some 20-30 degrees about each axis")
 
@@ -201,10 +206,17 @@ def calibrate_wheel(
     g: float = STANDARD_GRAVITY,
     bootstrap: int = DEFAULT_BOOTSTRAP,
     seed: int = 0,
+    cross_axis_sd: float = DEFAULT_CROSS_AXIS_SD,
 ) -> CalibrationResult:
-    """Calibrate from a wheel recording.  ``radius`` in m and/or ``tilt_deg`` must be given."""
+    """Calibrate from a wheel recording.  ``radius`` in m and/or ``tilt_deg`` must be given.
+
+    ``cross_axis_sd`` is the prior sd given to the off-diagonal terms of the correction matrix,
+    which the wheel does not observe (they are set to 0 with that uncertainty)."""
     if method not in METHODS:
         raise DataError(f"unknown method {method!r}", f"use one of: {', '.join(METHODS)}")
+    if not (np.isfinite(cross_axis_sd) and cross_axis_sd > 0):
+        raise DataError(f"cross-axis sd {cross_axis_sd} must be positive",
+                        "give the datasheet cross-axis sensitivity as an sd, e.g. 0.0115 for +-2 % uniform")
     tilt = None if tilt_deg is None else float(np.deg2rad(tilt_deg))
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording, g)
@@ -233,8 +245,14 @@ def calibrate_wheel(
         if u_gain > POOR_GAIN * state.gain["xyz".index(axis)]:
             warnings.append(f"gain_{axis} is poorly determined (u = {u_gain:.2g}): the mounting hides it; "
                             + MOUNTING_HINT)
+    assumed = ("the datasheet +-2 % cross-axis sensitivity as a uniform bound"
+               if cross_axis_sd == DEFAULT_CROSS_AXIS_SD else "given with --cross-axis-sd")
+    warnings.append(
+        "the wheel does not observe cross-axis terms (the sensor's own axis misalignment is absorbed in the "
+        f"mounting rotation): the correction's off-diagonal entries are set to 0 with an assumed prior sd of "
+        f"{cross_axis_sd:.3g} ({assumed}); a static calibration measures them")
     return _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
-                         elapsed, radius, tilt, g, uncertainty_source)
+                         elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
 
 
 def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, runs, seed) -> np.ndarray:
@@ -258,7 +276,8 @@ def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, ru
 
 
 def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, look: WheelSurvey,
-                  warnings, quality, elapsed, radius, tilt, g, uncertainty_source) -> CalibrationResult:
+                  warnings, quality, elapsed, radius, tilt, g, uncertainty_source,
+                  cross_axis_sd) -> CalibrationResult:
     names = reported_names(free)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     idx = {n: i for i, n in enumerate(names)}
@@ -287,7 +306,11 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
     for k in range(3):
         jac[4 * k, gi[k]] = -1.0 / state.gain[k] ** 2
         jac[9 + k, oi[k]] = 1.0
-    correction = Correction(np.diag(1.0 / state.gain), state.offset.copy(), jac @ cov @ jac.T)
+    correction_cov = jac @ cov @ jac.T
+    # the unobserved off-diagonal terms of C: the prior, independent of everything fitted
+    off_diagonal = [i for i in range(9) if i % 4 != 0]
+    correction_cov[off_diagonal, off_diagonal] = cross_axis_sd**2
+    correction = Correction(np.diag(1.0 / state.gain), state.offset.copy(), correction_cov)
 
     # the paper's Fig. 3: speeds of half turns against the fitted cubic
     speed_fit = phase(steps.speed_time, state.theta0, state.omega)[1]
@@ -308,6 +331,7 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
                 "tilt_deg": float(np.rad2deg(state.tilt)), "tilt_given": tilt is not None},
         "g": g, "euler_convention": "R = Rz(psi) Ry(phi) Rx(theta), bench -> sensor",
         "time_origin": "first sample",
+        "cross_axis_sd": float(cross_axis_sd),
     }
     arrays = {
         "t": t, "residuals": resid,
