@@ -1,4 +1,4 @@
-"""Small modal dialogs: yes/no confirmation and a path prompt."""
+"""Small modal dialogs: yes/no confirmation, a path prompt, and the wizards' setup form."""
 
 from __future__ import annotations
 
@@ -7,7 +7,9 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Input, Static
+from textual.widgets import Button, Input, Label, Static
+
+from accelrig.errors import AccelrigError
 
 
 class ConfirmScreen(ModalScreen[bool]):
@@ -65,3 +67,46 @@ class PathScreen(ModalScreen[str | None]):
 
     def action_cancel(self) -> None:
         self.dismiss(None)
+
+
+class SetupForm(ModalScreen):
+    """A wizard's setup questions, one Input per field; enter moves on, the last one submits.
+
+    Subclasses give FIELDS as (name, label, placeholder) and ``parse(values)``,
+    which turns the raw strings into the answer or raises ValueError /
+    AccelrigError with a message the operator can act on (shown in red, the
+    form stays open).  Escape dismisses with None.
+    """
+
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+    FIELDS: tuple[tuple[str, str, str], ...] = ()
+
+    def compose(self) -> ComposeResult:
+        with Vertical(classes="dialog"):
+            for field, label, placeholder in self.FIELDS:
+                yield Label(label)
+                yield Input(placeholder=placeholder, id=f"setup-{field}")
+            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
+                         id="setup-status")
+
+    def parse(self, values: dict[str, str]):
+        raise NotImplementedError
+
+    @on(Input.Submitted)
+    def submitted(self, event: Input.Submitted) -> None:
+        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
+        position = ids.index(event.input.id)
+        if position < len(ids) - 1:
+            self.query_one(f"#{ids[position + 1]}", Input).focus()
+            return
+        values = {field: self.query_one(f"#setup-{field}", Input).value.strip() for field, _, _ in self.FIELDS}
+        try:
+            answer = self.parse(values)
+        except (ValueError, AccelrigError) as exc:
+            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
+            return
+        self.dismiss(answer)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)
+

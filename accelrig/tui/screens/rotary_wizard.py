@@ -12,18 +12,19 @@ from __future__ import annotations
 
 import numpy as np
 import yaml
-from textual import on, work
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical, VerticalScroll
-from textual.screen import ModalScreen, Screen
-from textual.widgets import Footer, Header, Input, Label, Static
+from textual.containers import VerticalScroll
+from textual.screen import Screen
+from textual.widgets import Footer, Header, Static
 
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.procedures.result import _plain
 from accelrig.procedures.rotary_bench import PAPER_PLAN
 from accelrig.procedures.rotary_session import RotaryBenchProcedure
 from accelrig.recording import Recording
+from accelrig.tui.screens.dialogs import SetupForm
 from accelrig.tui.screens.slider_wizard import Note
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
@@ -46,8 +47,7 @@ def parse_plan(text: str) -> tuple[tuple[float, float], ...]:
     return tuple(plan)
 
 
-class RotarySetupScreen(ModalScreen[dict | None]):
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+class RotarySetupScreen(SetupForm):
     FIELDS = (("tangential", "Tangential axis (blank: x):", "x"),
               ("radial", "Radial axis (blank: y):", "y"),
               ("plan", "Steps FREQUENCY:DEGREES peak to peak (blank: the paper's "
@@ -55,37 +55,14 @@ class RotarySetupScreen(ModalScreen[dict | None]):
               ("repeats", "Repeats of each step (blank: 6):", "6"),
               ("seconds", "Seconds recorded per step (blank: 40):", "40"))
 
-    def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog"):
-            for field, label, placeholder in self.FIELDS:
-                yield Label(label)
-                yield Input(placeholder=placeholder, id=f"setup-{field}")
-            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
-                         id="setup-status")
-
-    @on(Input.Submitted)
-    def submitted(self, event: Input.Submitted) -> None:
-        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
-        position = ids.index(event.input.id)
-        if position < len(ids) - 1:
-            self.query_one(f"#{ids[position + 1]}", Input).focus()
-            return
-        value = {field: self.query_one(f"#setup-{field}", Input).value.strip() for field, _, _ in self.FIELDS}
-        try:
-            answer = {
-                "tangential": value["tangential"] or "x",
-                "radial": value["radial"] or "y",
-                "plan": parse_plan(value["plan"]),
-                "repeats": int(value["repeats"] or 6),
-                "seconds": float(value["seconds"] or 40),
-            }
-        except ValueError as exc:
-            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
-            return
-        self.dismiss(answer)
-
-    def action_cancel(self) -> None:
-        self.dismiss(None)
+    def parse(self, value: dict[str, str]) -> dict:
+        return {
+            "tangential": value["tangential"] or "x",
+            "radial": value["radial"] or "y",
+            "plan": parse_plan(value["plan"]),
+            "repeats": int(value["repeats"] or 6),
+            "seconds": float(value["seconds"] or 40),
+        }
 
 
 class RotaryWizard(ProcedureWizard):

@@ -20,16 +20,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from textual import on, work
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical, VerticalScroll
-from textual.screen import ModalScreen, Screen
-from textual.widgets import DataTable, Footer, Header, Input, Label, Static
+from textual.containers import VerticalScroll
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.procedures.slider_crank import DEFAULT_STEPS_HZ, SliderCrankProcedure
 from accelrig.recording import Recording
+from accelrig.tui.screens.dialogs import SetupForm
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -76,10 +77,9 @@ def parse_steps(text: str) -> list[float]:
     return steps
 
 
-class SliderSetupScreen(ModalScreen[dict | None]):
+class SliderSetupScreen(SetupForm):
     """The stand's geometry and the speed steps."""
 
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
     FIELDS = (("radius", "Caliper crank radius, m:", "e.g. 0.00635"),
               ("rod", "Connecting rod length, m:", "e.g. 0.0353"),
               ("clearance", "Clearance on the radius, m (blank: 0):", "e.g. 0.0001"),
@@ -89,44 +89,22 @@ class SliderSetupScreen(ModalScreen[dict | None]):
                f"(blank: {DEFAULT_CAPTURE_SECONDS:g}):", f"{DEFAULT_CAPTURE_SECONDS:g}"),
               ("profile", "Profile whose calibration is verified (blank: raw data):", "e.g. sensor.yaml"))
 
-    def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog"):
-            for field, label, placeholder in self.FIELDS:
-                yield Label(label)
-                yield Input(placeholder=placeholder, id=f"setup-{field}")
-            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
-                         id="setup-status")
+    def parse(self, value: dict[str, str]) -> dict:
+        answer = {
+            "radius": parse_number(value["radius"], "crank radius", 1e-4, 1.0),
+            "rod": parse_number(value["rod"], "rod length", 1e-4, 10.0),
+            "clearance": parse_number(value["clearance"], "clearance", 0.0, 0.1, default=0.0),
+            "steps": parse_steps(value["steps"]),
+            "seconds": parse_number(value["seconds"], "seconds per step", 0.5, 600.0,
+                                    default=DEFAULT_CAPTURE_SECONDS),
+            "profile": value["profile"] or None,
+            "correction": None,
+        }
+        if answer["profile"]:
+            from accelrig.profiles import load_profile
 
-    @on(Input.Submitted)
-    def submitted(self, event: Input.Submitted) -> None:
-        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
-        position = ids.index(event.input.id)
-        if position < len(ids) - 1:
-            self.query_one(f"#{ids[position + 1]}", Input).focus()
-            return
-        value = {field: self.query_one(f"#setup-{field}", Input).value for field, _, _ in self.FIELDS}
-        try:
-            answer = {
-                "radius": parse_number(value["radius"], "crank radius", 1e-4, 1.0),
-                "rod": parse_number(value["rod"], "rod length", 1e-4, 10.0),
-                "clearance": parse_number(value["clearance"], "clearance", 0.0, 0.1, default=0.0),
-                "steps": parse_steps(value["steps"]),
-                "seconds": parse_number(value["seconds"], "seconds per step", 0.5, 600.0,
-                                        default=DEFAULT_CAPTURE_SECONDS),
-                "profile": value["profile"].strip() or None,
-                "correction": None,
-            }
-            if answer["profile"]:
-                from accelrig.profiles import load_profile
-
-                answer["correction"] = load_profile(answer["profile"]).correction
-        except (ValueError, AccelrigError) as exc:
-            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
-            return
-        self.dismiss(answer)
-
-    def action_cancel(self) -> None:
-        self.dismiss(None)
+            answer["correction"] = load_profile(answer["profile"]).correction
+        return answer
 
 
 class SliderCrankWizard(ProcedureWizard):
