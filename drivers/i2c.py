@@ -118,8 +118,8 @@ class I2CDriver(Driver):
         self.url.check_known(self.known_options())
         name = self.chip_name()
         _, address = self.target()
-        range_g = self.url.get_float("range", 2.0)
-        rate = self.url.get_float("rate", DEFAULT_RATE)
+        range_g = self.url.get_range_g(2.0)
+        rate = self.url.get_rate(DEFAULT_RATE)
         poll = self.url.get_float("poll")
         if poll is not None and not 0.001 <= poll <= 0.1:
             raise DeviceError(f"poll={poll} s in {self.url.raw!r} is outside 0.001 .. 0.1 s")

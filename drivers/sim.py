@@ -28,7 +28,6 @@ from accelrig.errors import DeviceError
 from accelrig.sim.device import Faults, SimDevice
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.sensor import SensorModel, SimClock
-from accelrig.units import MEMS_RANGES_G
 
 SENSOR_OPTIONS = {
     "seed", "pace", "rate", "rate_error", "jitter", "range", "noise", "truth", "block", "drop",
@@ -47,12 +46,8 @@ def build_device(url) -> tuple[SimDevice, str]:
     url.check_known(SENSOR_OPTIONS | set(rig_cls.options))
     seed = url.get_int("seed", 0)
     pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
-    rate = url.get_float("rate", 200.0)
-    if not 1.0 <= rate <= 10000.0:
-        raise DeviceError(f"rate={rate} Hz in {url.raw!r} is outside 1 .. 10000 Hz")
-    range_g = url.get_float("range", 2.0)
-    if range_g not in MEMS_RANGES_G:
-        raise DeviceError(f"range={range_g:g} in {url.raw!r} is not a MEMS range", "use 2, 4, 8 or 16")
+    rate = url.get_rate(200.0)
+    range_g = url.get_range_g(2.0)
     block = url.get_int("block", 256)
     if not 1 <= block <= 65536:
         raise DeviceError(f"block={block} in {url.raw!r} is outside 1 .. 65536")

@@ -5,7 +5,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+from types import SimpleNamespace
+
 import pytest
+
+from accelrig.cli import main
 
 
 @pytest.fixture(autouse=True)
@@ -15,3 +19,16 @@ def _isolated_user_dirs(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("ACCELRIG_HOME", str(home))
     monkeypatch.setenv("XDG_DATA_HOME", str(home / "xdg"))
     yield
+
+
+@pytest.fixture
+def cli(capsys):
+    """The CLI in-process (each real process costs seconds of import on a loaded machine)."""
+
+    def call(*args):
+        code = main([str(a) for a in args])
+        captured = capsys.readouterr()
+        return SimpleNamespace(returncode=code, stdout=captured.out, stderr=captured.err)
+
+    return call
+

@@ -172,7 +172,7 @@ def test_i2c_sim_realtime_pace_uses_the_wall_clock():
     ("i2c://1/0x99", "outside 0x03"),
     ("i2c://1/0x68?chip=bmi160", "chip="),
     ("i2c://1/0x68?rang=4", "unknown option"),
-    ("i2c-sim://mpu9250?range=3&pace=fast", "not a range"),
+    ("i2c-sim://mpu9250?range=3&pace=fast", "not a MEMS range"),
     ("i2c-sim://lis3dh?pace=fast", "no chip"),
     ("i2c-sim://mpu9250?rig=nope", "unknown simulated rig"),
 ])

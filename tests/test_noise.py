@@ -5,12 +5,10 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from accelrig.cli import main
 
 from accelrig.errors import DataError
 from accelrig.estimation.allan import allan_deviation, axis_noise, noise_figures
@@ -26,18 +24,6 @@ G = STANDARD_GRAVITY
 def run_cli(*args):
     """A real process: proves the one-line error and exit status end to end (slow: use sparingly)."""
     return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=120)
-
-
-@pytest.fixture
-def cli(capsys):
-    """The CLI in-process (each real process costs seconds of import on a loaded machine)."""
-
-    def call(*args):
-        code = main([str(a) for a in args])
-        captured = capsys.readouterr()
-        return SimpleNamespace(returncode=code, stdout=captured.out, stderr=captured.err)
-
-    return call
 
 
 def still(density_ug: float, seconds: float, seed: int = 1, rate: float = 200.0) -> Recording:

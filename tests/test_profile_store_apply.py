@@ -5,14 +5,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from types import SimpleNamespace
 from datetime import datetime, timezone
 
 import numpy as np
 import pytest
 import yaml
 
-from accelrig.cli import main
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.ringbuffer import RingBuffer
@@ -31,18 +29,6 @@ from tests.test_profile_io import MALFORMED, _edit, make_result
 def run_cli(*args):
     """A real process: proves the one-line error and exit status end to end (slow: use sparingly)."""
     return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=120)
-
-
-@pytest.fixture
-def cli(capsys):
-    """The CLI in-process (each real process costs seconds of import on a loaded machine)."""
-
-    def call(*args):
-        code = main([str(a) for a in args])
-        captured = capsys.readouterr()
-        return SimpleNamespace(returncode=code, stdout=captured.out, stderr=captured.err)
-
-    return call
 
 
 def truth_profile(sensor: SensorModel, identity="dev-1", created=None, cov_scale=1e-4):

@@ -20,7 +20,6 @@ from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.timebase import StreamClock
 from accelrig.errors import DeviceError
 from accelrig.units import scale_for_range
-from accelrig.units import MEMS_RANGES_G
 
 # URL options every firmware device understands
 LINK_OPTIONS = {"rate", "range", "frame", "stall", "command_timeout"}
@@ -75,12 +74,8 @@ class FirmwareDriver(Driver):
     def open(self) -> DeviceInfo:
         url = self.url
         url.check_known(self._link_options())
-        rate = url.get_float("rate", 2048.0)
-        if not 1.0 <= rate <= 10000.0:
-            raise DeviceError(f"rate={rate:g} in {url.raw!r} is outside 1 .. 10000 Hz")
-        range_g = url.get_int("range", 4)
-        if range_g not in MEMS_RANGES_G:
-            raise DeviceError(f"range={range_g} in {url.raw!r} is not a MEMS range", "use 2, 4, 8 or 16")
+        rate = url.get_rate(2048.0)
+        range_g = int(url.get_range_g(4.0))  # the wire carries it as a byte
         self.stall_timeout = url.get_float("stall", 2.0)
         self.command_timeout = url.get_float("command_timeout", 0.5)
         link = self._transport_open()

@@ -70,6 +70,24 @@ class DeviceURL:
             )
         return value
 
+    # The two options every driver takes, checked the same way everywhere.
+    def get_rate(self, default: float) -> float:
+        """``rate=HZ``: requested sample rate, 1 .. 10000 Hz."""
+        rate = self.get_float("rate", default)
+        if not 1.0 <= rate <= 10000.0:
+            raise DeviceError(f"rate={rate:g} Hz in {self.raw!r} is outside 1 .. 10000 Hz")
+        return rate
+
+    def get_range_g(self, default: float) -> float:
+        """``range=G``: full scale +-G, one of the MEMS ranges 2, 4, 8, 16."""
+        from accelrig.units import MEMS_RANGES_G
+
+        range_g = self.get_float("range", default)
+        if range_g not in MEMS_RANGES_G:
+            raise DeviceError(f"range={range_g:g} in {self.raw!r} is not a MEMS range",
+                              "use " + ", ".join(f"{r:g}" for r in MEMS_RANGES_G))
+        return range_g
+
     def check_known(self, known: set[str]) -> None:
         """Refuse options a driver does not understand (a typo must not pass silently)."""
         unknown = sorted(set(self.params) - known)

@@ -16,10 +16,10 @@ import numpy as np
 from accelrig.acquisition.chips.decimate import resampling_ratio
 from accelrig.acquisition.registers import RegisterAccessor
 from accelrig.errors import DeviceError
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import MEMS_RANGES_G, STANDARD_GRAVITY
 
 # Full-scale ranges (+-g) and their ACCEL_FS_SEL codes, the same on both chips.
-RANGE_CODES = {2.0: 0, 4.0: 1, 8.0: 2, 16.0: 3}
+RANGE_CODES = {r: code for code, r in enumerate(MEMS_RANGES_G)}  # the 2-bit ACCEL_FS_SEL code
 
 # Offset registers: 15-bit two's complement in bits 15:1 at +-16 g scale,
 # i.e. 1/1024 g per step ("0.98 mg" in the register map); bit 0 is reserved and
