@@ -27,3 +27,36 @@ def rotation_xyz(angles: np.ndarray) -> np.ndarray:
     """Rotation matrix Rz(c) @ Ry(b) @ Rx(a) for angles (a, b, c) in rad."""
     a, b, c = np.asarray(angles, dtype=float)
     return rot_z(c) @ rot_y(b) @ rot_x(a)
+
+
+# ---------------------------------------------------------------- axes and faces
+# The sensor's axes by name, and the six faces a cube-shaped housing rests on.
+# A face is named by the axis that points DOWN ("+z" down: the sensor lies on its
+# back, z pointing at the floor); at rest that axis reads -g (specific force).
+AXES = ("x", "y", "z")
+FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def parse_axis(spec: str) -> tuple[int, float] | None:
+    """'x', '+y', '-z' -> (index, sign); None if ``spec`` names no axis."""
+    text = str(spec).strip().lower().replace(" ", "+")
+    sign = -1.0 if text.startswith("-") else 1.0
+    name = text.lstrip("+-")
+    return (AXES.index(name), sign) if len(name) == 1 and name in AXES else None
+
+
+def axis_vector(spec: str) -> np.ndarray | None:
+    """'x', '+y', '-z' -> the signed unit vector along that axis; None if ``spec`` names no axis."""
+    parsed = parse_axis(spec)
+    if parsed is None:
+        return None
+    v = np.zeros(3)
+    v[parsed[0]] = parsed[1]
+    return v
+
+
+def face_down_direction(face: str) -> np.ndarray:
+    """Unit vector (sensor frame) of the axis that points down when the housing rests on ``face``."""
+    if face not in FACES:
+        raise ValueError(f"not a face: {face!r}")
+    return axis_vector(face)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
-from accelrig.estimation.allan import AXES, noise_figures
+from accelrig.estimation.allan import noise_figures
+from accelrig.geometry import AXES
 from accelrig.profiles.apply import check_compatible
 from accelrig.profiles.io import load_profile, save_profile, utc_now
 from accelrig.recording import load_recording

@@ -44,13 +44,13 @@ import numpy as np
 from scipy import signal
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.geometry import AXES, parse_axis
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.procedures.result import CalibrationResult, Estimate
 from accelrig.recording import Recording, load_recording, read_table
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 
-AXES = "xyz"
 COMPONENTS = ("tangential", "centripetal", "dc")
 RATE_METHODS = ("fit", "scan")
 FILTER_ORDER = 6
@@ -142,14 +142,6 @@ def read_encoder_csv(path: str | os.PathLike) -> EncoderLog:
     col = {n: i for i, n in enumerate(header)}
     ref = data[:, col["ref"]] if "ref" in col else None
     return EncoderLog(data[:, col["t"]], data[:, col["theta"]], ref, str(path))
-
-
-def parse_axis(spec: str) -> tuple[int, float] | None:
-    """'x', '+y', '-z' -> (index, sign); None if ``spec`` names no axis."""
-    text = str(spec).strip().lower().replace(" ", "+")
-    sign = -1.0 if text.startswith("-") else 1.0
-    name = text.lstrip("+-")
-    return (AXES.index(name), sign) if len(name) == 1 and name in AXES else None
 
 
 def parse_axis_name(spec: str, role: str) -> int:

@@ -44,13 +44,11 @@ from scipy.stats import chi2 as chi2_dist
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
 from accelrig.procedures.result import Correction
-from accelrig.geometry import rotation_xyz
+from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 
-FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 MODELS = ("paper", "affine")
 METHODS = ("vp", "paper")
-AXES = "xyz"
 
 PAPER_NAMES = [f"angle_{a}" for a in AXES] + [f"gain_{a}" for a in AXES] + [f"offset_{a}" for a in AXES]
 PAPER_UNITS = ["rad"] * 3 + ["1"] * 3 + ["m/s^2"] * 3
@@ -60,11 +58,7 @@ AFFINE_UNITS = ["1"] * 9 + ["m/s^2"] * 3
 
 def face_reference(face: str, g: float = STANDARD_GRAVITY) -> np.ndarray:
     """Specific force (body frame) of a level pose with ``face`` down: that axis points down and reads -g."""
-    if face not in FACES:
-        raise ValueError(f"not a face: {face!r}")
-    f = np.zeros(3)
-    f[AXES.index(face[1])] = -g if face[0] == "+" else g
-    return f
+    return -g * face_down_direction(face)
 
 
 @dataclass

@@ -17,7 +17,8 @@ import time
 
 import numpy as np
 
-from accelrig.estimation.allan import AXES, noise_figures
+from accelrig.estimation.allan import noise_figures
+from accelrig.geometry import AXES
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock

@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.static_fit import FACES
+from accelrig.geometry import FACES
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel
 from accelrig.units import STANDARD_GRAVITY

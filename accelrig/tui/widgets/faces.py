@@ -6,7 +6,7 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal
 from textual.widgets import Static
 
-FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
+from accelrig.geometry import FACES
 
 
 class FaceGrid(Horizontal):
