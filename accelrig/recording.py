@@ -19,7 +19,6 @@ import hashlib
 import io
 import json
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from accelrig import __version__
-from accelrig.errors import AccelrigError, DataError
+from accelrig.errors import DataError
+from accelrig.files import atomic_write, read_text_file
+from accelrig.result import to_json
 from accelrig.units import STANDARD_GRAVITY, normalise_unit, to_si
 
 META_PREFIX = "# accelrig-meta:"
@@ -205,21 +206,6 @@ def read_table(path: Path, required: tuple[str, ...], what: str, example: str) -
     return header, data, meta
 
 
-def read_text_file(path: str | os.PathLike, error: type[AccelrigError] = DataError, what: str = "a CSV file") -> str:
-    """A whole text file, or ``error`` in one line saying why not (missing, a directory, binary)."""
-    path = Path(path)
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise error(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise error(f"{path}: is a directory, not {what}") from None
-    except UnicodeDecodeError:
-        raise error(f"{path}: not a text file, so not {what}") from None
-    except OSError as exc:
-        raise error(f"{path}: cannot read ({exc.strerror})") from None
-
-
 def _is_float(text: str) -> bool:
     try:
         float(text)
@@ -254,7 +240,7 @@ def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None
     fmt = ["%.9f"] + (["%d"] * 3 if rec.units == "counts" else ["%.10g"] * 3) + ["%.10g"] * len(rec.channels)
 
     def _write(fh) -> None:
-        fh.write(META_PREFIX + " " + json.dumps(meta, sort_keys=True, default=_json_default) + "\n")
+        fh.write(META_PREFIX + " " + to_json(meta, indent=None, sort_keys=True) + "\n")
         fh.write(",".join(names) + "\n")
         np.savetxt(fh, data, fmt=fmt, delimiter=",")
 
@@ -262,14 +248,6 @@ def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None
         _write(stream)
         return
     atomic_write(path, _write, text=True)
-
-
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"cannot store {type(value).__name__} in recording metadata")
 
 
 # ------------------------------------------------------------------- native (.npz)
@@ -281,7 +259,7 @@ def save_native(rec: Recording, path: str | os.PathLike) -> None:
         arrays["ch_" + name] = values
     meta = dict(rec.meta)
     meta["units"] = rec.units
-    arrays["meta_json"] = np.array(json.dumps(meta, sort_keys=True, default=_json_default))
+    arrays["meta_json"] = np.array(to_json(meta, indent=None, sort_keys=True))
     atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False)
 
 
@@ -314,30 +292,6 @@ def save_recording(rec: Recording, path: str | os.PathLike) -> None:
         save_native(rec, path)
     else:
         write_csv(rec, path)
-
-
-def atomic_write(path: str | os.PathLike, writer, text: bool) -> None:
-    """Write through a temporary file in the same directory, then rename.
-
-    A crash or an error mid-write leaves the old file (or none), never half a file.
-    """
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise DataError(f"{path}: directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w" if text else "wb", **({"encoding": "utf-8", "newline": ""} if text else {})) as fh:
-            writer(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def guess_units(acc: np.ndarray) -> str:

@@ -10,7 +10,7 @@ from accelrig.acquisition.driver import driver_for
 from accelrig.cli import main
 from accelrig.errors import DeviceError, ProfileError
 from accelrig.acquisition.recorder import record
-from accelrig.procedures.result import CalibrationResult, Correction
+from accelrig.result import CalibrationResult, Correction
 from accelrig.profiles import profile_from_result, save_profile
 
 URL = "serial-sim://still?seed=1&pace=fast"

@@ -6,7 +6,7 @@ import pytest
 from accelrig.acquisition.driver import driver_for
 from accelrig.acquisition.recorder import record
 from accelrig.cli import main
-from accelrig.procedures.result import CalibrationResult, Correction, Estimate
+from accelrig.result import CalibrationResult, Correction, Estimate
 
 from accelrig import profiles
 

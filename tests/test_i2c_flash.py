@@ -12,7 +12,7 @@ from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E
 from accelrig.acquisition.driver import driver_for  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
-from accelrig.procedures.result import CalibrationResult, Correction  # noqa: E402
+from accelrig.result import CalibrationResult, Correction  # noqa: E402
 from accelrig.profiles import load_profile, profile_from_result, save_profile  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402

@@ -15,7 +15,7 @@ import yaml
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.ringbuffer import RingBuffer
 from accelrig.errors import ProfileError
-from accelrig.procedures.result import CalibrationResult, Correction
+from accelrig.result import CalibrationResult, Correction
 from accelrig.profiles import load_profile, profile_from_result, save_profile
 from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_uncertainty
 from accelrig.profiles.store import ProfileStore, default_store_dir, device_key

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from accelrig.acquisition import protocol as P
 from accelrig.acquisition.timebase import StreamClock
 from accelrig.errors import DeviceError
-from accelrig.procedures.result import Correction
+from accelrig.result import Correction
 
 
 def data_frame(seq, counter, n=8, time_us=None, fill=None):

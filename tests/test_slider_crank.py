@@ -279,7 +279,7 @@ def test_cli_table_and_one_line_errors(tmp_path, capsys):
 
 
 def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
-    from accelrig.procedures.result import CalibrationResult
+    from accelrig.result import CalibrationResult
     from accelrig.profiles import profile_from_result, save_profile
 
     faulty = sensor(gain=[0.97, 1.01, 1.0], offset=[0.2, 0.1, -0.3])

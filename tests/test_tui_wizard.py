@@ -12,7 +12,7 @@ import numpy as np
 
 
 from accelrig.acquisition.session import State  # noqa: E402
-from accelrig.procedures.result import CalibrationResult, Correction, Estimate  # noqa: E402
+from accelrig.result import CalibrationResult, Correction, Estimate  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wizard import ProcedureWizard  # noqa: E402

@@ -53,6 +53,11 @@ class Chunk:
         """Uncalibrated samples in m/s^2 (counts x nominal scale)."""
         return self.counts.astype(float) * self.scale
 
+    @property
+    def acc(self) -> np.ndarray:
+        """The samples in m/s^2, under the name a Recording uses: procedures take either as a chunk."""
+        return self.acceleration()
+
 
 class RingBuffer:
     def __init__(self, capacity: int, scale: float, channel_names: tuple[str, ...] = ()):

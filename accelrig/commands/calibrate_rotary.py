@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
 import numpy as np
@@ -10,7 +9,7 @@ import numpy as np
 from accelrig.errors import DataError
 from accelrig.procedures.rotary_bench import RATE_METHODS, RotarySetup, analyse_files
 from accelrig.procedures.rotary_campaign import report_markdown, run_campaign, write_report
-from accelrig.recording import _json_default
+from accelrig.result import to_json
 
 
 def register(sub, groups) -> None:
@@ -57,7 +56,7 @@ def run(args) -> int:
     result = analyse_files(args.mems, args.encoder, args.tangential, args.radial, args.nominal_rate,
                            args.frequency, args.rate_method, setup, units=args.units)
     if args.json:
-        print(json.dumps(result.to_json_dict(), indent=2, default=_json_default))
+        print(to_json(result.to_json_dict()))
         return 0
     fs = result.sample_rate
     print(f"sample rate  {fs.value:.4f} +- {fs.uncertainty:.2g} Hz  (nominal {result.nominal_rate:g} Hz, "
@@ -86,7 +85,7 @@ def _run_campaign(args) -> int:
     if args.output:
         write_report(report, args.output)
     if args.json:
-        print(json.dumps(report, indent=2, default=_json_default))
+        print(to_json(report))
     elif not args.output:
         print(report_markdown(report), end="")
     return 0

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 
@@ -10,6 +9,7 @@ from accelrig.errors import DataError
 from accelrig.procedures.static_faces import calibrate_static
 from accelrig.recording import load_recording
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
+from accelrig.result import to_json
 
 
 def register(sub, groups) -> None:
@@ -58,7 +58,7 @@ def run(args) -> int:
     if args.output:
         _write_profile(result, rec, args.output)
     if args.json:
-        print(json.dumps(result.to_json_dict(), allow_nan=True))
+        print(to_json(result.to_json_dict()))
     else:
         print(text_report(result))
     return 0

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 
@@ -10,6 +9,7 @@ from accelrig.errors import DataError
 from accelrig.procedures.wheel import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, calibrate_wheel, plan_wheel
 from accelrig.recording import load_recording
 from accelrig.units import STANDARD_GRAVITY
+from accelrig.result import to_json
 
 
 def register(sub, groups) -> None:
@@ -67,7 +67,7 @@ def run_calibrate(args) -> int:
 
         save_profile(profile_from_result(result, rec), args.output)
     if args.json:
-        print(json.dumps(result.to_json_dict(), indent=2))
+        print(to_json(result.to_json_dict()))
         return 0
     print(_human(result))
     if args.output:
@@ -108,9 +108,9 @@ def run_plan(args) -> int:
         raise DataError(f"--mount-deg {args.mount_deg!r} needs three comma-separated angles in degrees")
     rows = plan_wheel(args.radius, args.tilt_deg, args.noise, args.rate, args.seconds, args.speed, mount)
     if args.json:
-        print(json.dumps({"procedure": "wheel", "bound": "Cramer-Rao, k=1",
+        print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1",
                           "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "unit": r.unit}
-                                         for r in rows}}, indent=2))
+                                         for r in rows}}))
         return 0
     print(f"wheel plan: r = {args.radius} m, tilt {args.tilt_deg} deg, noise {args.noise} m/s^2, "
           f"{args.rate:g} Hz x {args.seconds:g} s, start {args.speed} rad/s; best reachable uncertainty (CRB, k=1)")

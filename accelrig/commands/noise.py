@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
 from accelrig.estimation.allan import noise_figures
@@ -11,6 +10,7 @@ from accelrig.profiles.apply import check_compatible
 from accelrig.profiles.io import load_profile, save_profile, utc_now
 from accelrig.recording import load_recording
 from accelrig.units import STANDARD_GRAVITY
+from accelrig.result import to_json
 
 UG = 1e6 / STANDARD_GRAVITY   # (m/s^2) -> micro-g
 
@@ -46,7 +46,7 @@ def run(args) -> int:
     if args.json:
         section = report.to_profile_dict(utc_now())
         section["arrays"] = {k: v.tolist() for k, v in report.arrays().items()}
-        print(json.dumps(section, indent=2))
+        print(to_json(section))
         return 0
     print(noise_table(report))
     if profile is not None:

@@ -21,6 +21,7 @@ from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
 from accelrig.recording import load_recording, save_recording
 from accelrig.units import STANDARD_GRAVITY
+from accelrig.result import to_json
 
 
 def register(sub, groups) -> None:
@@ -133,7 +134,7 @@ def _fmt(value, unc=None, digits: int = 6) -> str:
 def run_show(args) -> int:
     profile = resolve(args.profile, args)
     if args.json:
-        print(json.dumps(profile.data, indent=2))
+        print(to_json(profile.data))
         return 0
     if args.yaml:
         from accelrig.profiles.io import dump_yaml

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 
 from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank import DEFAULT_HARMONICS, SliderCrankVerification, verify_slider_crank
 from accelrig.recording import load_recording
+from accelrig.result import to_json
 
 
 def register(sub, groups) -> None:
@@ -71,7 +71,7 @@ def run(args) -> int:
     )
     result.warnings = profile_warnings + result.warnings
     if args.json:
-        print(json.dumps(result.to_json_dict(), indent=2))
+        print(to_json(result.to_json_dict()))
     else:
         print(format_report(result))
     return 0 if result.verdict == "holds" else 1

@@ -32,7 +32,7 @@ import numpy as np
 
 from accelrig.errors import DataError
 from accelrig.geometry import AXES
-from accelrig.procedures.result import Estimate
+from accelrig.result import Estimate
 from accelrig.recording import Recording
 
 

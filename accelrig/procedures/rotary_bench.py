@@ -47,7 +47,7 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.geometry import AXES, parse_axis
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
-from accelrig.procedures.result import CalibrationResult, Estimate
+from accelrig.result import CalibrationResult, Estimate
 from accelrig.recording import Recording, load_recording, read_table
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 

@@ -49,7 +49,7 @@ import yaml
 from accelrig.errors import AccelrigError, CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.stats import linear_regression, normalized_error, one_way_anova
-from accelrig.procedures.result import _plain
+from accelrig.result import to_plain
 from accelrig.procedures.rotary_bench import (
     COMPONENTS,
     RATE_METHODS,
@@ -58,7 +58,8 @@ from accelrig.procedures.rotary_bench import (
     analyse_test,
     read_encoder_csv,
 )
-from accelrig.recording import atomic_write, load_recording
+from accelrig.files import atomic_write
+from accelrig.recording import load_recording
 
 SETUP_KEYS = {"radius", "radius_uncertainty", "geometry_uncertainty", "encoder_resolution_deg", "ref_radius"}
 DEFAULT_KEYS = SETUP_KEYS | {"nominal_rate", "rate_method", "units", "frequency"}
@@ -435,7 +436,7 @@ def write_report(report: dict, path: str | os.PathLike) -> None:
     """Write the report as YAML (.yaml/.yml) or Markdown (.md), atomically."""
     suffix = Path(path).suffix.lower()
     if suffix in (".yaml", ".yml"):
-        text = yaml.safe_dump(_plain(report), sort_keys=False)
+        text = yaml.safe_dump(to_plain(report), sort_keys=False)
     elif suffix in (".md", ".markdown"):
         text = report_markdown(report)
     else:

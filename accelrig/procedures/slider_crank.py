@@ -39,7 +39,7 @@ from scipy import stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
-from accelrig.procedures.result import Correction, Estimate
+from accelrig.result import Correction, Estimate
 from accelrig.recording import Recording
 from accelrig.units import STANDARD_GRAVITY
 

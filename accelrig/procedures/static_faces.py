@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.procedures.result import CalibrationResult, Estimate
+from accelrig.result import CalibrationResult, Estimate
 from accelrig.procedures.static_fit import (
     AXES,
     FACES,

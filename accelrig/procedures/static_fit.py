@@ -43,7 +43,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
-from accelrig.procedures.result import Correction
+from accelrig.result import Correction
 from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import crb_covariance
-from accelrig.procedures.result import CalibrationResult, Correction, Estimate
+from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.procedures.wheel_checks import (
     MIN_TURNS, WheelSurvey, check_capture, survey, timestamp_figures, turn_speeds,
 )

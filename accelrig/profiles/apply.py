@@ -16,7 +16,7 @@ import numpy as np
 
 from accelrig.acquisition.ringbuffer import Chunk, Reader
 from accelrig.errors import ProfileError
-from accelrig.procedures.result import Correction
+from accelrig.result import Correction
 from accelrig.recording import Recording
 
 from accelrig.profiles.io import Profile

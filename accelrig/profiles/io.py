@@ -21,11 +21,13 @@ import yaml
 
 from accelrig import __version__
 from accelrig.errors import ProfileError
-from accelrig.procedures.result import CalibrationResult, Correction, _plain
-from accelrig.recording import Recording, atomic_write, read_text_file
+from accelrig.result import CalibrationResult, Correction, to_plain
+from accelrig.files import atomic_write, read_text_file
+from accelrig.recording import Recording
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
-from accelrig.profiles.schema import SCHEMA_VERSION, format_datetime, parse_datetime, validate
+from accelrig.profiles.schema import SCHEMA_VERSION, validate
+from accelrig.spec import format_datetime, parse_datetime
 
 HEADER = (
     "# accelrig device profile (schema v1, profiles/schema-v1.json).\n"
@@ -118,7 +120,7 @@ def profile_from_result(
             "only a calibration that produced a correction can become a profile",
         )
     meta = recording.meta if recording is not None else {}
-    dev = {key: _plain(meta.get(src)) for key, src in DEVICE_FIELDS.items()}
+    dev = {key: to_plain(meta.get(src)) for key, src in DEVICE_FIELDS.items()}
     if device:
         given = dict(device)
         # accept DeviceInfo.to_dict() spellings too
@@ -128,7 +130,7 @@ def profile_from_result(
             given["url"] = given.get("device")
         for key in DEVICE_FIELDS:
             if given.get(key) is not None:
-                dev[key] = _plain(given[key])
+                dev[key] = to_plain(given[key])
     for key in ("range_g", "scale", "rate", "delivered_rate"):
         if dev[key] is not None:
             dev[key] = float(dev[key])
@@ -139,7 +141,7 @@ def profile_from_result(
     if dev["scale"] is None and dev["range_g"] is not None:
         dev["scale"] = scale_for_range(dev["range_g"])
 
-    settings = {k: _known(_plain(v)) for k, v in result.settings.items()}
+    settings = {k: _known(to_plain(v)) for k, v in result.settings.items()}
     rig = settings.pop("rig", None)
     if rig is None:
         rig = settings.pop("geometry", None)
@@ -147,7 +149,7 @@ def profile_from_result(
         rig = {"description": rig}
     g = float(settings.get("g", meta.get("g", STANDARD_GRAVITY)))
 
-    quality = {k: _known(_plain(v)) for k, v in result.quality.items()}
+    quality = {k: _known(to_plain(v)) for k, v in result.quality.items()}
     quality.setdefault("residual_rms", None)
     names = [str(n) for n in result.parameter_names]
     pcov = None
@@ -185,14 +187,14 @@ def profile_from_result(
             "created": created or utc_now(),
             "software_version": __version__,
             "recording_hash": recording.content_hash() if recording is not None else None,
-            "recording_source": _plain(meta.get("source")),
+            "recording_source": to_plain(meta.get("source")),
             "recording_samples": len(recording) if recording is not None else None,
             "recording_start": _normal_datetime(meta.get("start_time")),
-            "temperature_c": _plain(meta.get("temperature_c")),
+            "temperature_c": to_plain(meta.get("temperature_c")),
             "rig": rig,
         },
     }
-    data = _plain(data)
+    data = to_plain(data)
     try:
         validate(data)
     except ProfileError as exc:

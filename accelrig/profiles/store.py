@@ -27,7 +27,7 @@ from pathlib import Path
 from accelrig.errors import ProfileError
 
 from accelrig.profiles.io import Profile, load_profile, save_profile
-from accelrig.profiles.schema import parse_datetime
+from accelrig.spec import parse_datetime
 
 DEFAULT_MAX_AGE_DAYS = 365.0
 

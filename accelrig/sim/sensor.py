@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.geometry import rotation_xyz
-from accelrig.procedures.result import Correction
+from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
 

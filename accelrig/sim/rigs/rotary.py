@@ -45,7 +45,7 @@ from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DataError, DeviceError
 from accelrig.procedures.rotary_bench import PAPER_ORIENTATIONS, PAPER_PLAN
 from accelrig.geometry import parse_axis as parse_axis_spec
-from accelrig.recording import atomic_write
+from accelrig.files import atomic_write
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
 

@@ -20,7 +20,7 @@ from textual.widgets import DataTable, Footer, Header, Label, Static
 from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
-from accelrig.procedures.result import CalibrationResult
+from accelrig.result import CalibrationResult
 from accelrig.recording import Recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.widgets.plot import LinePlot, Series

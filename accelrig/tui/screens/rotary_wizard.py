@@ -20,7 +20,7 @@ from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 
 from accelrig.errors import AccelrigError, DeviceError
-from accelrig.procedures.result import _plain
+from accelrig.result import to_plain
 from accelrig.procedures.rotary_bench import PAPER_PLAN
 from accelrig.procedures.rotary_session import RotaryBenchProcedure
 from accelrig.recording import Recording
@@ -198,7 +198,7 @@ class CampaignScreen(Screen):
         yield Header()
         with VerticalScroll(id="results"):
             yield Static("[b]rotary bench: campaign report[/b] (values k = 1 unless labelled)")
-            yield Static(yaml.safe_dump(_plain(self.report), sort_keys=False, width=100), id="campaign-report",
+            yield Static(yaml.safe_dump(to_plain(self.report), sort_keys=False, width=100), id="campaign-report",
                          markup=False)
         yield Footer()
 

@@ -1,7 +1,13 @@
-"""What every procedure returns: parameters with covariance, the canonical correction, quality, plots."""
+"""The shared vocabulary (ground floor): estimates, the canonical correction, a procedure's result.
+
+Everything above imports these from here; this module imports only numpy.
+``to_plain`` and ``to_json`` are the one way any of them (or a report dict)
+becomes JSON or YAML.
+"""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,7 +22,7 @@ class Estimate:
     unit: str
 
     def to_dict(self) -> dict:
-        return {"value": _plain(self.value), "uncertainty": _plain(self.uncertainty), "unit": self.unit}
+        return {"value": to_plain(self.value), "uncertainty": to_plain(self.uncertainty), "unit": self.unit}
 
 
 @dataclass
@@ -89,6 +95,8 @@ class CalibrationResult:
     arrays      what a person wants to plot (residuals, fitted curves), as arrays.
     settings    the method's settings and rig geometry used (for the profile's provenance).
     warnings    things the operator should know that did not stop the calibration.
+    details     procedure-specific tables as plain data (per-step rows, an uncertainty budget, a verdict),
+                for reports and JSON.
     """
 
     procedure: str
@@ -102,6 +110,7 @@ class CalibrationResult:
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    details: dict = field(default_factory=dict)
 
     def to_json_dict(self, include_arrays: bool = False) -> dict:
         out = {
@@ -110,24 +119,35 @@ class CalibrationResult:
             "model": self.model,
             "correction": self.correction.to_dict() if self.correction is not None else None,
             "parameters": {k: v.to_dict() for k, v in self.parameters.items()},
-            "residual_rms": _plain(self.quality.get("residual_rms")),
-            "quality": {k: _plain(v) for k, v in self.quality.items()},
-            "settings": {k: _plain(v) for k, v in self.settings.items()},
+            "residual_rms": to_plain(self.quality.get("residual_rms")),
+            "quality": {k: to_plain(v) for k, v in self.quality.items()},
+            "settings": {k: to_plain(v) for k, v in self.settings.items()},
             "warnings": list(self.warnings),
         }
+        if self.details:
+            out["details"] = to_plain(self.details)
         if include_arrays:
-            out["arrays"] = {k: _plain(v) for k, v in self.arrays.items()}
+            out["arrays"] = {k: to_plain(v) for k, v in self.arrays.items()}
         return out
 
 
-def _plain(value):
-    """Turn numpy values into JSON/YAML-friendly Python values."""
+def to_plain(value):
+    """Turn numpy values (and containers of them) into JSON/YAML-friendly Python values."""
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
+        return {k: to_plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [to_plain(v) for v in value]
     return value
+
+
+def to_json(value, indent: int | None = 2, sort_keys: bool = False) -> str:
+    """The JSON every ``--json`` output and metadata line uses: numpy made plain.
+
+    NaN and infinities are written as JSON's NaN/Infinity (Python's json reads them back) rather than
+    refused, because a quality figure may honestly be undefined.
+    """
+    return json.dumps(to_plain(value), indent=indent, sort_keys=sort_keys)

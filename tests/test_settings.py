@@ -1,0 +1,45 @@
+"""Settings declared once: the same value means the same and is refused with the same words everywhere."""
+
+import argparse
+
+import pytest
+
+from accelrig.errors import DataError
+from accelrig.settings import REQUIRED, Setting, add_arguments, values_from_args, values_from_texts
+
+RADIUS = Setting("crank_radius", "caliper crank radius", unit="m", default=REQUIRED, low=1e-4, high=1.0,
+                 hint="give it in metres")
+STEPS = Setting("steps", "motor speed steps", unit="Hz", kind="floats", default=(2.5, 4.0), low=0, low_open=True)
+MODEL = Setting("model", "model", kind="choice", choices=("paper", "affine", "auto"), default="auto")
+SETTINGS = (RADIUS, STEPS, MODEL)
+
+
+def test_flags_and_form_parse_alike():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser, SETTINGS)
+    args = parser.parse_args(["--crank-radius", "0.00635", "--steps", "3,6"])
+    assert values_from_args(SETTINGS, args) == {"crank_radius": 0.00635, "steps": [3.0, 6.0], "model": "auto"}
+    assert values_from_texts(SETTINGS, {"crank_radius": "0.00635", "steps": "3 6", "model": ""}) == {
+        "crank_radius": 0.00635, "steps": [3.0, 6.0], "model": "auto"}
+
+
+def test_refusals_name_the_field_the_unit_and_what_to_do():
+    with pytest.raises(DataError, match=r"--crank-radius 6.35 m is out of range: it must be >= 0.0001 and <= 1 m"
+                       r" \(give it in metres\)"):
+        RADIUS.parse("6.35")
+    with pytest.raises(DataError, match="caliper crank radius 'abc' is not a number"):
+        values_from_texts(SETTINGS, {"crank_radius": "abc"})
+    with pytest.raises(DataError, match="--crank-radius is needed"):
+        RADIUS.parse("")
+    with pytest.raises(DataError, match="must be > 0 Hz"):
+        STEPS.parse("2,0")
+    with pytest.raises(DataError, match="not a finite number"):
+        RADIUS.parse("nan")
+    with pytest.raises(DataError, match="not one of paper, affine, auto"):
+        MODEL.parse("cubic")
+
+
+def test_help_shows_unit_choices_and_default():
+    assert STEPS.describe() == "motor speed steps (Hz; default 2.5,4)"
+    assert MODEL.describe() == "model (paper|affine|auto; default auto)"
+    assert RADIUS.describe() == "caliper crank radius (m; required)"
