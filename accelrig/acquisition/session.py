@@ -339,3 +339,22 @@ class Session:
                 self.driver.close()
             except AccelrigError:
                 pass
+
+
+def open_session(url: str, buffer_seconds: float = 30.0, before_start=None) -> Session:
+    """Open the device at ``url`` and start pumping it (blocking; raises AccelrigError).
+
+    ``before_start(session)`` runs between open and start: readers and captures
+    taken there see the stream from its first sample.  On an error nothing is
+    left open.
+    """
+    session = Session(url, buffer_seconds=buffer_seconds)
+    try:
+        session.open()
+        if before_start is not None:
+            before_start(session)
+        session.start()
+    except AccelrigError:
+        session.stop()
+        raise
+    return session

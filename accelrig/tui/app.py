@@ -8,8 +8,10 @@ from textual import work
 from textual.app import App
 from textual.binding import Binding
 
-from accelrig.acquisition.session import Session
+from accelrig.acquisition.session import Session, open_session
 from accelrig.errors import AccelrigError
+from accelrig.tui.screens.help import HelpScreen
+from accelrig.tui.screens.live import LiveScreen
 
 # With no hardware the TUI opens on a simulated static rig at the device's own pace,
 # so a newcomer sees data flow at once.
@@ -36,10 +38,11 @@ class AccelrigApp(App):
         self.buffer_seconds = buffer_seconds
         self.session: Session | None = None
         self.connect_error: str | None = None
+        # What the operator last typed into each procedure's setup form (procedure name -> texts),
+        # offered again the next time that wizard starts in this session of the app.
+        self.setting_texts: dict[str, dict[str, str]] = {}
 
     def on_mount(self) -> None:
-        from accelrig.tui.screens.live import LiveScreen
-
         self.push_screen(LiveScreen())
         self.connect_to(self.device)
 
@@ -72,8 +75,6 @@ class AccelrigApp(App):
                 screen.session_changed()
 
     def action_help(self) -> None:
-        from accelrig.tui.screens.help import HelpScreen
-
         if not isinstance(self.screen, HelpScreen):
             self.push_screen(HelpScreen(self.screen))
 
@@ -81,10 +82,3 @@ class AccelrigApp(App):
         if self.session is not None:
             self.session.stop()
 
-
-def open_session(url: str, buffer_seconds: float = 30.0) -> Session:
-    """Open a device and start pumping it (blocking; raises AccelrigError)."""
-    session = Session(url, buffer_seconds=buffer_seconds)
-    session.open()
-    session.start()
-    return session

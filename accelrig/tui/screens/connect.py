@@ -11,6 +11,7 @@ from textual.widgets import Button, Footer, Header, Input, Label, OptionList, St
 from textual.widgets.option_list import Option
 
 from accelrig.acquisition.driver import load_drivers
+from accelrig.acquisition.session import open_session
 from accelrig.errors import AccelrigError
 
 URL_HINT = "sim://static?seed=1   replay://run.csv   i2c://1/0x68   serial:///dev/ttyUSB0   ble://AA:BB:..."
@@ -88,8 +89,6 @@ class ConnectScreen(Screen):
 
     @work(thread=True, exclusive=True, group="open")
     def open_device(self, url: str) -> None:
-        from accelrig.tui.app import open_session
-
         try:
             session = open_session(url, self.app.buffer_seconds)
         except AccelrigError as exc:

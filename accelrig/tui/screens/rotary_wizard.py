@@ -24,9 +24,8 @@ from accelrig.result import to_plain
 from accelrig.procedures.rotary_bench import PAPER_PLAN
 from accelrig.procedures.rotary_session import RotaryBenchProcedure
 from accelrig.recording import Recording
-from accelrig.tui.screens.dialogs import SetupForm
+from accelrig.tui.screens.legacy_wizard import LegacyWizard, SetupForm
 from accelrig.tui.screens.slider_wizard import Note
-from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 
@@ -65,7 +64,7 @@ class RotarySetupScreen(SetupForm):
         }
 
 
-class RotaryWizard(ProcedureWizard):
+class RotaryWizard(LegacyWizard):
     wizard_title = "rotary bench calibration"
     capture_name = "rotary"
     progress_label = "steps"

@@ -30,8 +30,7 @@ from textual.widgets import DataTable, Footer, Header, Static
 from accelrig.errors import AccelrigError
 from accelrig.procedures.slider_crank import DEFAULT_STEPS_HZ, SliderCrankProcedure
 from accelrig.recording import Recording
-from accelrig.tui.screens.dialogs import SetupForm
-from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.screens.legacy_wizard import LegacyWizard, SetupForm
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 
@@ -107,7 +106,7 @@ class SliderSetupScreen(SetupForm):
         return answer
 
 
-class SliderCrankWizard(ProcedureWizard):
+class SliderCrankWizard(LegacyWizard):
     wizard_title = "slider-crank verification"
     capture_name = "slider-crank"
     progress_label = "steps"
