@@ -158,7 +158,7 @@ def test_static_calibration_through_the_emulated_chip_then_flash_removes_the_tru
     """The whole path: record the six faces from the emulated chip, calibrate, keep the profile,
     flash it on the next connect of the same part, and read it still."""
     from accelrig.acquisition.recorder import record
-    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.procedures.static.procedure import calibrate_static
 
     with driver_for("i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3") as driver:
         recording = record(driver)

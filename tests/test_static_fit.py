@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from accelrig.procedures.static_faces import calibrate_static
-from accelrig.procedures.static_fit import (
+from accelrig.geometry import FACES
+from accelrig.procedures.static.procedure import calibrate_static
+from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
-    FACES,
     PAPER_NAMES,
     PoseData,
     face_reference,
@@ -144,7 +144,7 @@ def test_rotation_convention_matches_the_paper_listing():
 
 def test_analytic_rotation_derivatives_match_central_differences():
     from accelrig.estimation import numerical_jacobian
-    from accelrig.procedures.static_fit import _rotation_derivatives
+    from accelrig.procedures.static.fit import _rotation_derivatives
 
     a = np.array([0.1, -0.3, 0.5])
     numeric = numerical_jacobian(lambda x: rotation_xyz(x).ravel(), a).T.reshape(3, 3, 3)

@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-from accelrig.procedures.static_faces import calibrate_static, detect_poses
-from accelrig.procedures.static_fit import (
+from accelrig.procedures.static.procedure import calibrate_static, detect_poses
+from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
     PAPER_NAMES,
     fit_model,

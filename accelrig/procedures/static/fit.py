@@ -43,12 +43,10 @@ from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
+from accelrig.geometry import AXES, face_down_direction, rotation_xyz
+from accelrig.procedures.static.settings import METHODS, MODELS
 from accelrig.result import Correction
-from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
 from accelrig.units import STANDARD_GRAVITY
-
-MODELS = ("paper", "affine")
-METHODS = ("vp", "paper")
 
 PAPER_NAMES = [f"angle_{a}" for a in AXES] + [f"gain_{a}" for a in AXES] + [f"offset_{a}" for a in AXES]
 PAPER_UNITS = ["rad"] * 3 + ["1"] * 3 + ["m/s^2"] * 3
