@@ -55,6 +55,25 @@ def test_rig_reproduces_the_papers_accelerations():
     assert np.min(f[:, 1]) >= 0  # points to the axis: never negative
     assert np.allclose(f[:, 2], 9.80665)
     assert rig.centripetal_amplitude == pytest.approx(np.max(f[:, 1]) / 2, rel=1e-6)
+    # paper eq. 3-4, known here only: r (2 pi f)^2 theta0 and r (2 pi f theta0)^2 / 2
+    theta0, w = np.deg2rad(17.0), 2 * np.pi * 5.0
+    assert rig.tangential_amplitude == pytest.approx(0.170 * w**2 * theta0, rel=1e-9)
+    assert rig.centripetal_amplitude == pytest.approx(0.170 * (w * theta0) ** 2 / 2, rel=1e-9)
+    ref = RotaryRig(ref=True, ref_radius=0.145, ref_gain_error=0.001, phase=0.7)
+    t = np.linspace(0, 1, 1001)
+    expected = 1.001 * 0.145 * -(w**2) * theta0 * np.cos(w * t + 0.7)
+    assert np.allclose(ref.ref_reading(t), expected, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("tangential, radial, up", [("x", "y", "z"), ("y", "x", "-z"), ("-y", "z", "-x"), ("z", "x", "y")])
+def test_a_mounting_is_a_rotation_so_the_third_axis_may_point_down(tangential, radial, up):
+    """No rigid sensor has y tangential, x radial and z up: that frame would be a mirror image."""
+    rig = RotaryRig(tangential=tangential, radial=radial, phase=0.3)
+    assert rig.truth()["up_axis"] == up
+    force = rig.specific_force(np.linspace(0, 1, 101))
+    i_up, sign = "xyz".index(up[-1]), -1.0 if up.startswith("-") else 1.0
+    assert np.allclose(force[:, i_up], sign * 9.80665, rtol=0, atol=1e-6)
+    assert np.allclose(np.linalg.det(rig.orientation(np.zeros(1))), 1.0)
 
 
 def test_rig_url_options_and_channels():

@@ -17,7 +17,7 @@ from accelrig.procedures.slider_crank import SliderCrankProcedure, verify_slider
 from accelrig.recording import Recording, save_recording
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs import RIGS
-from accelrig.sim.rigs.slider_crank import SliderCrankRig, slider_position
+from accelrig.sim.rigs.slider_crank import KNOCK_DAMPING, KNOCK_FREQUENCY, KNOCK_RISE, STEP, SliderCrankRig
 from accelrig.sim.sensor import SensorModel, SimClock
 
 RADIUS, ROD = 0.00635, 0.0353
@@ -50,17 +50,58 @@ def test_rig_is_registered_and_parses_its_url():
             SliderCrankRig.from_url(DeviceURL.parse(f"sim://slider-crank?{bad}"), np.random.default_rng(0))
 
 
-def test_acceleration_is_the_second_derivative_of_the_exact_position():
+def closed_form_acceleration(phi, omega, omega_dot, r=RADIUS, l=ROD):
+    """REFERENCES.md: a = x''(phi) omega^2 + x'(phi) omega_dot with the exact x(phi) (here only, to check the rig)."""
+    s, c = np.sin(phi), np.cos(phi)
+    root = np.sqrt(l**2 - r**2 * s**2)
+    dx = -r * s - r**2 * s * c / root
+    ddx = -r * c - r**2 * (np.cos(2 * phi) * root**2 + r**2 * s**2 * c**2) / root**3
+    return ddx * omega**2 + dx * omega_dot
+
+
+def test_acceleration_agrees_with_the_closed_form_over_ramps_and_steps():
     rig = SliderCrankRig(steps=[4.0, 9.0], settle=0.3, step_seconds=0.7)
-    t = np.linspace(0.0, rig.duration, 200001)
-    phi = rig.crank_angle(t)[0]
-    x = slider_position(phi, RADIUS, ROD)[0]
-    numeric = np.gradient(np.gradient(x, t), t)
-    acc = rig.slider_acceleration(t)
-    # away from the kinks in speed (each ramp's start and end) the two agree closely
-    _, _, _, _, tau = rig.crank_angle(t)
-    smooth = (np.abs(tau - rig.settle) > 1e-3) & (tau > 1e-3) & (rig.segment - tau > 1e-3)
-    assert np.max(np.abs(numeric - acc)[smooth]) < 1e-4 * np.max(np.abs(acc))
+    t = np.linspace(0.0, rig.duration, 20001)
+    phi, seg, tau = rig.crank_angle(t)
+    w_new = 2 * np.pi * rig.actual_speeds[seg]
+    w_old = np.where(seg == 0, 0.0, 2 * np.pi * rig.actual_speeds[seg - 1])
+    ramp = tau < rig.settle
+    omega = np.where(ramp, w_old + (w_new - w_old) * tau / rig.settle, w_new)
+    omega_dot = np.where(ramp, (w_new - w_old) / rig.settle, 0.0)
+    error = np.abs(rig.slider_acceleration(t) - closed_form_acceleration(phi, omega, omega_dot))
+    # where a ramp starts or ends the acceleration jumps: the stencil blends the two sides within two steps
+    away = (np.abs(tau - rig.settle) > 2 * STEP) & (tau > 2 * STEP)
+    assert np.max(error[away]) < 1e-5
+
+
+def test_knocks_agree_with_the_resonator_closed_form():
+    plain, knocking = SliderCrankRig(steps=[3.0, 6.0]), SliderCrankRig(steps=[3.0, 6.0], backlash=1e-4)
+    t = np.linspace(0.0, plain.duration, 40001)
+    knock = knocking.slider_acceleration(t) - plain.slider_acceleration(t)
+    wn, zeta = 2 * np.pi * KNOCK_FREQUENCY, KNOCK_DAMPING
+    wd = wn * np.sqrt(1 - zeta**2)
+
+    def impulse_response(tau):
+        return np.where(tau > 0, wn / np.sqrt(1 - zeta**2) * np.exp(-zeta * wn * tau) * np.sin(wd * tau), 0.0)
+
+    expected = np.zeros_like(t)
+    for m, centre in enumerate(knocking._dead_centres):
+        sign = 1.0 if m % 2 == 0 else -1.0
+        expected += sign * 1e-4 * (impulse_response(t - centre) - impulse_response(t - centre - KNOCK_RISE)) / KNOCK_RISE
+    # the jerk jumps where each take-up starts and ends: the stencil is off by ~0.1 step x jump there
+    kinks = np.concatenate([knocking._dead_centres, knocking._dead_centres + KNOCK_RISE])
+    away = np.min(np.abs(t[:, None] - kinks[None, :]), axis=1) > 2 * STEP
+    assert np.max(np.abs(expected)) > 15
+    assert np.max(np.abs(knock - expected)[away]) < 1e-4
+    assert np.max(np.abs(knock - expected)) < 0.1
+
+
+def test_motor_speed_never_jumps_even_after_an_overloaded_step():
+    """A hunting motor ends its step off its nominal speed: the next ramp starts from there."""
+    rig = SliderCrankRig(steps=[12.0, 13.0, 11.0], max_speed=11.5)
+    for boundary in rig.segment * np.arange(1, 3):
+        phi = rig.crank_angle(boundary + np.array([-2e-6, -1e-6, 1e-6, 2e-6]))[0]
+        assert (phi[1] - phi[0]) / 1e-6 == pytest.approx((phi[3] - phi[2]) / 1e-6, rel=1e-5)
 
 
 def test_first_harmonic_is_exactly_r_omega_squared_and_peak_is_r_omega2_one_plus_lambda():

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from accelrig.procedures.wheel import WheelProcedure
-from accelrig.procedures.wheel_model import phase
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.wheel import WheelRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -23,7 +22,7 @@ def test_speed_trace_follows_the_true_coast_down_as_the_data_come_in():
         said += [e.speed for e in events if e.speed is not None]
         times, speeds = procedure.speed_trace()
         if times.size:
-            true = np.abs(phase(times, rig.theta0, rig.omega)[1])
+            true = np.abs(rig.motion(times)[1])
             errors.append((times[-1], np.max(np.abs(speeds / true - 1))))
         if procedure.done:
             break

@@ -36,6 +36,7 @@ from accelrig.errors import DataError  # noqa: E402
 from accelrig.estimation.sinefit import fit_sine, interpolated_dft_frequency, sine_crb  # noqa: E402
 from accelrig.procedures.slider_crank import fft_peak_frequency, verify_slider_crank  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
+from accelrig.sim import kinematics  # noqa: E402
 from accelrig.sim.rigs.slider_crank import SliderCrankRig, slider_position  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 
@@ -46,8 +47,11 @@ PAPER_TRIALS = 200
 
 
 def acceleration(f, phase):
-    phi = 2 * np.pi * f * T + phase
-    return slider_position(phi, RADIUS, ROD)[2] * (2 * np.pi * f) ** 2
+    def position(t):
+        x = slider_position(2 * np.pi * f * t + phase, RADIUS, ROD)
+        return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+
+    return kinematics.acceleration(position, T)[:, 0]
 
 
 def paper_method(y):
