@@ -43,7 +43,8 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DataError, DeviceError
-from accelrig.procedures.rotary_bench import PAPER_ORIENTATIONS, PAPER_PLAN
+from accelrig.procedures.rotary.bench import PAPER_ORIENTATIONS
+from accelrig.procedures.rotary.settings import PAPER_PLAN
 from accelrig.geometry import parse_axis as parse_axis_spec
 from accelrig.files import atomic_write
 from accelrig.sim.rigs.base import Rig
