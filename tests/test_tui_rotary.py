@@ -6,7 +6,8 @@
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotarySetupScreen, RotaryWizard  # noqa: E402
+from accelrig.tui.screens.contract_wizard import SettingsForm  # noqa: E402
+from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
 # realtime: a step is recorded from the moment the operator presses space, as on a real bench
@@ -24,10 +25,11 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         menu = app.screen.query_one("#wizards")
         menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("rotary")
         await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, RotarySetupScreen))
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         # the simulated bench runs its one setting (5 Hz, 34 degrees): two repeats of 2 s.
         # (fields filled directly: at realtime each Pilot key press waits for an idle process)
-        for field, value in (("plan", "5:34"), ("repeats", "2"), ("seconds", "2")):
+        for field, value in (("radius", "0.170"), ("tangential", "x"), ("radial", "y"), ("plan", "5:34"),
+                             ("repeats", "2"), ("seconds", "2")):
             app.screen.query_one(f"#setup-{field}").value = value
         app.screen.query_one("#setup-seconds").focus()
         await pilot.press("enter")
