@@ -29,7 +29,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, StaticWizard)
         assert wizard.procedure.faces_done == ["+x", "-x", "+y", "-y", "+z", "-z"]
-        assert wizard.reader.lost_total == 0
+        assert wizard.recorder.reader.lost_total == 0
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
         assert results.query_one("#parameters").row_count == len(results.result.parameters)

@@ -47,7 +47,7 @@ class AccelrigApp(App):
     def connect_to(self, url: str) -> None:
         """Open ``url`` off the UI thread (BLE and serial opens can take seconds)."""
         try:
-            session = open_session(url, self.buffer_seconds)
+            session = Session.open_and_start(url, self.buffer_seconds)
         except AccelrigError as exc:
             self.call_from_thread(self._connect_failed, url, str(exc))
             return
@@ -80,11 +80,3 @@ class AccelrigApp(App):
     def on_unmount(self) -> None:
         if self.session is not None:
             self.session.stop()
-
-
-def open_session(url: str, buffer_seconds: float = 30.0) -> Session:
-    """Open a device and start pumping it (blocking; raises AccelrigError)."""
-    session = Session(url, buffer_seconds=buffer_seconds)
-    session.open()
-    session.start()
-    return session
