@@ -41,7 +41,7 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert [round(s.frequency_hz.value) for s in verification.steps] == [3, 6, 9]
         assert app.screen.query_one("#steps").row_count == 3
         assert verification.verdict in str(app.screen.query_one("#verdict").render())
-        truth = app.session.info.extra["truth"]["rig"]
+        truth = app.session.info.truth["rig"]
     # the radius seen in the motion is the stand's effective radius (inside the clearance), within 4 u
     assert abs(verification.radius_m.value - truth["effective_radius"]) < 4 * verification.radius_m.uncertainty
     assert verification.verdict == "holds"

@@ -56,7 +56,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await wait_for(pilot, lambda: "cannot flash" in status(app))
         assert "cannot store a calibration" in status(app)
 
-        truth = app.session.info.extra["truth"]["sensor"]["correction"]
+        truth = app.session.info.truth["sensor"]["correction"]
 
         # back in the wizard, a face can be taken again: it is forgotten and suggested next
         await pilot.press("escape")

@@ -49,7 +49,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("enter")
         path = tmp_path / "sim-random-5-wheel.yaml"
         await wait_for(pilot, lambda: path.exists())
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
 
     parameters = load_profile(path).data["calibration"]["parameters"]
     for name in ("gain", "offset"):

@@ -94,7 +94,7 @@ async def test_wizard_feeds_every_sample_then_fits_and_shows_results():
         assert wizard.recorder.reader.lost_total == 0
         assert procedure.fed == wizard.recorder.reader.cursor
         assert procedure.fed >= 20 * 200
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
         await wait_for(pilot, lambda: app.screen.query_one("#parameters").row_count == 3)
         mean_z = procedure.result().parameters["mean_z"]
         # a real estimate: the raw z reading of a level sensor, (C^-1 (0, 0, g) + b)_z, within 4 u

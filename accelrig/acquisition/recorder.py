@@ -206,11 +206,11 @@ def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: i
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
     )
-    if info.extra.get("hardware_bias_removed") is not None:  # flashed chip offsets (profiles.correction_for)
-        meta["hardware_bias_removed"] = list(info.extra["hardware_bias_removed"])
-    if "truth" in info.extra:
-        meta["truth"] = info.extra["truth"]
-    if "link_stats" in info.extra:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
-        meta["link_stats"] = info.extra["link_stats"].as_dict()
-        meta["clock_alignment"] = info.extra.get("clock_alignment")
+    if info.hardware_bias_removed is not None:  # flashed chip offsets (profiles.correction_for)
+        meta["hardware_bias_removed"] = list(info.hardware_bias_removed)
+    if info.truth is not None:
+        meta["truth"] = info.truth
+    if info.link_stats is not None:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
+        meta["link_stats"] = info.link_stats.as_dict()
+        meta["clock_alignment"] = info.clock_alignment
     return meta

@@ -24,6 +24,7 @@ import threading
 import traceback
 from collections import deque
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
+from accelrig.result import Correction
 from accelrig.units import saturated
 
 
@@ -93,16 +95,21 @@ class Session:
 
     # ------------------------------------------------------------------ lifecycle
     @classmethod
-    def open_and_start(cls, url: str, buffer_seconds: float = 30.0, record: bool = False) -> Session:
+    def open_and_start(cls, url: str, buffer_seconds: float = 30.0, record: bool = False,
+                       prepare: Callable[[Driver], None] | None = None) -> Session:
         """Open ``url`` and start pumping; with ``record`` a Recorder (``session.recorder``)
         is attached before the first sample, so it holds every sample.
 
-        On any failure the session is stopped (the device released) and the
-        AccelrigError raised.
+        ``prepare`` gets the opened driver before the first sample is read
+        (accelrig.profiles.flash.flash_url_profile writes the profile a URL
+        names).  On any failure the session is stopped (the device released)
+        and the AccelrigError raised.
         """
         session = cls(url, buffer_seconds=buffer_seconds)
         try:
             session.open()
+            if prepare is not None:
+                prepare(session.driver)
             if record:
                 session.recorder = Recorder.attach(session)
             session.start()
@@ -224,10 +231,10 @@ class Session:
             )
 
     # ------------------------------------------------------------------ flashing
-    def plan_flash(self, profile) -> FlashPlan:
-        """What storing ``profile`` on the device would write (reads only; see Driver.plan_flash)."""
+    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
+        """What storing ``correction`` on the device would write (reads only; see Driver.plan_flash)."""
         with self._device_lock:
-            return self.driver.plan_flash(profile)
+            return self.driver.plan_flash(correction, profile_id)
 
     def flash(self, plan: FlashPlan) -> FlashReport:
         """Write a plan made by ``plan_flash``, between two reads of the pump."""

@@ -27,6 +27,7 @@ def register(sub, groups) -> None:
 def run(args) -> int:
     from accelrig.acquisition.recorder import Recorder
     from accelrig.acquisition.session import Session, State
+    from accelrig.profiles.flash import flash_url_profile
     from accelrig.recording import save_recording
 
     if args.seconds is not None and args.seconds <= 0:
@@ -41,7 +42,7 @@ def run(args) -> int:
         )
         sys.stderr.flush()
 
-    session = Session.open_and_start(args.url, record=True)
+    session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile)
 
     def pull() -> bool:
         """Give the pump a moment; a device that went away ends the command as it would have ended a read."""

@@ -25,6 +25,7 @@ from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 
@@ -140,7 +141,8 @@ class ProcedureWizard(Screen):
     @work(thread=True, exclusive=True, group="wizard-open")
     def open_device(self) -> None:
         try:
-            session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True)
+            session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True,
+                                             prepare=flash_url_profile)
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
