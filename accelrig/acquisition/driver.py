@@ -132,37 +132,33 @@ class Driver(abc.ABC):
         self.close()
 
 
-def load_drivers() -> dict[str, type[Driver]]:
-    """All installed drivers by URL scheme.
+def _load(ep) -> type[Driver]:
+    """The driver class of one entry point; a plugin that fails to import is named, never skipped."""
+    try:
+        cls = ep.load()
+    except Exception as exc:  # a broken third-party plugin must be named
+        raise DeviceError(
+            f"driver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
+            "reinstall or uninstall the package that provides it",
+        ) from exc
+    if not (isinstance(cls, type) and issubclass(cls, Driver)):
+        raise DeviceError(f"driver plugin {ep.name!r} ({ep.value}) is not an accelrig Driver")
+    return cls
 
-    A plugin that fails to import is reported as a DeviceError naming it, never
-    skipped silently.
-    """
-    drivers: dict[str, type[Driver]] = {}
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            cls = ep.load()
-        except Exception as exc:  # a broken third-party plugin must be named
-            raise DeviceError(
-                f"driver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
-                "reinstall or uninstall the package that provides it",
-            ) from exc
-        if not (isinstance(cls, type) and issubclass(cls, Driver)):
-            raise DeviceError(f"driver plugin {ep.name!r} ({ep.value}) is not an accelrig Driver")
-        drivers[ep.name] = cls
-    return drivers
+
+def load_drivers() -> dict[str, type[Driver]]:
+    """All installed drivers by URL scheme (each one's module imported)."""
+    return {ep.name: _load(ep) for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
 def driver_for(url: str | DeviceURL) -> Driver:
-    """Parse ``url`` and return an unopened driver for it."""
+    """Parse ``url`` and return an unopened driver for it; only that scheme's driver is imported."""
     parsed = url if isinstance(url, DeviceURL) else DeviceURL.parse(url)
-    drivers = load_drivers()
-    try:
-        cls = drivers[parsed.scheme]
-    except KeyError:
-        known = ", ".join(f"{s}://" for s in sorted(drivers)) or "none installed"
+    found = entry_points(group=ENTRY_POINT_GROUP, name=parsed.scheme)
+    if not found:
+        known = ", ".join(sorted(f"{ep.name}://" for ep in entry_points(group=ENTRY_POINT_GROUP))) or "none installed"
         raise DeviceError(
             f"unknown device URL scheme {parsed.scheme!r} in {parsed.raw!r}",
             f"installed drivers: {known}",
-        ) from None
-    return cls(parsed)
+        )
+    return _load(next(iter(found)))(parsed)

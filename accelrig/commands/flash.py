@@ -16,7 +16,6 @@ from accelrig.errors import DeviceError
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "flash",
-        help="write a profile's calibration to the device, read it back and verify",
         description="Write a profile's calibration to a device. Shows the plan first and asks before writing; "
         "without a terminal it writes only with --yes.",
     )

@@ -11,7 +11,6 @@ from accelrig.errors import DataError, DeviceError
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "record",
-        help="record a device to a CSV or .npz file",
         description="Record a device to a file. A progress line is shown on a terminal; "
         "nothing but the file is written otherwise.",
     )
