@@ -92,7 +92,7 @@ def test_disconnect_is_reported_and_captured_data_kept():
     stats = session.stats()
     assert stats.state == State.DISCONNECTED
     assert "disconnected" in stats.last_error
-    assert recorder.interrupted == stats.last_error
+    assert session.interrupted == stats.last_error
     rec = recorder.recording()
     assert rec.duration == pytest.approx(3.0, abs=1.5)
     assert rec.meta["interrupted"] == stats.last_error
@@ -194,3 +194,15 @@ def test_open_that_fails_any_way_releases_the_driver(error):
         session.open()
     assert driver.closes == 1
     assert session.state == State.CLOSED
+
+
+def test_open_and_start_releases_the_device_when_preparing_it_fails():
+    prepared = []
+
+    def refuse(driver):
+        prepared.append(driver)
+        raise DeviceError("refused")
+
+    with pytest.raises(DeviceError, match="refused"):
+        Session.open_and_start("sim://still?seed=1", record=True, prepare=refuse)
+    assert prepared[0].device is None  # stopped: the device was released

@@ -107,11 +107,6 @@ class Recorder:
             self.seconds = float(chunk.t[-1] - self._t0)
             self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
 
-    @property
-    def interrupted(self) -> str | None:
-        """Why the session's device went away mid-recording, if it did."""
-        return self.session.interrupted if self.session is not None else None
-
     def close(self) -> None:
         """Stop holding the session's pump back (what was taken stays)."""
         if self.session is not None:
@@ -128,8 +123,8 @@ class Recorder:
             gaps, missing = list(self._gaps), self.missing
         acc = counts.astype(float) if units == "counts" else counts.astype(float) * self.info.scale
         meta = recording_meta(self.info, t, gaps, missing)
-        if self.interrupted:
-            meta["interrupted"] = self.interrupted
+        if self.session is not None and self.session.interrupted:
+            meta["interrupted"] = self.session.interrupted
         return Recording(t, acc, units, channels, meta)
 
     def take_until(self, pull: Callable[[], bool], seconds: float | None = None, samples: int | None = None,
