@@ -97,7 +97,7 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
         question = str(app.screen.query_one("#question").render())
-        assert "these will be written" in question and "OFFSET" in question.upper()
+        assert "Flash plan for" in question and "OFFSET" in question.upper() and "Write to the device?" in question
         await pilot.press("n")  # cancel: nothing written
         await wait_for(pilot, lambda: "nothing was written" in status(app))
         assert driver.chip.read_offset_words() == before
