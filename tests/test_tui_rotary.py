@@ -43,7 +43,7 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         await wait_for(pilot, lambda: isinstance(app.screen, CampaignScreen) and app.screen.query("#campaign-report"))
         await pilot.pause(0.2)  # let the screen finish mounting before the app closes
         assert "per_axis" in str(app.screen.query_one("#campaign-report").render())
-        truth = true_sensitivity(app.session.info.extra["truth"])
+        truth = true_sensitivity(app.session.info.truth)
         results = [result for _, result in wizard.procedure.results]
     assert len(results) == 2
     for result in results:

@@ -37,13 +37,13 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, SliderCrankWizard)
-        assert wizard.reader.lost_total == 0
+        assert wizard.recorder.reader.lost_total == 0
         verification = app.screen.verification.details
         assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
         assert app.screen.query_one("#steps").row_count == 3
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
         radius = app.screen.verification.parameters["radius"]
-        truth = app.session.info.extra["truth"]["rig"]
+        truth = app.session.info.truth["rig"]
     # the radius seen in the motion is the stand's effective radius (inside the clearance), within 4 u
     assert abs(radius.value - truth["effective_radius"]) < 4 * radius.uncertainty
     assert verification["verdict"] == "holds"
@@ -95,13 +95,13 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
                              ("speeds", "3,6,9"), ("seconds", f"{CAPTURE:g}")):
             app.screen.query_one(f"#setup-{field}").value = value
         await app.screen.query_one("#setup-profile").action_submit()
-        await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.capture is not None)
+        await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.recorder is not None)
         wizard = app.screen
         assert not wizard.procedure.marked and "Press space to capture 1 s" in str(wizard.query_one("#instruction").render())
 
         def steady(index):
             """The stream is in step ``index``'s steady run, with room for the whole capture."""
-            into = (wizard.capture.samples / RATE) % (SEGMENT * len(STEPS)) - index * SEGMENT
+            into = (wizard.recorder.samples / RATE) % (SEGMENT * len(STEPS)) - index * SEGMENT
             return SETTLE + 0.1 <= into <= SEGMENT - CAPTURE - 0.5
 
         for index in range(len(STEPS)):
@@ -114,7 +114,7 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
         verification = app.screen.verification.details
         radius = app.screen.verification.parameters["radius"]
-        assert wizard.reader.lost_total == 0
+        assert wizard.recorder.reader.lost_total == 0
     assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
     # each step is the capture's seconds of steady running after the key press
     assert all(abs(s["n_samples"] - CAPTURE * RATE) <= 2 and not s["speed_unsteady"] for s in verification["steps"])

@@ -33,7 +33,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, WheelWizard)
-        assert wizard.procedure.done and wizard.reader.lost_total == 0
+        assert wizard.procedure.done and wizard.recorder.reader.lost_total == 0
         assert "turns, need" in str(wizard.query_one("#wheel-turns").render())
         assert "rad/s" in str(wizard.query_one("#wheel-speed").render())
         # the speed plot holds the procedure's trace: a coast-down over the run, one point per half turn
@@ -49,7 +49,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("enter")
         path = tmp_path / "sim-random-5-wheel.yaml"
         await wait_for(pilot, lambda: path.exists())
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
 
     parameters = load_profile(path).data["calibration"]["parameters"]
     for name in ("gain", "offset"):

@@ -91,10 +91,10 @@ async def test_wizard_feeds_every_sample_then_fits_and_shows_results():
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         procedure = wizard.procedure
         # every sample up to the moment it had enough reached the procedure, none lost
-        assert wizard.reader.lost_total == 0
-        assert procedure.fed == wizard.reader.cursor
+        assert wizard.recorder.reader.lost_total == 0
+        assert procedure.fed == wizard.recorder.reader.cursor
         assert procedure.fed >= 20 * 200
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
         await wait_for(pilot, lambda: app.screen.query_one("#parameters").row_count == 3)
         mean_z = procedure.result().parameters["mean_z"]
         # a real estimate: the raw z reading of a level sensor, (C^-1 (0, 0, g) + b)_z, within 4 u
@@ -115,8 +115,8 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
         await pilot.pause(0.3)
         alarm = str(wizard.query_one("#wizard-alarm").render())
         assert "DEVICE LOST" in alarm and "disconnected" in alarm
-        assert wizard.capture.samples > 500
-        assert f"{wizard.capture.samples} captured samples are kept" in alarm
+        assert wizard.recorder.samples > 500
+        assert f"{wizard.recorder.samples} captured samples are kept" in alarm
         assert not isinstance(app.screen, ResultsScreen)
         # write the kept data
         await pilot.press("w")
@@ -126,7 +126,7 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
         from accelrig.recording import load_recording
 
         rec = load_recording(tmp_path / "mean-capture.csv")
-        assert len(rec) == wizard.capture.samples
+        assert len(rec) == wizard.recorder.samples
         assert "disconnected" in rec.meta["interrupted"]
 
 

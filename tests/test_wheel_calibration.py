@@ -264,7 +264,7 @@ def test_sim_driver_wheel_recording_calibrates_to_the_sensor_truth():
 
     with driver_for("sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05") as drv:
         rec = record(drv, seconds=40.0)
-    truth = rec.meta.get("truth") or drv.info.extra["truth"]
+    truth = rec.meta.get("truth") or drv.info.truth
     result = calibrate_wheel(rec, radius=0.28)
     g = result.parameters["gain"]
     o = result.parameters["offset"]
@@ -281,7 +281,7 @@ def test_cross_axis_terms_carry_the_datasheet_prior_not_a_false_zero(tmp_path):
 
     with driver_for("sim://wheel?seed=9&pace=fast&seconds=40&noise=0.05") as drv:
         rec = record(drv, seconds=40.0)
-    truth = rec.meta.get("truth") or drv.info.extra["truth"]
+    truth = rec.meta.get("truth") or drv.info.truth
     result = calibrate_wheel(rec, radius=0.28)
     assert any("does not observe cross-axis terms" in w and f"{DEFAULT_CROSS_AXIS_SD:.3g}" in w
                for w in result.warnings)

@@ -43,8 +43,8 @@ from accelrig.procedures.static_fit import (
     face_reference,
     fit_model,
 )
-from accelrig.recording import Recording
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.recording import Recording, count_scale
+from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 
 
 @dataclass
@@ -350,7 +350,7 @@ class StaticProcedure:
         """The capture checks: (kind, one-line message) of the first problem, or None."""
         x = pose.samples
         if self.full_scale is not None:
-            hit = np.any(np.abs(x) >= self.full_scale * (1 - 1e-3), axis=1)
+            hit = np.any(saturated(x, self.full_scale / COUNT_MAX), axis=1)
             if np.any(hit):
                 k = int(np.argmax(hit))
                 return ("saturated", f"{pose.face} down at t = {pose.t[k]:.1f} s: {int(hit.sum())} samples at the "
@@ -522,12 +522,8 @@ def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> flo
 
 def full_scale_of(rec: Recording, g: float = STANDARD_GRAVITY) -> float | None:
     """Sensor full scale in m/s^2 from the recording's metadata, if known."""
-    scale, range_g = rec.meta.get("scale"), rec.meta.get("range_g")
-    if scale:
-        return 32767 * float(scale)
-    if range_g:
-        return float(range_g) * STANDARD_GRAVITY
-    return None
+    scale = count_scale(rec.meta)
+    return None if scale is None else COUNT_MAX * scale
 
 
 def detect_poses(rec: Recording, g: float = STANDARD_GRAVITY, **settings) -> StaticProcedure:

@@ -10,6 +10,7 @@ from textual.binding import Binding
 
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import flash_url_profile
 
 # With no hardware the TUI opens on a simulated static rig at the device's own pace,
 # so a newcomer sees data flow at once.
@@ -47,7 +48,7 @@ class AccelrigApp(App):
     def connect_to(self, url: str) -> None:
         """Open ``url`` off the UI thread (BLE and serial opens can take seconds)."""
         try:
-            session = open_session(url, self.buffer_seconds)
+            session = Session.open_and_start(url, self.buffer_seconds, prepare=flash_url_profile)
         except AccelrigError as exc:
             self.call_from_thread(self._connect_failed, url, str(exc))
             return
@@ -80,11 +81,3 @@ class AccelrigApp(App):
     def on_unmount(self) -> None:
         if self.session is not None:
             self.session.stop()
-
-
-def open_session(url: str, buffer_seconds: float = 30.0) -> Session:
-    """Open a device and start pumping it (blocking; raises AccelrigError)."""
-    session = Session(url, buffer_seconds=buffer_seconds)
-    session.open()
-    session.start()
-    return session

@@ -40,9 +40,9 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
-from accelrig.recording import Recording
+from accelrig.recording import Recording, count_scale
 from accelrig.result import CalibrationResult, Estimate
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import saturated
 
 MIN_STEP_SAMPLES = 64
 # A step is "short of its command" when the crank turns this much slower than commanded.
@@ -171,14 +171,9 @@ def principal_axis(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 def clipped_samples(rec: Recording) -> int:
     """Samples at the sensor's full scale (any axis); ``rec`` raw, in m/s^2 (before any correction)."""
     acc = rec.acc
-    if "scale" in rec.meta:  # int16 counts x scale
-        limit = 32767.0 * float(rec.meta["scale"])
-    elif "range_g" in rec.meta:
-        limit = float(rec.meta["range_g"]) * float(rec.meta.get("g", STANDARD_GRAVITY))
-    else:
-        limit = None
-    if limit is not None:
-        return int(np.count_nonzero(np.any(np.abs(acc) >= limit * (1 - 1e-6), axis=1)))
+    scale = count_scale(rec.meta)
+    if scale is not None:
+        return int(np.count_nonzero(np.any(saturated(acc, scale), axis=1)))
     # No declared full scale: flat tops (three or more consecutive samples at an axis's extreme).
     flat = 0
     for column in acc.T:

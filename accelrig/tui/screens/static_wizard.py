@@ -20,7 +20,7 @@ from textual.widgets.option_list import Option
 from accelrig.procedures.static_faces import StaticProcedure
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FACES, FaceGrid
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import COUNT_MAX
 
 PROBLEM_KINDS = {"too_short", "moved", "not_flat", "saturated", "motion"}
 INSTRUCTION_KINDS = {"hold_still", "already_done", "captured", "complete", "redo"}
@@ -60,7 +60,7 @@ class StaticWizard(ProcedureWizard):
     def make_procedure(self) -> StaticProcedure:
         info = self.session_info
         # full scale in m/s^2, so the procedure can refuse clipped poses
-        return StaticProcedure(rate=info.nominal_rate, full_scale=info.range_g * STANDARD_GRAVITY)
+        return StaticProcedure(rate=info.nominal_rate, full_scale=COUNT_MAX * info.scale)
 
     @property
     def session_info(self):

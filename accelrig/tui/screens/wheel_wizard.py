@@ -121,8 +121,8 @@ class WheelWizard(ProcedureWizard):
     def action_restart(self) -> None:
         if self.computing:
             return
-        if self.session is not None and self.reader is not None:
-            self.session.release(self.reader)
+        if self.recorder is not None:
+            self.recorder.close()
         self.query_one("#speed-plot", LinePlot).set_series([])
         self.query_one("#wheel-turns", Static).update("turns: waiting for rotation")
         self.query_one("#wheel-speed", Static).update("speed: -")
