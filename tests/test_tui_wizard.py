@@ -1,55 +1,80 @@
-"""The wizard machinery (any procedure object) and the results screen, driven with Pilot.
+"""The generic wizard (any procedure on the contract) and the results screen, driven with Pilot.
 
 The procedure here is a small real estimator written for the test: the mean
 of a still sensor with its standard uncertainty.  It exercises everything a
-wizard does with a procedure (feed, events, progress, done, result in a
-worker, results, disconnect) without depending on any one calibration.
+wizard does with a procedure (settings form, feed, events, progress, actions,
+finish, done, result in a worker, results, disconnect) without depending on
+any one calibration.
 """
-
-from dataclasses import dataclass
 
 import numpy as np
 
 
 from accelrig.acquisition.session import State  # noqa: E402
+from accelrig.procedures.contract import Event, Procedure  # noqa: E402
 from accelrig.result import CalibrationResult, Correction, Estimate  # noqa: E402
+from accelrig.settings import REQUIRED, Setting  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.dialogs import ConfirmScreen, SettingsForm  # noqa: E402
+from accelrig.tui.screens.live import LiveScreen  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wizard import ProcedureWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
 
-@dataclass
-class Event:
-    kind: str
-    message: str
-    progress: float = 0.0
-
-
-class MeanProcedure:
+class MeanProcedure(Procedure):
     """Collects ``seconds`` of still data; result: the mean per axis with u = sd / sqrt(n)."""
+
+    name = "mean"
+    title = "mean of a still sensor"
+    settings = (Setting("seconds", "seconds of still data", unit="s", default=REQUIRED, low=1, high=3600),
+                Setting("label", "what the sensor is", kind="text", default="sensor"))
+    actions = {"forget": "drop the data so far"}
 
     def __init__(self, seconds: float):
         self.seconds = seconds
         self.parts = []
         self.t0 = None
-        self.done = False
         self.fed = 0
+        self.finished = False
 
-    def feed(self, t, raw):
+    @classmethod
+    def create(cls, values, device):
+        return cls(values["seconds"])
+
+    @property
+    def progress(self):
+        if self.t0 is None or not self.parts:
+            return 0.0
+        return min((self.last - self.t0) / self.seconds, 1.0)
+
+    @property
+    def done(self):
+        return self.progress >= 1.0
+
+    def feed(self, chunk):
         if self.t0 is None:
-            self.t0 = t[0]
+            self.t0 = chunk.t[0]
             events = [Event("instruction", "hold the sensor still")]
         else:
             events = []
-        self.parts.append(raw)
-        self.fed += len(t)
-        progress = min((t[-1] - self.t0) / self.seconds, 1.0)
-        events.append(Event("progress", f"{progress:.0%} of {self.seconds:g} s", progress))
-        if progress >= 1.0:
-            self.done = True
+        self.parts.append(chunk.acc)
+        self.fed += len(chunk.t)
+        self.last = chunk.t[-1]
+        events.append(Event("progress", f"{self.progress:.0%} of {self.seconds:g} s", self.progress))
+        if self.done:
             events.append(Event("ready", "enough data"))
         return events
+
+    def act(self, action, **arguments):
+        if action != "forget":
+            return super().act(action, **arguments)
+        self.parts, self.t0 = [], None
+        return [Event("instruction", "data dropped: hold the sensor still again", 0.0)]
+
+    def finish(self):
+        self.finished = True
+        return [Event("problem", "the source ended")]
 
     def result(self):
         data = np.concatenate(self.parts)
@@ -64,20 +89,13 @@ class MeanProcedure:
 
 
 class MeanWizard(ProcedureWizard):
-    wizard_title = "mean of a still sensor"
-    capture_name = "mean"
-
-    def __init__(self, session, seconds):
-        super().__init__(session)
-        self.seconds = seconds
-
-    def make_procedure(self):
-        return MeanProcedure(self.seconds)
+    procedure_class = MeanProcedure
+    ACTION_KEYS = {"f": "forget"}
 
 
 async def open_wizard(app, pilot, seconds):
     await wait_for(pilot, lambda: app.session is not None)
-    wizard = MeanWizard(app.session, seconds)
+    wizard = MeanWizard(app.session, values={"seconds": seconds, "label": "sensor"})
     app.push_screen(wizard)
     return wizard
 
@@ -132,14 +150,13 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
 
 @async_test
 async def test_cancel_asks_first_and_returns_to_the_live_view():
-    from accelrig.tui.screens.live import LiveScreen
-
     # a source that ends before the procedure has enough: said on screen, and the app
     # falls idle, so Pilot's key presses (which wait for an idle process) stay quick
     app = AccelrigApp(device="sim://still?seed=13&pace=fast&seconds=3", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         wizard = await open_wizard(app, pilot, seconds=600)
         await wait_for(pilot, lambda: wizard.session is not None and wizard.session.stats().state == State.ENDED)
+        await wait_for(pilot, lambda: wizard.procedure.finished)   # finish() was called once the source ended
         await pilot.pause(0.2)
         assert "source ended before the procedure had enough data" in str(wizard.query_one("#wizard-alarm").render())
         await pilot.press("escape")
@@ -150,4 +167,47 @@ async def test_cancel_asks_first_and_returns_to_the_live_view():
         await pilot.press("escape")
         await pilot.pause(0.1)
         await pilot.press("y")
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+
+
+@async_test
+async def test_settings_form_refuses_in_place_remembers_and_actions_have_keys():
+    app = AccelrigApp(device="sim://still?seed=14&pace=fast&seconds=30", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        app.push_screen(MeanWizard(app.session))
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        form = app.screen
+
+        def status():
+            return str(form.query_one("#setup-status").render())
+
+        # blank where a value is required, then out of range: refused with the flag's words, cursor there
+        await pilot.press("enter")
+        assert "seconds of still data is needed" in status()
+        await pilot.press(*"0.5", "enter")
+        assert "seconds of still data 0.5 s is out of range: it must be >= 1 and <= 3600 s" in status()
+        assert app.focused is form.field("seconds")
+        await pilot.press("backspace", "backspace", "backspace", *"600", "down", *"bench", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, MeanWizard))
+        wizard = app.screen
+        assert wizard.values == {"seconds": 600.0, "label": "bench"}
+        await wait_for(pilot, lambda: wizard.procedure.fed > 1000)
+        # the procedure's action, on the key the rig screen gave it
+        assert wizard.active_bindings["f"].binding.description == "drop the data so far"
+        await pilot.press("f")
+        await wait_for(pilot, lambda: "data dropped" in str(wizard.query_one("#instruction").render()))
+        # the compute key says how far the procedure is
+        await pilot.press("c")
+        assert "not enough data yet" in str(wizard.query_one("#instruction").render())
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        await pilot.press("y")   # leave, dropping the data
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+
+        # the next wizard of the same procedure offers what was typed last
+        app.push_screen(MeanWizard(app.session))
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        assert app.screen.field("seconds").value == "600" and app.screen.field("label").value == "bench"
+        await pilot.press("escape")   # cancel: back where it was opened
         await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))

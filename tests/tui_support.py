@@ -3,6 +3,8 @@
 import asyncio
 import functools
 
+from textual.css.query import NoMatches
+
 
 def async_test(fn):
     """Run an async test with asyncio.run (no pytest-asyncio needed)."""
@@ -14,11 +16,19 @@ def async_test(fn):
     return run
 
 
+def holds(condition) -> bool:
+    """``condition()``, where a widget not found (the screen it queries is not up yet) means "not yet"."""
+    try:
+        return bool(condition())
+    except NoMatches:
+        return False
+
+
 async def wait_for(pilot, condition, timeout=40.0):
     """Let the app run until ``condition()`` holds; fail after ``timeout`` seconds."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
-    while not condition():
+    while not holds(condition):
         if loop.time() > deadline:
             raise AssertionError("timed out waiting for the app")
         await pilot.pause(0.05)

@@ -11,6 +11,8 @@ from textual.binding import Binding
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import flash_url_profile
+from accelrig.tui.screens.help import HelpScreen
+from accelrig.tui.screens.live import LiveScreen
 
 # With no hardware the TUI opens on a simulated static rig at the device's own pace,
 # so a newcomer sees data flow at once.
@@ -37,10 +39,11 @@ class AccelrigApp(App):
         self.buffer_seconds = buffer_seconds
         self.session: Session | None = None
         self.connect_error: str | None = None
+        # What the operator last typed into each procedure's setup form (procedure name -> texts),
+        # offered again the next time that wizard starts in this session of the app.
+        self.setting_texts: dict[str, dict[str, str]] = {}
 
     def on_mount(self) -> None:
-        from accelrig.tui.screens.live import LiveScreen
-
         self.push_screen(LiveScreen())
         self.connect_to(self.device)
 
@@ -73,8 +76,6 @@ class AccelrigApp(App):
                 screen.session_changed()
 
     def action_help(self) -> None:
-        from accelrig.tui.screens.help import HelpScreen
-
         if not isinstance(self.screen, HelpScreen):
             self.push_screen(HelpScreen(self.screen))
 

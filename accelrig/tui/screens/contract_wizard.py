@@ -13,8 +13,7 @@ from textual.binding import Binding
 from textual.widgets import ProgressBar
 
 from accelrig.settings import values_from_texts
-from accelrig.tui.screens.dialogs import SetupForm
-from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.screens.legacy_wizard import LegacyWizard, SetupForm
 
 
 class SettingsForm(SetupForm):
@@ -36,7 +35,7 @@ class SettingsForm(SetupForm):
         return values, (self.prepare(values) if self.prepare is not None else {})
 
 
-class ContractWizard(ProcedureWizard):
+class ContractWizard(LegacyWizard):
     """Base of the wizards of procedures that meet the contract; subclasses set ``procedure_class``."""
 
     procedure_class = None

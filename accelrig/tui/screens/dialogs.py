@@ -1,15 +1,16 @@
-"""Small modal dialogs: yes/no confirmation, a path prompt, and the wizards' setup form."""
+"""Small modal dialogs: yes/no confirmation, a path prompt, and a procedure's settings form."""
 
 from __future__ import annotations
 
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
-from accelrig.errors import AccelrigError
+from accelrig.errors import AccelrigError, DataError
+from accelrig.settings import Setting, values_from_texts
 
 
 class ConfirmScreen(ModalScreen[bool]):
@@ -69,44 +70,74 @@ class PathScreen(ModalScreen[str | None]):
         self.dismiss(None)
 
 
-class SetupForm(ModalScreen):
-    """A wizard's setup questions, one Input per field; enter moves on, the last one submits.
 
-    Subclasses give FIELDS as (name, label, placeholder) and ``parse(values)``,
-    which turns the raw strings into the answer or raises ValueError /
-    AccelrigError with a message the operator can act on (shown in red, the
-    form stays open).  Escape dismisses with None.
+class SettingsForm(ModalScreen):
+    """A procedure's declared settings as a form: one field per ``Setting``.
+
+    Each field starts with what the operator typed last time (``texts``) or
+    blank; a blank field takes the setting's default, shown beside it.  The
+    texts are parsed by ``values_from_texts``, so a value is taken or refused
+    with the same words as the command line's flag.  ``check(values)`` may
+    refuse a combination (raising AccelrigError), e.g. a procedure that cannot
+    start from these values.  Enter starts (tab and the arrows move between
+    fields); a refusal is shown in red and puts the cursor in the field it
+    names.  Dismisses with ``(values, texts)``, or None on escape.
     """
 
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
-    FIELDS: tuple[tuple[str, str, str], ...] = ()
+    BINDINGS = [
+        Binding("escape", "cancel", "Cancel"),
+        Binding("down", "app.focus_next", "Next field", show=False),
+        Binding("up", "app.focus_previous", "Previous field", show=False),
+    ]
+
+    def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
+                 check=None):
+        super().__init__()
+        self.title_text = title
+        self.settings = tuple(settings)
+        self.texts = dict(texts or {})
+        self.check = check
 
     def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog"):
-            for field, label, placeholder in self.FIELDS:
-                yield Label(label)
-                yield Input(placeholder=placeholder, id=f"setup-{field}")
-            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
+        with VerticalScroll(classes="dialog settings-form"):
+            yield Label(f"[b]{self.title_text}[/b]")
+            for s in self.settings:
+                with Horizontal(classes="setting-row"):
+                    yield Label(s.describe(), classes="setting-label")
+                    yield Input(value=self.texts.get(s.name, ""), placeholder=s.example or s.default_text(),
+                                id=f"setting-{s.name}", classes="setting-input")
+            yield Static("[dim]enter starts, tab or the arrows move between fields, escape cancels[/dim]",
                          id="setup-status")
 
-    def parse(self, values: dict[str, str]):
-        raise NotImplementedError
+    def on_mount(self) -> None:
+        if self.settings:
+            self.field(self.settings[0].name).focus()
+
+    def field(self, name: str) -> Input:
+        return self.query_one(f"#setting-{name}", Input)
 
     @on(Input.Submitted)
     def submitted(self, event: Input.Submitted) -> None:
-        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
-        position = ids.index(event.input.id)
-        if position < len(ids) - 1:
-            self.query_one(f"#{ids[position + 1]}", Input).focus()
-            return
-        values = {field: self.query_one(f"#setup-{field}", Input).value.strip() for field, _, _ in self.FIELDS}
+        texts = {s.name: self.field(s.name).value.strip() for s in self.settings}
         try:
-            answer = self.parse(values)
-        except (ValueError, AccelrigError) as exc:
+            values = values_from_texts(self.settings, texts)
+            if self.check is not None:
+                self.check(values)
+        except AccelrigError as exc:
             self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
+            bad = next((s for s in self.settings if not _accepts(s, texts[s.name])), None)
+            if bad is not None:
+                self.field(bad.name).focus()
             return
-        self.dismiss(answer)
+        self.dismiss((values, texts))
 
     def action_cancel(self) -> None:
         self.dismiss(None)
 
+
+def _accepts(setting: Setting, text: str) -> bool:
+    try:
+        setting.parse(text)
+    except DataError:
+        return False
+    return True

@@ -7,6 +7,8 @@ from textual.binding import Binding
 from textual.screen import Screen
 from textual.widgets import Footer, Header
 
+from accelrig.tui.screens.calibrate import CalibrateMenu
+from accelrig.tui.screens.connect import ConnectScreen
 from accelrig.tui.widgets.live import LiveView
 
 
@@ -43,11 +45,7 @@ class LiveScreen(Screen):
         self.sub_title = "view paused (p resumes)" if self.paused else ""
 
     def action_connect(self) -> None:
-        from accelrig.tui.screens.connect import ConnectScreen
-
         self.app.push_screen(ConnectScreen())
 
     def action_calibrate(self) -> None:
-        from accelrig.tui.screens.calibrate import CalibrateMenu
-
         self.app.push_screen(CalibrateMenu())

@@ -18,7 +18,7 @@ from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
 from accelrig.procedures.static_faces import StaticProcedure
-from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.screens.legacy_wizard import LegacyWizard
 from accelrig.tui.widgets.faces import FACES, FaceGrid
 from accelrig.units import COUNT_MAX
 
@@ -48,7 +48,7 @@ class RedoScreen(ModalScreen[str | None]):
         self.dismiss(None)
 
 
-class StaticWizard(ProcedureWizard):
+class StaticWizard(LegacyWizard):
     wizard_title = "static six-face calibration"
     capture_name = "static"
     progress_label = "faces"

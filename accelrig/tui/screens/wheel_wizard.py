@@ -18,7 +18,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Input, Label, Static
 
 from accelrig.procedures.wheel import WheelProcedure
-from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.screens.legacy_wizard import LegacyWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 
@@ -69,7 +69,7 @@ class WheelSetupScreen(ModalScreen[tuple[float | None, float | None] | None]):
         self.dismiss(None)
 
 
-class WheelWizard(ProcedureWizard):
+class WheelWizard(LegacyWizard):
     wizard_title = "tilted wheel calibration"
     capture_name = "wheel"
     progress_label = "turns"

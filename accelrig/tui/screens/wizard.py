@@ -1,18 +1,40 @@
-"""What every calibration wizard shares: drive a procedure object from the live stream.
+"""The one calibration wizard: any procedure that meets the contract (accelrig.procedures.contract).
 
-A wizard holds no calibration logic.  It reopens the device (so the procedure
-sees the stream from its first sample; a scripted simulation starts its
-script again), reads the session's ring buffer with a lossless reader on a
-timer, hands each chunk to ``procedure.feed(t, raw)`` and shows the events
-the procedure returns.  When the procedure says it has enough data the fit
-runs in a thread worker (the screen stays live) and the results screen opens.
+The wizard holds no calibration logic.  It
 
-A disconnect mid-procedure is said on screen; the samples captured so far
-stay in memory and can be written to a file (w).
+1. renders the procedure's declared ``settings`` as a form (what the operator
+   typed last time in this app session is offered again) and makes the
+   procedure with ``create(values, device)``, so an impossible combination is
+   refused while the form is still open;
+2. reopens the device with a Recorder attached before its first sample
+   (``Session.open_and_start``), so the procedure sees the stream from its
+   start (a scripted simulation starts its script again) and every sample it
+   saw is kept;
+3. on a timer, hands what the recorder takes to ``feed(chunk)`` in a thread worker
+   (a slow feed never freezes the screen) and shows the ``Event``s it returns:
+   the instruction line, the log, the progress bar (``progress``);
+4. binds the procedure's ``actions`` to keys (a rig screen maps keys to action
+   names in ``ACTION_KEYS``) and calls ``act``;
+5. calls ``finish()`` when a finite source has delivered everything;
+6. once ``done``, runs ``result()`` in a thread worker and opens the results.
+
+Every call into the procedure runs in a worker thread under one lock; while
+the procedure collects data, its actions and feeds run in one pump at a time,
+and the screen reads the procedure only between pumps.  A
+disconnect mid-procedure is said on screen; the samples captured so far stay
+in memory and can be written to a file (w).  An action that makes the
+procedure need more data again (redo a face after the results) resumes
+feeding from the live stream.
+
+A rig screen is a thin subclass: ``procedure_class``, ``ACTION_KEYS``, and the
+hooks ``compose_body`` (its plots and widgets), ``show_procedure`` (refresh
+them), ``reset_body``, ``action_arguments`` (ask what an action needs),
+``not_ready_text`` and ``result_screen``.
 """
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 from textual import work
@@ -24,69 +46,95 @@ from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
 from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
-from accelrig.errors import AccelrigError
+from accelrig.errors import AccelrigError, DeviceError
+from accelrig.procedures.contract import Event, Procedure
 from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import save_recording
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 
 EVENT_STYLES = {"problem": "bold red", "ready": "bold green", "instruction": "bold", "captured": "green"}
+# Event kinds that replace the instruction line (progress only goes to the log and the bar).
+INSTRUCTION_KINDS = ("instruction", "captured", "ready", "problem")
+
+
+def device_facts(info) -> dict:
+    """What a procedure is told about the device (contract ``device``): its info without the
+    driver's private extras, and ``rate``, the rate it was configured for, in Hz."""
+    facts = {key: value for key, value in info.to_dict().items() if key != "extra"}
+    facts["rate"] = info.nominal_rate
+    return facts
 
 
 class ProcedureWizard(Screen):
-    """Base of the wizards.  Subclasses set ``wizard_title``, make the procedure and add widgets."""
+    """Drives one ``Procedure`` from the live stream.  Rig screens subclass it (see the module doc)."""
 
-    wizard_title = "calibration"
+    procedure_class: type[Procedure] | None = None
+    ACTION_KEYS: dict[str, str] = {}   # key -> procedure action name
     progress_label = "progress"
-    capture_name = "capture"   # default file name stem for written captures
     BINDINGS = [
         Binding("escape", "cancel", "Cancel"),
         Binding("w", "write_capture", "Write data"),
+        Binding("c", "compute", "Compute"),
     ]
 
-    def __init__(self, session: Session):
+    def __init__(self, session: Session, procedure_class: type[Procedure] | None = None,
+                 values: dict | None = None):
+        """``values``: the settings already parsed (no form is shown)."""
         super().__init__()
+        self.procedure_class = procedure_class or type(self).procedure_class
+        if self.procedure_class is None:
+            raise TypeError("a wizard needs a procedure class")
+        unknown = sorted(set(self.ACTION_KEYS.values()) - set(self.procedure_class.actions))
+        if unknown:
+            raise TypeError(f"{self.procedure_class.__name__} has no action {', '.join(unknown)}")
         self.url = session.url
+        self.device = device_facts(session.info)
+        self.values = values
         self.session: Session | None = None
-        self.procedure = None
+        self.procedure: Procedure | None = None
         self.recorder: Recorder | None = None
-        self.finished = False      # the procedure has enough data
+        self.finished = False      # the procedure has enough data: no more feeding
         self.computing = False
-        self.reported_state: State | None = None
-        self._stream_line = ""
-        self._finished_source = False
         self.result_shown = False
+        self.source_ended = False  # finish() was called: a finite source delivered everything
+        self._lock = threading.Lock()   # one call into the procedure at a time
+        self._pumping = False
+        self._actions: list[tuple[str, dict]] = []   # operator actions for the next pump
+        self._generation = 0       # a pump begun for an earlier procedure reports to nobody
+        self._timer = None
+        self._stream_line = ""
+        self._alarm_key = None
+        for key, action in self.ACTION_KEYS.items():
+            self._bindings.bind(key, f"procedure_action({action!r})", self.procedure_class.actions[action])
 
-    # ------------------------------------------------------------------ subclass hooks
-    def make_procedure(self):
-        """A fresh procedure object (may raise AccelrigError with a message for the operator)."""
-        raise NotImplementedError
+    @property
+    def capture_name(self) -> str:
+        """Default file name stem for written captures."""
+        return self.procedure_class.name
 
+    # ------------------------------------------------------------------ rig screen hooks
     def compose_body(self) -> ComposeResult:
-        """Procedure-specific widgets shown above the event log."""
+        """The rig's own widgets, shown between the instruction and the progress bar."""
         yield from ()
 
-    def show_events(self, events: list) -> None:
-        """Procedure-specific reaction to events (after they are logged)."""
+    def reset_body(self) -> None:
+        """A new procedure starts: clear the rig's widgets."""
 
-    def feed_chunk(self, chunk) -> list:
-        """Hand one ring-buffer chunk to the procedure; returns its events."""
-        return self.procedure.feed(chunk.t, chunk.acceleration())
+    def show_procedure(self, events: list[Event]) -> None:
+        """Refresh the rig's widgets from the procedure (after each feed, action or finish)."""
 
-    def source_ended(self) -> list:
-        """A finite source delivered everything: let the procedure close what is in progress."""
-        finish = getattr(self.procedure, "finish", None)
-        return finish() if finish is not None else []
+    async def action_arguments(self, action: str) -> dict | None:
+        """The arguments of ``action`` (ask the operator here); None cancels the action."""
+        return {}
 
-    def opening_instruction(self) -> str:
-        """What the operator reads once the device streams."""
-        return "streaming: follow the instructions below"
+    def not_ready_text(self) -> str:
+        """What 'compute' says while the procedure has not enough data."""
+        return f"not enough data yet ({self.procedure.progress:.0%} of what the procedure needs)"
 
-    def compute_result(self):
-        """The fit (runs in a thread worker)."""
-        return self.procedure.result()
+    def result_screen(self, result, recording) -> Screen:
+        from accelrig.tui.screens.results import ResultsScreen
 
-    def procedure_done(self) -> bool:
-        return bool(getattr(self.procedure, "done", False))
+        return ResultsScreen(result, recording, self.session)
 
     # ------------------------------------------------------------------ layout
     def compose(self) -> ComposeResult:
@@ -103,13 +151,12 @@ class ProcedureWizard(Screen):
         yield Footer()
 
     def on_mount(self) -> None:
-        # (Textual calls on_mount of every class in the MRO: subclasses override begin(), not this)
-        self.sub_title = self.wizard_title
-        self.begin()
-
-    def begin(self) -> None:
-        """First thing on the screen: subclasses that need the operator's input ask it here."""
-        self.start()
+        self.sub_title = self.procedure_class.title
+        if self.values is not None or not self.procedure_class.settings:
+            self.values = self.values if self.values is not None else {}
+            self.start()
+        else:
+            self.ask_settings()
 
     def set_instruction(self, text: str, style: str = "bold") -> None:
         self.query_one("#instruction", Static).update(f"[{style}]{text}[/]")
@@ -117,73 +164,84 @@ class ProcedureWizard(Screen):
     def log_event(self, text: str, style: str = "") -> None:
         self.query_one("#events", RichLog).write(f"[{style}]{text}[/]" if style else text)
 
+    # ------------------------------------------------------------------ settings
+    @work(exclusive=True, group="wizard-settings")
+    async def ask_settings(self) -> None:
+        cls = self.procedure_class
+        remembered = self.app.setting_texts.get(cls.name, {})
+        answer = await self.app.push_screen_wait(
+            SettingsForm(f"{cls.title}: settings", cls.settings, remembered, check=self.make_procedure))
+        if answer is None:
+            self.app.pop_screen()
+            return
+        self.values, texts = answer
+        self.app.setting_texts[cls.name] = texts
+        self.start()
+
+    def make_procedure(self, values: dict) -> Procedure:
+        """A new procedure from ``values`` and the device's facts (AccelrigError if it cannot be)."""
+        missing = [c for c in self.procedure_class.channels_needed if c not in self.device.get("channels", ())]
+        if missing:
+            raise DeviceError(f"{self.url} delivers no {', '.join(missing)} channel, which the "
+                              f"{self.procedure_class.title} needs")
+        return self.procedure_class.create(values, self.device)
+
     # ------------------------------------------------------------------ running
     def start(self) -> None:
         """(Re)start: a new procedure on a freshly opened device."""
         try:
-            self.procedure = self.make_procedure()
+            procedure = self.make_procedure(self.values)
         except AccelrigError as exc:
             self.set_instruction(f"cannot start: {exc}", "bold red")
             return
-        self.finished = False
-        self.computing = False
-        self.reported_state = None
-        self._finished_source = False
-        self.result_shown = False
+        self._generation += 1
+        if self.recorder is not None:
+            self.recorder.close()
+        self.procedure = procedure
+        self.recorder = None
+        self._actions = []
+        self.finished = self.computing = self.result_shown = self.source_ended = False
+        self._alarm_key = None
         self.query_one("#progress", ProgressBar).update(progress=0)
         self.query_one("#events", RichLog).clear()
+        self.alarm_clear()
+        self.reset_body()
+        self.show_procedure([])
         self.set_instruction(f"opening {self.url} ...")
         # A real device cannot be opened twice: release it before reopening.
         if self.app.session is not None:
             self.app.session.stop()
-        self.open_device()
+        self.open_device(self._generation)
 
     @work(thread=True, exclusive=True, group="wizard-open")
-    def open_device(self) -> None:
+    def open_device(self, generation: int) -> None:
         try:
             session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True,
                                              prepare=flash_url_profile)
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
-        self.app.call_from_thread(self._opened, session)
+        self.app.call_from_thread(self._opened, generation, session)
 
-    def _opened(self, session: Session) -> None:
+    def _opened(self, generation: int, session: Session) -> None:
         self.session, self.recorder = session, session.recorder
         self.app.use_session(session)
-        self.set_instruction(self.opening_instruction())
-        if not getattr(self, "_timer_started", False):
-            self._timer_started = True
-            self.set_interval(self.app.refresh_interval, self.tick)
+        if generation != self._generation:   # restarted meanwhile: this stream is the old one's
+            self.recorder.close()
+            return
+        self.set_instruction(f"{self.procedure_class.title}: streaming, follow the instructions below")
+        if self._timer is None:
+            self._timer = self.set_interval(self.app.refresh_interval, self.tick)
 
     def tick(self) -> None:
         if self.session is None or self.recorder is None:
             return
         stats = self.session.stats()
-        if not self.finished:
-            chunk = self.recorder.poll()
-            if chunk.lost:  # cannot happen with a lossless reader; never hide it
-                self.log_event(f"{chunk.lost} samples were lost before the procedure saw them", "bold red")
-            for _, missing in chunk.gaps:
-                self.log_event(f"the device reported a gap ({missing if missing >= 0 else 'unknown'} samples missing)",
-                               "yellow")
-            if chunk.n:
-                try:
-                    events = self.feed_chunk(chunk)
-                except AccelrigError as exc:
-                    self.set_instruction(str(exc), "bold red")
-                    self.finished = True
-                    return
-                self.handle(events)
-            if not chunk.n and stats.state == State.ENDED and not self._finished_source:
-                # a finite source (replay, scripted simulation) delivered everything:
-                # let the procedure close what is in progress (e.g. the last still pose)
-                self._finished_source = True
-                self.handle(self.source_ended())
-            if self.procedure_done():
-                self.finished = True
-                self.recorder.close()
-                self.compute()
+        feeding = not self.finished
+        if not self._pumping and self.procedure is not None and (feeding or self._actions):
+            self._pumping = True
+            actions, self._actions = self._actions, []
+            self.pump(self._generation, self.procedure, self.recorder if feeding else None, stats.state, actions)
         line = (f"{self.url}   {stats.state.value}   {stats.delivered_rate:.1f} Hz   "
                 f"captured {self.recorder.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
         if line != self._stream_line:  # an idle screen does no work
@@ -191,76 +249,182 @@ class ProcedureWizard(Screen):
             self.query_one("#wizard-stream", Static).update(line)
         self.report_state(stats)
 
-    def handle(self, events: list) -> None:
+    @work(thread=True, group="wizard-pump")
+    def pump(self, generation: int, procedure: Procedure, recorder: Recorder | None, state: State,
+             actions: list) -> None:
+        """The operator's actions, then what the recorder takes (or finish a source that ended before this
+        read).
+
+        Every call into the procedure while it collects data happens here, one pump at a
+        time, so the screen reads the procedure only between pumps.
+        """
+        notes: list[tuple[str, str]] = []
+        events: list[Event] = []
+        called = False
+        error = None
+        with self._lock:
+            for action, arguments in actions:
+                try:
+                    events += procedure.act(action, **arguments)
+                except AccelrigError as exc:
+                    notes.append((str(exc), "bold red"))
+                called = True
+            if recorder is not None:
+                chunk = recorder.poll()
+                if chunk.lost:  # cannot happen with a lossless reader; never hide it
+                    notes.append((f"{chunk.lost} samples were lost before the procedure saw them", "bold red"))
+                for _, missing in chunk.gaps:
+                    notes.append((f"the device reported a gap ({missing if missing >= 0 else 'unknown'} samples "
+                                  "missing)", "yellow"))
+                try:
+                    if chunk.n:
+                        events += procedure.feed(chunk)
+                        called = True
+                    elif state == State.ENDED and not self.source_ended:
+                        # a finite source (replay, scripted simulation) delivered everything (the state
+                        # was read before this empty read): let the procedure close what is in progress
+                        self.source_ended = True
+                        events += procedure.finish()
+                        called = True
+                except AccelrigError as exc:
+                    error = str(exc)
+            done = procedure.done
+        self.app.call_from_thread(self._pumped, generation, notes, events, called, bool(actions), error, done)
+
+    def _pumped(self, generation: int, notes, events, called: bool, acted: bool, error: str | None,
+                done: bool) -> None:
+        self._pumping = False
+        if generation != self._generation:
+            return
+        for text, style in notes:
+            self.log_event(text, style)
+            if style == "bold red":
+                self.set_instruction(text, style)
+        if called:
+            self.handle(events)
+        if error is not None:
+            self.set_instruction(error, "bold red")
+            self.log_event(error, "bold red")
+            self.stop_feeding()
+        elif done and not self.finished:
+            self.stop_feeding()
+            self.compute()
+        elif acted and not done and self.finished and not self.computing:
+            self.resume_feeding()
+        if self.session is not None:
+            self.report_state(self.session.stats())
+
+    def stop_feeding(self) -> None:
+        self.finished = True
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def resume_feeding(self) -> None:
+        """The procedure needs data again after it had enough: it and the recorder take the live
+        stream on (the recording's times jump over what came while nobody read)."""
+        if self.session is None:
+            return
+        self.finished = self.result_shown = False
+        self.recorder.reader = self.session.reader(lossless=True)
+
+    def handle(self, events: list[Event]) -> None:
+        """Show events: the log, the instruction line, the progress bar; then the rig's widgets."""
         for event in events:
-            kind = getattr(event, "kind", "progress")
-            message = getattr(event, "message", str(event))
-            self.log_event(message, EVENT_STYLES.get(kind, ""))
-            if kind in ("instruction", "problem", "ready"):
-                self.set_instruction(message, EVENT_STYLES.get(kind, "bold"))
-            progress = getattr(event, "progress", None)
-            if progress is not None:
-                self.query_one("#progress", ProgressBar).update(progress=float(progress))
-        self.show_events(events)
+            style = EVENT_STYLES.get(event.kind, "")
+            self.log_event(event.message, style)
+            if event.kind in INSTRUCTION_KINDS:
+                self.set_instruction(event.message, style or "bold")
+        self.query_one("#progress", ProgressBar).update(progress=float(self.procedure.progress))
+        self.show_procedure(events)
 
     def report_state(self, stats) -> None:
-        if stats.state == self.reported_state:
+        ended = stats.state == State.ENDED and self.source_ended
+        lost = stats.state in (State.DISCONNECTED, State.FAILED)
+        # once the device is lost the recorder still takes what the ring holds: the count may grow
+        key = (stats.state, ended, self.finished, self.result_shown, self.computing,
+               self.recorder.samples if lost else None)
+        if key == self._alarm_key:
             return
-        self.reported_state = stats.state
+        self._alarm_key = key
         alarm = self.query_one("#wizard-alarm", Static)
-        if stats.state in (State.DISCONNECTED, State.FAILED) and not (self.finished or self.result_shown):
+        busy_or_done = self.finished or self.result_shown or self.computing
+        if lost and not busy_or_done:
             alarm.update(
                 f"DEVICE LOST: {stats.last_error}\n{self.recorder.samples} captured samples are kept: "
                 "w writes them to a file, escape returns to connect again."
             )
             alarm.add_class("alarm")
             self.set_instruction("the device disconnected", "bold red")
-        elif stats.state == State.ENDED and not (self.finished or self.result_shown or self.computing):
+        elif ended and not busy_or_done:
             alarm.update("the source ended before the procedure had enough data (w writes what was captured)")
             alarm.add_class("alarm")
         else:
-            alarm.update("")
-            alarm.remove_class("alarm")
+            self.alarm_clear()
 
     def alarm_clear(self) -> None:
         alarm = self.query_one("#wizard-alarm", Static)
         alarm.update("")
         alarm.remove_class("alarm")
 
+    # ------------------------------------------------------------------ actions
+    def action_procedure_action(self, action: str) -> None:
+        if self.procedure is None or self.computing:
+            return
+        self.act_flow(action)
+
+    @work(exclusive=True, group="wizard-act")
+    async def act_flow(self, action: str) -> None:
+        arguments = await self.action_arguments(action)
+        if arguments is not None:
+            self._actions.append((action, arguments))   # the next pump carries it out
+
     # ------------------------------------------------------------------ fit
+    def action_compute(self) -> None:
+        if self.procedure is None or self.computing:
+            return
+        if not self.procedure.done:
+            self.set_instruction(self.not_ready_text(), "bold red")
+            return
+        self.compute()
+
     def compute(self) -> None:
         if self.computing:
             return
         self.computing = True
         self.set_instruction("enough data: computing the calibration ...", "bold green")
-        self._fit()
+        self._fit(self._generation, self.procedure)
 
     @work(thread=True, exclusive=True, group="wizard-fit")
-    def _fit(self) -> None:
+    def _fit(self, generation: int, procedure: Procedure) -> None:
         try:
-            result = self.compute_result()
+            with self._lock:
+                result = procedure.result()
         except AccelrigError as exc:
-            self.computing = False
-            self.app.call_from_thread(self.fit_failed, str(exc))
+            self.app.call_from_thread(self.fit_failed, generation, str(exc))
             return
         recording = self.recorder.recording()
-        self.computing = False
-        self.app.call_from_thread(self._show, result, recording)
+        self.app.call_from_thread(self._show, generation, result, recording)
 
-    def fit_failed(self, message: str) -> None:
+    def fit_failed(self, generation: int, message: str) -> None:
+        if generation != self._generation:
+            return
+        self.computing = False
         self.set_instruction(f"calibration failed: {message}", "bold red")
         self.log_event(f"calibration failed: {message}", "bold red")
 
-    def _show(self, result, recording) -> None:
+    def _show(self, generation: int, result, recording) -> None:
+        if generation != self._generation:
+            return
+        self.computing = False
         self.result_shown = True
         self.alarm_clear()
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
         self.app.push_screen(self.result_screen(result, recording))
 
-    def result_screen(self, result, recording) -> Screen:
-        from accelrig.tui.screens.results import ResultsScreen
-
-        return ResultsScreen(result, recording, self.session)
+    def action_restart(self) -> None:
+        """Start again from a fresh procedure and a reopened device (rig screens bind it to a key)."""
+        if not self.computing and self.values is not None:
+            self.start()
 
     # ------------------------------------------------------------------ operator actions
     def action_cancel(self) -> None:
@@ -272,6 +436,7 @@ class ProcedureWizard(Screen):
             if not await self.app.push_screen_wait(ConfirmScreen("Leave this calibration? The data taken so far are "
                                                                  "dropped unless written first (w).", "Leave", "Stay")):
                 return
+        self._generation += 1   # whatever is still running reports to nobody
         if self.recorder is not None:
             self.recorder.close()
         self.app.pop_screen()
