@@ -6,7 +6,7 @@
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.contract_wizard import SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
 from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
@@ -30,8 +30,8 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         # (fields filled directly: at realtime each Pilot key press waits for an idle process)
         for field, value in (("radius", "0.170"), ("tangential", "x"), ("radial", "y"), ("plan", "5:34"),
                              ("repeats", "2"), ("seconds", "2")):
-            app.screen.query_one(f"#setup-{field}").value = value
-        app.screen.query_one("#setup-seconds").focus()
+            app.screen.query_one(f"#setting-{field}").value = value
+        app.screen.query_one("#setting-seconds").focus()
         await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, RotaryWizard) and app.screen.procedure is not None
                        and app.screen.session is not None)

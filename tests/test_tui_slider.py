@@ -9,7 +9,7 @@ from accelrig.sim.rigs.slider_crank import SliderCrankRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.contract_wizard import SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
 from accelrig.tui.screens.slider_wizard import SliderCrankWizard, VerificationScreen  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
@@ -32,8 +32,7 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
-        await pilot.press(*"0.00635", "enter", *"0.0353", "enter", *"0.0002", "enter", *"3,6,9", "enter", "enter",
-                          "enter", "enter")
+        await pilot.press(*"0.00635", "down", *"0.0353", "down", *"0.0002", "down", *"3,6,9", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, SliderCrankWizard)
@@ -55,7 +54,7 @@ async def test_a_bad_profile_is_refused_and_a_device_without_step_marks_asks_for
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
         # a profile that cannot be read is refused in the setup, naming the problem
-        await pilot.press(*"0.006", "enter", *"0.035", "enter", "enter", "enter", "enter", "enter", *"nope.yaml", "enter")
+        await pilot.press(*"0.006", "down", *"0.035", "down", "down", "down", "down", "down", *"nope.yaml", "enter")
         status = app.screen.query_one("#setup-status")
         await wait_for(pilot, lambda: "nope.yaml" in str(status.render()))
         await pilot.press(*["backspace"] * len("nope.yaml"), "enter")
@@ -93,8 +92,8 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
         # an idle process, and the first step would be gone by then)
         for field, value in (("crank_radius", "0.00635"), ("rod_length", "0.0353"), ("clearance", "0.0002"),
                              ("speeds", "3,6,9"), ("seconds", f"{CAPTURE:g}")):
-            app.screen.query_one(f"#setup-{field}").value = value
-        await app.screen.query_one("#setup-profile").action_submit()
+            app.screen.query_one(f"#setting-{field}").value = value
+        await app.screen.query_one("#setting-profile").action_submit()
         await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.recorder is not None)
         wizard = app.screen
         assert not wizard.procedure.marked and "Press space to capture 1 s" in str(wizard.query_one("#instruction").render())

@@ -1,4 +1,4 @@
-"""The wizard base of the procedures not yet on the Procedure contract (slider-crank, rotary).
+"""The wizard base of the procedures not yet on the Procedure contract (static, wheel).
 
 Delete this module once they run on ``accelrig.tui.screens.wizard.ProcedureWizard``,
 the one generic wizard over ``accelrig.procedures.contract``.  What follows is
@@ -21,12 +21,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from textual import on, work
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.screen import ModalScreen, Screen
-from textual.widgets import Footer, Header, Input, Label, ProgressBar, RichLog, Static
+from textual.screen import Screen
+from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
 from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
@@ -301,45 +301,3 @@ class LegacyWizard(Screen):
             return
         self.log_event(f"{self.recorder.samples} samples written to {path}", "green")
 
-
-class SetupForm(ModalScreen):
-    """A legacy wizard's setup questions, one Input per field; enter moves on, the last one submits.
-
-    Subclasses give FIELDS as (name, label, placeholder) and ``parse(values)``,
-    which turns the raw strings into the answer or raises ValueError /
-    AccelrigError with a message the operator can act on (shown in red, the
-    form stays open).  Escape dismisses with None.  (The contract's wizards
-    use ``dialogs.SettingsForm``, rendered from the procedure's declared settings.)
-    """
-
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
-    FIELDS: tuple[tuple[str, str, str], ...] = ()
-
-    def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog"):
-            for field, label, placeholder in self.FIELDS:
-                yield Label(label)
-                yield Input(placeholder=placeholder, id=f"setup-{field}")
-            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
-                         id="setup-status")
-
-    def parse(self, values: dict[str, str]):
-        raise NotImplementedError
-
-    @on(Input.Submitted)
-    def submitted(self, event: Input.Submitted) -> None:
-        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
-        position = ids.index(event.input.id)
-        if position < len(ids) - 1:
-            self.query_one(f"#{ids[position + 1]}", Input).focus()
-            return
-        values = {field: self.query_one(f"#setup-{field}", Input).value.strip() for field, _, _ in self.FIELDS}
-        try:
-            answer = self.parse(values)
-        except (ValueError, AccelrigError) as exc:
-            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
-            return
-        self.dismiss(answer)
-
-    def action_cancel(self) -> None:
-        self.dismiss(None)

@@ -13,22 +13,24 @@ from textual.widgets import Footer, Header, Static
 
 from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.result import to_plain
-from accelrig.tui.screens.contract_wizard import ContractWizard
+from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 AXIS_STYLES = {"x": "red", "y": "green", "z": "dodger_blue1"}
 
 
-class RotaryWizard(ContractWizard):
-    wizard_title = "rotary bench calibration"
-    capture_name = "rotary"
-    progress_label = "steps"
+class RotaryWizard(ProcedureWizard):
     procedure_class = RotaryProcedure
+    ACTION_KEYS = {"space": "capture"}
+    progress_label = "steps"
+
+    def opening_instruction(self) -> str:
+        return self.procedure.instruction()
 
     def compose_body(self) -> ComposeResult:
         yield LinePlot("sensitivity per step (counts per m/s²)", x_label="step", id="sensitivity-plot")
 
-    def show_events(self, events: list) -> None:
+    def show_procedure(self, events: list) -> None:
         if not any(e.kind == "captured" for e in events):
             return
         self.query_one("#sensitivity-plot", LinePlot).set_series([

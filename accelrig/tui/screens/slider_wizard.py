@@ -11,7 +11,8 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
 
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
-from accelrig.tui.screens.contract_wizard import ContractWizard
+from accelrig.profiles import load_profile
+from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 
@@ -20,30 +21,23 @@ def response_series(frequency, measured, model) -> list[Series]:
             Series(frequency, measured, "yellow", "measured", join=False)]
 
 
-class SliderCrankWizard(ContractWizard):
-    wizard_title = "slider-crank verification"
-    capture_name = "slider-crank"
-    progress_label = "steps"
+class SliderCrankWizard(ProcedureWizard):
     procedure_class = SliderCrankProcedure
-    BINDINGS = [Binding("space", "act('capture')", "Capture step"), Binding("v", "act('verify')", "Verify now")]
+    ACTION_KEYS = {"space": "capture", "v": "verify"}
+    progress_label = "steps"
 
-    def prepare(self, values: dict) -> dict:
-        if not values["profile"]:
-            return {}
-        from accelrig.profiles import load_profile
+    def create_arguments(self, values: dict) -> dict:
+        """The calibration under test: the profile's correction, applied to every step first."""
+        return {"correction": load_profile(values["profile"]).correction} if values["profile"] else {}
 
-        return {"correction": load_profile(values["profile"]).correction}
+    def opening_instruction(self) -> str:
+        return self.procedure.instruction()
 
     def compose_body(self) -> ComposeResult:
         yield Static("", id="slider-steps")
         yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="fr-plot")
 
-    def start(self) -> None:
-        super().start()
-        if self.procedure is not None:
-            self.show_events([])
-
-    def show_events(self, events: list) -> None:
+    def show_procedure(self, events: list) -> None:
         steps = self.procedure.steps
         cells = [f"[green]✓[/] {s.frequency_hz.value:.3g}" for s in steps]
         cells += [("[b]▶[/] " if i == len(steps) else "· ") + f"{speed:g}"

@@ -27,9 +27,10 @@ procedure need more data again (redo a face after the results) resumes
 feeding from the live stream.
 
 A rig screen is a thin subclass: ``procedure_class``, ``ACTION_KEYS``, and the
-hooks ``compose_body`` (its plots and widgets), ``show_procedure`` (refresh
-them), ``reset_body``, ``action_arguments`` (ask what an action needs),
-``not_ready_text`` and ``result_screen``.
+hooks ``create_arguments`` (what ``create`` takes beyond the settings),
+``opening_instruction``, ``compose_body`` (its plots and widgets),
+``show_procedure`` (refresh them), ``reset_body``, ``action_arguments`` (ask
+what an action needs), ``not_ready_text`` and ``result_screen``.
 """
 
 from __future__ import annotations
@@ -113,6 +114,15 @@ class ProcedureWizard(Screen):
         return self.procedure_class.name
 
     # ------------------------------------------------------------------ rig screen hooks
+    def create_arguments(self, values: dict) -> dict:
+        """What ``create`` takes beyond the values and the device (a profile's correction); raising
+        AccelrigError refuses the values while the form is open."""
+        return {}
+
+    def opening_instruction(self) -> str:
+        """What the operator reads once the device streams."""
+        return f"{self.procedure_class.title}: streaming, follow the instructions below"
+
     def compose_body(self) -> ComposeResult:
         """The rig's own widgets, shown between the instruction and the progress bar."""
         yield from ()
@@ -184,7 +194,7 @@ class ProcedureWizard(Screen):
         if missing:
             raise DeviceError(f"{self.url} delivers no {', '.join(missing)} channel, which the "
                               f"{self.procedure_class.title} needs")
-        return self.procedure_class.create(values, self.device)
+        return self.procedure_class.create(values, self.device, **self.create_arguments(values))
 
     # ------------------------------------------------------------------ running
     def start(self) -> None:
@@ -229,7 +239,7 @@ class ProcedureWizard(Screen):
         if generation != self._generation:   # restarted meanwhile: this stream is the old one's
             self.recorder.close()
             return
-        self.set_instruction(f"{self.procedure_class.title}: streaming, follow the instructions below")
+        self.set_instruction(self.opening_instruction())
         if self._timer is None:
             self._timer = self.set_interval(self.app.refresh_interval, self.tick)
 
@@ -370,6 +380,8 @@ class ProcedureWizard(Screen):
     def action_procedure_action(self, action: str) -> None:
         if self.procedure is None or self.computing:
             return
+        if self.source_ended:
+            self.log_event("the source has ended: no more samples will come (escape, then connect again)", "yellow")
         self.act_flow(action)
 
     @work(exclusive=True, group="wizard-act")
