@@ -16,13 +16,12 @@ from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, wri
 from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.recording import save_recording
 from accelrig.sim.device import simulate
+from accelrig.sim.campaign import paper_sensor, write_sim_campaign
 from accelrig.sim.rigs.rotary import (
     RotaryRig,
     encoder_samples,
-    paper_sensor,
     true_sensitivity,
     write_encoder_csv,
-    write_sim_campaign,
 )
 from accelrig.sim.sensor import SimClock
 

@@ -30,10 +30,10 @@ from accelrig.procedures.rotary.bench import PAPER_ORIENTATIONS, EncoderLog, Rot
 from accelrig.procedures.rotary.campaign import Campaign, CampaignTest, analyse_campaign  # noqa: E402
 from accelrig.procedures.rotary.settings import PAPER_PLAN  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
+from accelrig.sim.campaign import paper_sensor  # noqa: E402
 from accelrig.sim.rigs.rotary import (  # noqa: E402
     RotaryRig,
     encoder_samples,
-    paper_sensor,
     true_sensitivity,
 )
 from accelrig.sim.sensor import SimClock  # noqa: E402
