@@ -5,8 +5,16 @@ import pytest
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.wheel_model import (
-    TABLE_I_OMEGA, FreeSet, WheelState, euler_from_rotation, model_and_jacobian, pack, predict, rotation_from_euler, unpack,
+from accelrig.procedures.wheel.model import (
+    TABLE_I_OMEGA,
+    FreeSet,
+    WheelState,
+    euler_from_rotation,
+    model_and_jacobian,
+    pack,
+    predict,
+    rotation_from_euler,
+    unpack,
 )
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.rigs.wheel import WheelRig

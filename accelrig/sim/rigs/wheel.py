@@ -38,7 +38,7 @@ from accelrig.units import STANDARD_GRAVITY
 
 # Paper 002, Table I truth: w0 = 9 rad/s, w1 = -90 mrad/s^2, w2 = 500 urad/s^3, w3 = 2 urad/s^4,
 # theta0 30 deg, tilt 45 deg, misalignment 30, 20, 25 deg.  Facts of the paper's rig, kept here
-# because the simulator imports no procedure code (accelrig.procedures.wheel_model has its own copy).
+# because the simulator imports no procedure code (accelrig.procedures.wheel.model has its own copy).
 TABLE_I_OMEGA = np.array([9.0, -90e-3, 500e-6, 2e-6])
 TABLE_I_THETA0_DEG = 30.0
 TABLE_I_TILT_DEG = 45.0
