@@ -18,30 +18,34 @@ import sys
 from accelrig import __version__
 from accelrig.errors import AccelrigError
 
-COMMAND_MODULES = (
-    "accelrig.commands.devices",
-    "accelrig.commands.flash",
-    "accelrig.commands.record",
-    "accelrig.commands.tui",
-    "accelrig.commands.calibrate_rotary",
-    "accelrig.commands.calibrate_wheel",
-    "accelrig.commands.verify_slider_crank",
-    "accelrig.commands.calibrate_static",
-    "accelrig.commands.profile",
-    "accelrig.commands.noise",
-)
+# Every command: one-line help, and the modules that register it (``register(subparsers,
+# groups)``).  A module is imported only when its command is run, so ``accelrig --help``
+# and each command start without the others' machinery; a command module imports its own
+# machinery inside ``run()``.
+COMMANDS = {
+    "calibrate": ("compute a calibration from a recording",
+                  ("accelrig.commands.calibrate_rotary", "accelrig.commands.calibrate_wheel",
+                   "accelrig.commands.calibrate_static")),
+    "verify": ("verify a calibration under motion", ("accelrig.commands.verify_slider_crank",)),
+    "plan": ("predict achievable uncertainties before taking data", ("accelrig.commands.calibrate_wheel",)),
+    "profile": ("device profiles: list, show, validate, diff, apply, add", ("accelrig.commands.profile",)),
+    "devices": ("list installed drivers and the devices they find", ("accelrig.commands.devices",)),
+    "flash": ("write a profile's calibration to the device, read it back and verify", ("accelrig.commands.flash",)),
+    "record": ("record a device to a CSV or .npz file", ("accelrig.commands.record",)),
+    "tui": ("guided calibration in the terminal (connect, live view, wizards)", ("accelrig.commands.tui",)),
+    "noise": ("noise figures (Allan deviation) of a still recording", ("accelrig.commands.noise",)),
+}
+
+# Commands with kinds (``accelrig calibrate static``): their modules register into these.
+GROUPS = ("calibrate", "verify", "plan", "profile")
 
 HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash")
 
-GROUPS = {
-    "calibrate": "compute a calibration from a recording",
-    "verify": "verify a calibration under motion",
-    "plan": "predict achievable uncertainties before taking data",
-    "profile": "device profiles: list, show, validate, diff, apply, add",
-}
 
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser: every command listed, the one ``argv`` names (if any) defined in full."""
+    argv = sys.argv[1:] if argv is None else argv
+    chosen = next((arg for arg in argv if not arg.startswith("-")), None)
     parser = argparse.ArgumentParser(
         prog="accelrig",
         description="Calibrate 3-axis MEMS accelerometers with cheap rigs and keep them calibrated.",
@@ -52,17 +56,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks for expected errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
-    for name, help_text in GROUPS.items():
+    for name in GROUPS:
+        help_text = COMMANDS[name][0]
         group_parser = sub.add_parser(name, help=help_text, description=help_text)
         groups[name] = group_parser.add_subparsers(dest=f"{name}_command", metavar="KIND")
         group_parser.set_defaults(func=_group_help(group_parser))
-    for module_name in COMMAND_MODULES:
-        importlib.import_module(module_name).register(sub, groups)
-    # Hide groups nobody registered into yet, so --help never lists a command that does nothing.
-    for name, group in groups.items():
-        if not group.choices:
-            sub._name_parser_map.pop(name, None)
-            sub._choices_actions = [a for a in sub._choices_actions if a.dest != name]
+    for name, (help_text, modules) in COMMANDS.items():
+        if name == chosen:
+            for module_name in modules:
+                importlib.import_module(module_name).register(sub, groups)
+        elif name not in GROUPS:
+            sub.add_parser(name, help=help_text)  # listed by --help; defined when it is the one run
     # --help lists commands in the order a newcomer uses them
     order = {name: i for i, name in enumerate(HELP_ORDER)}
     sub._choices_actions.sort(key=lambda a: order.get(a.dest, len(order)))
@@ -78,7 +82,7 @@ def _group_help(group_parser: argparse.ArgumentParser):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

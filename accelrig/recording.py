@@ -29,7 +29,7 @@ from accelrig import __version__
 from accelrig.errors import DataError
 from accelrig.files import atomic_write, read_text_file
 from accelrig.result import to_json
-from accelrig.units import STANDARD_GRAVITY, normalise_unit, to_si
+from accelrig.units import STANDARD_GRAVITY, normalise_unit, scale_for_range, to_si
 
 META_PREFIX = "# accelrig-meta:"
 ACC_COLUMNS = ("ax", "ay", "az")
@@ -116,6 +116,16 @@ class Recording:
             h.update(name.encode())
             h.update(np.ascontiguousarray(self.channels[name]).tobytes())
         return "sha256:" + h.hexdigest()
+
+
+def count_scale(meta: dict) -> float | None:
+    """m/s^2 per count of the device a recording came from: its ``scale``, else its
+    ``range_g``'s nominal scale; None when neither is known."""
+    if meta.get("scale"):
+        return float(meta["scale"])
+    if meta.get("range_g"):
+        return scale_for_range(float(meta["range_g"]))
+    return None
 
 
 def default_meta(**values) -> dict:

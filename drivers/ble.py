@@ -298,7 +298,7 @@ class BleSimDriver(BleDriver):
         if self.client_factory is _bleak_client_factory:
             self.client_factory = factory
         info = super().open()
-        info.extra["truth"] = self.firmware.truth()
+        info.truth = self.firmware.truth()
         return info
 
     def _link_options(self) -> set[str]:

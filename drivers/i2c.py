@@ -9,7 +9,8 @@ Options:
                             (2000 and 2048 exactly).  The rate delivered is reported and
                             then measured from the sample counter.
     profile=PATH            a device profile whose bias is written to the chip's offset
-                            registers on every open (they are volatile: lost at power-off)
+                            registers on every open (they are volatile: lost at power-off);
+                            loaded and written by accelrig.profiles.flash.flash_url_profile
     poll=S                  FIFO poll interval (default 10 ms or less: 40 % of a FIFO fill)
 
 Example: ``i2c://1/0x68?chip=icm20948&range=4&rate=2048``.  The bus is opened
@@ -34,9 +35,8 @@ from accelrig.acquisition.chips.timing import HostClock
 from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.registers import RegisterAccessor
-from accelrig.errors import DeviceError, ProfileError, require_extra
-from accelrig.profiles import load_profile
-from accelrig.profiles.apply import check_compatible
+from accelrig.errors import DeviceError, require_extra
+from accelrig.result import Correction
 from accelrig.units import scale_for_range
 
 I2C_OPTIONS = {"chip", "range", "rate", "profile", "poll"}
@@ -52,15 +52,13 @@ class I2CDriver(Driver):
     description = "MPU-9250 / ICM-20948 on a Linux I2C bus (FIFO burst reads, offsets flashable)"
     extra = "i2c"
 
-    def __init__(self, url, bus=None, clock=None, profile=None):
+    def __init__(self, url, bus=None, clock=None):
         """``bus``: an smbus2.SMBus-like object to use instead of opening /dev/i2c-N;
-        ``clock``: the time source (default the host clock); ``profile``: a Profile
-        whose bias is re-applied to the offset registers at open (as ``profile=PATH``)."""
+        ``clock``: the time source (default the host clock)."""
         super().__init__(url)
         self._injected_bus = bus
         self.bus = None
         self.clock = clock or HostClock()
-        self.profile = profile
         self.chip = None
         self.stream: FifoStream | None = None
         self.factory_words: list[int] | None = None
@@ -123,9 +121,6 @@ class I2CDriver(Driver):
         poll = self.url.get_float("poll")
         if poll is not None and not 0.001 <= poll <= 0.1:
             raise DeviceError(f"poll={poll} s in {self.url.raw!r} is outside 0.001 .. 0.1 s")
-        profile = self.profile
-        if profile is None and self.url.get_str("profile"):
-            profile = load_profile(self.url.get_str("profile"))
         chip_cls = CHIPS[name]
         self.bus, msg_class = self.open_bus()
         try:
@@ -152,19 +147,17 @@ class I2CDriver(Driver):
                 requested_rate=rate,
                 nominal_rate=plan.delivered_rate,
                 who_am_i=who,
+                part=part,
+                rate_plan=plan.describe(),
                 extra={
-                    "part": part,
-                    "rate_plan": plan.describe(),
                     "chip_rate": plan.chip_rate,
                     "factory_offset_words": [f"0x{w:04x}" for w in self.factory_words],
                 },
             )
-            if profile is not None:
-                report = self.flash(self.plan_flash(profile))
-                self.info.extra["offsets_applied"] = report.residual
+            # the FIFO starts at the first read, so offsets flashed right after open
+            # (a profile=PATH) apply to every sample
             self.stream = FifoStream(self.chip, self.clock, plan, scale, poll)
             self.info.extra["poll_interval"] = self.stream.poll_interval
-            self.stream.start()
         except BaseException:
             self.close()
             raise
@@ -173,6 +166,8 @@ class I2CDriver(Driver):
     def read(self, timeout: float = 0.1) -> list[Block]:
         if self.stream is None:
             raise DeviceError(f"{self.url.raw} is not open")
+        if not self.stream.started:
+            self.stream.start()
         return self.stream.read(timeout)
 
     def close(self) -> None:
@@ -193,38 +188,17 @@ class I2CDriver(Driver):
         return self.stream.delivered_rate
 
     # -- flashing the offset registers -----------------------------------------------
-    def _check_profile(self, profile, force: bool) -> list[str]:
-        """Refuse a profile for another chip, range or device (ProfileError) unless ``force``.
-
-        The chip is checked here (offset registers differ between parts); the
-        device identity, range and scale by accelrig.profiles' own check.
-        Returns notes: what could not be checked, and what ``force`` let through.
-        """
-        # Offset registers differ between parts: a profile that does not name its
-        # chip is refused here; a chip that differs, by check_compatible.
-        problem = None
-        if profile.device.get("chip") is None:
-            problem = "the profile does not say which chip it was made for"
-        if problem and not force:
-            raise ProfileError(problem, "use the profile made for this device, or --force (force=True)")
-        notes = [f"forced: {problem}"] if problem else []
-        return notes + check_compatible(profile, self.info.to_dict(), "counts", force)
-
-    def plan_flash(self, profile, force: bool = False) -> FlashPlan:
-        """The offset-register writes removing ``profile``'s bias; reads the chip, writes nothing.
+    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
+        """The offset-register writes removing ``correction``'s bias; reads the chip, writes nothing.
 
         The bias is subtracted from the factory trim read at open, in 1/1024 g
         (0.98 mg) steps, keeping the reserved bit 0.  What the registers cannot
         hold (the sub-step remainder; gain and misalignment) stays in the host
-        profile.  A profile for another chip, range or device is refused
-        unless ``force``.
+        profile.  The registers differ between parts: the plan says so
+        (``chip_specific``).
         """
         if self.chip is None or self.info is None:
             raise DeviceError(f"{self.url.raw} must be open to plan a flash")
-        checks = self._check_profile(profile, force)
-        correction = getattr(profile, "correction", None)
-        if correction is None:
-            raise ProfileError("the profile holds no correction to flash", "calibrate first, then save the profile")
         op = plan_offsets(self.factory_words, correction.bias)
         current = self.chip.read_offset_words()
         names = self.chip.spec.offset_registers
@@ -248,9 +222,9 @@ class I2CDriver(Driver):
         if current != self.factory_words:
             notes.append("the registers were written since the reset; the plan starts from the factory trim read "
                          "at open, so nothing is subtracted twice")
-        notes.extend(checks)
         payload = {"driver": id(self), "words": op.new_words}
-        return FlashPlan(device=self.info.identity, writes=writes, residual=residual, notes=notes, payload=payload)
+        return FlashPlan(device=self.info.identity, writes=writes, residual=residual, notes=notes, payload=payload,
+                         chip_specific=True)
 
     def flash(self, plan: FlashPlan) -> FlashReport:
         """Write the planned offset words, read them back, compare.  On a failure the previous words are restored."""
@@ -282,6 +256,6 @@ class I2CDriver(Driver):
             )
         self.applied_offsets = plan.residual
         # from now on the chip's output already lacks this much bias (see profiles.correction_for)
-        self.info.extra["hardware_bias_removed"] = list(plan.residual["bias_removed_m_s2"])
+        self.info.hardware_bias_removed = list(plan.residual["bias_removed_m_s2"])
         return FlashReport(device=plan.device, verified=True, readback=readback, residual=plan.residual,
                            notes=list(plan.notes))

@@ -40,8 +40,8 @@ class I2CSimDriver(I2CDriver):
     description = "the I2C driver over an emulated MPU-9250 / ICM-20948 on a simulated rig"
     extra = "i2c"
 
-    def __init__(self, url, profile=None):
-        super().__init__(url, profile=profile)
+    def __init__(self, url):
+        super().__init__(url)
         self.emulator = None
         self.rig = None
 
@@ -109,7 +109,7 @@ class I2CSimDriver(I2CDriver):
     def open(self):
         info = super().open()
         e = self.emulator
-        info.extra["truth"] = {
+        info.truth = {
             "sensor": e.sensor.truth(),
             "rig": self.rig.truth(),
             "rate_error": e.rate_error,

@@ -71,15 +71,15 @@ class ReplayDriver(Driver):
         rate = rec.rate
         # the replayed device is the one that made the recording: its identity, chip,
         # and whether its chip already removed part of the bias (flashed offsets)
-        extra = {"source": url.target, "meta": rec.meta}
-        if rec.meta.get("hardware_bias_removed") is not None:
-            extra["hardware_bias_removed"] = list(rec.meta["hardware_bias_removed"])
         self.info = DeviceInfo(
             driver="replay", url=url.raw, chip=str(rec.meta.get("chip", "replay")),
             identity=str(rec.meta.get("identity") or rec.meta.get("device") or url.target),
             range_g=float(rec.meta.get("range_g") or round(self._scale * 32768 / STANDARD_GRAVITY, 3)),
             scale=self._scale, requested_rate=rate, nominal_rate=float(rec.meta.get("nominal_rate", rate)),
-            who_am_i=rec.meta.get("who_am_i"), channels=tuple(rec.channels), extra=extra,
+            who_am_i=rec.meta.get("who_am_i"), channels=tuple(rec.channels),
+            hardware_bias_removed=(None if rec.meta.get("hardware_bias_removed") is None
+                                   else list(rec.meta["hardware_bias_removed"])),
+            extra={"source": url.target, "meta": rec.meta},
         )
         return self.info
 

@@ -177,7 +177,7 @@ class SerialSimDriver(SerialDriver):
     def open(self):
         self.firmware, self._sim_options = firmware_from_url(self.url, 255)
         info = super().open()
-        info.extra["truth"] = self.firmware.truth()
+        info.truth = self.firmware.truth()
         return info
 
     def _link_options(self) -> set[str]:

@@ -97,7 +97,8 @@ class SimDriver(Driver):
             requested_rate=d.clock.nominal_rate,
             nominal_rate=d.clock.nominal_rate,
             channels=tuple(d.rig.channel_names),
-            extra={"truth": d.truth(), "pace": self.pace},
+            truth=d.truth(),
+            extra={"pace": self.pace},
         )
         return self.info
 

@@ -49,14 +49,14 @@ def example_static_faces_paper(seed: int):
 
 
 def example_wheel_joint(seed: int):
-    from accelrig.procedures.wheel import calibrate_wheel
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
 
     rec = record_sim(f"sim://wheel?seed={seed}&pace=fast")
     return calibrate_wheel(rec, radius=0.28, method="joint"), rec   # the rig's radius, measured as the paper advises
 
 
 def example_wheel_paper(seed: int):
-    from accelrig.procedures.wheel import calibrate_wheel
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
 
     rec = record_sim(f"sim://wheel?seed={seed}&pace=fast")
     return calibrate_wheel(rec, radius=0.28, method="paper"), rec
@@ -67,8 +67,8 @@ def example_wheel_paper(seed: int):
 EXAMPLES = {
     "static_faces-vp": ("accelrig.procedures.static.procedure", example_static_faces_vp, 11),
     "static_faces-paper": ("accelrig.procedures.static.procedure", example_static_faces_paper, 11),
-    "wheel-joint": ("accelrig.procedures.wheel", example_wheel_joint, 12),
-    "wheel-paper": ("accelrig.procedures.wheel", example_wheel_paper, 12),
+    "wheel-joint": ("accelrig.procedures.wheel.procedure", example_wheel_joint, 12),
+    "wheel-paper": ("accelrig.procedures.wheel.procedure", example_wheel_paper, 12),
 }
 
 

@@ -23,11 +23,11 @@ def test_sixty_seconds_at_2048_hz_over_the_fake_client_with_zero_loss():
     with driver_for("ble-sim://still?seed=7&pace=fast&rate=2048") as driver:
         rec = record(driver, seconds=60.0)
         fw, stats, info = driver.firmware, driver.stats, driver.info
-    assert info.extra["samples_per_frame"] == P.SAMPLES_PER_BLE_FRAME == 37
+    assert info.samples_per_frame == P.SAMPLES_PER_BLE_FRAME == 37
     assert len(rec) == int(np.ceil(60.0 * fw.true_rate))
     assert rec.meta["gaps"] == []
     assert stats.lost_frames == stats.lost_samples == stats.crc_errors == stats.late_frames == 0
-    assert info.extra["delivered_rate"] == pytest.approx(fw.true_rate, rel=1e-6)
+    assert info.delivered_rate == pytest.approx(fw.true_rate, rel=1e-6)
     assert np.all(np.diff(rec.t) > 0)
     # the counts are what the firmware sampled
     twin, _ = firmware_from_url(DeviceURL.parse("ble-sim://still?seed=7"), 37)

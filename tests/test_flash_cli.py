@@ -12,6 +12,7 @@ from accelrig.errors import DeviceError, ProfileError
 from accelrig.acquisition.recorder import record
 from accelrig.result import CalibrationResult, Correction
 from accelrig.profiles import profile_from_result, save_profile
+from accelrig.profiles.flash import plan_flash
 
 URL = "serial-sim://still?seed=1&pace=fast"
 SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-still-1", "range_g": 4.0}
@@ -29,13 +30,13 @@ def make_profile(device=None, seed=0):
 def test_plan_write_read_back_and_plan_again(scheme):
     profile = make_profile()
     with driver_for(f"{scheme}://still?seed=1&pace=fast") as driver:
-        plan = driver.plan_flash(profile)
+        plan = plan_flash(driver, profile)
         assert all(w.current is None for w in plan.writes)
         assert "holds no calibration record yet" in " ".join(plan.notes)
         assert driver.firmware.record is None  # planning writes nothing
         report = driver.flash(plan)
         assert report.verified and report.readback
-        again = driver.plan_flash(profile)
+        again = plan_flash(driver, profile)
         row_x = again.writes[0]
         assert row_x.current == plan.writes[0].new  # the device now holds what was written
     stored = np.array([float(v) for v in row_x.current.strip("[]").split(",")])
@@ -45,7 +46,7 @@ def test_plan_write_read_back_and_plan_again(scheme):
 
 def test_corrupted_store_is_caught_by_read_back():
     with driver_for("serial-sim://still?seed=1&pace=fast&cal_fault=corrupt") as driver:
-        report = driver.flash(driver.plan_flash(make_profile()))
+        report = driver.flash(plan_flash(driver, make_profile()))
     assert not report.verified
     assert any("differs from what was written in 1 byte" in n for n in report.notes)
     assert any("fails its CRC" in n for n in report.notes)
@@ -54,22 +55,22 @@ def test_corrupted_store_is_caught_by_read_back():
 def test_refused_store_is_an_error():
     with driver_for("serial-sim://still?seed=1&pace=fast&cal_fault=refuse") as driver:
         with pytest.raises(DeviceError, match="refused CAL_WRITE: storage error"):
-            driver.flash(driver.plan_flash(make_profile()))
+            driver.flash(plan_flash(driver, make_profile()))
 
 
 def test_profile_for_another_device_is_refused_unless_forced():
     with driver_for("serial-sim://still?seed=1&pace=fast") as driver:
-        plan = driver.plan_flash(make_profile())
+        plan = plan_flash(driver, make_profile())
         assert not any("forced" in n for n in plan.notes)
         for key, value, label in [("chip", "icm20948", "chip"), ("range_g", 16, "range"),
                                   ("identity", "SIM-still-2", "device")]:
             other = make_profile({**SIM_DEVICE, key: value})
             with pytest.raises(ProfileError, match=label):
-                driver.plan_flash(other)
-            notes = driver.plan_flash(other, force=True).notes
+                plan_flash(driver, other)
+            notes = plan_flash(driver, other, force=True).notes
             assert any(n.startswith("forced") and label in n for n in notes)
         bare = make_profile({})
-        assert any("cannot check the profile belongs to this device" in n for n in driver.plan_flash(bare).notes)
+        assert any("cannot check the profile belongs to this device" in n for n in plan_flash(driver, bare).notes)
 
 
 # ---------------------------------------------------------------- the CLI

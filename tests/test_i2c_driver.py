@@ -130,7 +130,7 @@ def test_a_bypass_rate_that_does_not_hold_is_detected_not_assumed():
 
 def test_who_am_i_variants_are_accepted_and_strangers_refused():
     driver, _, _ = open_driver("rate=200", who_am_i=0x73)
-    assert driver.info.who_am_i == 0x73 and driver.info.extra["part"] == "MPU-9255"
+    assert driver.info.who_am_i == 0x73 and driver.info.part == "MPU-9255"
     with pytest.raises(DeviceError, match="WHO_AM_I=0x12"):
         open_driver("rate=200", who_am_i=0x12)
     bus, _, clock = emulated("mpu9250")

@@ -13,7 +13,9 @@ from accelrig.acquisition.driver import driver_for  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
 from accelrig.result import CalibrationResult, Correction  # noqa: E402
-from accelrig.profiles import load_profile, profile_from_result, save_profile  # noqa: E402
+from accelrig.profiles import profile_from_result, save_profile  # noqa: E402
+from accelrig.profiles.flash import flash_url_profile, plan_flash  # noqa: E402
+from accelrig.acquisition.session import Session  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
@@ -54,7 +56,7 @@ def test_flash_then_a_still_sensor_reads_the_offset_removed_within_one_step(chip
         profile = profile_for(driver)
         factory = driver.chip.read_offset_words()
         assert {w & 1 for w in factory} == {0, 1}      # this part's trim has the reserved bit both ways
-        plan = driver.plan_flash(profile)
+        plan = plan_flash(driver, profile)
         assert driver.chip.read_offset_words() == factory          # planning writes nothing
         assert len(plan.writes) == 3 and all(w.current != w.new for w in plan.writes)
         new_words = [int(w.new, 16) for w in plan.writes]
@@ -78,20 +80,20 @@ def test_mismatched_profiles_are_refused_unless_forced():
                                    ({"range_g": 2.0, "scale": None}, "2 g range"),
                                    ({"identity": "i2c-1-0x69"}, "i2c-1-0x69")]:
             with pytest.raises(ProfileError, match=message):
-                driver.plan_flash(profile_for(driver, **overrides))
-        plan = driver.plan_flash(profile_for(driver, chip="icm20948", identity="i2c-1-0x69"), force=True)
+                plan_flash(driver, profile_for(driver, **overrides))
+        plan = plan_flash(driver, profile_for(driver, chip="icm20948", identity="i2c-1-0x69"), force=True)
         forced = [note for note in plan.notes if note.startswith("forced")]
         assert len(forced) == 2 and any("icm20948" in f for f in forced) and any("i2c-1-0x69" in f for f in forced)
         # A profile that does not name its device is flashed, with the warning in the plan.
-        plan = driver.plan_flash(profile_for(driver, identity=None))
+        plan = plan_flash(driver, profile_for(driver, identity=None))
         assert any("cannot check the profile belongs to this device" in note for note in plan.notes)
 
 
 def test_flashing_twice_does_not_subtract_twice():
     with driver_for("i2c-sim://icm20948?rig=still&pace=fast&rate=200") as driver:
         profile = profile_for(driver)
-        first = driver.flash(driver.plan_flash(profile))
-        second_plan = driver.plan_flash(profile)
+        first = driver.flash(plan_flash(driver, profile))
+        second_plan = plan_flash(driver, profile)
         assert any("written since the reset" in n for n in second_plan.notes)
         second = driver.flash(second_plan)
         assert [w.current for w in first.readback] == [w.current for w in second.readback]
@@ -101,10 +103,11 @@ def test_offsets_are_reapplied_on_connect_and_lost_on_power_cycle(tmp_path):
     url = "i2c-sim://mpu9250?rig=still&pace=fast&rate=500&seed=4"
     with driver_for(url) as plain:
         save_profile(profile_for(plain), tmp_path / "sensor.yaml")
-    for driver in (I2CSimDriver(DeviceURL.parse(url), profile=load_profile(tmp_path / "sensor.yaml")),
-                   driver_for(f"{url}&profile={tmp_path / 'sensor.yaml'}")):
+    with_profile = f"{url}&profile={tmp_path / 'sensor.yaml'}"
+    for driver in (I2CSimDriver(DeviceURL.parse(with_profile)), driver_for(with_profile)):
         with driver:
-            applied = driver.info.extra["offsets_applied"]
+            flash_url_profile(driver)
+            applied = driver.info.offsets_applied
             sensor = driver.emulator.sensor
             remaining = mean_reading(driver, 1.0) - sensor.response_matrix @ G_UP
             assert np.all(np.abs(remaining) <= OFFSET_STEP)
@@ -118,14 +121,15 @@ def test_a_profile_for_another_device_stops_the_connect(tmp_path):
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200&seed=1") as other:
         save_profile(profile_for(other), tmp_path / "other.yaml")
     with pytest.raises(ProfileError, match="i2c-sim-mpu9250-seed1"):
-        driver_for(f"i2c-sim://mpu9250?rig=still&pace=fast&rate=200&seed=2&profile={tmp_path / 'other.yaml'}").open()
+        Session.open_and_start(f"i2c-sim://mpu9250?rig=still&pace=fast&rate=200&seed=2&profile={tmp_path / 'other.yaml'}",
+                               prepare=flash_url_profile)
 
 
 def test_a_bias_beyond_the_registers_is_refused_and_nothing_written():
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200") as driver:
         huge = Correction(np.eye(3), [200.0, 0.0, 0.0], np.zeros((12, 12)))
         with pytest.raises(DeviceError, match="15-bit range"):
-            driver.plan_flash(profile_for(driver, correction=huge))
+            plan_flash(driver, profile_for(driver, correction=huge))
         assert driver.chip.read_offset_words() == driver.factory_words
 
 
@@ -139,7 +143,7 @@ class StubbornOffsets(mpu_emulator.MPU9250Emulator):
 def test_a_write_that_does_not_read_back_fails_loudly(monkeypatch):
     monkeypatch.setitem(EMULATORS, "mpu9250", StubbornOffsets)
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200") as driver:
-        plan = driver.plan_flash(profile_for(driver))
+        plan = plan_flash(driver, profile_for(driver))
         with pytest.raises(DeviceError, match="XA_OFFSET .* reads back"):
             driver.flash(plan)
         assert driver.chip.read_offset_words() == driver.factory_words
@@ -147,7 +151,7 @@ def test_a_write_that_does_not_read_back_fails_loudly(monkeypatch):
 
 def test_a_plan_is_bound_to_its_connection():
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200") as one:
-        plan = one.plan_flash(profile_for(one))
+        plan = plan_flash(one, profile_for(one))
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=200") as other:
         with pytest.raises(DeviceError, match="another connection"):
             other.flash(plan)
@@ -166,7 +170,7 @@ def test_static_calibration_through_the_emulated_chip_then_flash_removes_the_tru
     profile = profile_from_result(result, recording)
     with driver_for("i2c-sim://mpu9250?rig=still&pace=fast&rate=500&seed=3") as driver:   # same part, at rest
         sensor = driver.emulator.sensor
-        report = driver.flash(driver.plan_flash(profile))
+        report = driver.flash(plan_flash(driver, profile))
         remaining = mean_reading(driver, 1.0) - sensor.response_matrix @ G_UP
     u_bias = profile.correction.bias_uncertainty
     assert np.all(np.abs(sensor.offset - profile.correction.bias) < 4 * u_bias + 1e-3)

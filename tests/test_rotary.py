@@ -11,18 +11,17 @@ from accelrig_drivers.sim import build_device
 from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
 from accelrig.errors import DataError, DeviceError
-from accelrig.procedures.rotary_bench import EncoderLog, analyse_test, read_encoder_csv
-from accelrig.procedures.rotary_campaign import load_campaign, run_campaign, write_report
-from accelrig.procedures.rotary_session import RotaryBenchProcedure
+from accelrig.procedures.rotary.bench import EncoderLog, analyse_test, read_encoder_csv
+from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, write_report
+from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.recording import save_recording
 from accelrig.sim.device import simulate
+from accelrig.sim.campaign import paper_sensor, write_sim_campaign
 from accelrig.sim.rigs.rotary import (
     RotaryRig,
     encoder_samples,
-    paper_sensor,
     true_sensitivity,
     write_encoder_csv,
-    write_sim_campaign,
 )
 from accelrig.sim.sensor import SimClock
 
@@ -55,6 +54,25 @@ def test_rig_reproduces_the_papers_accelerations():
     assert np.min(f[:, 1]) >= 0  # points to the axis: never negative
     assert np.allclose(f[:, 2], 9.80665)
     assert rig.centripetal_amplitude == pytest.approx(np.max(f[:, 1]) / 2, rel=1e-6)
+    # paper eq. 3-4, known here only: r (2 pi f)^2 theta0 and r (2 pi f theta0)^2 / 2
+    theta0, w = np.deg2rad(17.0), 2 * np.pi * 5.0
+    assert rig.tangential_amplitude == pytest.approx(0.170 * w**2 * theta0, rel=1e-9)
+    assert rig.centripetal_amplitude == pytest.approx(0.170 * (w * theta0) ** 2 / 2, rel=1e-9)
+    ref = RotaryRig(ref=True, ref_radius=0.145, ref_gain_error=0.001, phase=0.7)
+    t = np.linspace(0, 1, 1001)
+    expected = 1.001 * 0.145 * -(w**2) * theta0 * np.cos(w * t + 0.7)
+    assert np.allclose(ref.ref_reading(t), expected, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("tangential, radial, up", [("x", "y", "z"), ("y", "x", "-z"), ("-y", "z", "-x"), ("z", "x", "y")])
+def test_a_mounting_is_a_rotation_so_the_third_axis_may_point_down(tangential, radial, up):
+    """No rigid sensor has y tangential, x radial and z up: that frame would be a mirror image."""
+    rig = RotaryRig(tangential=tangential, radial=radial, phase=0.3)
+    assert rig.truth()["up_axis"] == up
+    force = rig.specific_force(np.linspace(0, 1, 101))
+    i_up, sign = "xyz".index(up[-1]), -1.0 if up.startswith("-") else 1.0
+    assert np.allclose(force[:, i_up], sign * 9.80665, rtol=0, atol=1e-6)
+    assert np.allclose(np.linalg.det(rig.orientation(np.zeros(1))), 1.0)
 
 
 def test_rig_url_options_and_channels():
@@ -183,7 +201,7 @@ def test_cli_json(files, capsys):
     code = main(["calibrate", "rotary", "--mems", str(d / "m.csv"), "--encoder", str(d / "e.csv"), "--radius", "0.170",
                  "--tangential", "x", "--radial", "y", "--nominal-rate", "1660", "--frequency", "5", "--json"])
     assert code == 0
-    doc = json.loads(capsys.readouterr().out)
+    doc = json.loads(capsys.readouterr().out)["details"]
     assert abs(doc["sample_rate_hz"]["value"] - clock.true_rate) < 0.01
     assert doc["sensitivity"]["x"]["component"] == "tangential"
     assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
@@ -213,8 +231,17 @@ def campaign(tmp_path_factory):
     return truth, run_campaign(truth["yaml"])
 
 
+def test_campaign_is_one_result_with_its_tables_in_details(campaign):
+    _, result = campaign
+    assert result.procedure == "rotary" and result.correction is None
+    s1x = result.parameters["sensitivity_S1_x"]
+    assert s1x.value == result.details["per_axis"]["S1"]["x"]["mean_sensitivity"]
+    assert s1x.uncertainty == result.details["per_axis"]["S1"]["x"]["overall_uncertainty"]
+
+
 def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
-    truth, report = campaign
+    truth, result = campaign
+    report = result.details
     assert len(report["tests"]) == 8
     for sensor in ("S1", "S2"):
         for axis in ("x", "y"):
@@ -235,13 +262,13 @@ def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
     assert report["normalized_error"][0]["sensors"] == ["S1", "S2"]
     assert "p_value" in report["anova"]["across_sensors"]
     assert len(report["bland_altman"]) == 8
-    write_report(report, tmp_path / "r.md")
-    write_report(report, tmp_path / "r.yaml")
+    write_report(result, tmp_path / "r.md")
+    write_report(result, tmp_path / "r.yaml")
     assert "Table 3" in (tmp_path / "r.md").read_text()
-    assert yaml.safe_load((tmp_path / "r.yaml").read_text())["batch"]["mean_sensitivity"] == pytest.approx(
+    assert yaml.safe_load((tmp_path / "r.yaml").read_text())["details"]["batch"]["mean_sensitivity"] == pytest.approx(
         b["mean_sensitivity"])
     with pytest.raises(DataError, match="suffix"):
-        write_report(report, tmp_path / "r.txt")
+        write_report(result, tmp_path / "r.txt")
     assert not (tmp_path / "r.txt").exists()
 
 
@@ -251,7 +278,12 @@ def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):
     doc["tests"][0]["tangental"] = "x"
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc))
-    with pytest.raises(DataError, match=r"tests\[0\]: unknown key\(s\) tangental"):
+    with pytest.raises(DataError, match=r"tests\[0\]\.tangental: unknown key"):
+        load_campaign(bad)
+    doc["tests"][0].pop("tangental")
+    doc["correlation"] = 2
+    bad.write_text(yaml.safe_dump(doc))
+    with pytest.raises(DataError, match=r"correlation: expected a number <= 1"):
         load_campaign(bad)
 
 
@@ -272,22 +304,32 @@ def test_cli_campaign_writes_report(campaign, tmp_path, capsys):
     assert "drop --mems" in capsys.readouterr().err
 
 
-def test_session_steps_and_yields_each_result():
-    proc = RotaryBenchProcedure("x", "y", NOMINAL, plan=((5.0, 34.0), (5.0, 16.0)), repeats=2, seconds=3.0)
-    assert proc.next_step().instruction.startswith("Set the motor to 5 Hz, 34 degrees peak to peak")
+def test_procedure_takes_timed_steps_from_the_stream_and_reports_the_campaign():
+    values = {"tangential": "x", "radial": "y", "plan": "5:34,5:16", "repeats": 2, "seconds": 3.0, "radius": 0.170,
+              "radius_uncertainty": 0.0005, "ref_radius": 0.145, "rate_method": "fit"}
     rng = np.random.default_rng(9)
     sensor = paper_sensor(rng)
     clock = SimClock(NOMINAL, 0.003, 0.0)
-
-    def acquire(step):
-        rig = RotaryRig(frequency=step.frequency, amplitude_deg=step.amplitude_deg, duration=step.seconds,
-                        phase=float(rng.uniform(-3, 3)))
-        rec = simulate(rig, sensor, clock, seconds=step.seconds, seed=int(rng.integers(1000)), units="counts")
-        return rec, EncoderLog(**encoder_samples(rig, step.seconds, 1000.0))
-
-    seen = [(step.index, result.sensitivity["x"].value) for step, result in proc.run(acquire)]
-    assert [i for i, _ in seen] == [0, 1, 2, 3] and proc.done and proc.next_step() is None
-    report = proc.report()
-    assert report["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
-    with pytest.raises(DataError, match="done"):
-        proc.submit(*acquire(proc.steps[0]))
+    with pytest.raises(DeviceError, match="theta"):
+        RotaryProcedure.create(values, {"nominal_rate": NOMINAL, "channels": []})
+    proc = None
+    while proc is None or not proc.done:
+        step = proc.next_step() if proc else None
+        frequency, amplitude = (step.frequency, step.amplitude_deg) if step else (5.0, 34.0)
+        # the bench runs a second longer than the step: the capture takes the step's seconds from the key press
+        rig = RotaryRig(frequency=frequency, amplitude_deg=amplitude, duration=4.0, phase=float(rng.uniform(-3, 3)))
+        rec = simulate(rig, sensor, clock, seconds=4.0, seed=int(rng.integers(1000)), units="counts")
+        if proc is None:
+            proc = RotaryProcedure.create(values, {"nominal_rate": NOMINAL, "channels": ["theta", "ref"],
+                                                   "scale": rec.meta["scale"]})
+            assert proc.instruction().startswith("Set the motor to 5 Hz, 34 degrees peak to peak")
+            step = proc.next_step()
+        assert proc.feed(rec.to_si().slice(0, 100)) == []  # not armed: the stream is only watched
+        assert proc.act("capture")[0].kind == "instruction"
+        si = rec.to_si().slice(100, len(rec))
+        events = [e for a in range(0, len(si), 500) for e in proc.feed(si.slice(a, a + 500))]
+        assert events[0].kind == "captured" and events[0].data["step"] == step.index
+    assert [s.index for s, _ in proc.results] == [0, 1, 2, 3] and proc.next_step() is None
+    report = proc.result()
+    assert report.details["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
+    assert proc.act("capture") == []

@@ -49,7 +49,7 @@ def test_sixty_seconds_at_2048_hz_through_a_pty_with_zero_loss():
     assert stats.crc_errors == stats.cobs_errors == stats.lost_frames == stats.lost_samples == 0
     assert rec.meta["link_stats"]["data_frames"] > 0 and "not arriving in real time" in rec.meta["clock_alignment"]
     # sample times: the delivered rate is estimated from device timestamps, not assumed
-    assert info.extra["delivered_rate"] == pytest.approx(true_rate, rel=1e-6)
+    assert info.delivered_rate == pytest.approx(true_rate, rel=1e-6)
     assert np.all(np.diff(rec.t) > 0)
     assert rec.t[-1] == pytest.approx((len(rec) - 1) / true_rate, rel=1e-6)
     # every sample arrived unchanged

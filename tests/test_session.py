@@ -7,22 +7,26 @@ import numpy as np
 import pytest
 
 from accelrig.acquisition.driver import DeviceInfo, Driver
+from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
+from accelrig.result import Correction
 
 
-def _drain(session, reader, until_state=None, timeout=10.0):
-    """Read everything a reader gets until the pump stops; returns the concatenated counts."""
+def _drain(session, reader, recorder, timeout=10.0):
+    """Read everything a reader (and a recorder beside it) gets until the pump stops; returns the concatenated counts."""
     parts = []
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         chunk = reader.read()
+        recorder.poll()
         session.notify_read()
         if chunk.n:
             parts.append(chunk.counts)
         elif not session.running:
             chunk = reader.read()
+            recorder.poll()
             if chunk.n:
                 parts.append(chunk.counts)
             break
@@ -38,17 +42,17 @@ def test_finite_fast_source_reaches_a_lossless_reader_whole():
     info = session.open()
     assert info.chip == "sim"
     reader = session.reader(lossless=True)
-    capture = session.begin_capture()
+    recorder = Recorder.attach(session)
     session.start()
-    counts = _drain(session, reader)
+    counts = _drain(session, reader, recorder)
     assert session.wait(5)
     stats = session.stats()
     assert stats.state == State.ENDED
     assert stats.last_error is None
     assert reader.lost_total == 0
-    assert counts.shape[0] == stats.samples == capture.samples
+    assert counts.shape[0] == stats.samples == recorder.samples
     assert stats.samples == int(np.floor(40 * 200 * 1.004)) or abs(stats.samples - 40 * 200 * 1.004) < 50
-    rec = capture.recording()
+    rec = recorder.recording()
     assert len(rec) == stats.samples
     np.testing.assert_allclose(rec.acc, counts * info.scale)
     # the device's true rate is +0.4 % (the sim's default rate error)
@@ -62,9 +66,10 @@ def test_finite_fast_source_reaches_a_lossless_reader_whole():
 def test_drops_are_counted_and_rate_reflects_them():
     session = Session("sim://still?seed=3&pace=fast&seconds=30&drop=0.2&block=50", buffer_seconds=60)
     session.open()
-    capture = session.begin_capture()
+    recorder = Recorder.attach(session)
     session.start()
     assert session.wait(10)
+    recorder.poll()
     stats = session.stats()
     assert stats.gap_events > 0
     # whole 50-sample blocks are lost; consecutive losses arrive as one gap
@@ -73,21 +78,22 @@ def test_drops_are_counted_and_rate_reflects_them():
     total = int(np.floor(30 * 200 * 1.004))
     assert total - 250 <= stats.samples + stats.missing <= total
     assert stats.delivered_rate < 0.95 * 200  # a fifth of the blocks never arrived
-    rec = capture.recording()
+    rec = recorder.recording()
     assert sum(g["missing"] for g in rec.meta["gaps"]) == stats.missing
 
 
 def test_disconnect_is_reported_and_captured_data_kept():
     session = Session("sim://still?seed=4&pace=fast&disconnect_after=3")
     session.open()
-    capture = session.begin_capture()
+    recorder = Recorder.attach(session)
     session.start()
     assert session.wait(10)
+    recorder.poll()
     stats = session.stats()
     assert stats.state == State.DISCONNECTED
     assert "disconnected" in stats.last_error
-    assert capture.interrupted == stats.last_error
-    rec = capture.recording()
+    assert session.interrupted == stats.last_error
+    rec = recorder.recording()
     assert rec.duration == pytest.approx(3.0, abs=1.5)
     assert rec.meta["interrupted"] == stats.last_error
     assert "truth" in rec.meta
@@ -131,7 +137,7 @@ def test_flash_on_a_sim_device_says_it_cannot_store_a_calibration():
     session = Session("sim://still?seed=7&pace=fast&seconds=1")
     session.start()
     with pytest.raises(DeviceError, match="cannot store a calibration"):
-        session.plan_flash(profile=None)
+        session.plan_flash(Correction(np.eye(3), np.zeros(3), np.zeros((12, 12))), b"profile!")
     session.stop()
 
 
@@ -188,3 +194,15 @@ def test_open_that_fails_any_way_releases_the_driver(error):
         session.open()
     assert driver.closes == 1
     assert session.state == State.CLOSED
+
+
+def test_open_and_start_releases_the_device_when_preparing_it_fails():
+    prepared = []
+
+    def refuse(driver):
+        prepared.append(driver)
+        raise DeviceError("refused")
+
+    with pytest.raises(DeviceError, match="refused"):
+        Session.open_and_start("sim://still?seed=1", record=True, prepare=refuse)
+    assert prepared[0].device is None  # stopped: the device was released

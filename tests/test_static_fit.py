@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from accelrig.geometry import FACES
-from accelrig.procedures.static.procedure import calibrate_static
+from accelrig.geometry import FACES, rotation_xyz
 from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
     PAPER_NAMES,
@@ -14,9 +13,9 @@ from accelrig.procedures.static.fit import (
     paper_params_to_correction,
     static_crb,
 )
+from accelrig.procedures.static.procedure import calibrate_static
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
-from accelrig.geometry import rotation_xyz
 from accelrig.sim.sensor import SensorModel, SimClock
 
 

@@ -24,7 +24,7 @@ def test_offline_poses_lie_inside_the_true_still_intervals_with_the_right_faces(
     proc = detect_poses(rec)
     truth = rig.truth()["poses"]
     assert [p.face for p in proc.poses] == [p["face"] for p in truth]
-    for pose, tp in zip(proc.poses, truth):
+    for pose, tp in zip(proc.poses, truth, strict=True):
         assert tp["start"] - 0.15 <= pose.start and pose.stop <= tp["stop"] + 0.01
         assert pose.duration > 0.75 * rig.hold   # edges trimmed, not the pose thrown away
     assert proc.rejected == []
@@ -49,7 +49,7 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     assert kinds[1] == "hold_still" and messages[1] == "hold still: +z down"
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
-    assert [m for k_, m in zip(kinds, messages) if k_ == "progress"][-1] == "6 of 6"
+    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
     assert kinds[-1] == "complete" and events[-1].kind == "ready"
     assert proc.faces["n_done"] == 6 and proc.faces["n_poses"] == 7
     assert proc.progress == 1.0 and proc.done

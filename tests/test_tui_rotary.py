@@ -6,7 +6,8 @@
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotarySetupScreen, RotaryWizard  # noqa: E402
+from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
+from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
 # realtime: a step is recorded from the moment the operator presses space, as on a real bench
@@ -24,12 +25,13 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         menu = app.screen.query_one("#wizards")
         menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("rotary")
         await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, RotarySetupScreen))
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         # the simulated bench runs its one setting (5 Hz, 34 degrees): two repeats of 2 s.
         # (fields filled directly: at realtime each Pilot key press waits for an idle process)
-        for field, value in (("plan", "5:34"), ("repeats", "2"), ("seconds", "2")):
-            app.screen.query_one(f"#setup-{field}").value = value
-        app.screen.query_one("#setup-seconds").focus()
+        for field, value in (("radius", "0.170"), ("tangential", "x"), ("radial", "y"), ("plan", "5:34"),
+                             ("repeats", "2"), ("seconds", "2")):
+            app.screen.query_one(f"#setting-{field}").value = value
+        app.screen.query_one("#setting-seconds").focus()
         await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, RotaryWizard) and app.screen.procedure is not None
                        and app.screen.session is not None)
@@ -41,7 +43,7 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         await wait_for(pilot, lambda: isinstance(app.screen, CampaignScreen) and app.screen.query("#campaign-report"))
         await pilot.pause(0.2)  # let the screen finish mounting before the app closes
         assert "per_axis" in str(app.screen.query_one("#campaign-report").render())
-        truth = true_sensitivity(app.session.info.extra["truth"])
+        truth = true_sensitivity(app.session.info.truth)
         results = [result for _, result in wizard.procedure.results]
     assert len(results) == 2
     for result in results:

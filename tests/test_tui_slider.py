@@ -9,7 +9,8 @@ from accelrig.sim.rigs.slider_crank import SliderCrankRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.slider_wizard import SliderCrankWizard, SliderSetupScreen, VerificationScreen  # noqa: E402
+from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
+from accelrig.tui.screens.slider_wizard import SliderCrankWizard, VerificationScreen  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
 # an ideal sensor: the raw data are the truth, so no profile is needed to verify the stand itself
@@ -23,7 +24,7 @@ async def start_wizard(app, pilot):
     menu = app.screen.query_one("#wizards")
     menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("slider-crank")
     await pilot.press("enter")
-    await wait_for(pilot, lambda: isinstance(app.screen, SliderSetupScreen))
+    await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
 
 
 @async_test
@@ -31,20 +32,20 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
-        await pilot.press(*"0.00635", "enter", *"0.0353", "enter", *"0.0002", "enter", *"3,6,9", "enter", "enter",
-                          "enter")
+        await pilot.press(*"0.00635", "down", *"0.0353", "down", *"0.0002", "down", *"3,6,9", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, SliderCrankWizard)
-        assert wizard.reader.lost_total == 0
-        verification = app.screen.verification
-        assert [round(s.frequency_hz.value) for s in verification.steps] == [3, 6, 9]
+        assert wizard.recorder.reader.lost_total == 0
+        verification = app.screen.verification.details
+        assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
         assert app.screen.query_one("#steps").row_count == 3
-        assert verification.verdict in str(app.screen.query_one("#verdict").render())
-        truth = app.session.info.extra["truth"]["rig"]
+        assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
+        radius = app.screen.verification.parameters["radius"]
+        truth = app.session.info.truth["rig"]
     # the radius seen in the motion is the stand's effective radius (inside the clearance), within 4 u
-    assert abs(verification.radius_m.value - truth["effective_radius"]) < 4 * verification.radius_m.uncertainty
-    assert verification.verdict == "holds"
+    assert abs(radius.value - truth["effective_radius"]) < 4 * radius.uncertainty
+    assert verification["verdict"] == "holds"
 
 
 @async_test
@@ -53,13 +54,13 @@ async def test_a_bad_profile_is_refused_and_a_device_without_step_marks_asks_for
     async with app.run_test(size=(80, 24)) as pilot:
         await start_wizard(app, pilot)
         # a profile that cannot be read is refused in the setup, naming the problem
-        await pilot.press(*"0.006", "enter", *"0.035", "enter", "enter", "enter", "enter", *"nope.yaml", "enter")
+        await pilot.press(*"0.006", "down", *"0.035", "down", "down", "down", "down", "down", *"nope.yaml", "enter")
         status = app.screen.query_one("#setup-status")
         await wait_for(pilot, lambda: "nope.yaml" in str(status.render()))
         await pilot.press(*["backspace"] * len("nope.yaml"), "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard))
         await wait_for(pilot, lambda: "Press space to capture 2 s" in str(app.screen.query_one("#instruction").render()))
-        assert not app.screen.marked
+        assert not app.screen.procedure.marked
 
 
 # A real rig without step marks, played back at its own pace (looping, so the test need not
@@ -89,31 +90,32 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
         await start_wizard(app, pilot)
         # (fields filled and submitted directly: at realtime each Pilot key press waits about 2 s for
         # an idle process, and the first step would be gone by then)
-        for field, value in (("radius", "0.00635"), ("rod", "0.0353"), ("clearance", "0.0002"),
-                             ("steps", "3,6,9"), ("seconds", f"{CAPTURE:g}")):
-            app.screen.query_one(f"#setup-{field}").value = value
-        await app.screen.query_one("#setup-profile").action_submit()
-        await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.capture is not None)
+        for field, value in (("crank_radius", "0.00635"), ("rod_length", "0.0353"), ("clearance", "0.0002"),
+                             ("speeds", "3,6,9"), ("seconds", f"{CAPTURE:g}")):
+            app.screen.query_one(f"#setting-{field}").value = value
+        await app.screen.query_one("#setting-profile").action_submit()
+        await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard) and app.screen.recorder is not None)
         wizard = app.screen
-        assert not wizard.marked and "Press space to capture 1 s" in str(wizard.query_one("#instruction").render())
+        assert not wizard.procedure.marked and "Press space to capture 1 s" in str(wizard.query_one("#instruction").render())
 
         def steady(index):
             """The stream is in step ``index``'s steady run, with room for the whole capture."""
-            into = (wizard.capture.samples / RATE) % (SEGMENT * len(STEPS)) - index * SEGMENT
+            into = (wizard.recorder.samples / RATE) % (SEGMENT * len(STEPS)) - index * SEGMENT
             return SETTLE + 0.1 <= into <= SEGMENT - CAPTURE - 0.5
 
         for index in range(len(STEPS)):
             await wait_for(pilot, lambda: steady(index))
             await pilot.press("space")  # returns once the process idles: the capture has run by then
             if index < len(STEPS) - 1:
-                await wait_for(pilot, lambda: len(wizard.procedure.results) == index + 1)
+                await wait_for(pilot, lambda: len(wizard.procedure.steps) == index + 1)
                 # the response plot fills in as the steps are taken
                 assert wizard.query_one("#fr-plot").series[1].x.size == index + 1
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
-        verification = app.screen.verification
-        assert wizard.reader.lost_total == 0
-    assert [round(s.frequency_hz.value) for s in verification.steps] == [3, 6, 9]
+        verification = app.screen.verification.details
+        radius = app.screen.verification.parameters["radius"]
+        assert wizard.recorder.reader.lost_total == 0
+    assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
     # each step is the capture's seconds of steady running after the key press
-    assert all(abs(s.n_samples - CAPTURE * RATE) <= 2 and not s.speed_unsteady for s in verification.steps)
-    assert abs(verification.radius_m.value - rig.effective_radius) < 4 * verification.radius_m.uncertainty
-    assert verification.verdict == "holds"
+    assert all(abs(s["n_samples"] - CAPTURE * RATE) <= 2 and not s["speed_unsteady"] for s in verification["steps"])
+    assert abs(radius.value - rig.effective_radius) < 4 * radius.uncertainty
+    assert verification["verdict"] == "holds"

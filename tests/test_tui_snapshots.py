@@ -8,8 +8,6 @@ at the SVGs before committing them.
 
 import asyncio
 
-
-
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 

@@ -3,7 +3,6 @@
 
 import numpy as np
 
-
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
@@ -32,7 +31,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, StaticWizard)
         assert wizard.procedure.faces_done == ["+x", "-x", "+y", "-y", "+z", "-z"]
-        assert wizard.reader.lost_total == 0
+        assert wizard.recorder.reader.lost_total == 0
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
         assert results.query_one("#parameters").row_count == len(results.result.parameters)
@@ -59,7 +58,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await wait_for(pilot, lambda: "cannot flash" in status(app))
         assert "cannot store a calibration" in status(app)
 
-        truth = app.session.info.extra["truth"]["sensor"]["correction"]
+        truth = app.session.info.truth["sensor"]["correction"]
 
         # back in the wizard, a face can be taken again: it is forgotten and suggested next
         await pilot.press("escape")
@@ -102,7 +101,7 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
         question = str(app.screen.query_one("#question").render())
-        assert "these will be written" in question and "OFFSET" in question.upper()
+        assert "Flash plan for" in question and "OFFSET" in question.upper() and "Write to the device?" in question
         await pilot.press("n")  # cancel: nothing written
         await wait_for(pilot, lambda: "nothing was written" in status(app))
         assert driver.chip.read_offset_words() == before

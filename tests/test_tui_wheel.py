@@ -3,13 +3,12 @@
 
 import numpy as np
 
-
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import PathScreen  # noqa: E402
+from accelrig.tui.screens.dialogs import PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
-from accelrig.tui.screens.wheel_wizard import WheelSetupScreen, WheelWizard  # noqa: E402
+from accelrig.tui.screens.wheel_wizard import WheelWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
 DEVICE = "sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05"
@@ -25,7 +24,10 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         menu = app.screen.query_one("#wizards")
         menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
         await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, WheelSetupScreen))
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        # neither radius nor tilt: refused while the form is open, saying one is needed
+        await pilot.press("enter")
+        assert "needs the radius or the tilt" in str(app.screen.query_one("#setup-status").render())
         # a bad radius is refused on the spot
         await pilot.press("x", "enter", "enter")
         assert "is not a number" in str(app.screen.query_one("#setup-status").render())
@@ -33,7 +35,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, WheelWizard)
-        assert wizard.procedure.done and wizard.reader.lost_total == 0
+        assert wizard.procedure.done and wizard.recorder.reader.lost_total == 0
         assert "turns, need" in str(wizard.query_one("#wheel-turns").render())
         assert "rad/s" in str(wizard.query_one("#wheel-speed").render())
         # the speed plot holds the procedure's trace: a coast-down over the run, one point per half turn
@@ -49,7 +51,7 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("enter")
         path = tmp_path / "sim-random-5-wheel.yaml"
         await wait_for(pilot, lambda: path.exists())
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
 
     parameters = load_profile(path).data["calibration"]["parameters"]
     for name in ("gain", "offset"):

@@ -9,7 +9,6 @@ any one calibration.
 
 import numpy as np
 
-
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.procedures.contract import Event, Procedure  # noqa: E402
 from accelrig.result import CalibrationResult, Correction, Estimate  # noqa: E402
@@ -82,7 +81,7 @@ class MeanProcedure(Procedure):
         return CalibrationResult(
             procedure="mean", method="sample mean", model="constant",
             correction=Correction(np.eye(3), np.zeros(3), np.zeros((12, 12))),
-            parameters={f"mean_{a}": Estimate(float(m), float(s), "m/s^2") for a, m, s in zip("xyz", mean, u)},
+            parameters={f"mean_{a}": Estimate(float(m), float(s), "m/s^2") for a, m, s in zip("xyz", mean, u, strict=True)},
             quality={"residual_rms": float(data.std(axis=0).mean()), "n_samples": len(data)},
             arrays={"residuals": data - mean},
         )
@@ -109,10 +108,10 @@ async def test_wizard_feeds_every_sample_then_fits_and_shows_results():
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         procedure = wizard.procedure
         # every sample up to the moment it had enough reached the procedure, none lost
-        assert wizard.reader.lost_total == 0
-        assert procedure.fed == wizard.reader.cursor
+        assert wizard.recorder.reader.lost_total == 0
+        assert procedure.fed == wizard.recorder.reader.cursor
         assert procedure.fed >= 20 * 200
-        truth = app.session.info.extra["truth"]["sensor"]
+        truth = app.session.info.truth["sensor"]
         await wait_for(pilot, lambda: app.screen.query_one("#parameters").row_count == 3)
         mean_z = procedure.result().parameters["mean_z"]
         # a real estimate: the raw z reading of a level sensor, (C^-1 (0, 0, g) + b)_z, within 4 u
@@ -133,8 +132,8 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
         await pilot.pause(0.3)
         alarm = str(wizard.query_one("#wizard-alarm").render())
         assert "DEVICE LOST" in alarm and "disconnected" in alarm
-        assert wizard.capture.samples > 500
-        assert f"{wizard.capture.samples} captured samples are kept" in alarm
+        assert wizard.recorder.samples > 500
+        assert f"{wizard.recorder.samples} captured samples are kept" in alarm
         assert not isinstance(app.screen, ResultsScreen)
         # write the kept data
         await pilot.press("w")
@@ -144,7 +143,7 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
         from accelrig.recording import load_recording
 
         rec = load_recording(tmp_path / "mean-capture.csv")
-        assert len(rec) == wizard.capture.samples
+        assert len(rec) == wizard.recorder.samples
         assert "disconnected" in rec.meta["interrupted"]
 
 

@@ -7,12 +7,14 @@ import pytest
 
 from accelrig.cli import main
 from accelrig.errors import CalibrationError
+from accelrig.procedures.wheel.fit import free_set, reported_names, wheel_crb
+from accelrig.procedures.wheel.model import TABLE_I_GAIN, TABLE_I_OFFSET, TABLE_I_OMEGA, WheelState
+from accelrig.procedures.wheel.plan import plan_wheel
+from accelrig.procedures.wheel.procedure import WheelProcedure, calibrate_wheel
+from accelrig.procedures.wheel.settings import DEFAULT_CROSS_AXIS_SD, SETTINGS
 from accelrig.profiles import load_profile
-from accelrig.procedures.wheel import (
-    DEFAULT_CROSS_AXIS_SD, WheelProcedure, calibrate_wheel, free_set, plan_wheel, reported_names, wheel_crb,
-)
-from accelrig.procedures.wheel_model import TABLE_I_GAIN, TABLE_I_OFFSET, TABLE_I_OMEGA, WheelState
 from accelrig.recording import Recording, write_csv
+from accelrig.settings import values_from_texts
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.wheel import WheelRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -241,10 +243,10 @@ def test_cli_plan_prints_every_parameter(capsys):
 
 def test_procedure_object_guides_the_operator():
     rec, rig = wheel_recording(seed=8, seconds=40.0)
-    proc = WheelProcedure(radius=0.28, meta=rec.meta)
+    proc = WheelProcedure.create(values_from_texts(SETTINGS, {"radius": "0.28"}), rec.meta)
     events = []
     for start in range(0, len(rec), 200):
-        events += proc.feed(rec.t[start:start + 200], rec.acc[start:start + 200])
+        events += proc.feed(rec.slice(start, start + 200))
         if proc.done:
             break
     messages = [e.message for e in events]
@@ -264,7 +266,7 @@ def test_sim_driver_wheel_recording_calibrates_to_the_sensor_truth():
 
     with driver_for("sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05") as drv:
         rec = record(drv, seconds=40.0)
-    truth = rec.meta.get("truth") or drv.info.extra["truth"]
+    truth = rec.meta.get("truth") or drv.info.truth
     result = calibrate_wheel(rec, radius=0.28)
     g = result.parameters["gain"]
     o = result.parameters["offset"]
@@ -281,7 +283,7 @@ def test_cross_axis_terms_carry_the_datasheet_prior_not_a_false_zero(tmp_path):
 
     with driver_for("sim://wheel?seed=9&pace=fast&seconds=40&noise=0.05") as drv:
         rec = record(drv, seconds=40.0)
-    truth = rec.meta.get("truth") or drv.info.extra["truth"]
+    truth = rec.meta.get("truth") or drv.info.truth
     result = calibrate_wheel(rec, radius=0.28)
     assert any("does not observe cross-axis terms" in w and f"{DEFAULT_CROSS_AXIS_SD:.3g}" in w
                for w in result.warnings)

@@ -5,8 +5,16 @@ import pytest
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.wheel_model import (
-    TABLE_I_OMEGA, FreeSet, WheelState, euler_from_rotation, model_and_jacobian, pack, predict, rotation_from_euler, unpack,
+from accelrig.procedures.wheel.model import (
+    TABLE_I_OMEGA,
+    FreeSet,
+    WheelState,
+    euler_from_rotation,
+    model_and_jacobian,
+    pack,
+    predict,
+    rotation_from_euler,
+    unpack,
 )
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.rigs.wheel import WheelRig
@@ -74,23 +82,30 @@ def test_euler_round_trip():
     assert np.allclose(euler_from_rotation(rotation_from_euler(angles)), angles)
 
 
-def test_rig_is_registered_and_reads_eq_1_in_the_sensor_frame():
+def test_rig_is_registered_and_its_independent_truth_agrees_with_eq_1():
+    """The rig differentiates the rim's trajectory numerically (no eq. 1 inside): the model the
+    estimator fits must agree with it to the stencil's rounding error (a few 1e-6 m/s^2 after
+    100 turns), not merely to the noise."""
     assert RIGS["wheel"] is WheelRig
     rig = WheelRig.from_url(DeviceURL.parse("sim://wheel?speed=9&misalignment=30,20,25"), np.random.default_rng(0))
-    t = np.linspace(0, 90, 500)
+    t = np.linspace(0, 90, 5000)
     state = table_i_state(gain=[1, 1, 1], offset=[0, 0, 0])
-    assert np.allclose(rig.specific_force(t), predict(t, state))
-    # at rest a sensor on a wheel still feels 1 g
-    assert np.allclose(np.linalg.norm(rig.bench_force(t) - np.column_stack(
-        [0.28 * rig.motion(t)[1] ** 2, 0.28 * rig.motion(t)[2], np.zeros_like(t)]), axis=1), 9.80665)
+    assert np.max(np.abs(rig.specific_force(t) - predict(t, state))) < 1e-5
+    # what rides the rim always feels 1 g besides its own centripetal and tangential acceleration
+    theta, rate = rig.motion(t)
+    accel = np.polynomial.Polynomial(TABLE_I_OMEGA).deriv()(t)
+    bench = rig.specific_force(t) @ rig.rotation
+    motion = np.column_stack([0.28 * rate**2, 0.28 * accel, np.zeros_like(t)])
+    assert np.allclose(np.linalg.norm(bench - motion, axis=1), 9.80665, atol=1e-5)
 
 
 def test_coulomb_viscous_rig_obeys_its_friction_law_and_stops():
     rig = WheelRig(friction="coulomb-viscous", omega=[3.0, 0, 0, 0], coulomb=0.05, viscous=0.02)
     t = np.linspace(0, 120, 120001)
-    theta, rate, accel = rig.motion(t)
+    theta, rate = rig.motion(t)
     moving = rate > 0.05
-    assert np.allclose(accel[moving], -(0.05 + 0.02 * rate[moving]))
+    accel = np.gradient(rate, t)
+    assert np.allclose(accel[1:-1][moving[1:-1]], -(0.05 + 0.02 * rate[1:-1][moving[1:-1]]), atol=1e-6)
     assert np.allclose(np.gradient(theta, t)[1:-1][moving[1:-1]], rate[1:-1][moving[1:-1]], atol=1e-6)
     t_stop = np.log1p(3.0 / (0.05 / 0.02)) / 0.02
     assert np.all(rate[t > t_stop] == 0) and np.all(rate[t < t_stop - 0.1] > 0)

@@ -10,7 +10,7 @@ optional dependency: it imports that dependency inside ``open`` (or
 from __future__ import annotations
 
 import abc
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib.metadata import entry_points
 from typing import ClassVar
 
@@ -18,13 +18,19 @@ from accelrig.acquisition.block import Block
 from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
+from accelrig.result import Correction
 
 ENTRY_POINT_GROUP = "accelrig.drivers"
 
 
 @dataclass
 class DeviceInfo:
-    """What a driver knows about the device it opened."""
+    """What a driver knows about the device it opened.
+
+    The fields after ``channels`` are known only to some drivers (None
+    otherwise); ``extra`` holds driver-specific facts shown to people and read
+    by no code.
+    """
 
     driver: str                      # URL scheme of the driver
     url: str
@@ -36,11 +42,30 @@ class DeviceInfo:
     nominal_rate: float              # Hz the device was configured for
     who_am_i: int | None = None
     channels: tuple[str, ...] = ()   # extra per-sample channels the device delivers
+    part: str | None = None                  # the exact part WHO_AM_I names, e.g. "MPU-9255"
+    rate_plan: str | None = None             # how the chip makes the rate asked for
+    firmware: str | None = None              # firmware version (accelrig-protocol devices)
+    calibration_store: bool | None = None    # the firmware can keep a calibration record
+    samples_per_frame: int | None = None     # samples per data frame on the link
+    link_stats: object | None = None         # protocol.LinkStats: what the link got wrong, counted
+    delivered_rate: float | None = None      # Hz, measured against the host clock
+    clock_alignment: dict | None = None      # how device time was aligned to host time
+    hardware_bias_removed: list | None = None  # m/s^2 the chip subtracts already (flashed offsets)
+    offsets_applied: dict | None = None      # the flash report's residual of a profile written at open
+    truth: dict | None = None                # a simulated device's ground truth
     extra: dict = field(default_factory=dict)
 
+    # The facts only some drivers know stay under "extra" in to_dict(), where
+    # recordings and profiles have always had them.
+    _KNOWN_TO_SOME = ("part", "rate_plan", "firmware", "calibration_store", "samples_per_frame", "link_stats",
+                      "delivered_rate", "clock_alignment", "hardware_bias_removed", "offsets_applied", "truth")
+
     def to_dict(self) -> dict:
-        d = asdict(self)
+        d = {f.name: getattr(self, f.name) for f in fields(self)
+             if f.name not in self._KNOWN_TO_SOME and f.name != "extra"}
         d["channels"] = list(self.channels)
+        known = {name: getattr(self, name) for name in self._KNOWN_TO_SOME if getattr(self, name) is not None}
+        d["extra"] = {**known, **self.extra}
         return d
 
 
@@ -82,20 +107,20 @@ class Driver(abc.ABC):
     def at_end(self) -> bool:
         return False
 
-    def plan_flash(self, profile, force: bool = False) -> "FlashPlan":
-        """Work out what storing ``profile``'s calibration on the device would write.
+    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
+        """Work out what storing ``correction`` on the device would write.
 
         Reads the device, writes nothing.  Drivers whose devices can hold a
-        calibration override this and ``flash``; they refuse a profile made for
-        another device with ``accelrig.profiles.check_compatible`` unless
-        ``force``, and put its warnings in the plan's notes.
+        calibration override this and ``flash``; ``profile_id`` (8 bytes) names
+        the profile for a device that keeps it.  Whether the profile suits the
+        device is checked before, by accelrig.profiles.flash.
         """
         raise DeviceError(
             f"{self.scheme}:// devices cannot store a calibration",
             "keep the profile on the host and apply it to the stream instead",
         )
 
-    def flash(self, plan: "FlashPlan") -> "FlashReport":
+    def flash(self, plan: FlashPlan) -> FlashReport:
         """Write a plan made by ``plan_flash``, read it back and verify."""
         raise DeviceError(f"{self.scheme}:// devices cannot store a calibration")
 
@@ -107,37 +132,33 @@ class Driver(abc.ABC):
         self.close()
 
 
-def load_drivers() -> dict[str, type[Driver]]:
-    """All installed drivers by URL scheme.
+def _load(ep) -> type[Driver]:
+    """The driver class of one entry point; a plugin that fails to import is named, never skipped."""
+    try:
+        cls = ep.load()
+    except Exception as exc:  # a broken third-party plugin must be named
+        raise DeviceError(
+            f"driver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
+            "reinstall or uninstall the package that provides it",
+        ) from exc
+    if not (isinstance(cls, type) and issubclass(cls, Driver)):
+        raise DeviceError(f"driver plugin {ep.name!r} ({ep.value}) is not an accelrig Driver")
+    return cls
 
-    A plugin that fails to import is reported as a DeviceError naming it, never
-    skipped silently.
-    """
-    drivers: dict[str, type[Driver]] = {}
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            cls = ep.load()
-        except Exception as exc:  # a broken third-party plugin must be named
-            raise DeviceError(
-                f"driver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
-                "reinstall or uninstall the package that provides it",
-            ) from exc
-        if not (isinstance(cls, type) and issubclass(cls, Driver)):
-            raise DeviceError(f"driver plugin {ep.name!r} ({ep.value}) is not an accelrig Driver")
-        drivers[ep.name] = cls
-    return drivers
+
+def load_drivers() -> dict[str, type[Driver]]:
+    """All installed drivers by URL scheme (each one's module imported)."""
+    return {ep.name: _load(ep) for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
 def driver_for(url: str | DeviceURL) -> Driver:
-    """Parse ``url`` and return an unopened driver for it."""
+    """Parse ``url`` and return an unopened driver for it; only that scheme's driver is imported."""
     parsed = url if isinstance(url, DeviceURL) else DeviceURL.parse(url)
-    drivers = load_drivers()
-    try:
-        cls = drivers[parsed.scheme]
-    except KeyError:
-        known = ", ".join(f"{s}://" for s in sorted(drivers)) or "none installed"
+    found = entry_points(group=ENTRY_POINT_GROUP, name=parsed.scheme)
+    if not found:
+        known = ", ".join(sorted(f"{ep.name}://" for ep in entry_points(group=ENTRY_POINT_GROUP))) or "none installed"
         raise DeviceError(
             f"unknown device URL scheme {parsed.scheme!r} in {parsed.raw!r}",
             f"installed drivers: {known}",
-        ) from None
-    return cls(parsed)
+        )
+    return _load(next(iter(found)))(parsed)

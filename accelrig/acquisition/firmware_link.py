@@ -19,6 +19,7 @@ from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.timebase import StreamClock
 from accelrig.errors import DeviceError
+from accelrig.result import Correction
 from accelrig.units import scale_for_range
 
 # URL options every firmware device understands
@@ -105,10 +106,9 @@ class FirmwareDriver(Driver):
             driver=self.scheme, url=url.raw, chip=self.identity.chip, identity=self.identity.serial,
             range_g=float(self.config.range_g), scale=scale_for_range(self.config.range_g),
             requested_rate=rate, nominal_rate=self.config.rate,
-            extra={"firmware": self.identity.firmware, "link": link,
-                   "samples_per_frame": self.config.samples_per_frame,
-                   "calibration_store": bool(self.identity.capabilities & P.CAPABILITY_CAL_STORE),
-                   "link_stats": self.stats, **self._link_extra()},
+            firmware=self.identity.firmware, samples_per_frame=self.config.samples_per_frame,
+            calibration_store=bool(self.identity.capabilities & P.CAPABILITY_CAL_STORE), link_stats=self.stats,
+            extra={"link": link, **self._link_extra()},
         )
         return self.info
 
@@ -233,8 +233,8 @@ class FirmwareDriver(Driver):
                 run = []
             run.append((frame, first, gap))
         emit()
-        self.info.extra["delivered_rate"] = clock.delivered_rate
-        self.info.extra["clock_alignment"] = clock.alignment
+        self.info.delivered_rate = clock.delivered_rate
+        self.info.clock_alignment = clock.alignment
         return blocks
 
     # -------------------------------------------------------- flashing
@@ -247,26 +247,17 @@ class FirmwareDriver(Driver):
             return None
         return P.CalibrationRecord.from_bytes(reply.payload[1:])
 
-    def plan_flash(self, profile, force: bool = False) -> FlashPlan:
-        from accelrig.profiles import check_compatible
-
+    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
         if self.info is None:
             raise DeviceError("plan_flash needs an opened device")
-        checks = check_compatible(profile, self.info.to_dict(), profile.units, force)
         if self.streaming:
             raise DeviceError("cannot flash while streaming", "flash from a freshly opened device")
-        if not self.info.extra.get("calibration_store"):
+        if not self.info.calibration_store:
             raise DeviceError(f"{self.identity.chip} firmware {self.identity.firmware!r} has no calibration store",
                               "keep the profile on the host and apply it to the stream instead")
-        correction = profile.correction
-        if correction is None:
-            from accelrig.errors import ProfileError
-
-            raise ProfileError("the profile holds no correction to flash")
         current = self._read_record()
-        new = P.CalibrationRecord.from_correction(
-            correction, self.config.range_g, P.profile_id(profile.data), int(time.time())
-        ).as_float32()
+        new = P.CalibrationRecord.from_correction(correction, self.config.range_g, profile_id, int(time.time())
+                                                  ).as_float32()
         writes = []
         axes = "xyz"
         for i in range(3):
@@ -295,7 +286,6 @@ class FirmwareDriver(Driver):
         ]
         if current is None:
             notes.append("the device holds no calibration record yet")
-        notes.extend(checks)
         return FlashPlan(device=f"{self.url.raw} ({self.identity.serial})", writes=writes, residual=residual,
                          notes=notes, payload=new.to_bytes())
 

@@ -1,9 +1,11 @@
-"""What flashing a calibration to a device means, independent of the link.
+"""What a driver says about flashing a calibration, independent of the link.
 
 A driver that can store a calibration implements ``Driver.plan_flash`` (read
-what the device holds now, work out what would be written, touch nothing) and
-``Driver.flash`` (write the plan, read it back, verify).  The CLI and the TUI
-show the plan, ask, then call ``flash``; neither knows registers or frames.
+what the device holds now, work out what a Correction would write, touch
+nothing) and ``Driver.flash`` (write the plan, read it back, verify).  The
+orchestration (checking the profile against the device, rendering the plan)
+is accelrig.profiles.flash; these classes live here, below it, because the
+drivers build them and drivers never import profiles.
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ class FlashPlan:
     residual: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     payload: object = None                        # driver-private data for flash()
+    # the writes are registers of one part: a profile that does not name its chip is refused
+    chip_specific: bool = False
 
 
 @dataclass
@@ -45,5 +49,3 @@ class FlashReport:
     residual: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
-
-# Fields of a profile's ``device`` block that must match the opened device

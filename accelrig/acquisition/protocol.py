@@ -25,7 +25,6 @@ repaired silently.
 from __future__ import annotations
 
 import binascii
-import hashlib
 import re
 import struct
 from dataclasses import dataclass
@@ -200,7 +199,7 @@ class DataFrame:
 
 @dataclass
 class LinkStats:
-    """Everything the link got wrong, counted.  Shown by drivers in DeviceInfo.extra."""
+    """Everything the link got wrong, counted.  Shown by drivers in DeviceInfo.link_stats."""
 
     bytes_in: int = 0
     frames: int = 0
@@ -516,11 +515,3 @@ class CalibrationRecord:
     def as_float32(self) -> "CalibrationRecord":
         """What the device will hold after the float32 round trip."""
         return CalibrationRecord.from_bytes(self.to_bytes())
-
-
-def profile_id(profile_data: dict) -> bytes:
-    """8 bytes that identify a profile's content (first bytes of its SHA-256)."""
-    import yaml
-
-    text = yaml.safe_dump(profile_data, sort_keys=True)
-    return hashlib.sha256(text.encode("utf-8")).digest()[:8]

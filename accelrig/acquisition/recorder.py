@@ -1,32 +1,150 @@
-"""Record a device into a Recording: driver -> ring buffer -> reader -> arrays.
+"""The one way blocks become a Recording: a Recorder reads a ring buffer and keeps what it read.
 
-The recorder pulls from the driver in its own thread, so it can never fall
-behind the ring buffer; gaps the driver reports are kept in the recording's
-metadata (``gaps``: sample index and number missing) and never papered over.
+A Recorder owns one reader of a ring buffer.  ``poll()`` takes what arrived
+(and hands it back, so a wizard feeds the same chunk to its procedure);
+``recording()`` builds the Recording of everything taken so far.  Gaps the
+driver reported are kept in the recording's metadata (``gaps``: sample index
+and number missing) and never papered over.  Attached to a Session
+(``Recorder.attach``) the reader is lossless: the pump waits for it rather
+than overwrite samples it has not taken.
+
+Taken samples are kept in memory (``_keep``); that is the seam where a
+recorder streaming to disk segments will write instead.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import threading
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from accelrig.acquisition.driver import DeviceInfo, Driver
-from accelrig.acquisition.ringbuffer import RingBuffer
+from accelrig.acquisition.ringbuffer import Chunk, Reader, RingBuffer
 from accelrig.errors import DeviceError
 from accelrig.recording import Recording, default_meta
 
+if TYPE_CHECKING:
+    from accelrig.acquisition.session import Session
 
-class Progress:
-    """What a progress line shows while recording."""
 
-    def __init__(self):
+class Recorder:
+    """Every sample one reader delivers, from the first ``poll()`` on.
+
+    Progress figures, kept current by ``poll()``: ``samples``, ``seconds`` (device
+    time spanned), ``rate`` (samples per second), ``missing`` (samples the device
+    or link reported lost), ``gap_events``; ``full`` once a limit given to poll cut
+    the stream.
+    """
+
+    def __init__(self, info: DeviceInfo, reader: Reader, session: Session | None = None):
+        self.info = info
+        self.reader = reader
+        self.session = session
+        self._lock = threading.Lock()  # poll() on one thread, recording() on another (the TUI's fit worker)
+        self._counts: list[np.ndarray] = []
+        self._t: list[np.ndarray] = []
+        self._channels: dict[str, list[np.ndarray]] = {name: [] for name in info.channels}
+        self._gaps: list[dict] = []
+        self._t0: float | None = None
         self.samples = 0
         self.seconds = 0.0
         self.rate = 0.0
-        self.missing = 0     # samples the device or link reported lost
+        self.missing = 0
         self.gap_events = 0
+        self.full = False
+
+    @classmethod
+    def attach(cls, session: Session) -> Recorder:
+        """A recorder on a lossless reader of ``session`` from its oldest sample: attached
+        before ``session.start()`` it holds every sample the device delivers."""
+        return cls(session.info, session.reader(from_oldest=True, lossless=True), session)
+
+    def poll(self, seconds: float | None = None, samples: int | None = None) -> Chunk:
+        """Take what arrived; returns it as one chunk.
+
+        ``seconds`` (device time from the first sample) and ``samples`` limit what
+        is kept in all; what lies beyond is dropped and ``full`` is set.
+        """
+        chunk = self.reader.read()
+        if self.session is not None:
+            self.session.notify_read()
+        keep = chunk.n
+        if keep and seconds is not None:
+            t0 = self._t0 if self._t0 is not None else float(chunk.t[0])
+            keep = int(np.searchsorted(chunk.t - t0, seconds, side="left"))
+        if samples is not None:
+            keep = min(keep, samples - self.samples)
+        if keep < chunk.n or (samples is not None and self.samples + keep >= samples):
+            self.full = True
+        if keep < chunk.n:
+            chunk = dataclasses.replace(
+                chunk, counts=chunk.counts[:keep], t=chunk.t[:keep],
+                channels={name: values[:keep] for name, values in chunk.channels.items()},
+                gaps=[(pos, missing) for pos, missing in chunk.gaps if pos < keep])
+        self._keep(chunk)
+        return chunk
+
+    def _keep(self, chunk: Chunk) -> None:
+        with self._lock:
+            if chunk.lost:  # cannot happen on a lossless reader, but never hide it
+                self._gaps.append({"index": self.samples, "missing": chunk.lost, "cause": "reader overrun"})
+            for pos, missing in chunk.gaps:
+                self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": "device/link"})
+                self.missing += max(missing, 0)
+                self.gap_events += 1
+            if not chunk.n:
+                return
+            if self._t0 is None:
+                self._t0 = float(chunk.t[0])
+            self._counts.append(chunk.counts)
+            self._t.append(chunk.t)
+            for name in self._channels:
+                self._channels[name].append(chunk.channels[name])
+            self.samples += chunk.n
+            self.seconds = float(chunk.t[-1] - self._t0)
+            self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
+
+    def close(self) -> None:
+        """Stop holding the session's pump back (what was taken stays)."""
+        if self.session is not None:
+            self.session.release(self.reader)
+
+    def recording(self, units: str = "m/s^2") -> Recording:
+        """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts"."""
+        with self._lock:
+            if not self.samples:
+                raise DeviceError(f"{self.info.url} delivered no samples")
+            counts = np.concatenate(self._counts)
+            t = np.concatenate(self._t) - self._t0
+            channels = {name: np.concatenate(parts) for name, parts in self._channels.items()}
+            gaps, missing = list(self._gaps), self.missing
+        acc = counts.astype(float) if units == "counts" else counts.astype(float) * self.info.scale
+        meta = recording_meta(self.info, t, gaps, missing)
+        if self.session is not None and self.session.interrupted:
+            meta["interrupted"] = self.session.interrupted
+        return Recording(t, acc, units, channels, meta)
+
+    def take_until(self, pull: Callable[[], bool], seconds: float | None = None, samples: int | None = None,
+                   on_progress: Callable[[Recorder], None] | None = None, progress_interval: float = 0.25) -> None:
+        """Poll until ``seconds`` of device time or ``samples`` samples are kept, or the source ends.
+
+        ``pull()`` brings new samples into the reader's ring (or waits for the
+        pump to) and says whether the source has ended.
+        """
+        last_report = 0.0
+        while True:
+            ended = pull()
+            self.poll(seconds, samples)
+            done = ended or self.full
+            now = time.monotonic()
+            if on_progress is not None and (done or now - last_report >= progress_interval):
+                on_progress(self)
+                last_report = now
+            if done:
+                return
 
 
 def record(
@@ -34,78 +152,32 @@ def record(
     seconds: float | None = None,
     samples: int | None = None,
     units: str = "m/s^2",
-    on_progress: Callable[[Progress], None] | None = None,
+    on_progress: Callable[[Recorder], None] | None = None,
     progress_interval: float = 0.25,
 ) -> Recording:
-    """Record from an open driver until ``seconds`` of device time or ``samples`` samples.
+    """Record from an open driver, in this thread, until ``seconds`` of device time or ``samples`` samples.
 
     With neither, records until a finite source ends.  ``units`` "m/s^2"
-    (counts x nominal scale) or "counts".
+    (counts x nominal scale) or "counts".  A device error propagates.
     """
     info = driver.info
     if info is None:
         raise DeviceError("record() needs an opened driver")
-    capacity = max(int(info.nominal_rate * 4), 1 << 16)
-    ring = RingBuffer(capacity, info.scale, info.channels)
-    reader = ring.reader()
-    parts_counts, parts_t = [], []
-    parts_ch: dict[str, list[np.ndarray]] = {name: [] for name in info.channels}
-    gaps: list[dict] = []
-    prog = Progress()
-    n = 0
-    t0 = None
-    last_report = 0.0
-    done = False
-    while not done:
-        blocks = driver.read(timeout=0.1)
-        for block in blocks:
+    # one driver read at a time passes through the ring: it must hold the largest read
+    ring = RingBuffer(max(int(info.nominal_rate * 4), 1 << 16), info.scale, info.channels)
+    recorder = Recorder(info, ring.reader())
+
+    def pull() -> bool:
+        for block in driver.read(timeout=0.1):
             ring.write(block)
-        chunk = reader.read()
-        if chunk.lost:  # cannot happen with one thread pulling, but never hide it
-            gaps.append({"index": n, "missing": chunk.lost, "cause": "reader overrun"})
-        for pos, missing in chunk.gaps:
-            gaps.append({"index": n + pos, "missing": missing, "cause": "device/link"})
-            prog.missing += max(missing, 0)
-            prog.gap_events += 1
-        if chunk.n:
-            counts, t = chunk.counts, chunk.t
-            if t0 is None:
-                t0 = float(t[0])
-            keep = counts.shape[0]
-            if seconds is not None:
-                keep = int(np.searchsorted(t - t0, seconds, side="left"))
-            if samples is not None:
-                keep = min(keep, samples - n)
-            if keep < counts.shape[0]:
-                done = True
-            parts_counts.append(counts[:keep])
-            parts_t.append(t[:keep])
-            for name in parts_ch:
-                parts_ch[name].append(chunk.channels[name][:keep])
-            n += keep
-            prog.samples = n
-            prog.seconds = float(t[keep - 1] - t0) if keep else prog.seconds
-            prog.rate = (n - 1) / prog.seconds if prog.seconds > 0 else 0.0
-        if samples is not None and n >= samples:
-            done = True
-        if driver.at_end:
-            done = True
-        now = time.monotonic()
-        if on_progress is not None and (done or now - last_report >= progress_interval):
-            on_progress(prog)
-            last_report = now
-    if n == 0:
-        raise DeviceError(f"{info.url} delivered no samples")
-    counts = np.concatenate(parts_counts)
-    t = np.concatenate(parts_t) - t0
-    acc = counts.astype(float) if units == "counts" else counts.astype(float) * info.scale
-    meta = recording_meta(info, t, gaps, prog.missing)
-    channels = {name: np.concatenate(parts) for name, parts in parts_ch.items()}
-    return Recording(t, acc, units, channels, meta)
+        return driver.at_end
+
+    recorder.take_until(pull, seconds, samples, on_progress, progress_interval)
+    return recorder.recording(units)
 
 
 def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: int) -> dict:
-    """A recording's metadata from the device that made it (one place, for record() and TUI captures).
+    """A recording's metadata from the device that made it (the one place it is built).
 
     ``t`` are the sample times from 0; ``gaps`` the gaps met; ``missing`` the
     samples they held (known sizes).
@@ -129,11 +201,11 @@ def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: i
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
     )
-    if info.extra.get("hardware_bias_removed") is not None:  # flashed chip offsets (profiles.correction_for)
-        meta["hardware_bias_removed"] = list(info.extra["hardware_bias_removed"])
-    if "truth" in info.extra:
-        meta["truth"] = info.extra["truth"]
-    if "link_stats" in info.extra:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
-        meta["link_stats"] = info.extra["link_stats"].as_dict()
-        meta["clock_alignment"] = info.extra.get("clock_alignment")
+    if info.hardware_bias_removed is not None:  # flashed chip offsets (profiles.correction_for)
+        meta["hardware_bias_removed"] = list(info.hardware_bias_removed)
+    if info.truth is not None:
+        meta["truth"] = info.truth
+    if info.link_stats is not None:  # serial/BLE: what the link got wrong, counted (protocol.LinkStats)
+        meta["link_stats"] = info.link_stats.as_dict()
+        meta["clock_alignment"] = info.clock_alignment
     return meta

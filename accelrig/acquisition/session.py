@@ -9,7 +9,7 @@ user interface.  A Session
   the device or link, gap events, saturated samples, the connection state and
   the last error,
 * survives a disconnect: the pump stops, the state says so, the error is kept,
-  and everything a Capture collected so far stays available,
+  and everything a Recorder took so far stays available,
 * hands out readers: plain ones (a live view that may fall behind and is told
   how much it lost) and lossless ones, which the pump waits for before it
   overwrites samples they have not read (a procedure fed from a fast simulated
@@ -24,20 +24,18 @@ import threading
 import traceback
 from collections import deque
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
 from accelrig.acquisition.flash import FlashPlan, FlashReport
+from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
-from accelrig.acquisition.recorder import recording_meta
-from accelrig.recording import Recording
-
-# int16 full scale: a sample at either limit may have been clipped by the sensor.
-_COUNT_MAX = 32767
-_COUNT_MIN = -32768
+from accelrig.result import Correction
+from accelrig.units import saturated
 
 
 class State(str, enum.Enum):
@@ -59,57 +57,9 @@ class SessionStats:
     delivered_rate: float       # samples received per second of device time, recent window, Hz
     missing: int                # samples the device or link reported lost
     gap_events: int             # gaps reported (including gaps of unknown size)
-    saturated: int              # samples with an axis at the int16 limit
+    saturated: int              # samples with an axis saturated (units.saturated)
     last_error: str | None
     device_time: float          # s of device time since the first sample
-
-
-class Capture:
-    """Every sample from the moment it began until ``end()``, kept in memory.
-
-    Filled by the session's pump thread, so nothing is lost whatever the
-    readers do; survives a disconnect (``interrupted`` then holds the reason).
-    """
-
-    def __init__(self, info: DeviceInfo):
-        self.info = info
-        self._lock = threading.Lock()
-        self._counts: list[np.ndarray] = []
-        self._t: list[np.ndarray] = []
-        self._channels: dict[str, list[np.ndarray]] = {name: [] for name in info.channels}
-        self._gaps: list[dict] = []
-        self.samples = 0
-        self.active = True
-        self.interrupted: str | None = None
-
-    def _append(self, block: Block) -> None:
-        with self._lock:
-            if block.gap_before:
-                self._gaps.append({"index": self.samples, "missing": int(block.gap_before), "cause": "device/link"})
-            self._counts.append(block.counts)
-            self._t.append(block.t)
-            for name in self._channels:
-                self._channels[name].append(block.channels[name])
-            self.samples += block.n
-
-    def end(self) -> None:
-        self.active = False
-
-    def recording(self) -> Recording:
-        """What was captured so far, in m/s^2 (counts x nominal scale)."""
-        with self._lock:
-            if not self.samples:
-                raise DeviceError(f"nothing was captured from {self.info.url}")
-            counts = np.concatenate(self._counts)
-            t = np.concatenate(self._t)
-            channels = {name: np.concatenate(parts) for name, parts in self._channels.items()}
-            gaps = list(self._gaps)
-        t0 = float(t[0])
-        t = t - t0
-        meta = recording_meta(self.info, t, gaps, sum(max(int(g["missing"]), 0) for g in gaps))
-        if self.interrupted:
-            meta["interrupted"] = self.interrupted
-        return Recording(t, counts.astype(float) * self.info.scale, "m/s^2", channels, meta)
 
 
 class Session:
@@ -133,7 +83,7 @@ class Session:
         # Held around every driver call, so a flash never interleaves with a read.
         self._device_lock = threading.Lock()
         self._thread: threading.Thread | None = None
-        self._captures: list[Capture] = []
+        self.recorder: Recorder | None = None   # set by open_and_start(record=True)
         self._lossless: list[Reader] = []
         self._samples = 0
         self._missing = 0
@@ -144,6 +94,30 @@ class Session:
         self._rate_marks: deque[tuple[float, int]] = deque()  # (device time, samples before it)
 
     # ------------------------------------------------------------------ lifecycle
+    @classmethod
+    def open_and_start(cls, url: str, buffer_seconds: float = 30.0, record: bool = False,
+                       prepare: Callable[[Driver], None] | None = None) -> Session:
+        """Open ``url`` and start pumping; with ``record`` a Recorder (``session.recorder``)
+        is attached before the first sample, so it holds every sample.
+
+        ``prepare`` gets the opened driver before the first sample is read
+        (accelrig.profiles.flash.flash_url_profile writes the profile a URL
+        names).  On any failure the session is stopped (the device released)
+        and the AccelrigError raised.
+        """
+        session = cls(url, buffer_seconds=buffer_seconds)
+        try:
+            session.open()
+            if prepare is not None:
+                prepare(session.driver)
+            if record:
+                session.recorder = Recorder.attach(session)
+            session.start()
+        except AccelrigError:
+            session.stop()
+            raise
+        return session
+
     def open(self) -> DeviceInfo:
         """Connect the device (blocking); raises DeviceError with the driver's message."""
         if self.info is not None:
@@ -174,7 +148,7 @@ class Session:
         self._thread.start()
 
     def stop(self, timeout: float = 2.0) -> None:
-        """Stop pumping and release the device; captured data stay."""
+        """Stop pumping and release the device; what recorders took stays."""
         self._stop.set()
         with self._space:
             self._space.notify_all()
@@ -231,14 +205,10 @@ class Session:
         with self._space:
             self._space.notify_all()
 
-    def begin_capture(self) -> Capture:
-        """Start keeping every sample from now on (see Capture)."""
-        if self.info is None:
-            raise DeviceError("the session is not open")
-        capture = Capture(self.info)
-        with self._lock:
-            self._captures.append(capture)
-        return capture
+    @property
+    def interrupted(self) -> str | None:
+        """Why the device went away (disconnect, driver failure), or None."""
+        return self.last_error if self.state in (State.DISCONNECTED, State.FAILED) else None
 
     def stats(self) -> SessionStats:
         with self._lock:
@@ -261,10 +231,10 @@ class Session:
             )
 
     # ------------------------------------------------------------------ flashing
-    def plan_flash(self, profile) -> FlashPlan:
-        """What storing ``profile`` on the device would write (reads only; see Driver.plan_flash)."""
+    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
+        """What storing ``correction`` on the device would write (reads only; see Driver.plan_flash)."""
         with self._device_lock:
-            return self.driver.plan_flash(profile)
+            return self.driver.plan_flash(correction, profile_id)
 
     def flash(self, plan: FlashPlan) -> FlashReport:
         """Write a plan made by ``plan_flash``, between two reads of the pump."""
@@ -303,8 +273,7 @@ class Session:
 
     def _take(self, block: Block) -> None:
         self.ring.write(block)
-        saturated = int(np.count_nonzero(
-            ((block.counts >= _COUNT_MAX) | (block.counts <= _COUNT_MIN)).any(axis=1)))
+        clipped = int(np.count_nonzero(saturated(block.counts).any(axis=1)))
         with self._lock:
             if block.gap_before:
                 self._gap_events += 1
@@ -317,19 +286,12 @@ class Session:
                 while len(self._rate_marks) > 1 and self._t_last - self._rate_marks[1][0] >= self.RATE_WINDOW:
                     self._rate_marks.popleft()
             self._samples += block.n
-            self._saturated += saturated
-            captures = [c for c in self._captures if c.active]
-            self._captures = captures
-        for capture in captures:
-            capture._append(block)
+            self._saturated += clipped
 
     def _finish(self, state: State, error: str | None) -> None:
         with self._lock:
             self.state = state
             self.last_error = error
-            for capture in self._captures:
-                if error:
-                    capture.interrupted = error
         if state == State.ENDED:
             # A finite source that delivered everything is still connected (an emulated
             # chip can still be flashed); stop() releases it.
@@ -339,22 +301,3 @@ class Session:
                 self.driver.close()
             except AccelrigError:
                 pass
-
-
-def open_session(url: str, buffer_seconds: float = 30.0, before_start=None) -> Session:
-    """Open the device at ``url`` and start pumping it (blocking; raises AccelrigError).
-
-    ``before_start(session)`` runs between open and start: readers and captures
-    taken there see the stream from its first sample.  On an error nothing is
-    left open.
-    """
-    session = Session(url, buffer_seconds=buffer_seconds)
-    try:
-        session.open()
-        if before_start is not None:
-            before_start(session)
-        session.start()
-    except AccelrigError:
-        session.stop()
-        raise
-    return session

@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
 from accelrig.errors import DataError
-from accelrig.procedures.rotary_bench import RATE_METHODS, RotarySetup, analyse_files
-from accelrig.procedures.rotary_campaign import report_markdown, run_campaign, write_report
-from accelrig.result import to_json
+from accelrig.procedures.rotary.settings import TEST_SETTINGS
+from accelrig.settings import add_arguments, values_from_args
 
 
 def register(sub, groups) -> None:
@@ -23,16 +20,7 @@ def register(sub, groups) -> None:
     p.add_argument("--campaign", metavar="YAML", help="campaign file listing the tests (see docs/rotary.md)")
     p.add_argument("--mems", metavar="FILE", help="MEMS recording (.csv or .npz), in counts")
     p.add_argument("--encoder", metavar="FILE", help="encoder log t,theta[,ref] (s, rad, m/s^2) on an accurate clock")
-    p.add_argument("--radius", type=float, help="sensor distance from the rotation axis, m (e.g. 0.170)")
-    p.add_argument("--radius-uncertainty", type=float, default=0.0005, help="standard uncertainty of the radius, m "
-                   "(default 0.0005, paper 001)")
-    p.add_argument("--ref-radius", type=float, default=0.145, help="radius of the reference accelerometer, m")
-    p.add_argument("--tangential", help="sensor axis along the motion: x, y or z")
-    p.add_argument("--radial", help="sensor axis towards the rotation axis: x, y or z (the third sees gravity)")
-    p.add_argument("--nominal-rate", type=float, help="nominal MEMS rate, Hz (e.g. 1660)")
-    p.add_argument("--frequency", type=float, help="excitation frequency, Hz (default: from the encoder)")
-    p.add_argument("--rate-method", choices=RATE_METHODS, default="fit",
-                   help="true sampling rate by a sample-index sine fit (default) or the paper's 1 Hz FFT scan")
+    add_arguments(p, TEST_SETTINGS)
     p.add_argument("--units", default="counts", help="units of the MEMS file's ax,ay,az (default counts)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", metavar="REPORT", help="campaign report file (.yaml or .md), written atomically")
@@ -52,11 +40,17 @@ def run(args) -> int:
                if getattr(args, n) is None]
     if missing:
         raise DataError(f"one test needs {', '.join(missing)}", "or give --campaign CAMPAIGN.yaml")
-    setup = RotarySetup(radius=args.radius, radius_uncertainty=args.radius_uncertainty, ref_radius=args.ref_radius)
-    result = analyse_files(args.mems, args.encoder, args.tangential, args.radial, args.nominal_rate,
-                           args.frequency, args.rate_method, setup, units=args.units)
+    import numpy as np
+
+    from accelrig.procedures.rotary.bench import RotarySetup, analyse_files
+    from accelrig.result import to_json
+
+    v = values_from_args(TEST_SETTINGS, args)
+    setup = RotarySetup(radius=v["radius"], radius_uncertainty=v["radius_uncertainty"], ref_radius=v["ref_radius"])
+    result = analyse_files(args.mems, args.encoder, v["tangential"], v["radial"], v["nominal_rate"],
+                           v["frequency"], v["rate_method"], setup, units=args.units)
     if args.json:
-        print(to_json(result.to_json_dict()))
+        print(to_json(result.to_calibration_result().to_json_dict()))
         return 0
     fs = result.sample_rate
     print(f"sample rate  {fs.value:.4f} +- {fs.uncertainty:.2g} Hz  (nominal {result.nominal_rate:g} Hz, "
@@ -74,6 +68,9 @@ def run(args) -> int:
 
 
 def _run_campaign(args) -> int:
+    from accelrig.procedures.rotary.campaign import report_markdown, run_campaign, write_report
+    from accelrig.result import to_json
+
     def progress(test, result) -> None:
         if sys.stderr.isatty():
             sys.stderr.write(f"\rtest {test.index + 1}: {test.label}  ")
@@ -85,7 +82,7 @@ def _run_campaign(args) -> int:
     if args.output:
         write_report(report, args.output)
     if args.json:
-        print(to_json(report))
+        print(to_json(report.to_json_dict()))
     elif not args.output:
         print(report_markdown(report), end="")
     return 0

@@ -79,9 +79,9 @@ def text_report(result) -> str:
         lines.append(f"  {name:10s} {value:+.6f} +- {unc:.6f} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C @ (raw - b)")
-    for row, urow in zip(c.matrix, c.matrix_uncertainty):
-        lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow)))
-    lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty)) + " m/s^2")
+    for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):
+        lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
+    lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
     sel = q["model_selection"]
     lines.append("models: " + "; ".join(f"{m} chi2 {s['chi2']:.1f}/{s['dof']} dof, AIC {s['aic']:.1f}"
                                         for m, s in sel.items()))

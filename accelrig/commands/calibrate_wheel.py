@@ -2,14 +2,9 @@
 
 from __future__ import annotations
 
-
-import numpy as np
-
 from accelrig.errors import DataError
-from accelrig.procedures.wheel import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, calibrate_wheel, plan_wheel
-from accelrig.recording import load_recording
-from accelrig.units import STANDARD_GRAVITY
-from accelrig.result import to_json
+from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
+from accelrig.settings import add_arguments, values_from_args
 
 
 def register(sub, groups) -> None:
@@ -20,18 +15,9 @@ def register(sub, groups) -> None:
         "(paper 002). Give the measured radius (sensor to axis) or the tilt.",
     )
     p.add_argument("recording", help="recording (.csv interchange or .npz) of the coasting wheel")
-    p.add_argument("--radius", type=float, help="distance from the sensor to the wheel axis, m")
-    p.add_argument("--tilt-deg", type=float, help="tilt of the wheel axis from the vertical, deg (instead of or with --radius)")
-    p.add_argument("--method", choices=METHODS, default="joint",
-                   help="joint maximum likelihood (default) or the paper's four steps")
-    p.add_argument("--bootstrap", type=int, default=DEFAULT_BOOTSTRAP,
-                   help=f"runs of the parametric bootstrap giving the paper method's uncertainties (default {DEFAULT_BOOTSTRAP})")
-    p.add_argument("--cross-axis-sd", type=float, default=DEFAULT_CROSS_AXIS_SD,
-                   help="prior sd of the correction's off-diagonal (cross-axis) terms, which the wheel does not "
-                   f"observe (default {DEFAULT_CROSS_AXIS_SD:.4f}: the datasheet +-2 %% as a uniform bound)")
+    add_arguments(p, SETTINGS)
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
-    p.add_argument("--g", type=float, default=STANDARD_GRAVITY, help="local gravity, m/s^2 (default 9.80665)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", help="write a device profile (YAML) with the correction")
     p.set_defaults(func=run_calibrate)
@@ -43,24 +29,20 @@ def register(sub, groups) -> None:
         "run (Cramer-Rao bound), for a perfect sensor mounted at --mount-deg and the paper's coast-down "
         "profile scaled to --speed over --seconds.",
     )
-    q.add_argument("--radius", type=float, required=True, help="distance from the sensor to the axis, m")
-    q.add_argument("--tilt-deg", type=float, default=45.0, help="tilt of the axis from the vertical, deg (default 45)")
-    q.add_argument("--noise", type=float, default=0.08, help="sensor noise sd per sample, m/s^2 (default 0.08)")
-    q.add_argument("--rate", type=float, default=200.0, help="sample rate, Hz (default 200)")
-    q.add_argument("--seconds", type=float, default=90.0, help="length of the run, s (default 90)")
-    q.add_argument("--speed", type=float, default=9.0, help="initial angular velocity, rad/s (default 9)")
-    q.add_argument("--mount-deg", default="30,20,25",
-                   help="mounting Euler angles theta,phi,psi in deg (default 30,20,25: tilted, as the paper advises)")
+    add_arguments(q, PLAN_SETTINGS)
     q.add_argument("--json", action="store_true", help="print the plan as JSON")
     q.set_defaults(func=run_plan)
 
 
 def run_calibrate(args) -> int:
-    if args.radius is not None and not args.radius > 0:
-        raise DataError(f"--radius {args.radius} must be a positive distance in metres")
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
+    from accelrig.recording import load_recording
+    from accelrig.result import to_json
+
+    v = values_from_args(SETTINGS, args)
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
-    result = calibrate_wheel(rec, radius=args.radius, tilt_deg=args.tilt_deg, method=args.method, g=args.g,
-                             bootstrap=args.bootstrap, cross_axis_sd=args.cross_axis_sd)
+    result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
+                             bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
     if args.output:
         # profiles validate and write atomically: nothing half-written on error
         from accelrig.profiles import profile_from_result, save_profile
@@ -76,6 +58,8 @@ def run_calibrate(args) -> int:
 
 
 def _human(result) -> str:
+    import numpy as np
+
     q = result.quality
     lines = [f"wheel calibration, method {result.method}: {q['n_samples']} samples, {q['duration_s']:.1f} s, "
              f"{q['turns']:.1f} turns, residual rms {q['residual_rms']:.4f} m/s^2"]
@@ -100,20 +84,20 @@ def _human(result) -> str:
 
 
 def run_plan(args) -> int:
-    try:
-        mount = [float(x) for x in args.mount_deg.split(",")]
-    except ValueError:
-        mount = []
-    if len(mount) != 3:
+    from accelrig.procedures.wheel.plan import plan_wheel
+    from accelrig.result import to_json
+
+    v = values_from_args(PLAN_SETTINGS, args)
+    if len(v["mount_deg"]) != 3:
         raise DataError(f"--mount-deg {args.mount_deg!r} needs three comma-separated angles in degrees")
-    rows = plan_wheel(args.radius, args.tilt_deg, args.noise, args.rate, args.seconds, args.speed, mount)
+    rows = plan_wheel(v["radius"], v["tilt_deg"], v["noise"], v["rate"], v["seconds"], v["speed"], v["mount_deg"])
     if args.json:
         print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1",
                           "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "unit": r.unit}
                                          for r in rows}}))
         return 0
-    print(f"wheel plan: r = {args.radius} m, tilt {args.tilt_deg} deg, noise {args.noise} m/s^2, "
-          f"{args.rate:g} Hz x {args.seconds:g} s, start {args.speed} rad/s; best reachable uncertainty (CRB, k=1)")
+    print(f"wheel plan: r = {v['radius']} m, tilt {v['tilt_deg']} deg, noise {v['noise']} m/s^2, "
+          f"{v['rate']:g} Hz x {v['seconds']:g} s, start {v['speed']} rad/s; best reachable uncertainty (CRB, k=1)")
     print(f"{'parameter':<22}{'nominal':>14}{'uncertainty':>14}  unit")
     for r in rows:
         print(f"{r.name:<22}{r.value:>14.6g}{r.sd:>14.2g}  {r.unit}")

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from accelrig.acquisition.driver import load_drivers
 from accelrig.errors import AccelrigError
 
 
 def register(sub, groups) -> None:
-    p = sub.add_parser("devices", help="list installed drivers and the devices they find")
+    p = sub.add_parser("devices")
     p.add_argument("--verbose", "-v", action="store_true", help="also list each simulated rig's options")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from accelrig.acquisition.driver import load_drivers
+
     drivers = load_drivers()
     for scheme in sorted(drivers):
         cls = drivers[scheme]

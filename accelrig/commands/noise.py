@@ -4,13 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from accelrig.estimation.allan import noise_figures
 from accelrig.geometry import AXES
-from accelrig.profiles.apply import check_compatible
-from accelrig.profiles.io import load_profile, save_profile, utc_now
-from accelrig.recording import load_recording
 from accelrig.units import STANDARD_GRAVITY
-from accelrig.result import to_json
 
 UG = 1e6 / STANDARD_GRAVITY   # (m/s^2) -> micro-g
 
@@ -18,7 +13,6 @@ UG = 1e6 / STANDARD_GRAVITY   # (m/s^2) -> micro-g
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "noise",
-        help="noise figures (Allan deviation) of a still recording",
         description="Overlapping Allan deviation of a recording of the sensor lying still, per axis: "
         "white-noise density (one-sided, ug/sqrt(Hz) as on datasheets: sigma(tau) = N / sqrt(2 tau)), "
         "bias instability (IEEE 952: minimum / 0.664) and rate random walk where the record is long enough. "
@@ -33,6 +27,12 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
+    from accelrig.estimation.allan import noise_figures
+    from accelrig.profiles.apply import check_compatible
+    from accelrig.profiles.io import load_profile, save_profile, utc_now
+    from accelrig.recording import load_recording
+    from accelrig.result import to_json
+
     rec = load_recording(args.recording, units=args.units)
     profile = None
     if args.profile:

@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import sys
+import time
 
-from accelrig.acquisition.driver import driver_for
-from accelrig.acquisition.recorder import Progress, record
-from accelrig.errors import DataError
-from accelrig.recording import save_recording
+from accelrig.errors import DataError, DeviceError
 
 
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "record",
-        help="record a device to a CSV or .npz file",
         description="Record a device to a file. A progress line is shown on a terminal; "
         "nothing but the file is written otherwise.",
     )
@@ -27,26 +24,37 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
+    from accelrig.acquisition.recorder import Recorder
+    from accelrig.acquisition.session import Session, State
+    from accelrig.profiles.flash import flash_url_profile
+    from accelrig.recording import save_recording
+
     if args.seconds is not None and args.seconds <= 0:
         raise DataError(f"--seconds {args.seconds} must be positive")
     if args.samples is not None and args.samples <= 0:
         raise DataError(f"--samples {args.samples} must be positive")
     show = sys.stderr.isatty()
 
-    def progress(p: Progress) -> None:
+    def progress(p: Recorder) -> None:
         sys.stderr.write(
             f"\r{p.samples} samples  {p.seconds:7.2f} s  {p.rate:8.1f} Hz  missing {p.missing} ({p.gap_events} gaps)  "
         )
         sys.stderr.flush()
 
-    with driver_for(args.url) as driver:
-        rec = record(
-            driver,
-            seconds=args.seconds,
-            samples=args.samples,
-            units="counts" if args.units == "counts" else "m/s^2",
-            on_progress=progress if show else None,
-        )
+    session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile)
+
+    def pull() -> bool:
+        """Give the pump a moment; a device that went away ends the command as it would have ended a read."""
+        time.sleep(0.02)
+        if session.interrupted:
+            raise DeviceError(session.interrupted)
+        return session.state == State.ENDED
+
+    try:
+        session.recorder.take_until(pull, args.seconds, args.samples, progress if show else None)
+        rec = session.recorder.recording("counts" if args.units == "counts" else "m/s^2")
+    finally:
+        session.stop()
     if show:
         sys.stderr.write("\n")
     save_recording(rec, args.output)

@@ -8,7 +8,6 @@ from accelrig.errors import require_extra
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "tui",
-        help="guided calibration in the terminal (connect, live view, wizards)",
         description="Open the terminal interface. With no --device it opens on a simulated static rig, "
         "so it works without hardware.",
     )

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-
 from accelrig.errors import DataError, ProfileError
-from accelrig.procedures.slider_crank import DEFAULT_HARMONICS, SliderCrankVerification, verify_slider_crank
-from accelrig.recording import load_recording
-from accelrig.result import to_json
+from accelrig.procedures.slider_crank.settings import CRANK_RADIUS, FILE_SETTINGS, ROD_LENGTH
+from accelrig.settings import add_arguments, values_from_args
 
 
 def register(sub, groups) -> None:
@@ -21,15 +19,10 @@ def register(sub, groups) -> None:
         "inconclusive, 2-6 when the input or the analysis fails (one line on stderr).",
     )
     p.add_argument("recordings", nargs="+", metavar="STEP.csv", help="recordings (.csv or .npz), in step order")
-    p.add_argument("--crank-radius", type=float, required=True, metavar="M", help="caliper crank radius, m")
+    add_arguments(p, [s for s in FILE_SETTINGS if s is not ROD_LENGTH])
     geometry = p.add_mutually_exclusive_group(required=True)
-    geometry.add_argument("--rod-length", type=float, metavar="M", help="connecting rod length, m")
+    add_arguments(geometry, [ROD_LENGTH])
     geometry.add_argument("--lambda", dest="lam", type=float, metavar="L", help="crank radius / rod length instead")
-    p.add_argument("--clearance", type=float, default=0.0, metavar="M", help="mechanical clearance +-M on the radius (default 0)")
-    p.add_argument("--speeds", metavar="HZ,...", help="commanded motor speed of each step, Hz (judges the roll-off)")
-    p.add_argument("--harmonics", type=int, default=DEFAULT_HARMONICS,
-                   help=f"harmonics sharing the frequency in the fit (default {DEFAULT_HARMONICS})")
-    p.add_argument("--profile", metavar="P.yaml", help="device profile whose calibration is applied first (the one verified)")
     p.add_argument("--force", action="store_true",
                    help="apply the profile even if it names another device, range or unit (warned)")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az when the file does not say")
@@ -38,43 +31,30 @@ def register(sub, groups) -> None:
     p.set_defaults(func=run)
 
 
-def _parse_speeds(text: str | None) -> list[float] | None:
-    if text is None:
-        return None
-    try:
-        speeds = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise DataError(f"--speeds {text!r} is not a list of numbers", "e.g. --speeds 2.5,4,6,8") from None
-    if not speeds or any(not s > 0 for s in speeds):
-        raise DataError(f"--speeds {text!r}: speeds must be positive Hz")
-    return speeds
-
-
 def run(args) -> int:
+    from accelrig.procedures.slider_crank.procedure import verify_slider_crank
+    from accelrig.recording import load_recording
+    from accelrig.result import to_json
+
     if args.rod_length is None:
         if not (args.lam is not None and 0 < args.lam < 1):
             raise DataError(f"--lambda {args.lam} must lie between 0 and 1")
-        rod_length = args.crank_radius / args.lam
-    else:
-        rod_length = args.rod_length
-    if args.harmonics < 1:
-        raise DataError(f"--harmonics {args.harmonics} must be at least 1")
-    speeds = _parse_speeds(args.speeds)
+        args.rod_length = CRANK_RADIUS.parse(args.crank_radius) / args.lam
+    values = values_from_args(FILE_SETTINGS, args)
     recordings = [(path, load_recording(path, units=args.units, rate=args.rate)) for path in args.recordings]
     correction = None
     profile_warnings: list[str] = []
-    if args.profile:
-        correction, profile_warnings = _profile_correction(args.profile, recordings, args.force)
-    result = verify_slider_crank(
-        recordings, args.crank_radius, rod_length, args.clearance, correction=correction, speeds=speeds,
-        harmonics=args.harmonics, profile=args.profile,
-    )
+    if values["profile"]:
+        correction, profile_warnings = _profile_correction(values["profile"], recordings, args.force)
+    result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
+                                 correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
+                                 profile=values["profile"])
     result.warnings = profile_warnings + result.warnings
     if args.json:
         print(to_json(result.to_json_dict()))
     else:
         print(format_report(result))
-    return 0 if result.verdict == "holds" else 1
+    return 0 if result.details["verdict"] == "holds" else 1
 
 
 def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
@@ -94,40 +74,42 @@ def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
     return profile.correction, warnings
 
 
-def format_report(result: SliderCrankVerification) -> str:
+def format_report(result) -> str:
     """Human-readable frequency response table and verdict (mm and degrees at the edge)."""
+    v = result.details
     lines = [
-        f"slider-crank verification: r = {result.crank_radius * 1e3:.3f} mm ("
-        + (f"clearance +- {result.clearance * 1e3:.3f} mm" if result.clearance > 0 else "no clearance given")
-        + f"), l = {result.rod_length * 1e3:.2f} mm, lambda = {result.lam:.4f}"
-        + (f", profile {result.profile}" if result.profile else ""),
+        f"slider-crank verification: r = {v['crank_radius_m'] * 1e3:.3f} mm ("
+        + (f"clearance +- {v['clearance_m'] * 1e3:.3f} mm" if v["clearance_m"] > 0 else "no clearance given")
+        + f"), l = {v['rod_length_m'] * 1e3:.2f} mm, lambda = {v['lambda']:.4f}"
+        + (f", profile {v['profile']}" if v["profile"] else ""),
         "",
         "| step | f / Hz | u(f) / Hz | FFT peak / Hz | A1 / m/s^2 | model r w^2 | ratio | radius / mm | u / mm | "
         "in clearance | backlash | motor | axis angle x,y,z / deg |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for s in result.steps:
-        motor = "limited" if s.motor_limited else "ok"
-        angles = ",".join(f"{a:.1f}" for a in s.axis_angles_deg)
+    for s in v["steps"]:
+        motor = "limited" if s["motor_limited"] else "ok"
+        angles = ",".join(f"{a:.1f}" for a in s["axis_angles_deg"])
         lines.append(
-            f"| {s.index} | {s.frequency_hz.value:.5f} | {s.frequency_hz.uncertainty:.2g} | {s.fft_peak_hz:.2f} | "
-            f"{s.amplitude.value:.4f} | {s.model_amplitude:.4f} | {s.ratio.value:.5f} +- {s.ratio.uncertainty:.5f} | "
-            f"{s.radius_m.value * 1e3:.4f} | {s.radius_m.uncertainty * 1e3:.4f} | "
-            f"{'yes' if s.within_clearance else 'NO'} | {'YES' if s.backlash else 'no'} | {motor} | {angles} |"
+            f"| {s['index']} | {s['frequency_hz']['value']:.5f} | {s['frequency_hz']['uncertainty']:.2g} | "
+            f"{s['fft_peak_hz']:.2f} | {s['amplitude']['value']:.4f} | {s['model_amplitude']:.4f} | "
+            f"{s['ratio']['value']:.5f} +- {s['ratio']['uncertainty']:.5f} | "
+            f"{s['radius_m']['value'] * 1e3:.4f} | {s['radius_m']['uncertainty'] * 1e3:.4f} | "
+            f"{'yes' if s['within_clearance'] else 'NO'} | {'YES' if s['backlash'] else 'no'} | {motor} | {angles} |"
         )
     lines.append("")
-    r = result.radius_m
+    r = result.parameters["radius"]
     lines.append(
         f"radius from the motion: {r.value * 1e3:.4f} +- {r.uncertainty * 1e3:.4f} mm (k = 1) over steps "
-        f"{result.used_steps}, chi2 = {result.radius_chi2:.2f} for {result.radius_dof} dof"
+        f"{v['used_steps']}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof"
     )
     lines.append(
-        "motor roll-off: " + (f"tops out near {result.rolloff_hz:.2f} Hz" if result.rolloff_hz is not None else "none seen")
+        "motor roll-off: " + (f"tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else "none seen")
     )
     for w in result.warnings:
         lines.append(f"warning: {w}")
     verdict = {"holds": "the static calibration holds under motion",
                "does not hold": "the static calibration does not hold under motion",
                "inconclusive": "inconclusive, whether the static calibration holds under motion is not decided"}
-    lines.append(f"verdict: {verdict.get(result.verdict, result.verdict)}: {result.verdict_reason}")
+    lines.append(f"verdict: {verdict.get(v['verdict'], v['verdict'])}: {v['verdict_reason']}")
     return "\n".join(lines)

@@ -32,7 +32,7 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     """Refuse data from another device, chip, range or unit (ProfileError) unless ``force``.
 
     The one check of a profile against a device: applying, verifying and
-    flashing (every Driver.plan_flash) all go through it, so ``--force`` means
+    flashing (profiles.flash.plan_flash) all go through it, so ``--force`` means
     the same everywhere.
 
     ``meta`` is a recording's metadata or a DeviceInfo.to_dict(); ``units`` the

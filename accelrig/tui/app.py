@@ -8,8 +8,9 @@ from textual import work
 from textual.app import App
 from textual.binding import Binding
 
-from accelrig.acquisition.session import Session, open_session
+from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import flash_url_profile
 from accelrig.tui.screens.help import HelpScreen
 from accelrig.tui.screens.live import LiveScreen
 
@@ -50,7 +51,7 @@ class AccelrigApp(App):
     def connect_to(self, url: str) -> None:
         """Open ``url`` off the UI thread (BLE and serial opens can take seconds)."""
         try:
-            session = open_session(url, self.buffer_seconds)
+            session = Session.open_and_start(url, self.buffer_seconds, prepare=flash_url_profile)
         except AccelrigError as exc:
             self.call_from_thread(self._connect_failed, url, str(exc))
             return
@@ -81,4 +82,3 @@ class AccelrigApp(App):
     def on_unmount(self) -> None:
         if self.session is not None:
             self.session.stop()
-

@@ -57,7 +57,7 @@ def run(chip: str, rate: float, seconds: float, seed: int = 0) -> dict:
     lost = sum(max(b.gap_before, 0) for b in blocks) + stream.overflows
     driver.close()
     return {
-        "chip": chip, "requested": rate, "plan": info.extra["rate_plan"], "delivered": info.nominal_rate,
+        "chip": chip, "requested": rate, "plan": info.rate_plan, "delivered": info.nominal_rate,
         "measured": stream.delivered_rate, "z": (stream.delivered_rate - true_rate) / stream.delivered_rate_uncertainty,
         "u_rate": stream.delivered_rate_uncertainty,
         "mean_err_us": 1e6 * err.mean(), "sd_err_us": 1e6 * err.std(), "p99_err_us": 1e6 * np.percentile(np.abs(err), 99),

@@ -26,15 +26,14 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from accelrig.estimation.sinefit import sine_crb  # noqa: E402
-from accelrig.procedures.rotary_bench import (  # noqa: E402
-    PAPER_ORIENTATIONS, PAPER_PLAN, EncoderLog, RotarySetup, analyse_test,
-)
-from accelrig.procedures.rotary_campaign import Campaign, CampaignTest, analyse_campaign  # noqa: E402
+from accelrig.procedures.rotary.bench import PAPER_ORIENTATIONS, EncoderLog, RotarySetup, analyse_test  # noqa: E402
+from accelrig.procedures.rotary.campaign import Campaign, CampaignTest, analyse_campaign  # noqa: E402
+from accelrig.procedures.rotary.settings import PAPER_PLAN  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
+from accelrig.sim.campaign import paper_sensor  # noqa: E402
 from accelrig.sim.rigs.rotary import (  # noqa: E402
     RotaryRig,
     encoder_samples,
-    paper_sensor,
     true_sensitivity,
 )
 from accelrig.sim.sensor import SimClock  # noqa: E402
@@ -89,7 +88,7 @@ def one_campaign(rng: np.random.Generator, seconds: float, repeats: int = 2) -> 
                 enc = EncoderLog(**encoder_samples(rig, seconds, 1000.0))
                 results.append(analyse_test(rec, enc, tangential, radial, NOMINAL_RATE))
                 tests.append(CampaignTest(len(tests), "S1", f"{tangential}{radial}", "", None, {}, RotarySetup()))
-    report = analyse_campaign(Campaign("bench", tests), results)
+    report = analyse_campaign(Campaign("bench", tests), results).details
     return {"report": report, "truth": truth}
 
 

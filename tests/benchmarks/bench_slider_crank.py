@@ -34,8 +34,10 @@ from scipy.optimize import minimize  # noqa: E402
 
 from accelrig.errors import DataError  # noqa: E402
 from accelrig.estimation.sinefit import fit_sine, interpolated_dft_frequency, sine_crb  # noqa: E402
-from accelrig.procedures.slider_crank import fft_peak_frequency, verify_slider_crank  # noqa: E402
+from accelrig.procedures.slider_crank.analysis import fft_peak_frequency  # noqa: E402
+from accelrig.procedures.slider_crank.procedure import verify_slider_crank  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
+from accelrig.sim import kinematics  # noqa: E402
 from accelrig.sim.rigs.slider_crank import SliderCrankRig, slider_position  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 
@@ -46,8 +48,11 @@ PAPER_TRIALS = 200
 
 
 def acceleration(f, phase):
-    phi = 2 * np.pi * f * T + phase
-    return slider_position(phi, RADIUS, ROD)[2] * (2 * np.pi * f) ** 2
+    def position(t):
+        x = slider_position(2 * np.pi * f * t + phase, RADIUS, ROD)
+        return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+
+    return kinematics.acceleration(position, T)[:, 0]
 
 
 def paper_method(y):
@@ -147,17 +152,18 @@ def table_radius(runs):
             t0 = time.perf_counter()
             res = verify_slider_crank([("sim", rec)], RADIUS, ROD, clearance=opts["clearance"])
             secs.append(time.perf_counter() - t0)
-            e = res.radius_m.value - rig.effective_radius
+            radius, v = res.parameters["radius"], res.details
+            e = radius.value - rig.effective_radius
             err.append(e * 1e6)
-            u.append(res.radius_m.uncertainty * 1e6)
-            z.append(e / res.radius_m.uncertainty)
-            holds.append(res.verdict == "holds")
-            knock.append(np.mean([s.backlash for s in res.steps]))
-            beyond = [s for s, c in zip(res.steps, steps) if c > rig.max_speed]
-            below = [s for s, c in zip(res.steps, steps) if c <= rig.max_speed]
-            limited_ok.append(np.mean([s.motor_limited for s in beyond]))
-            false_limited.append(np.mean([s.motor_limited for s in below]))
-            rolloff.append(res.rolloff_hz if res.rolloff_hz is not None else np.nan)
+            u.append(radius.uncertainty * 1e6)
+            z.append(e / radius.uncertainty)
+            holds.append(v["verdict"] == "holds")
+            knock.append(np.mean([s["backlash"] for s in v["steps"]]))
+            beyond = [s for s, c in zip(v["steps"], steps) if c > rig.max_speed]
+            below = [s for s, c in zip(v["steps"], steps) if c <= rig.max_speed]
+            limited_ok.append(np.mean([s["motor_limited"] for s in beyond]))
+            false_limited.append(np.mean([s["motor_limited"] for s in below]))
+            rolloff.append(v["rolloff_hz"] if v["rolloff_hz"] is not None else np.nan)
         print(
             f"| {name} | {np.mean(err):+.2f} | {np.std(err):.2f} | {np.mean(u):.2f} | {np.sqrt(np.mean(np.square(z))):.2f} | "
             f"{100 * np.mean(holds):.0f} % | {100 * np.mean(knock):.0f} % | {100 * np.mean(limited_ok):.0f} % | "

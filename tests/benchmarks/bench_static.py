@@ -27,7 +27,6 @@ import time
 
 import numpy as np
 
-from accelrig.procedures.static.procedure import calibrate_static, detect_poses
 from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
     PAPER_NAMES,
@@ -35,6 +34,7 @@ from accelrig.procedures.static.fit import (
     paper_params_to_correction,
     static_crb,
 )
+from accelrig.procedures.static.procedure import calibrate_static, detect_poses
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
 from accelrig.sim.sensor import SensorModel, SimClock

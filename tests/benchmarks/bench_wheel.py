@@ -23,15 +23,20 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from accelrig.procedures.wheel import (
-    calibrate_wheel, free_set, reported_names, reported_values, wheel_crb,
+from accelrig.procedures.wheel.checks import check_capture, survey
+from accelrig.procedures.wheel.fit import free_set, reported_names, reported_values, wheel_crb
+from accelrig.procedures.wheel.model import (
+    TABLE_I_GAIN,
+    TABLE_I_MISALIGNMENT_DEG,
+    TABLE_I_OFFSET,
+    TABLE_I_OMEGA,
+    TABLE_I_THETA0_DEG,
+    TABLE_I_TILT_DEG,
+    WheelState,
+    rotation_from_euler,
 )
-from accelrig.procedures.wheel_checks import check_capture, survey
-from accelrig.procedures.wheel_model import (
-    TABLE_I_GAIN, TABLE_I_MISALIGNMENT_DEG, TABLE_I_OFFSET, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG,
-    WheelState, rotation_from_euler,
-)
-from accelrig.procedures.wheel_paper import paper_calibrate
+from accelrig.procedures.wheel.paper import paper_calibrate
+from accelrig.procedures.wheel.procedure import calibrate_wheel
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.wheel import WheelRig
 from accelrig.sim.sensor import SensorModel, SimClock

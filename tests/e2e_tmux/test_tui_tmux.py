@@ -14,7 +14,6 @@ import time
 
 import pytest
 
-
 if shutil.which("tmux") is None:
     pytest.skip("tmux is not installed (CI installs it: apt-get install tmux)", allow_module_level=True)
 

@@ -52,6 +52,7 @@ class FifoStream:
         self._pending_gap = False
         self._next_poll = 0.0
         self._started = 0.0
+        self.started = False
 
     @property
     def delivered_rate(self) -> float:
@@ -64,6 +65,7 @@ class FifoStream:
 
     def start(self) -> None:
         self.chip.fifo_start()
+        self.started = True
         self._started = self.clock.now()
         self._restart_segment()
         self._next_poll = self.clock.now() + self.poll_interval

@@ -37,7 +37,8 @@ import numpy as np
 from accelrig.errors import CalibrationError, DataError
 from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.recording import count_scale
+from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 
 # The detector's own kinds of happening, as the contract's kinds of event (data["kind"] keeps the own one).
 EVENT_KIND = {
@@ -227,7 +228,7 @@ class PoseDetector:
         # Walk the runs of constant state.
         edges = np.flatnonzero(np.diff(still.astype(np.int8))) + 1
         bounds = np.concatenate([[0], edges, [d.size]])
-        for a, b in zip(bounds[:-1], bounds[1:]):
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             if still[a]:
                 if not self._still:
                     # Still since the start of the first quiet window.
@@ -369,7 +370,7 @@ class PoseDetector:
         """The capture checks: (kind, one-line message) of the first problem, or None."""
         x = pose.samples
         if self.full_scale is not None:
-            hit = np.any(np.abs(x) >= self.full_scale * (1 - 1e-3), axis=1)
+            hit = np.any(saturated(x, self.full_scale / COUNT_MAX), axis=1)
             if np.any(hit):
                 k = int(np.argmax(hit))
                 return ("saturated", f"{pose.face} down at t = {pose.t[k]:.1f} s: {int(hit.sum())} samples at the "
@@ -423,9 +424,5 @@ class PoseDetector:
 
 def full_scale_of(meta: dict) -> float | None:
     """Sensor full scale in m/s^2 from a recording's metadata or a device's facts, if known."""
-    scale, range_g = meta.get("scale"), meta.get("range_g")
-    if scale:
-        return 32767 * float(scale)
-    if range_g:
-        return float(range_g) * STANDARD_GRAVITY
-    return None
+    scale = count_scale(meta)
+    return None if scale is None else COUNT_MAX * scale

@@ -36,7 +36,7 @@ class StaticProcedure(Procedure):
     """Six faces in any order (repeats add data), each held still; then the fit."""
 
     name = "static"
-    title = "six-face static calibration"
+    title = "static six-face calibration"
     settings = SETTINGS
     actions = {"redo": "redo a face"}   # act("redo", face="+x"): take that face again
 
@@ -50,7 +50,7 @@ class StaticProcedure(Procedure):
         self._started = False
 
     @classmethod
-    def create(cls, values: dict, device: dict) -> "StaticProcedure":
+    def create(cls, values: dict, device: dict) -> StaticProcedure:
         rate = device.get("rate") or device.get("nominal_rate")
         if not rate:
             raise DataError("the sample rate is not known", "give the rate of a file without a t column (--rate)")
@@ -164,7 +164,7 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
     calibrated_residuals = [corr.apply(p.samples) - face_reference(p.face, data.g) for p in poses]
     all_res = np.concatenate(calibrated_residuals)
     face_rows = []
-    for p, r, lof in zip(poses, calibrated_residuals, chosen.residuals):
+    for p, lof in zip(poses, chosen.residuals, strict=True):
         face_rows.append({"face": p.face, "start": p.start, "stop": p.stop, "n": len(p.samples),
                           "noise_sd": p.noise_sd, "residual": (corr.matrix @ lof).tolist(),
                           "residual_norm": float(np.linalg.norm(corr.matrix @ lof))})
@@ -195,7 +195,7 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
     if chosen.extra.get("converged") is False:
         warnings.append(f"Nelder-Mead stopped before converging: {chosen.extra.get('message')}")
     parameters = {n: Estimate(float(v), float(u), unit)
-                  for n, v, u, unit in zip(chosen.names, chosen.values, chosen.uncertainty, chosen.units)}
+                  for n, v, u, unit in zip(chosen.names, chosen.values, chosen.uncertainty, chosen.units, strict=True)}
     return CalibrationResult(
         procedure="static",
         method=chosen.method,

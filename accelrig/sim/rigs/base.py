@@ -13,6 +13,11 @@ from accelrig.acquisition.url import DeviceURL
 class Rig(abc.ABC):
     """Physics of a rig: the true specific force at the sensor, as a function of time.
 
+    The calibration rigs describe the sensor's trajectory, ``position(t)`` and
+    ``orientation(t)``, and leave the specific force to accelrig.sim.kinematics:
+    no rig writes down its own acceleration, so no estimator's equation is
+    restated in the truth it is judged against.
+
     ``specific_force`` and ``channels`` are pure functions of time (any random
     script, such as the operator's handling between poses, is drawn once in
     ``from_url`` from the seeded generator), so a rig can be sampled in blocks

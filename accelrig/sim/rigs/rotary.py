@@ -1,17 +1,18 @@
 """The encoder-driven oscillating disk of paper 001 (Chiominto et al., Sensors 2025).
 
 A servo motor swings a horizontal disk about a vertical axis with
-theta(t) = theta0 cos(2 pi f t + phase).  A MEMS on the disk at radius r feels
-
-    tangential   a_t = r theta''   = -r (2 pi f)^2 theta0 cos(2 pi f t + phase)   (at f)
-    centripetal  a_c = r theta'^2  = (r omega0^2 / 2)(1 - cos(4 pi f t + 2 phase)) (DC + 2f)
-
-with omega0 = 2 pi f theta0 (paper eq. 3-4; the centripetal part points to
-the axis).  The third axis points up and reads +g.
+theta(t) = theta0 cos(2 pi f t + phase).  The MEMS sits on the disk at radius
+r: its position is r (cos theta, sin theta, 0) and its orientation turns
+with the disk; accelrig.sim.kinematics turns that into the specific force.
+The paper's eq. 3-4 are what comes out: tangential r theta'' at f,
+centripetal r theta'^2 at DC + 2f, pointing to the axis.
 
 Axis mapping: ``tangential=x`` means the sensor's +x axis points along the
-direction of increasing theta; ``radial=y`` means +y points towards the
-rotation axis, so it reads +a_c.  A leading '-' flips an axis.
+direction of increasing theta (counter-clockwise seen from above);
+``radial=y`` means +y points towards the rotation axis.  A leading '-' flips
+an axis.  The third axis completes a right-handed frame: it points up (reads
++g) for x,y / y,z / z,x and down (reads -g) for the mirrored pairs y,x / z,y
+/ x,z; truth()["up_axis"] says which ("z" or "-z").
 
 ``amplitude_deg`` is PEAK TO PEAK, as the paper's "oscillation angle":
 34 degrees at 5 Hz is theta0 = 17 degrees, 49 m/s^2 tangential and 15 m/s^2
@@ -43,11 +44,17 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DataError, DeviceError
-from accelrig.procedures.rotary_bench import PAPER_ORIENTATIONS, PAPER_PLAN
 from accelrig.geometry import parse_axis as parse_axis_spec
 from accelrig.files import atomic_write
+from accelrig.sim import kinematics
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
+
+# Paper 001's test plan, (frequency Hz, oscillation angle peak to peak deg), and its three
+# mountings (tangential, radial axis).  Facts of the paper's rig, kept here because the
+# simulator imports no procedure code (accelrig.procedures.rotary has its own copy).
+PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
+PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
 
 
 def parse_axis(spec: str, role: str) -> tuple[int, float]:
@@ -66,7 +73,8 @@ class RotaryRig(Rig):
         "frequency": "oscillation frequency, Hz (default 5)",
         "amplitude_deg": "oscillation angle PEAK TO PEAK, degrees, as in the paper (default 34)",
         "tangential": "sensor axis along the motion: x (default), y, z, or -x ...",
-        "radial": "sensor axis pointing to the rotation axis: y (default), ... ; the third axis points up",
+        "radial": "sensor axis pointing to the rotation axis: y (default), ... ; the third axis completes a "
+                  "right-handed frame (up for x,y / y,z / z,x)",
         "seconds": "length of the run, s (default 40, as the paper's tests)",
         "ref": "1 adds a 'ref' channel: reference accelerometer at ref_radius (default 0)",
         "ref_radius": "radius of the reference accelerometer, m (default 0.145)",
@@ -101,6 +109,12 @@ class RotaryRig(Rig):
         if self.t_axis == self.r_axis:
             raise DeviceError(f"tangential={tangential!r} and radial={radial!r} are the same axis")
         self.up_axis = 3 - self.t_axis - self.r_axis
+        # sensor -> disk frame (tangential, radial inwards, up): a signed permutation, right-handed
+        self._mounting = np.zeros((3, 3))
+        self._mounting[0, self.t_axis] = self.t_sign
+        self._mounting[1, self.r_axis] = self.r_sign
+        self._mounting[:, self.up_axis] = np.cross(self._mounting[:, (self.up_axis + 1) % 3],
+                                                   self._mounting[:, (self.up_axis + 2) % 3])
         self.radius = float(radius)
         self.frequency = float(frequency)
         self.amplitude_deg = float(amplitude_deg)
@@ -142,19 +156,30 @@ class RotaryRig(Rig):
     def angle(self, t: np.ndarray) -> np.ndarray:
         return self.theta0 * np.cos(self.omega * np.asarray(t, dtype=float) + self.phase)
 
-    def angular_velocity(self, t: np.ndarray) -> np.ndarray:
-        return -self.omega * self.theta0 * np.sin(self.omega * np.asarray(t, dtype=float) + self.phase)
+    def _on_disk(self, t: np.ndarray, radius: float) -> np.ndarray:
+        """Position of a point of the disk at ``radius`` (the axis at the origin)."""
+        theta = self.angle(t)
+        return radius * np.column_stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)])
 
-    def angular_acceleration(self, t: np.ndarray) -> np.ndarray:
-        return -self.omega**2 * self.angle(t)
+    def _disk_frame(self, t: np.ndarray) -> np.ndarray:
+        """Columns: tangential (increasing theta), radial towards the axis, up; world frame."""
+        theta = self.angle(t)
+        c, s, zero = np.cos(theta), np.sin(theta), np.zeros_like(theta)
+        return np.stack([np.column_stack([-s, c, zero]), np.column_stack([-c, -s, zero]),
+                         np.column_stack([zero, zero, zero + 1.0])], axis=2)
+
+    def _disk_force(self, t: np.ndarray, radius: float) -> np.ndarray:
+        """Specific force at ``radius`` in the disk frame (tangential, radial, up)."""
+        return kinematics.specific_force(lambda tt: self._on_disk(tt, radius), self._disk_frame, t, self.g)
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        return self._on_disk(t, self.radius)
+
+    def orientation(self, t: np.ndarray) -> np.ndarray:
+        return self._disk_frame(t) @ self._mounting
 
     def specific_force(self, t: np.ndarray) -> np.ndarray:
-        t = np.asarray(t, dtype=float)
-        force = np.zeros((t.size, 3))
-        force[:, self.t_axis] = self.t_sign * self.radius * self.angular_acceleration(t)
-        force[:, self.r_axis] = self.r_sign * self.radius * self.angular_velocity(t) ** 2
-        force[:, self.up_axis] = self.g
-        return force
+        return kinematics.specific_force(self.position, self.orientation, t, self.g)
 
     def encoder_reading(self, t: np.ndarray) -> np.ndarray:
         theta = self.angle(t)
@@ -163,7 +188,8 @@ class RotaryRig(Rig):
         return theta
 
     def ref_reading(self, t: np.ndarray) -> np.ndarray:
-        return (1.0 + self.ref_gain_error) * self.ref_radius * self.angular_acceleration(t)
+        """The reference accelerometer: tangential at ref_radius, with its gain error."""
+        return (1.0 + self.ref_gain_error) * self._disk_force(np.asarray(t, dtype=float), self.ref_radius)[:, 0]
 
     def channels(self, t: np.ndarray) -> dict[str, np.ndarray]:
         out = {"theta": self.encoder_reading(t)}
@@ -174,12 +200,13 @@ class RotaryRig(Rig):
     # ------------------------------------------------------------ truth
     @property
     def tangential_amplitude(self) -> float:
-        return self.radius * self.omega**2 * self.theta0
+        """Peak tangential force, read where the disk turns back (theta = theta0: no centripetal part)."""
+        return float(abs(self._disk_force(np.array([-self.phase / self.omega]), self.radius)[0, 0]))
 
     @property
     def centripetal_amplitude(self) -> float:
-        """Amplitude of the 2f component, equal to the DC part: r omega0^2 / 2."""
-        return self.radius * (self.omega * self.theta0) ** 2 / 2.0
+        """Amplitude of the 2f component, equal to the DC part: half the peak, read where theta = 0."""
+        return float(self._disk_force(np.array([(np.pi / 2 - self.phase) / self.omega]), self.radius)[0, 1] / 2)
 
     def truth(self) -> dict:
         names = "xyz"
@@ -192,7 +219,7 @@ class RotaryRig(Rig):
             "phase_rad": self.phase,
             "tangential_axis": ("-" if self.t_sign < 0 else "") + names[self.t_axis],
             "radial_axis": ("-" if self.r_sign < 0 else "") + names[self.r_axis],
-            "up_axis": names[self.up_axis],
+            "up_axis": ("-" if self._mounting[2, self.up_axis] < 0 else "") + names[self.up_axis],
             "tangential_amplitude": self.tangential_amplitude,
             "centripetal_amplitude": self.centripetal_amplitude,
             "centripetal_dc": self.centripetal_amplitude,
@@ -251,93 +278,3 @@ def write_encoder_csv(path: str | os.PathLike, columns: dict[str, np.ndarray]) -
         np.savetxt(fh, data, fmt=["%.9f"] + ["%.12g"] * (len(names) - 1), delimiter=",")
 
     atomic_write(path, _write, text=True)
-
-
-# ---------------------------------------------------------------- campaigns
-
-PAPER_SENSITIVITY = 423.0  # counts per m/s^2, paper 001's batch mean (nominal 4096 / 9.80665 = 417.7)
-
-
-def paper_sensor(rng: np.random.Generator, noise_sd: float = 0.03, rate: float = 1660.0):
-    """An LSM6DSR-like part at +-8 g: sensitivity near 423 counts per m/s^2 (paper 001, 1.3 %
-    above the nominal 417.7), per-axis spread 0.3 %, sub-degree misalignment, offsets of a few mg."""
-    from accelrig.sim.sensor import SensorModel
-
-    nominal = 2**15 / (8.0 * STANDARD_GRAVITY)
-    gain = PAPER_SENSITIVITY / nominal * (1.0 + rng.normal(0.0, 0.003, 3))
-    return SensorModel(
-        offset=rng.uniform(-0.1, 0.1, 3), gain=gain, misalignment=np.deg2rad(rng.uniform(-0.1, 0.1, 3)),
-        noise_density=SensorModel.noise_density_for_sd(noise_sd, rate), range_g=8.0,
-    )
-
-
-def write_sim_campaign(
-    directory: str | os.PathLike,
-    n_sensors: int = 2,
-    repeats: int = 2,
-    seconds: float = 10.0,
-    seed: int = 0,
-    plan=PAPER_PLAN,
-    orientations=PAPER_ORIENTATIONS,
-    nominal_rate: float = 1660.0,
-    rate_error: tuple[float, float] = (0.002, 0.005),
-    radius: float = 0.170,
-    true_radius_sd: float = 0.0,
-    ref: bool = True,
-    rate_method: str = "fit",
-) -> dict:
-    """Write a simulated campaign (MEMS CSVs in counts, encoder logs, campaign.yaml) into ``directory``.
-
-    Each sensor gets its own clock (rate error drawn in ``rate_error``) and, with
-    ``true_radius_sd`` > 0, each mounting its own true radius around the nominal
-    one given to the procedure (what the reference uncertainty must cover).
-    Returns the truth: {"sensors": {name: {axis: counts per m/s^2}}, "rates": ..., "yaml": path}.
-    """
-    import yaml
-
-    from accelrig.recording import save_recording
-    from accelrig.sim.device import simulate
-    from accelrig.sim.sensor import SimClock
-
-    directory = os.fspath(directory)
-    os.makedirs(directory, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    tests, truth = [], {"sensors": {}, "rates": {}, "radius": {}}
-    for s in range(n_sensors):
-        name = f"S{s + 1}"
-        sensor = paper_sensor(rng, rate=nominal_rate)
-        clock = SimClock(nominal_rate, float(rng.uniform(*rate_error)), 0.0)
-        truth["rates"][name] = clock.true_rate
-        for tangential, radial in orientations:
-            r_true = radius + rng.normal(0.0, true_radius_sd) if true_radius_sd > 0 else radius
-            truth["radius"][f"{name}-{tangential}{radial}"] = r_true
-            for frequency, amplitude in plan:
-                for rep in range(repeats):
-                    rig = RotaryRig(radius=r_true, frequency=frequency, amplitude_deg=amplitude,
-                                    tangential=tangential, radial=radial, duration=seconds, ref=ref,
-                                    phase=float(rng.uniform(-np.pi, np.pi)),
-                                    ref_gain_error=float(rng.normal(0.0, 1e-3)))
-                    label = f"{name}_{tangential}{radial}_{frequency:g}hz_{amplitude:g}deg_r{rep + 1}"
-                    rec = simulate(rig, sensor, clock, seconds=seconds, seed=int(rng.integers(2**31)), units="counts")
-                    truth["sensors"][name] = true_sensitivity(rec.meta["truth"])
-                    # the MEMS file carries no timestamps of its own: t = k / nominal rate
-                    rec.t = rec.t[0] + np.arange(len(rec)) / nominal_rate
-                    rec.channels = {}
-                    rec.meta.pop("truth")
-                    save_recording(rec, os.path.join(directory, label + ".csv"))
-                    enc = encoder_samples(rig, seconds, 1000.0, ref_noise=0.02, rng=rng)
-                    write_encoder_csv(os.path.join(directory, label + "_enc.csv"), enc)
-                    tests.append({"sensor": name, "label": label, "mems": label + ".csv",
-                                  "encoder": label + "_enc.csv", "tangential": tangential, "radial": radial,
-                                  "frequency": frequency})
-    doc = {
-        "name": f"simulated LSM6DSR batch (seed {seed})",
-        "nominal_rate": nominal_rate, "radius": radius, "radius_uncertainty": 0.0005,
-        "ref_radius": 0.145, "rate_method": rate_method, "units": "counts",
-        "components": ["tangential", "centripetal"], "correlation": 1.0, "coverage_factor": 2,
-        "tests": tests,
-    }
-    path = os.path.join(directory, "campaign.yaml")
-    atomic_write(path, lambda fh: yaml.safe_dump(doc, fh, sort_keys=False), text=True)
-    truth["yaml"] = path
-    return truth

@@ -1,18 +1,20 @@
 """Slider-crank test stand (paper 000, section 4): a DC motor turns a crank, a rod drives a slider.
 
-Exact kinematics (REFERENCES.md): with crank angle phi, radius r, rod l,
-x(phi) = r cos phi + sqrt(l^2 - r^2 sin^2 phi), and the slider's acceleration
-is a = x''(phi) omega^2 + x'(phi) omega_dot (the second term matters while the
-motor changes speed).  The motor runs a list of speed steps; each step starts
-with a settling ramp from the previous speed (``step`` channel = -1 there,
-the step index afterwards).
+Exact geometry (REFERENCES.md): with crank angle phi, radius r, rod l, the
+slider sits at x(phi) = r cos phi + sqrt(l^2 - r^2 sin^2 phi) from the crank
+axis, along world x; the sensor rides it level, its ``axis`` along the motion.
+accelrig.sim.kinematics differentiates that position (speed changes
+included).  The motor runs a list of speed steps; each step starts with a
+settling ramp from the speed the motor had reached (``step`` channel = -1
+there, the step index afterwards).
 
 Imperfections the verification must see:
 * clearance: the effective crank radius differs from the nominal (caliper)
   radius by a value drawn uniformly in +-clearance.
 * backlash: the slider's joint has ``backlash`` metres of play.  At each dead
-  centre the velocity reverses and the play is taken up on the other side: a
-  step of the play through the contact's resonance (a knock, paper Fig. 6).
+  centre the velocity reverses and the play is taken up on the other side: the
+  slider moves by the play, a ramp over KNOCK_RISE through the contact's
+  resonance (a knock, paper Fig. 6).
 * motor limit: above ``max_speed`` the motor cannot follow: its speed falls
   back below the limit (the more so the harder it is pushed) and hunts with a
   slow ripple (paper: a drop-off above about 11.5 Hz).
@@ -24,6 +26,7 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
+from accelrig.sim import kinematics
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
 
@@ -38,25 +41,36 @@ OVERLOAD_DROOP = 0.3
 HUNT_RIPPLE = 0.02
 HUNT_FREQUENCY = 1.7
 KNOCK_RISE = 0.002  # s over which the play is taken up
+# A knock has rung out (e^-40) this long after its dead centre: older ones count as settled.
+KNOCK_MEMORY = 40.0 / (KNOCK_DAMPING * 2 * np.pi * KNOCK_FREQUENCY)
+# The knock's jerk jumps where the take-up starts and ends: a short differentiation
+# step keeps the stencil's error there at a few hundredths of a m/s^2 (kinematics.py).
+STEP = 2.0**-15
 
 
-def _resonator_velocity(tau: np.ndarray) -> np.ndarray:
-    """Derivative of the contact resonator's unit step response (0 before the step)."""
+def _ramp_response(tau: np.ndarray) -> np.ndarray:
+    """The contact resonator's response to a unit ramp starting at tau = 0 (0 before)."""
     wn = 2 * np.pi * KNOCK_FREQUENCY
     zeta = KNOCK_DAMPING
     wd = wn * np.sqrt(1 - zeta**2)
-    positive = np.maximum(tau, 0.0)
-    return np.where(tau > 0, wn / np.sqrt(1 - zeta**2) * np.exp(-zeta * wn * positive) * np.sin(wd * positive), 0.0)
+    tau = np.maximum(tau, 0.0)
+    ringing = np.exp(-zeta * wn * tau) * (2 * zeta / wn * np.cos(wd * tau) + (2 * zeta**2 - 1) / wd * np.sin(wd * tau))
+    return tau - 2 * zeta / wn + ringing
+
+
+def _take_up(tau: np.ndarray) -> np.ndarray:
+    """Fraction of the play closed tau s after a dead centre: a ramp over KNOCK_RISE through the contact.
+
+    The ramp (not an ideal step) keeps the acceleration continuous: a jump in a
+    sampled signal would put sampling artefacts at the crank frequency that no
+    real, band-limited sensor shows.
+    """
+    return (_ramp_response(tau) - _ramp_response(tau - KNOCK_RISE)) / KNOCK_RISE
 
 
 def slider_position(phi, radius: float, rod: float):
-    """x(phi) and its first and second derivatives in phi (exact, no series)."""
-    s, c = np.sin(phi), np.cos(phi)
-    root = np.sqrt(rod**2 - radius**2 * s**2)
-    x = radius * c + root
-    dx = -radius * s - radius**2 * s * c / root
-    ddx = -radius * c - radius**2 * (np.cos(2 * phi) * root**2 + radius**2 * s**2 * c**2) / root**3
-    return x, dx, ddx
+    """x(phi): the slider's distance from the crank axis (exact, no series)."""
+    return radius * np.cos(phi) + np.sqrt(rod**2 - radius**2 * np.sin(phi) ** 2)
 
 
 def parse_axis(text: str) -> np.ndarray:
@@ -111,6 +125,9 @@ class SliderCrankRig(Rig):
                 raise DeviceError(f"{label}={value} must be positive")
         if settle < 0 or clearance < 0 or backlash < 0:
             raise DeviceError("settle, clearance and backlash cannot be negative")
+        if settle == 0 and steps.size > 1:
+            raise DeviceError("settle=0 would change the motor speed instantly between steps (an infinite "
+                              "acceleration)", "give the ramp a time, e.g. settle=0.5")
         if rod <= radius + clearance:
             raise DeviceError(f"rod={rod} m must be longer than the crank radius {radius} m (+ clearance)")
         if abs(radius_offset) > clearance:
@@ -131,9 +148,17 @@ class SliderCrankRig(Rig):
         up = np.array([0.0, 0.0, 1.0]) if abs(self.axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
         up = up - (up @ self.axis) * self.axis
         self.up = up / np.linalg.norm(up)
+        self._mounting = kinematics.level_mounting(self.axis, self.up)
         self.actual_speeds = np.array([self._actual_speed(f) for f in steps])
         self.segment = self.settle + self.step_seconds
         self.duration = self.segment * steps.size
+        # Each ramp starts from the speed the motor had at the end of the previous step; the
+        # first from rest, or, with no ramp, the crank was already turning at the first speed.
+        self._start_speeds = np.zeros(steps.size)
+        if self.settle == 0:
+            self._start_speeds[0] = 2 * np.pi * self.actual_speeds[0]
+        for i in range(1, steps.size):
+            self._start_speeds[i] = self._end_speed(i - 1)
         # crank angle at the start of each segment (cumulative integral of the speed)
         starts = [0.0]
         for i in range(steps.size):
@@ -147,30 +172,23 @@ class SliderCrankRig(Rig):
             return commanded
         return max(self.max_speed - OVERLOAD_DROOP * (commanded - self.max_speed), 0.5 * self.max_speed)
 
-    def _omega_in_segment(self, i: int, tau: np.ndarray):
-        """Angular speed and its derivative at time tau into segment i."""
-        w_new = 2 * np.pi * self.actual_speeds[i]
-        w_old = 0.0 if i == 0 else 2 * np.pi * self.actual_speeds[i - 1]
-        ramp = tau < self.settle
-        omega = np.where(ramp, w_old + (w_new - w_old) * tau / max(self.settle, 1e-12), w_new)
-        domega = np.where(ramp, (w_new - w_old) / max(self.settle, 1e-12), 0.0)
-        if self.steps[i] > self.max_speed:  # hunting once the motor is overloaded
-            steady = ~ramp
-            h = 2 * np.pi * HUNT_FREQUENCY
-            ts = tau - self.settle
-            omega = np.where(steady, w_new * (1 + HUNT_RIPPLE * np.sin(h * ts)), omega)
-            domega = np.where(steady, w_new * HUNT_RIPPLE * h * np.cos(h * ts), domega)
-        return omega, domega
+    def _hunting(self, i: int) -> bool:
+        return self.steps[i] > self.max_speed
+
+    def _end_speed(self, i: int) -> float:
+        """Crank speed in rad/s at the end of segment i, where the next ramp starts."""
+        ripple = HUNT_RIPPLE * np.sin(2 * np.pi * HUNT_FREQUENCY * self.step_seconds) if self._hunting(i) else 0.0
+        return 2 * np.pi * self.actual_speeds[i] * (1 + ripple)
 
     def _phase_in_segment(self, i: int, tau: np.ndarray) -> np.ndarray:
-        """Crank angle gained since the start of segment i (closed-form integral of omega)."""
-        w_new = 2 * np.pi * self.actual_speeds[i]
-        w_old = 0.0 if i == 0 else 2 * np.pi * self.actual_speeds[i - 1]
+        """Crank angle gained since the start of segment i (closed-form integral of the speed)."""
+        w_old, w_new = self._start_speeds[i], 2 * np.pi * self.actual_speeds[i]
         settle = self.settle
-        in_ramp = np.minimum(tau, settle)
-        phase = w_old * in_ramp + (w_new - w_old) * in_ramp**2 / (2 * max(settle, 1e-12))
+        # before the ramp (t < 0) the crank turns at the start speed
+        in_ramp = np.clip(tau, 0.0, settle)
+        phase = w_old * np.minimum(tau, settle) + (w_new - w_old) * in_ramp**2 / (2 * max(settle, 1e-12))
         ts = np.maximum(tau - settle, 0.0)
-        if self.steps[i] > self.max_speed:
+        if self._hunting(i):  # speed w_new (1 + ripple sin(h ts)) once the motor is overloaded
             h = 2 * np.pi * HUNT_FREQUENCY
             phase = phase + w_new * (ts + HUNT_RIPPLE * (1 - np.cos(h * ts)) / h)
         else:
@@ -178,18 +196,15 @@ class SliderCrankRig(Rig):
         return phase
 
     def crank_angle(self, t: np.ndarray):
-        """phi(t), omega(t), omega_dot(t) and the segment index of each time."""
+        """phi(t), the segment index of each time and the time into that segment."""
         t = np.asarray(t, dtype=float)
         seg = np.clip((t // self.segment).astype(int), 0, self.steps.size - 1)
         tau = t - seg * self.segment
         phi = np.empty_like(t)
-        omega = np.empty_like(t)
-        domega = np.empty_like(t)
         for i in np.unique(seg):
             m = seg == i
             phi[m] = self._segment_phase[i] + self._phase_in_segment(i, tau[m])
-            omega[m], domega[m] = self._omega_in_segment(i, tau[m])
-        return phi, omega, domega, seg, tau
+        return phi, seg, tau
 
     def _find_dead_centres(self) -> np.ndarray:
         """Times where phi crosses a multiple of pi (phi is monotonic: the motor never reverses)."""
@@ -199,33 +214,37 @@ class SliderCrankRig(Rig):
         return np.interp(targets, phi, grid)
 
     # ---------------------------------------------------------------- physics
+    def _play(self, t: np.ndarray) -> np.ndarray:
+        """The slider's displacement in its joint's play, m: each dead centre moves it to the other side."""
+        passed = np.searchsorted(self._dead_centres, t, side="right")
+        settled = np.searchsorted(self._dead_centres, t - KNOCK_MEMORY, side="right")
+        # dead centre m (phi = m pi): odd m is the bottom (play flips to +), even m the top (back to 0);
+        # the first one (index 0) is m = 1, so the settled ones sum to 1 after an odd count
+        offset = (settled % 2).astype(float)
+        for back in range(int(np.max(passed - settled, initial=0))):
+            idx = settled + back
+            ringing = idx < passed
+            sign = np.where(idx[ringing] % 2 == 0, 1.0, -1.0)
+            offset[ringing] += sign * _take_up(t[ringing] - self._dead_centres[idx[ringing]])
+        return self.backlash * offset
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """The slider (and the sensor on it) along world x, from the crank axis."""
+        t = np.asarray(t, dtype=float)
+        x = slider_position(self.crank_angle(t)[0], self.effective_radius, self.rod)
+        if self._dead_centres.size:
+            x = x + self._play(t)
+        return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+
+    def orientation(self, t: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(self._mounting, (np.size(t), 3, 3))
+
+    def specific_force(self, t: np.ndarray) -> np.ndarray:
+        return kinematics.specific_force(self.position, self.orientation, t, self.g, STEP)
+
     def slider_acceleration(self, t: np.ndarray) -> np.ndarray:
         """True acceleration of the slider along its axis, m/s^2."""
-        phi, omega, domega, _, _ = self.crank_angle(t)
-        _, dx, ddx = slider_position(phi, self.effective_radius, self.rod)
-        acc = ddx * omega**2 + dx * domega
-        if self.backlash > 0 and self._dead_centres.size:
-            acc = acc + self._knocks(np.asarray(t, dtype=float))
-        return acc
-
-    def _knocks(self, t: np.ndarray) -> np.ndarray:
-        """Acceleration of the play's take-up: a ramp of ``backlash`` over KNOCK_RISE through the contact resonance.
-
-        The ramp (not an ideal step) keeps the acceleration continuous: a jump
-        in a sampled signal would put sampling artefacts at the crank frequency
-        that no real, band-limited sensor shows.
-        """
-        latest = np.searchsorted(self._dead_centres, t, side="right") - 1
-        acc = np.zeros_like(t)
-        for back in range(4):  # a knock has decayed to < 0.1 % after 4 dead centres at any stand speed
-            idx = latest - back
-            ok = idx >= 0
-            tau = t[ok] - self._dead_centres[idx[ok]]
-            # dead centre m (phi = m pi): odd m is the bottom (play flips to +), even m the top (to -)
-            sign = np.where(idx[ok] % 2 == 0, 1.0, -1.0)
-            response = (_resonator_velocity(tau) - _resonator_velocity(tau - KNOCK_RISE)) / KNOCK_RISE
-            acc[ok] += sign * self.backlash * response
-        return acc
+        return self.specific_force(t) @ self.axis
 
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "SliderCrankRig":
@@ -250,12 +269,8 @@ class SliderCrankRig(Rig):
             radius_offset=float(rng.uniform(-clearance, clearance)) if clearance > 0 else 0.0,
         )
 
-    def specific_force(self, t: np.ndarray) -> np.ndarray:
-        acc = self.slider_acceleration(np.asarray(t, dtype=float))
-        return acc[:, None] * self.axis[None, :] + self.g * self.up[None, :]
-
     def channels(self, t: np.ndarray) -> dict[str, np.ndarray]:
-        _, _, _, seg, tau = self.crank_angle(np.asarray(t, dtype=float))
+        _, seg, tau = self.crank_angle(np.asarray(t, dtype=float))
         return {"step": np.where(tau < self.settle, -1.0, seg.astype(float))}
 
     def truth(self) -> dict:

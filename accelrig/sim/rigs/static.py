@@ -7,7 +7,9 @@ up reads +g).  "+z down" reads az = -g, "-z down" reads az = +g.
 The script, drawn once from the seeded generator: pose k is held still for
 ``hold`` s; between poses the operator lifts the cube, turns it smoothly
 (minimum-jerk rotation) onto the next face, shakes it a little (a few
-m/s^2 at 2-6 Hz) and puts it down, in 1-3 s.  Each pose has a random yaw on
+m/s^2 at 2-6 Hz) and puts it down, in 1-3 s.  The sensor sits at the centre
+the cube turns about; its trajectory (lift and shake as displacements, the
+orientation) goes through accelrig.sim.kinematics.  Each pose has a random yaw on
 the table (invisible to gravity) and an optional random tilt (``tilt``,
 degrees sd: table not level, cube not square), which a calibration that
 takes the faces as exact references cannot tell from a sensor error.
@@ -23,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
 from accelrig.geometry import FACES
+from accelrig.sim import kinematics
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel
 from accelrig.units import STANDARD_GRAVITY
@@ -99,7 +102,7 @@ class StaticRig(Rig):
                 freqs = rng.uniform(2.0, 6.0, (3, 3))
                 phases = rng.uniform(0, 2 * np.pi, (3, 3))
                 amps = rng.uniform(0.3, 1.0, (3, 3))
-                amps *= shake / max(amps.sum(axis=1).max(), 1e-12)  # peak <= shake on every world axis
+                amps *= shake / max(amps.sum(axis=1).max(), 1e-12)  # peak about shake on every world axis
                 self._transitions.append(dict(start=t, stop=t + duration, a=previous, b=orientation,
                                               lift=rng.uniform(0.03, 0.08), freqs=freqs, phases=phases, amps=amps))
                 t += duration
@@ -110,7 +113,8 @@ class StaticRig(Rig):
                 pose["tip"] = dict(start=t + 0.4 * self.hold, stop=t + 0.6 * self.hold,
                                    rotvec=np.deg2rad(moved_deg) * axis)
             self._poses.append(pose)
-            previous = orientation
+            # the next handling starts where this pose ended: tipped, if it tipped
+            previous = self._pose_rotation(pose, np.array([pose["stop"]]))[0] if "tip" in pose else orientation
             t += self.hold
         self.duration = t
 
@@ -128,37 +132,45 @@ class StaticRig(Rig):
         s = _min_jerk(np.clip((t - tip["start"]) / (tip["stop"] - tip["start"]), 0.0, 1.0))
         return Rotation.from_rotvec(s[:, None] * tip["rotvec"]) * pose["rotation"]
 
-    def specific_force(self, t: np.ndarray) -> np.ndarray:
+    def orientation(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float).ravel()
-        up = np.array([0.0, 0.0, self.g])
-        force = np.empty((t.size, 3))
+        rotation = np.empty((t.size, 3, 3))
         # Before the first pose or after the last one the cube rests in that pose.
         for k, pose in enumerate(self._poses):
             lo = -np.inf if k == 0 else pose["start"]
             hi = np.inf if k == len(self._poses) - 1 else pose["stop"]
             mask = (t >= lo) & (t < hi)
             if np.any(mask):
-                force[mask] = self._pose_rotation(pose, t[mask]).inv().apply(up)
+                rotation[mask] = self._pose_rotation(pose, t[mask]).as_matrix()
+        for tr in self._transitions:
+            mask = (t >= tr["start"]) & (t < tr["stop"])
+            if np.any(mask):
+                s = (t[mask] - tr["start"]) / (tr["stop"] - tr["start"])
+                relative = (tr["a"].inv() * tr["b"]).as_rotvec()
+                rotation[mask] = (tr["a"] * Rotation.from_rotvec(_min_jerk(s)[:, None] * relative)).as_matrix()
+        return rotation
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """Still on the table but for the handling: a lift and a shake, both fading in and out."""
+        t = np.asarray(t, dtype=float).ravel()
+        position = np.zeros((t.size, 3))
         for tr in self._transitions:
             mask = (t >= tr["start"]) & (t < tr["stop"])
             if not np.any(mask):
                 continue
             tt = t[mask]
-            duration = tr["stop"] - tr["start"]
-            s = (tt - tr["start"]) / duration
-            relative = (tr["a"].inv() * tr["b"]).as_rotvec()
-            rot = tr["a"] * Rotation.from_rotvec(_min_jerk(s)[:, None] * relative)
-            # Lift: height lift * sin^4(pi s), whose acceleration (the second derivative)
-            # starts and ends at zero like a hand's: no step at the poses.
-            sin, cos = np.sin(np.pi * s), np.cos(np.pi * s)
-            lift_acc = tr["lift"] * 4 * np.pi**2 / duration**2 * sin**2 * (3 * cos**2 - sin**2)
-            envelope = np.sin(np.pi * s) ** 2  # shake fades in and out: zero at both poses
-            shake = envelope[:, None] * np.einsum(
-                "ij,nij->ni", tr["amps"], np.sin(2 * np.pi * tr["freqs"][None] * tt[:, None, None] + tr["phases"][None]))
-            world = shake + up
-            world[:, 2] += lift_acc
-            force[mask] = rot.inv().apply(world)
-        return force
+            # sin^4 starts and ends with zero displacement, speed, acceleration and jerk:
+            # the hand joins the still poses smoothly
+            envelope = np.sin(np.pi * (tt - tr["start"]) / (tr["stop"] - tr["start"])) ** 4
+            angular = 2 * np.pi * tr["freqs"][None]
+            # each shake term has acceleration amplitude amps (displacement amps / angular^2)
+            shake = (tr["amps"][None] / angular**2 * np.sin(angular * tt[:, None, None] + tr["phases"][None])).sum(axis=2)
+            position[mask] = envelope[:, None] * shake
+            position[mask, 2] += tr["lift"] * envelope
+        return position
+
+    def specific_force(self, t: np.ndarray) -> np.ndarray:
+        return kinematics.specific_force(self.position, self.orientation, t, self.g)
 
     def truth(self) -> dict:
         poses = []

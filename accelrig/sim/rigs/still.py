@@ -6,10 +6,10 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
+from accelrig.geometry import FACES, axis_vector
+from accelrig.sim import kinematics
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
-
-_AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
 
 
 class StillRig(Rig):
@@ -21,21 +21,25 @@ class StillRig(Rig):
     }
 
     def __init__(self, up: str = "+z", duration: float | None = None, g: float = STANDARD_GRAVITY):
-        if up not in _AXES:
+        if up not in FACES:
             raise DeviceError(f"up={up!r} is not an axis", "use one of +x, -x, +y, -y, +z, -z")
         self.up = up
         self.g = g
         self.duration = duration
-        axis, sign = _AXES[up]
-        self._force = np.zeros(3)
-        self._force[axis] = sign * g
+        up_vector = axis_vector(up)
+        # any level heading will do: the next axis round points along world x
+        self._mounting = kinematics.level_mounting(np.roll(up_vector, 1), up_vector)
 
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "StillRig":
         return cls(up=url.get_str("up", "+z").replace(" ", "+"), duration=url.get_float("seconds"))
 
+    def orientation(self, t: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(self._mounting, (np.size(t), 3, 3))
+
     def specific_force(self, t: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(self._force, (np.size(t), 3)).copy()
+        return kinematics.specific_force(kinematics.at_origin, self.orientation, t, self.g)
 
     def truth(self) -> dict:
-        return {"rig": self.name, "up": self.up, "g": self.g, "specific_force": self._force.tolist()}
+        return {"rig": self.name, "up": self.up, "g": self.g,
+                "specific_force": self.specific_force(np.zeros(1))[0].tolist()}

@@ -1,7 +1,15 @@
 """The tilted, freely rotating wheel of paper 002 (Pedersini): a hand-spun bench coasting down.
 
-The specific force is eq. 1 of the paper in the bench frame, turned into the
-sensor's frame by the mounting misalignment R (eq. 4); the SensorModel then
+The trajectory, from the geometry alone: the hub sits at the origin, the wheel
+axis Z is tilted by alpha from the vertical (towards world x), and the sensor
+rides the rim at radius r.  The bench frame <XYZ> turns with the wheel: X
+radial towards the axis, Y along the motion (increasing wheel angle theta),
+Z = X x Y.  theta = 0 puts the sensor at the lowest point of the rim, and
+theta increases clockwise seen from above (the spin turns about -Z; w < 0
+spins the other way).  The sensor is mounted with the misalignment R
+(bench -> sensor, paper eq. 4), so its orientation is [X Y Z] R^T.
+accelrig.sim.kinematics turns position and orientation into the specific
+force (eq. 1 is what comes out, never what goes in), and the SensorModel
 applies its own gain and offset (eq. 5).  Use a SensorModel with zero
 misalignment and non-orthogonality to reproduce the paper exactly: then the
 sensor's response matrix is Gamma and its true canonical correction is
@@ -23,12 +31,18 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.wheel_model import (
-    TABLE_I_MISALIGNMENT_DEG, TABLE_I_OMEGA, TABLE_I_THETA0_DEG, TABLE_I_TILT_DEG, bench_force, phase,
-)
-from accelrig.sim.rigs.base import Rig
 from accelrig.geometry import rotation_xyz
+from accelrig.sim import kinematics
+from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY
+
+# Paper 002, Table I truth: w0 = 9 rad/s, w1 = -90 mrad/s^2, w2 = 500 urad/s^3, w3 = 2 urad/s^4,
+# theta0 30 deg, tilt 45 deg, misalignment 30, 20, 25 deg.  Facts of the paper's rig, kept here
+# because the simulator imports no procedure code (accelrig.procedures.wheel.model has its own copy).
+TABLE_I_OMEGA = np.array([9.0, -90e-3, 500e-6, 2e-6])
+TABLE_I_THETA0_DEG = 30.0
+TABLE_I_TILT_DEG = 45.0
+TABLE_I_MISALIGNMENT_DEG = (30.0, 20.0, 25.0)
 
 # Default hand spin: Table I's coast-down shape started at 6 rad/s, whose peak
 # specific force (about 17 m/s^2) stays inside the +-2 g default range.
@@ -89,6 +103,12 @@ class WheelRig(Rig):
         self.rotation = rotation_xyz(self.misalignment)
         self.theta0 = np.deg2rad(theta0_deg)
         self.g = g
+        # the angle is the integral of the cubic speed law, starting at theta0
+        self._angle_law = np.polynomial.Polynomial(self.omega).integ(k=self.theta0)
+        # the bench frame at theta = 0: Z tilted towards world x, X pointing from the rim's lowest point to the axis
+        self._bench0 = np.column_stack([
+            [-np.cos(self.tilt), 0.0, np.sin(self.tilt)], [0.0, -1.0, 0.0], [np.sin(self.tilt), 0.0, np.cos(self.tilt)],
+        ])
 
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "WheelRig":
@@ -110,11 +130,11 @@ class WheelRig(Rig):
             theta0_deg=url.get_float("theta0_deg", TABLE_I_THETA0_DEG),
         )
 
-    def motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """theta, theta', theta'' at times t (analytic for both friction laws)."""
+    def motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Wheel angle theta and angular velocity theta' at times t (analytic for both friction laws)."""
         t = np.asarray(t, dtype=float)
         if self.friction == "cubic":
-            return phase(t, self.theta0, self.omega)
+            return self._angle_law(t), np.polynomial.Polynomial(self.omega)(t)
         return self._coulomb_viscous(t)
 
     def _coulomb_viscous(self, t: np.ndarray):
@@ -130,24 +150,31 @@ class WheelRig(Rig):
             decay = np.exp(-k * tc)
             speed = (speed0 + lim) * decay - lim
             angle = (speed0 + lim) * (1 - decay) / k - lim * tc
-            accel = -(c + k * speed)
         else:
             t_stop = speed0 / c if c > 0 else np.inf
             tc = np.minimum(t, t_stop)
             speed = speed0 - c * tc
             angle = speed0 * tc - c * tc**2 / 2
-            accel = np.full_like(tc, -c)
-        stopped = t >= t_stop
-        speed = np.where(stopped, 0.0, speed)
-        accel = np.where(stopped, 0.0, accel)
-        return self.theta0 + direction * angle, direction * speed, direction * accel
+        speed = np.where(t >= t_stop, 0.0, speed)
+        return self.theta0 + direction * angle, direction * speed
 
-    def bench_force(self, t: np.ndarray) -> np.ndarray:
-        return bench_force(*self.motion(t), self.radius, self.tilt, self.g)
+    def _bench_frame(self, t: np.ndarray) -> np.ndarray:
+        """[X Y Z] (columns, world frame) at times t: the frame at theta = 0 turned by theta about -Z."""
+        theta = self.motion(t)[0]
+        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+        x0, y0, z = self._bench0.T
+        return np.stack([c * x0 - s * y0, c * y0 + s * x0, np.broadcast_to(z, c.shape[:1] + (3,))], axis=2)
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """On the rim, opposite X (which points at the axis)."""
+        return -self.radius * self._bench_frame(t)[:, :, 0]
+
+    def orientation(self, t: np.ndarray) -> np.ndarray:
+        return self._bench_frame(t) @ self.rotation.T
 
     def specific_force(self, t: np.ndarray) -> np.ndarray:
-        """Sensor-frame specific force R a(t), before the sensor's gain and offset."""
-        return self.bench_force(t) @ self.rotation.T
+        """Sensor-frame specific force, before the sensor's gain and offset."""
+        return kinematics.specific_force(self.position, self.orientation, t, self.g)
 
     def channels(self, t: np.ndarray) -> dict[str, np.ndarray]:
         # the true wheel angle, as an encoder on the hub would read it

@@ -17,11 +17,11 @@ WIZARDS = (
     ("static", "Static faces: six or more still poses (no rig needed)",
      "accelrig.procedures.static.procedure", "accelrig.tui.screens.static_wizard:StaticWizard"),
     ("wheel", "Tilted wheel: spin it and let it coast",
-     "accelrig.procedures.wheel", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
+     "accelrig.procedures.wheel.procedure", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
     ("slider-crank", "Slider-crank stand: verify a calibration over motor speed steps",
-     "accelrig.procedures.slider_crank", "accelrig.tui.screens.slider_wizard:SliderCrankWizard"),
+     "accelrig.procedures.slider_crank.procedure", "accelrig.tui.screens.slider_wizard:SliderCrankWizard"),
     ("rotary", "Rotary bench: sensitivity per axis against the encoder",
-     "accelrig.procedures.rotary_session", "accelrig.tui.screens.rotary_wizard:RotaryWizard"),
+     "accelrig.procedures.rotary.procedure", "accelrig.tui.screens.rotary_wizard:RotaryWizard"),
 )
 
 

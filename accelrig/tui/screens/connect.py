@@ -11,8 +11,9 @@ from textual.widgets import Button, Footer, Header, Input, Label, OptionList, St
 from textual.widgets.option_list import Option
 
 from accelrig.acquisition.driver import load_drivers
-from accelrig.acquisition.session import open_session
+from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import flash_url_profile
 
 URL_HINT = "sim://static?seed=1   replay://run.csv   i2c://1/0x68   serial:///dev/ttyUSB0   ble://AA:BB:..."
 
@@ -90,7 +91,7 @@ class ConnectScreen(Screen):
     @work(thread=True, exclusive=True, group="open")
     def open_device(self, url: str) -> None:
         try:
-            session = open_session(url, self.app.buffer_seconds)
+            session = Session.open_and_start(url, self.app.buffer_seconds, prepare=flash_url_profile)
         except AccelrigError as exc:
             self.app.call_from_thread(self._set_status, f"[red]cannot connect:[/] {exc}")
             return

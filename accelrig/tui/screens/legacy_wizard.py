@@ -1,8 +1,10 @@
-"""The wizard base of the procedures not yet on the Procedure contract (slider-crank, rotary).
+"""The wizard base of the procedures not yet on the Procedure contract (static, wheel).
 
 Delete this module once they run on ``accelrig.tui.screens.wizard.ProcedureWizard``,
 the one generic wizard over ``accelrig.procedures.contract``.  What follows is
 the old base as it was:
+
+What every calibration wizard shares: drive a procedure object from the live stream.
 
 A wizard holds no calibration logic.  It reopens the device (so the procedure
 sees the stream from its first sample; a scripted simulation starts its
@@ -22,13 +24,14 @@ from pathlib import Path
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual import on
 from textual.containers import Horizontal, Vertical
-from textual.screen import ModalScreen, Screen
-from textual.widgets import Footer, Header, Input, Label, ProgressBar, RichLog, Static
+from textual.screen import Screen
+from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
-from accelrig.acquisition.session import Capture, Session, State
+from accelrig.acquisition.recorder import Recorder
+from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 
@@ -51,8 +54,7 @@ class LegacyWizard(Screen):
         self.url = session.url
         self.session: Session | None = None
         self.procedure = None
-        self.reader = None
-        self.capture: Capture | None = None
+        self.recorder: Recorder | None = None
         self.finished = False      # the procedure has enough data
         self.computing = False
         self.reported_state: State | None = None
@@ -144,21 +146,16 @@ class LegacyWizard(Screen):
 
     @work(thread=True, exclusive=True, group="wizard-open")
     def open_device(self) -> None:
-        session = Session(self.url, buffer_seconds=self.app.buffer_seconds)
         try:
-            session.open()
-            # reader and capture before the first sample, so nothing is missed
-            reader = session.reader(from_oldest=True, lossless=True)
-            capture = session.begin_capture()
-            session.start()
+            session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True,
+                                             prepare=flash_url_profile)
         except AccelrigError as exc:
-            session.stop()
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
-        self.app.call_from_thread(self._opened, session, reader, capture)
+        self.app.call_from_thread(self._opened, session)
 
-    def _opened(self, session: Session, reader, capture: Capture) -> None:
-        self.session, self.reader, self.capture = session, reader, capture
+    def _opened(self, session: Session) -> None:
+        self.session, self.recorder = session, session.recorder
         self.app.use_session(session)
         self.set_instruction(self.opening_instruction())
         if not getattr(self, "_timer_started", False):
@@ -166,12 +163,11 @@ class LegacyWizard(Screen):
             self.set_interval(self.app.refresh_interval, self.tick)
 
     def tick(self) -> None:
-        if self.session is None or self.reader is None:
+        if self.session is None or self.recorder is None:
             return
         stats = self.session.stats()
         if not self.finished:
-            chunk = self.reader.read()
-            self.session.notify_read()
+            chunk = self.recorder.poll()
             if chunk.lost:  # cannot happen with a lossless reader; never hide it
                 self.log_event(f"{chunk.lost} samples were lost before the procedure saw them", "bold red")
             for _, missing in chunk.gaps:
@@ -192,10 +188,10 @@ class LegacyWizard(Screen):
                 self.handle(self.source_ended())
             if self.procedure_done():
                 self.finished = True
-                self.session.release(self.reader)
+                self.recorder.close()
                 self.compute()
         line = (f"{self.url}   {stats.state.value}   {stats.delivered_rate:.1f} Hz   "
-                f"captured {self.capture.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
+                f"captured {self.recorder.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
         if line != self._stream_line:  # an idle screen does no work
             self._stream_line = line
             self.query_one("#wizard-stream", Static).update(line)
@@ -220,7 +216,7 @@ class LegacyWizard(Screen):
         alarm = self.query_one("#wizard-alarm", Static)
         if stats.state in (State.DISCONNECTED, State.FAILED) and not (self.finished or self.result_shown):
             alarm.update(
-                f"DEVICE LOST: {stats.last_error}\n{self.capture.samples} captured samples are kept: "
+                f"DEVICE LOST: {stats.last_error}\n{self.recorder.samples} captured samples are kept: "
                 "w writes them to a file, escape returns to connect again."
             )
             alarm.add_class("alarm")
@@ -253,7 +249,7 @@ class LegacyWizard(Screen):
             self.computing = False
             self.app.call_from_thread(self.fit_failed, str(exc))
             return
-        recording = self.capture.recording()
+        recording = self.recorder.recording()
         self.computing = False
         self.app.call_from_thread(self._show, result, recording)
 
@@ -278,12 +274,12 @@ class LegacyWizard(Screen):
 
     @work(exclusive=True, group="wizard-cancel")
     async def cancel_flow(self) -> None:
-        if not self.finished and self.capture is not None and self.capture.samples:
+        if not self.finished and self.recorder is not None and self.recorder.samples:
             if not await self.app.push_screen_wait(ConfirmScreen("Leave this calibration? The data taken so far are "
                                                                  "dropped unless written first (w).", "Leave", "Stay")):
                 return
-        if self.session is not None and self.reader is not None:
-            self.session.release(self.reader)
+        if self.recorder is not None:
+            self.recorder.close()
         self.app.pop_screen()
 
     def action_write_capture(self) -> None:
@@ -291,7 +287,7 @@ class LegacyWizard(Screen):
 
     @work(exclusive=True, group="wizard-write")
     async def write_flow(self) -> None:
-        if self.capture is None or not self.capture.samples:
+        if self.recorder is None or not self.recorder.samples:
             self.log_event("nothing captured yet", "yellow")
             return
         default = str(Path(self.app.profile_dir) / f"{self.capture_name}-capture.csv")
@@ -299,51 +295,9 @@ class LegacyWizard(Screen):
         if path is None:
             return
         try:
-            save_recording(self.capture.recording(), path)
+            save_recording(self.recorder.recording(), path)
         except (AccelrigError, OSError) as exc:
             self.log_event(f"not written: {exc}", "bold red")
             return
-        self.log_event(f"{self.capture.samples} samples written to {path}", "green")
+        self.log_event(f"{self.recorder.samples} samples written to {path}", "green")
 
-
-class SetupForm(ModalScreen):
-    """A legacy wizard's setup questions, one Input per field; enter moves on, the last one submits.
-
-    Subclasses give FIELDS as (name, label, placeholder) and ``parse(values)``,
-    which turns the raw strings into the answer or raises ValueError /
-    AccelrigError with a message the operator can act on (shown in red, the
-    form stays open).  Escape dismisses with None.  (The contract's wizards
-    use ``dialogs.SettingsForm``, rendered from the procedure's declared settings.)
-    """
-
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
-    FIELDS: tuple[tuple[str, str, str], ...] = ()
-
-    def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog"):
-            for field, label, placeholder in self.FIELDS:
-                yield Label(label)
-                yield Input(placeholder=placeholder, id=f"setup-{field}")
-            yield Static("[dim]enter moves on and starts after the last field, escape cancels[/dim]",
-                         id="setup-status")
-
-    def parse(self, values: dict[str, str]):
-        raise NotImplementedError
-
-    @on(Input.Submitted)
-    def submitted(self, event: Input.Submitted) -> None:
-        ids = [f"setup-{field}" for field, _, _ in self.FIELDS]
-        position = ids.index(event.input.id)
-        if position < len(ids) - 1:
-            self.query_one(f"#{ids[position + 1]}", Input).focus()
-            return
-        values = {field: self.query_one(f"#setup-{field}", Input).value.strip() for field, _, _ in self.FIELDS}
-        try:
-            answer = self.parse(values)
-        except (ValueError, AccelrigError) as exc:
-            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
-            return
-        self.dismiss(answer)
-
-    def action_cancel(self) -> None:
-        self.dismiss(None)

@@ -1,7 +1,7 @@
 """Results of any procedure: parameters with uncertainty, quality, plots; save and flash.
 
 Everything shown comes from the CalibrationResult; the profile is made and
-saved by accelrig.profiles, the flash plan by the device's driver.
+saved by accelrig.profiles, the flash planned and rendered by accelrig.profiles.flash.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -20,6 +21,7 @@ from textual.widgets import DataTable, Footer, Header, Label, Static
 from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
+from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.result import CalibrationResult
 from accelrig.recording import Recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
@@ -233,7 +235,7 @@ class ResultsScreen(Screen):
     @work(thread=True, exclusive=True, group="flash")
     def plan_flash(self) -> None:
         try:
-            plan = self.session.plan_flash(self.profile)
+            plan = plan_flash(self.session, self.profile)
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_status, f"[red]cannot flash:[/] {exc}")
             return
@@ -241,7 +243,7 @@ class ResultsScreen(Screen):
 
     @work(exclusive=True, group="flash-confirm")
     async def confirm_flash(self, plan: FlashPlan) -> None:
-        if await self.app.push_screen_wait(ConfirmScreen(describe_plan(plan), "Write", "Cancel")):
+        if await self.app.push_screen_wait(ConfirmScreen(escape(format_plan(plan)) + "\nWrite to the device?", "Write", "Cancel")):
             self.set_status("writing ...")
             self.write_flash(plan)
         else:
@@ -260,15 +262,3 @@ class ResultsScreen(Screen):
 
     def action_close(self) -> None:
         self.app.pop_screen()
-
-
-def describe_plan(plan: FlashPlan) -> str:
-    lines = [f"[b]Flash {plan.device}[/b]: these will be written:"]
-    for write in plan.writes:
-        lines.append(f"  {write.target}: {write.current} -> {write.new}  {write.meaning}")
-    if plan.residual:
-        lines.append("Stays in the host profile (the device cannot hold it):")
-        lines.extend(f"  {k}: {v}" for k, v in plan.residual.items())
-    lines.extend(plan.notes)
-    lines.append("Write to the device?")
-    return "\n".join(lines)

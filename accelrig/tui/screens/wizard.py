@@ -6,10 +6,11 @@ The wizard holds no calibration logic.  It
    typed last time in this app session is offered again) and makes the
    procedure with ``create(values, device)``, so an impossible combination is
    refused while the form is still open;
-2. reopens the device, so the procedure sees the stream from its first sample
-   (a scripted simulation starts its script again), with a lossless reader
-   and a capture of every sample;
-3. on a timer, hands what the reader has to ``feed(chunk)`` in a thread worker
+2. reopens the device with a Recorder attached before its first sample
+   (``Session.open_and_start``), so the procedure sees the stream from its
+   start (a scripted simulation starts its script again) and every sample it
+   saw is kept;
+3. on a timer, hands what the recorder takes to ``feed(chunk)`` in a thread worker
    (a slow feed never freezes the screen) and shows the ``Event``s it returns:
    the instruction line, the log, the progress bar (``progress``);
 4. binds the procedure's ``actions`` to keys (a rig screen maps keys to action
@@ -26,9 +27,10 @@ procedure need more data again (redo a face after the results) resumes
 feeding from the live stream.
 
 A rig screen is a thin subclass: ``procedure_class``, ``ACTION_KEYS``, and the
-hooks ``compose_body`` (its plots and widgets), ``show_procedure`` (refresh
-them), ``reset_body``, ``action_arguments`` (ask what an action needs),
-``not_ready_text`` and ``result_screen``.
+hooks ``create_arguments`` (what ``create`` takes beyond the settings),
+``opening_instruction``, ``compose_body`` (its plots and widgets),
+``show_procedure`` (refresh them), ``reset_body``, ``action_arguments`` (ask
+what an action needs), ``not_ready_text`` and ``result_screen``.
 """
 
 from __future__ import annotations
@@ -43,9 +45,11 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
-from accelrig.acquisition.session import Capture, Session, State, open_session
+from accelrig.acquisition.recorder import Recorder
+from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.procedures.contract import Event, Procedure
+from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 
@@ -89,8 +93,7 @@ class ProcedureWizard(Screen):
         self.values = values
         self.session: Session | None = None
         self.procedure: Procedure | None = None
-        self.reader = None
-        self.capture: Capture | None = None
+        self.recorder: Recorder | None = None
         self.finished = False      # the procedure has enough data: no more feeding
         self.computing = False
         self.result_shown = False
@@ -111,6 +114,15 @@ class ProcedureWizard(Screen):
         return self.procedure_class.name
 
     # ------------------------------------------------------------------ rig screen hooks
+    def create_arguments(self, values: dict) -> dict:
+        """What ``create`` takes beyond the values and the device (a profile's correction); raising
+        AccelrigError refuses the values while the form is open."""
+        return {}
+
+    def opening_instruction(self) -> str:
+        """What the operator reads once the device streams."""
+        return f"{self.procedure_class.title}: streaming, follow the instructions below"
+
     def compose_body(self) -> ComposeResult:
         """The rig's own widgets, shown between the instruction and the progress bar."""
         yield from ()
@@ -182,7 +194,7 @@ class ProcedureWizard(Screen):
         if missing:
             raise DeviceError(f"{self.url} delivers no {', '.join(missing)} channel, which the "
                               f"{self.procedure_class.title} needs")
-        return self.procedure_class.create(values, self.device)
+        return self.procedure_class.create(values, self.device, **self.create_arguments(values))
 
     # ------------------------------------------------------------------ running
     def start(self) -> None:
@@ -193,10 +205,10 @@ class ProcedureWizard(Screen):
             self.set_instruction(f"cannot start: {exc}", "bold red")
             return
         self._generation += 1
-        if self.session is not None and self.reader is not None:
-            self.session.release(self.reader)
+        if self.recorder is not None:
+            self.recorder.close()
         self.procedure = procedure
-        self.reader = None
+        self.recorder = None
         self._actions = []
         self.finished = self.computing = self.result_shown = self.source_ended = False
         self._alarm_key = None
@@ -213,49 +225,45 @@ class ProcedureWizard(Screen):
 
     @work(thread=True, exclusive=True, group="wizard-open")
     def open_device(self, generation: int) -> None:
-        taken = {}
-
-        def before_start(session: Session) -> None:
-            # reader and capture before the first sample, so nothing is missed
-            taken["reader"] = session.reader(from_oldest=True, lossless=True)
-            taken["capture"] = session.begin_capture()
-
         try:
-            session = open_session(self.url, self.app.buffer_seconds, before_start)
+            session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True,
+                                             prepare=flash_url_profile)
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
-        self.app.call_from_thread(self._opened, generation, session, taken["reader"], taken["capture"])
+        self.app.call_from_thread(self._opened, generation, session)
 
-    def _opened(self, generation: int, session: Session, reader, capture: Capture) -> None:
-        self.session, self.reader, self.capture = session, reader, capture
+    def _opened(self, generation: int, session: Session) -> None:
+        self.session, self.recorder = session, session.recorder
         self.app.use_session(session)
         if generation != self._generation:   # restarted meanwhile: this stream is the old one's
-            session.release(reader)
+            self.recorder.close()
             return
-        self.set_instruction(f"{self.procedure_class.title}: streaming, follow the instructions below")
+        self.set_instruction(self.opening_instruction())
         if self._timer is None:
             self._timer = self.set_interval(self.app.refresh_interval, self.tick)
 
     def tick(self) -> None:
-        if self.session is None:
+        if self.session is None or self.recorder is None:
             return
         stats = self.session.stats()
-        feeding = self.reader is not None and not self.finished
+        feeding = not self.finished
         if not self._pumping and self.procedure is not None and (feeding or self._actions):
             self._pumping = True
             actions, self._actions = self._actions, []
-            self.pump(self._generation, self.procedure, self.reader if feeding else None, stats.state, actions)
+            self.pump(self._generation, self.procedure, self.recorder if feeding else None, stats.state, actions)
         line = (f"{self.url}   {stats.state.value}   {stats.delivered_rate:.1f} Hz   "
-                f"captured {self.capture.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
+                f"captured {self.recorder.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
         if line != self._stream_line:  # an idle screen does no work
             self._stream_line = line
             self.query_one("#wizard-stream", Static).update(line)
         self.report_state(stats)
 
     @work(thread=True, group="wizard-pump")
-    def pump(self, generation: int, procedure: Procedure, reader, state: State, actions: list) -> None:
-        """The operator's actions, then what the reader has (or finish a source that ended before this read).
+    def pump(self, generation: int, procedure: Procedure, recorder: Recorder | None, state: State,
+             actions: list) -> None:
+        """The operator's actions, then what the recorder takes (or finish a source that ended before this
+        read).
 
         Every call into the procedure while it collects data happens here, one pump at a
         time, so the screen reads the procedure only between pumps.
@@ -271,9 +279,8 @@ class ProcedureWizard(Screen):
                 except AccelrigError as exc:
                     notes.append((str(exc), "bold red"))
                 called = True
-            if reader is not None:
-                chunk = reader.read()
-                self.session.notify_read()
+            if recorder is not None:
+                chunk = recorder.poll()
                 if chunk.lost:  # cannot happen with a lossless reader; never hide it
                     notes.append((f"{chunk.lost} samples were lost before the procedure saw them", "bold red"))
                 for _, missing in chunk.gaps:
@@ -319,15 +326,16 @@ class ProcedureWizard(Screen):
 
     def stop_feeding(self) -> None:
         self.finished = True
-        if self.session is not None and self.reader is not None:
-            self.session.release(self.reader)
+        if self.recorder is not None:
+            self.recorder.close()
 
     def resume_feeding(self) -> None:
-        """The procedure needs data again after it had enough: feed it from the live stream on."""
+        """The procedure needs data again after it had enough: it and the recorder take the live
+        stream on (the recording's times jump over what came while nobody read)."""
         if self.session is None:
             return
         self.finished = self.result_shown = False
-        self.reader = self.session.reader(lossless=True)
+        self.recorder.reader = self.session.reader(lossless=True)
 
     def handle(self, events: list[Event]) -> None:
         """Show events: the log, the instruction line, the progress bar; then the rig's widgets."""
@@ -341,15 +349,18 @@ class ProcedureWizard(Screen):
 
     def report_state(self, stats) -> None:
         ended = stats.state == State.ENDED and self.source_ended
-        key = (stats.state, ended, self.finished, self.result_shown, self.computing)
+        lost = stats.state in (State.DISCONNECTED, State.FAILED)
+        # once the device is lost the recorder still takes what the ring holds: the count may grow
+        key = (stats.state, ended, self.finished, self.result_shown, self.computing,
+               self.recorder.samples if lost else None)
         if key == self._alarm_key:
             return
         self._alarm_key = key
         alarm = self.query_one("#wizard-alarm", Static)
         busy_or_done = self.finished or self.result_shown or self.computing
-        if stats.state in (State.DISCONNECTED, State.FAILED) and not busy_or_done:
+        if lost and not busy_or_done:
             alarm.update(
-                f"DEVICE LOST: {stats.last_error}\n{self.capture.samples} captured samples are kept: "
+                f"DEVICE LOST: {stats.last_error}\n{self.recorder.samples} captured samples are kept: "
                 "w writes them to a file, escape returns to connect again."
             )
             alarm.add_class("alarm")
@@ -369,6 +380,8 @@ class ProcedureWizard(Screen):
     def action_procedure_action(self, action: str) -> None:
         if self.procedure is None or self.computing:
             return
+        if self.source_ended:
+            self.log_event("the source has ended: no more samples will come (escape, then connect again)", "yellow")
         self.act_flow(action)
 
     @work(exclusive=True, group="wizard-act")
@@ -401,7 +414,7 @@ class ProcedureWizard(Screen):
         except AccelrigError as exc:
             self.app.call_from_thread(self.fit_failed, generation, str(exc))
             return
-        recording = self.capture.recording()
+        recording = self.recorder.recording()
         self.app.call_from_thread(self._show, generation, result, recording)
 
     def fit_failed(self, generation: int, message: str) -> None:
@@ -431,13 +444,13 @@ class ProcedureWizard(Screen):
 
     @work(exclusive=True, group="wizard-cancel")
     async def cancel_flow(self) -> None:
-        if not self.finished and self.capture is not None and self.capture.samples:
+        if not self.finished and self.recorder is not None and self.recorder.samples:
             if not await self.app.push_screen_wait(ConfirmScreen("Leave this calibration? The data taken so far are "
                                                                  "dropped unless written first (w).", "Leave", "Stay")):
                 return
         self._generation += 1   # whatever is still running reports to nobody
-        if self.session is not None and self.reader is not None:
-            self.session.release(self.reader)
+        if self.recorder is not None:
+            self.recorder.close()
         self.app.pop_screen()
 
     def action_write_capture(self) -> None:
@@ -445,7 +458,7 @@ class ProcedureWizard(Screen):
 
     @work(exclusive=True, group="wizard-write")
     async def write_flow(self) -> None:
-        if self.capture is None or not self.capture.samples:
+        if self.recorder is None or not self.recorder.samples:
             self.log_event("nothing captured yet", "yellow")
             return
         default = str(Path(self.app.profile_dir) / f"{self.capture_name}-capture.csv")
@@ -453,8 +466,8 @@ class ProcedureWizard(Screen):
         if path is None:
             return
         try:
-            save_recording(self.capture.recording(), path)
+            save_recording(self.recorder.recording(), path)
         except (AccelrigError, OSError) as exc:
             self.log_event(f"not written: {exc}", "bold red")
             return
-        self.log_event(f"{self.capture.samples} samples written to {path}", "green")
+        self.log_event(f"{self.recorder.samples} samples written to {path}", "green")

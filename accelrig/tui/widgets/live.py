@@ -10,10 +10,9 @@ from textual.widgets import Sparkline, Static
 from accelrig.acquisition.ringbuffer import Reader
 from accelrig.acquisition.session import Session, State
 from accelrig.tui.widgets.plot import LinePlot, Series
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import STANDARD_GRAVITY, saturated
 
 AXIS_STYLES = ("red", "green", "dodger_blue1")
-_COUNT_LIMIT = 32767
 PLOT_POINTS = 600  # points handed to a plot per refresh; more than any terminal shows
 
 
@@ -48,8 +47,8 @@ class LiveWindow:
 
     @property
     def saturated(self) -> int:
-        """Samples in the window with an axis at full scale."""
-        return int(np.count_nonzero((np.abs(self.counts.astype(np.int32)) >= _COUNT_LIMIT).any(axis=1)))
+        """Samples in the window with an axis saturated."""
+        return int(np.count_nonzero(saturated(self.counts).any(axis=1)))
 
 
 def _decimate(n: int, points: int) -> np.ndarray:

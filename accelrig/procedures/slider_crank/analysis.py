@@ -39,12 +39,11 @@ from scipy import stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
-from accelrig.result import Correction, Estimate
-from accelrig.recording import Recording
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
+from accelrig.recording import Recording, count_scale
+from accelrig.result import CalibrationResult, Estimate
+from accelrig.units import saturated
 
-DEFAULT_HARMONICS = 4  # the exact law has harmonics 1, 2, 4, 6, ...; the 4th is ~lambda^3/4 of the 1st
-DEFAULT_STEPS_HZ = (2.5, 4.0, 6.0, 8.0, 10.0, 11.0, 12.0, 13.0)
 MIN_STEP_SAMPLES = 64
 # A step is "short of its command" when the crank turns this much slower than commanded.
 SPEED_SHORTFALL = 0.02
@@ -140,61 +139,6 @@ class StepResult:
         }
 
 
-@dataclass
-class SliderCrankVerification:
-    """The outcome over all steps."""
-
-    crank_radius: float
-    rod_length: float
-    clearance: float
-    steps: list[StepResult]
-    radius_m: Estimate
-    radius_chi2: float
-    radius_dof: int
-    used_steps: list[int]
-    rolloff_hz: float | None
-    verdict: str          # "holds", "does not hold" or "inconclusive"
-    verdict_reason: str
-    profile: str | None = None
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def lam(self) -> float:
-        return self.crank_radius / self.rod_length
-
-    def frequency_response(self) -> dict[str, np.ndarray]:
-        """Arrays for the frequency response plot (paper Fig. 7)."""
-        return {
-            "frequency_hz": np.array([s.frequency_hz.value for s in self.steps]),
-            "amplitude": np.array([s.amplitude.value for s in self.steps]),
-            "amplitude_uncertainty": np.array([s.amplitude.uncertainty for s in self.steps]),
-            "model_amplitude": np.array([s.model_amplitude for s in self.steps]),
-            "model_lower": np.array([s.model_amplitude_bounds[0] for s in self.steps]),
-            "model_upper": np.array([s.model_amplitude_bounds[1] for s in self.steps]),
-            "radius_m": np.array([s.radius_m.value for s in self.steps]),
-            "radius_uncertainty_m": np.array([s.radius_m.uncertainty for s in self.steps]),
-        }
-
-    def to_json_dict(self) -> dict:
-        return {
-            "procedure": "slider-crank",
-            "crank_radius_m": self.crank_radius,
-            "rod_length_m": self.rod_length,
-            "lambda": self.lam,
-            "clearance_m": self.clearance,
-            "profile": self.profile,
-            "steps": [s.to_json_dict() for s in self.steps],
-            "radius_m": self.radius_m.to_dict(),
-            "radius_chi2": self.radius_chi2,
-            "radius_dof": self.radius_dof,
-            "used_steps": self.used_steps,
-            "rolloff_hz": self.rolloff_hz,
-            "verdict": self.verdict,
-            "verdict_reason": self.verdict_reason,
-            "warnings": list(self.warnings),
-        }
-
-
 # ---------------------------------------------------------------- building blocks
 
 def check_geometry(crank_radius: float, rod_length: float, clearance: float) -> None:
@@ -227,14 +171,9 @@ def principal_axis(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 def clipped_samples(rec: Recording) -> int:
     """Samples at the sensor's full scale (any axis); ``rec`` raw, in m/s^2 (before any correction)."""
     acc = rec.acc
-    if "scale" in rec.meta:  # int16 counts x scale
-        limit = 32767.0 * float(rec.meta["scale"])
-    elif "range_g" in rec.meta:
-        limit = float(rec.meta["range_g"]) * float(rec.meta.get("g", STANDARD_GRAVITY))
-    else:
-        limit = None
-    if limit is not None:
-        return int(np.count_nonzero(np.any(np.abs(acc) >= limit * (1 - 1e-6), axis=1)))
+    scale = count_scale(rec.meta)
+    if scale is not None:
+        return int(np.count_nonzero(np.any(saturated(acc, scale), axis=1)))
     # No declared full scale: flat tops (three or more consecutive samples at an axis's extreme).
     flat = 0
     for column in acc.T:
@@ -606,169 +545,69 @@ def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used:
     return "holds", f"radius from the measured motion {measured} agrees with the caliper radius {bounds} (k = 2)"
 
 
-def split_steps(rec: Recording, label: str) -> list[tuple[int | None, str, Recording]]:
-    """One recording -> its steps: by the ``step`` column (settling rows, step < 0, dropped) or whole."""
-    if "step" not in rec.channels:
-        return [(None, label, rec)]
-    step = rec.channels["step"]
-    values = np.unique(step[step >= 0])
-    if values.size == 0:
-        raise DataError(f"{label}: the step column marks no step (all values negative: settling only)")
-    out = []
-    for value in values:
-        rows = np.flatnonzero(step == value)
-        if rows[-1] - rows[0] + 1 != rows.size:
-            raise DataError(f"{label}: step {value:g} is not one contiguous block of rows", "one block per step, in time order")
-        name = f"{label} step {value:g}" if values.size > 1 else label
-        out.append((int(value), name, rec.slice(int(rows[0]), int(rows[-1]) + 1)))
-    return out
-
-
-# ---------------------------------------------------------------- procedure object (CLI and TUI)
-
-@dataclass
-class StepInstruction:
-    index: int
-    speed_hz: float | None
-    text: str
-
-
-class SliderCrankProcedure:
-    """Operator flow: tells the next motor speed, takes each step's samples, gives results as they come.
-
-    ``steps`` are the commanded motor speeds in Hz (None: the operator chooses;
-    then the roll-off is judged from the measured speeds alone).  ``correction``
-    is the calibration under test (applied to every step first).
-    """
-
-    name = "slider-crank"
-
-    def __init__(
-        self,
-        crank_radius: float,
-        rod_length: float,
-        clearance: float = 0.0,
-        steps: list[float] | tuple[float, ...] | None = DEFAULT_STEPS_HZ,
-        correction: Correction | None = None,
-        harmonics: int = DEFAULT_HARMONICS,
-        profile: str | None = None,
-    ):
-        check_geometry(crank_radius, rod_length, clearance)
-        self.crank_radius = float(crank_radius)
-        self.rod_length = float(rod_length)
-        self.clearance = float(clearance)
-        self.schedule = None if steps is None else [float(s) for s in steps]
-        self.correction = correction
-        self.harmonics = harmonics
-        self.profile = profile
-        self.results: list[StepResult] = []
-
-    @property
-    def done(self) -> bool:
-        return self.schedule is not None and len(self.results) >= len(self.schedule)
-
-    def next_step(self) -> StepInstruction | None:
-        i = len(self.results)
-        if self.schedule is None:
-            return StepInstruction(i, None, f"Step {i + 1}: set the next motor speed, wait until it runs steadily, then capture.")
-        if i >= len(self.schedule):
-            return None
-        speed = self.schedule[i]
-        return StepInstruction(
-            i, speed,
-            f"Step {i + 1} of {len(self.schedule)}: set the motor to {speed:g} Hz ({speed * 60:.0f} rpm), "
-            "wait until it runs steadily, then capture at least 1 s.",
-        )
-
-    def add_step(self, rec: Recording, label: str | None = None) -> StepResult:
-        """Analyse one captured step.  Bad captures raise DataError and are not kept (capture again)."""
-        index = len(self.results)
-        label = label or f"capture {index + 1}"
-        rec = rec.to_si()
-        clipped = clipped_samples(rec)
-        if clipped:
-            raise DataError(
-                f"step {index} ({label}): {clipped} samples at the sensor's full scale (clipping)",
-                "choose a larger range (e.g. 8 g) or a lower speed",
-            )
-        acc = self.correction.apply(rec.acc) if self.correction is not None else rec.acc
-        commanded = None if self.schedule is None or index >= len(self.schedule) else self.schedule[index]
-        result = analyse_step(
-            rec.t, acc, index=index, label=label, crank_radius=self.crank_radius,
-            rod_length=self.rod_length, clearance=self.clearance, commanded_hz=commanded, harmonics=self.harmonics,
-        )
-        self.results.append(result)
-        return result
-
-    def finish(self) -> SliderCrankVerification:
-        if not self.results:
-            raise DataError("no steps were captured", "capture at least two motor speed steps")
-        check_neighbours(self.results)
-        rolloff = mark_rolloff(self.results)
-        radius, chi2, dof, used = combine_radius(self.results)
-        verdict, reason = verdict_for(radius, self.crank_radius, self.clearance, len(used))
-        warnings = []
-        for s in self.results:
-            if not s.within_clearance and not s.motor_limited:
-                warnings.append(
-                    f"step {s.index} ({s.label}): radius {s.radius_m.value * 1e3:.4f} +- "
-                    f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
-                )
-            if s.backlash:
-                warnings.append(
-                    f"step {s.index} ({s.label}): backlash, knocks of {s.knock_peak:.2g} m/s^2 at the dead centres"
-                )
-            if s.speed_unsteady:
-                warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz within the record")
-        if rolloff is not None:
-            limited = [s.index for s in self.results if s.motor_limited]
+def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
+    """What the operator should know about single steps: outside the clearance, backlash, wandering speed, roll-off."""
+    warnings = []
+    for s in steps:
+        if not s.within_clearance and not s.motor_limited:
             warnings.append(
-                f"the motor tops out near {rolloff:.2f} Hz: steps {limited} did not run the intended steady speed "
-                "and are left out of the radius"
+                f"step {s.index} ({s.label}): radius {s.radius_m.value * 1e3:.4f} +- "
+                f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
             )
-        return SliderCrankVerification(
-            crank_radius=self.crank_radius,
-            rod_length=self.rod_length,
-            clearance=self.clearance,
-            steps=self.results,
-            radius_m=radius,
-            radius_chi2=chi2,
-            radius_dof=dof,
-            used_steps=used,
-            rolloff_hz=rolloff,
-            verdict=verdict,
-            verdict_reason=reason,
-            profile=self.profile,
-            warnings=warnings,
+        if s.backlash:
+            warnings.append(f"step {s.index} ({s.label}): backlash, knocks of {s.knock_peak:.2g} m/s^2 at the dead centres")
+        if s.speed_unsteady:
+            warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz within the record")
+    if rolloff is not None:
+        limited = [s.index for s in steps if s.motor_limited]
+        warnings.append(
+            f"the motor tops out near {rolloff:.2f} Hz: steps {limited} did not run the intended steady speed "
+            "and are left out of the radius"
         )
+    return warnings
 
 
-def verify_slider_crank(
-    recordings: list[tuple[str, Recording]],
-    crank_radius: float,
-    rod_length: float,
-    clearance: float = 0.0,
-    correction: Correction | None = None,
-    speeds: list[float] | None = None,
-    harmonics: int = DEFAULT_HARMONICS,
-    profile: str | None = None,
-) -> SliderCrankVerification:
-    """Batch form: (label, recording) pairs, each one step or several by their ``step`` column."""
-    pieces = [piece for label, rec in recordings for piece in split_steps(rec, label)]
-    if speeds is not None and len(speeds) != len(pieces):
-        raise DataError(f"{len(speeds)} commanded speeds for {len(pieces)} steps", "give one speed per step")
-    proc = SliderCrankProcedure(crank_radius, rod_length, clearance, steps=speeds, correction=correction,
-                                harmonics=harmonics, profile=profile)
-    for _, label, rec in pieces:
-        proc.add_step(rec, label)
-    return proc.finish()
+def frequency_response(steps: list[StepResult]) -> dict[str, np.ndarray]:
+    """Arrays for the frequency response plot (paper Fig. 7)."""
+    return {
+        "frequency_hz": np.array([s.frequency_hz.value for s in steps]),
+        "amplitude": np.array([s.amplitude.value for s in steps]),
+        "amplitude_uncertainty": np.array([s.amplitude.uncertainty for s in steps]),
+        "model_amplitude": np.array([s.model_amplitude for s in steps]),
+        "model_lower": np.array([s.model_amplitude_bounds[0] for s in steps]),
+        "model_upper": np.array([s.model_amplitude_bounds[1] for s in steps]),
+        "radius_m": np.array([s.radius_m.value for s in steps]),
+        "radius_uncertainty_m": np.array([s.radius_m.uncertainty for s in steps]),
+    }
 
 
-__all__ = [
-    "SliderCrankProcedure",
-    "SliderCrankVerification",
-    "StepInstruction",
-    "StepResult",
-    "analyse_step",
-    "verify_slider_crank",
-]
+def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float, clearance: float,
+                 profile: str | None = None) -> CalibrationResult:
+    """The verification over all analysed steps: roll-off, weighted radius, verdict.
+
+    No correction comes out (a verification judges one); the radius from the
+    motion is the parameter, the verdict and the per-step table are in
+    ``details`` and the frequency response in ``arrays``.
+    """
+    if not steps:
+        raise DataError("no steps were captured", "capture at least two motor speed steps")
+    check_neighbours(steps)
+    rolloff = mark_rolloff(steps)
+    radius, chi2, dof, used = combine_radius(steps)
+    verdict, reason = verdict_for(radius, crank_radius, clearance, len(used))
+    geometry = {"crank_radius_m": crank_radius, "rod_length_m": rod_length, "lambda": crank_radius / rod_length,
+                "clearance_m": clearance, "profile": profile}
+    return CalibrationResult(
+        procedure="slider-crank",
+        method="sine fit with harmonics per step, radius from the first harmonic",
+        model="A_1 = r omega^2",
+        correction=None,
+        parameters={"radius": radius},
+        quality={"radius_chi2": chi2, "radius_dof": dof, "n_steps": len(steps)},
+        arrays=frequency_response(steps),
+        settings=geometry,
+        warnings=step_warnings(steps, rolloff),
+        details={**geometry, "steps": [s.to_json_dict() for s in steps], "radius_m": radius.to_dict(),
+                 "radius_chi2": chi2, "radius_dof": dof, "used_steps": used, "rolloff_hz": rolloff,
+                 "verdict": verdict, "verdict_reason": reason},
+    )

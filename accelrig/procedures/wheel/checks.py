@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.recording import count_scale
+from accelrig.units import STANDARD_GRAVITY, saturated
 
 MIN_TURNS = 10.0          # 20 half-turn speed samples for a 4-coefficient speed law, 16 to spare
 MIN_GRAVITY_SNR = 5.0     # g sin(alpha) over the noise sd: the phase is tracked by gravity
@@ -73,17 +74,15 @@ def timestamp_figures(t: np.ndarray) -> tuple[float, int, int, float]:
     return period, int(np.count_nonzero(gap)), missing, jitter
 
 
-def saturation(acc: np.ndarray, meta: dict, g: float = STANDARD_GRAVITY) -> dict:
-    """Samples at full scale per axis.  Uses the range in the metadata when known;
+def saturation(acc: np.ndarray, meta: dict) -> dict:
+    """Saturated samples per axis (units.saturated) when the metadata give the count scale;
     otherwise looks for a flat top (the extreme value held by several samples)."""
     out = {}
-    range_g = meta.get("range_g")
-    scale = meta.get("scale")
+    scale = count_scale(meta)
     for k, name in enumerate("xyz"):
         col = acc[:, k]
-        if range_g:
-            limit = float(range_g) * g - 1.5 * float(scale or 0.0)
-            count = int(np.count_nonzero(np.abs(col) >= limit * 0.9999))
+        if scale is not None:
+            count = int(np.count_nonzero(saturated(col, scale)))
         else:
             count = 0
             for extreme in (col.max(), col.min()):
@@ -127,7 +126,7 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
     return WheelSurvey(
         n_samples=n, duration=duration, period=period, noise_sd=sigma, axis=axis, turns=turns,
         gravity_amplitude=amplitude, speed_start=abs(speed_start), speed_end=abs(speed_end),
-        gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}, g), angle=angle,
+        gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}), angle=angle,
     )
 
 

@@ -3,7 +3,7 @@
 A campaign YAML lists tests (sensors, axis orientations, frequencies,
 amplitudes, repeats) and the bench's reference inputs.  The report holds:
 
-* per test: rate, reference, sensitivities (see rotary_bench);
+* per test: rate, reference, sensitivities (see bench.py);
 * per sensor axis: repeatability u_rep (pooled relative sd over repeated
   setups), linearity (q_o = S q_i + b over amplitudes: sigma_S, R^2,
   residuals; u_l = sigma_S / S), reference u_ref, the combined budget of
@@ -49,8 +49,8 @@ import yaml
 from accelrig.errors import AccelrigError, CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.stats import linear_regression, normalized_error, one_way_anova
-from accelrig.result import to_plain
-from accelrig.procedures.rotary_bench import (
+from accelrig.files import atomic_write
+from accelrig.procedures.rotary.bench import (
     COMPONENTS,
     RATE_METHODS,
     RotarySetup,
@@ -58,13 +58,41 @@ from accelrig.procedures.rotary_bench import (
     analyse_test,
     read_encoder_csv,
 )
-from accelrig.files import atomic_write
 from accelrig.recording import load_recording
+from accelrig.result import CalibrationResult, Estimate, to_plain
+from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
 
-SETUP_KEYS = {"radius", "radius_uncertainty", "geometry_uncertainty", "encoder_resolution_deg", "ref_radius"}
-DEFAULT_KEYS = SETUP_KEYS | {"nominal_rate", "rate_method", "units", "frequency"}
-TOP_KEYS = DEFAULT_KEYS | {"name", "components", "correlation", "coverage_factor", "tests", "amplitude_tolerance"}
-TEST_KEYS = DEFAULT_KEYS | {"sensor", "mems", "encoder", "tangential", "radial", "label"}
+# Keys a test may take from the campaign's top level (per-test values override them).
+DEFAULT_FIELDS = {
+    "radius": optional(Number(exclusive_minimum=0.0, description="m")),
+    "radius_uncertainty": optional(Number(minimum=0.0, description="m")),
+    "geometry_uncertainty": optional(Number(minimum=0.0, description="relative")),
+    "encoder_resolution_deg": optional(Number(exclusive_minimum=0.0)),
+    "ref_radius": optional(Number(minimum=0.0, description="m")),
+    "nominal_rate": optional(Number(exclusive_minimum=0.0, description="Hz")),
+    "rate_method": optional(String(enum=RATE_METHODS)),
+    "units": optional(String()),
+    "frequency": optional(Number(exclusive_minimum=0.0, description="Hz")),
+}
+NAME = OneOf((String(min_length=1), Number()), expected="a name")
+TEST = Object({
+    **DEFAULT_FIELDS,
+    "sensor": optional(NAME),
+    "label": optional(NAME),
+    "mems": Field(String(min_length=1, description="MEMS recording, relative to the campaign file")),
+    "encoder": optional(String(min_length=1)),
+    "tangential": Field(String(min_length=1)),
+    "radial": Field(String(min_length=1)),
+})
+CAMPAIGN = Object({
+    **DEFAULT_FIELDS,
+    "name": optional(NAME),
+    "components": optional(ListOf(String(enum=COMPONENTS))),
+    "correlation": optional(Number(minimum=-1.0, maximum=1.0)),
+    "coverage_factor": optional(Number(exclusive_minimum=0.0)),
+    "amplitude_tolerance": optional(Number(exclusive_minimum=0.0)),
+    "tests": Field(ListOf(TEST)),
+}, description="a rotary bench campaign")
 
 
 @dataclass
@@ -104,25 +132,16 @@ class Campaign:
     source: str = ""
 
 
-def _setup_from(values: dict, where: str) -> RotarySetup:
-    kwargs = {}
-    for key in ("radius", "radius_uncertainty", "geometry_uncertainty", "ref_radius"):
-        if key in values:
-            kwargs[key] = _number(values[key], key, where)
+def _setup_from(values: dict) -> RotarySetup:
+    kwargs = {key: float(values[key]) for key in ("radius", "radius_uncertainty", "geometry_uncertainty", "ref_radius")
+              if key in values}
     if "encoder_resolution_deg" in values:
-        kwargs["encoder_resolution"] = float(np.deg2rad(_number(values["encoder_resolution_deg"],
-                                                                "encoder_resolution_deg", where)))
+        kwargs["encoder_resolution"] = float(np.deg2rad(values["encoder_resolution_deg"]))
     return RotarySetup(**kwargs)
 
 
-def _number(value, key: str, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise DataError(f"{where}: {key} must be a number, got {value!r}")
-    return float(value)
-
-
 def load_campaign(path: str | os.PathLike) -> Campaign:
-    """Read and validate a campaign YAML; every error names the field."""
+    """Read and validate a campaign YAML (``CAMPAIGN``); every error names the field."""
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
@@ -130,62 +149,38 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
         raise DataError(f"{path}: no such file") from None
     except yaml.YAMLError as exc:
         raise DataError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise DataError(f"{path}: a campaign is a mapping with a 'tests' list")
-    unknown = sorted(set(data) - TOP_KEYS)
-    if unknown:
-        raise DataError(f"{path}: unknown key(s) {', '.join(unknown)}", f"known: {', '.join(sorted(TOP_KEYS))}")
-    tests = data.get("tests")
-    if not isinstance(tests, list) or not tests:
-        raise DataError(f"{path}: 'tests' must be a non-empty list")
-    components = tuple(data.get("components", ("tangential", "centripetal")))
-    bad = [c for c in components if c not in COMPONENTS]
-    if bad or not components:
-        raise DataError(f"{path}: components {bad or components} not among {', '.join(COMPONENTS)}")
-    correlation = _number(data.get("correlation", 1.0), "correlation", str(path))
-    if not -1 <= correlation <= 1:
-        raise DataError(f"{path}: correlation {correlation} is outside [-1, 1]")
-    k = _number(data.get("coverage_factor", 2.0), "coverage_factor", str(path))
-    base = path.parent
-    defaults = {key: data[key] for key in DEFAULT_KEYS if key in data}
+    check(CAMPAIGN, data, DataError, where=f"{path}: ")
+    if not data["tests"] or not data.get("components", COMPONENTS):
+        raise DataError(f"{path}: 'tests' and 'components' must not be empty")
+    defaults = {key: data[key] for key in DEFAULT_FIELDS if key in data}
     out = []
-    for i, entry in enumerate(tests):
-        where = f"{path}: tests[{i}]"
-        if not isinstance(entry, dict):
-            raise DataError(f"{where} must be a mapping")
-        unknown = sorted(set(entry) - TEST_KEYS)
-        if unknown:
-            raise DataError(f"{where}: unknown key(s) {', '.join(unknown)}", f"known: {', '.join(sorted(TEST_KEYS))}")
+    for i, entry in enumerate(data["tests"]):
         merged = {**defaults, **entry}
-        for key in ("mems", "tangential", "radial", "nominal_rate"):
-            if key not in merged:
-                raise DataError(f"{where}: missing '{key}'")
-        rate_method = merged.get("rate_method", "fit")
-        if rate_method not in RATE_METHODS:
-            raise DataError(f"{where}: rate_method {rate_method!r} is not one of {', '.join(RATE_METHODS)}")
+        if "nominal_rate" not in merged:
+            raise DataError(f"{path}: tests[{i}]: missing 'nominal_rate'", "give it in the test or at the top")
         options = {
-            "tangential": str(merged["tangential"]),
-            "radial": str(merged["radial"]),
-            "nominal_rate": _number(merged["nominal_rate"], "nominal_rate", where),
-            "frequency": _number(merged["frequency"], "frequency", where) if "frequency" in merged else None,
-            "rate_method": rate_method,
+            "tangential": merged["tangential"],
+            "radial": merged["radial"],
+            "nominal_rate": float(merged["nominal_rate"]),
+            "frequency": float(merged["frequency"]) if "frequency" in merged else None,
+            "rate_method": merged.get("rate_method", "fit"),
             "units": merged.get("units", "counts"),
         }
         encoder = merged.get("encoder")
         out.append(CampaignTest(
             index=i,
             sensor=str(merged.get("sensor", "sensor")),
-            label=str(merged.get("label", Path(str(merged["mems"])).stem)),
-            mems=str(base / str(merged["mems"])),
-            encoder=str(base / str(encoder)) if encoder else None,
+            label=str(merged.get("label", Path(merged["mems"]).stem)),
+            mems=str(path.parent / merged["mems"]),
+            encoder=str(path.parent / encoder) if encoder else None,
             options=options,
-            setup=_setup_from(merged, where),
+            setup=_setup_from(merged),
         ))
     return Campaign(
-        name=str(data.get("name", path.stem)), tests=out, components=components, correlation=correlation,
-        coverage_factor=k, amplitude_tolerance=_number(data.get("amplitude_tolerance", 0.02),
-                                                       "amplitude_tolerance", str(path)),
-        source=str(path),
+        name=str(data.get("name", path.stem)), tests=out,
+        components=tuple(data.get("components", ("tangential", "centripetal"))),
+        correlation=float(data.get("correlation", 1.0)), coverage_factor=float(data.get("coverage_factor", 2.0)),
+        amplitude_tolerance=float(data.get("amplitude_tolerance", 0.02)), source=str(path),
     )
 
 
@@ -230,8 +225,13 @@ def _setups(obs: list[Observation], tolerance: float) -> list[list[Observation]]
     return groups
 
 
-def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> dict:
-    """Statistics of a campaign whose tests were analysed into ``results`` (same order)."""
+def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> CalibrationResult:
+    """Statistics of a campaign whose tests were analysed into ``results`` (same order).
+
+    The sensitivity of each sensor axis (case 1, k = 1) is a parameter; the
+    tests, budgets, groups and comparisons are the ``details`` tables.  No
+    canonical correction: gains without offsets are not one.
+    """
     k = campaign.coverage_factor
     warnings: list[str] = []
     obs: list[Observation] = []
@@ -342,26 +342,39 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> dict:
         {"test": t.index, "label": t.label, **r.bland_altman}
         for t, r in zip(campaign.tests, results) if r.bland_altman is not None
     ]
-    return {
-        "campaign": campaign.name,
-        "source": campaign.source,
-        "components": list(campaign.components),
-        "correlation": campaign.correlation,
-        "coverage_factor": k,
-        "tests": [{"index": t.index, "sensor": t.sensor, "label": t.label, **r.to_json_dict()}
-                  for t, r in zip(campaign.tests, results)],
-        "per_axis": per_axis,
-        "per_sensor": per_sensor,
-        "batch": batch,
-        "anova": anova,
-        "normalized_error": en,
-        "bland_altman": bland,
-        "warnings": warnings,
-    }
+    parameters = {f"sensitivity_{sensor}_{axis}": Estimate(e["mean_sensitivity"], e["overall_uncertainty"],
+                                                           "counts/(m/s^2)")
+                  for sensor, axes in per_axis.items() for axis, e in axes.items()}
+    return CalibrationResult(
+        procedure="rotary",
+        method="campaign",
+        model="q_o = S q_i + b",
+        correction=None,
+        parameters=parameters,
+        quality={"n_tests": len(results)},
+        settings={"components": list(campaign.components), "correlation": campaign.correlation,
+                  "coverage_factor": k},
+        warnings=warnings,
+        details={
+            "campaign": campaign.name,
+            "source": campaign.source,
+            "components": list(campaign.components),
+            "correlation": campaign.correlation,
+            "coverage_factor": k,
+            "tests": [{"index": t.index, "sensor": t.sensor, "label": t.label, **r.to_json_dict()}
+                      for t, r in zip(campaign.tests, results)],
+            "per_axis": per_axis,
+            "per_sensor": per_sensor,
+            "batch": batch,
+            "anova": anova,
+            "normalized_error": en,
+            "bland_altman": bland,
+        },
+    )
 
 
-def run_campaign(path: str | os.PathLike, on_test=None) -> dict:
-    """Load, analyse every test, and return the report dict.  ``on_test(test, result)`` sees each test."""
+def run_campaign(path: str | os.PathLike, on_test=None) -> CalibrationResult:
+    """Load, analyse every test, and return the report.  ``on_test(test, result)`` sees each test."""
     campaign = load_campaign(path)
     results = []
     for test in campaign.tests:
@@ -375,7 +388,8 @@ def run_campaign(path: str | os.PathLike, on_test=None) -> dict:
 # ------------------------------------------------------------------ report
 
 
-def report_markdown(report: dict) -> str:
+def report_markdown(result: CalibrationResult) -> str:
+    report = result.details
     k = report["coverage_factor"]
     lines = [f"# Rotary bench campaign: {report['campaign']}", ""]
     lines += ["## Tests", "", "| # | sensor | label | rate (Hz) | u (Hz) | axis | component | S (counts per m/s^2) | u |",
@@ -421,8 +435,8 @@ def report_markdown(report: dict) -> str:
         for e in report["bland_altman"]:
             lines.append(f"| {e['test']} {e['label']} | {e['bias']:.4f} | {e['sd']:.4f} | "
                          f"{e['lower_limit_of_agreement']:.4f} .. {e['upper_limit_of_agreement']:.4f} | {e['n']} |")
-    if report["warnings"]:
-        lines += ["", "## Warnings", ""] + [f"- {w}" for w in report["warnings"]]
+    if result.warnings:
+        lines += ["", "## Warnings", ""] + [f"- {w}" for w in result.warnings]
     return "\n".join(lines) + "\n"
 
 
@@ -432,13 +446,13 @@ def _anova_row(name: str, a: dict) -> str:
     return f"| {name} | {a['f_statistic']:.3g} | {a['p_value']:.3g} | {'yes' if a['means_differ'] else 'no'} |"
 
 
-def write_report(report: dict, path: str | os.PathLike) -> None:
-    """Write the report as YAML (.yaml/.yml) or Markdown (.md), atomically."""
+def write_report(result: CalibrationResult, path: str | os.PathLike) -> None:
+    """Write the report as YAML (.yaml/.yml: the JSON convention's fields) or Markdown (.md), atomically."""
     suffix = Path(path).suffix.lower()
     if suffix in (".yaml", ".yml"):
-        text = yaml.safe_dump(to_plain(report), sort_keys=False)
+        text = yaml.safe_dump(to_plain(result.to_json_dict()), sort_keys=False)
     elif suffix in (".md", ".markdown"):
-        text = report_markdown(report)
+        text = report_markdown(result)
     else:
         raise DataError(f"{path}: the report format follows the suffix", "use .yaml, .yml or .md")
     atomic_write(path, lambda fh: fh.write(text), text=True)

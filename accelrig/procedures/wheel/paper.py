@@ -27,9 +27,13 @@ from scipy.optimize import least_squares, minimize
 
 from accelrig.errors import CalibrationError
 from accelrig.geometry import rot_x, rot_y, rot_z
-from accelrig.procedures.wheel_checks import WheelSurvey, half_turn_speeds
-from accelrig.procedures.wheel_model import (
-    WheelState, bench_force, euler_from_rotation, phase, rotation_from_euler,
+from accelrig.procedures.wheel.checks import WheelSurvey, half_turn_speeds
+from accelrig.procedures.wheel.model import (
+    WheelState,
+    bench_force,
+    euler_from_rotation,
+    phase,
+    rotation_from_euler,
 )
 from accelrig.units import STANDARD_GRAVITY
 

@@ -47,12 +47,12 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.geometry import AXES, parse_axis
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.procedures.rotary.settings import RATE_METHODS
 from accelrig.result import CalibrationResult, Estimate
 from accelrig.recording import Recording, load_recording, read_table
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 
 COMPONENTS = ("tangential", "centripetal", "dc")
-RATE_METHODS = ("fit", "scan")
 FILTER_ORDER = 6
 FILTER_CUTOFF = 40.0  # Hz (paper 001)
 SCAN_HALF_WIDTH = 100.0  # Hz either side of nominal (paper 001: 1560 .. 1760 Hz at 1660)
@@ -60,9 +60,6 @@ SCAN_STEP = 1.0  # Hz
 SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
 HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
 RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
-# The paper's test plan (section 2.4) plus lower amplitudes for the linearity line:
-# (frequency Hz, oscillation angle in degrees PEAK TO PEAK)
-PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
 # Orientations of the paper's three supports (section 2.2): (tangential, radial)
 PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
 
@@ -255,17 +252,19 @@ class RotaryTest:
         }
 
     def to_calibration_result(self) -> CalibrationResult:
-        """As the common result type.  No canonical correction: one test gives two
-        gains and no offsets, and accelrig never fills the rest with guesses."""
+        """As the common result type, the test's tables in ``details``.  No canonical correction: one
+        test gives two gains and no offsets, and accelrig never fills the rest with guesses."""
         params = {"sample_rate": self.sample_rate, "frequency": self.frequency}
         for axis, s in self.sensitivity.items():
             params[f"sensitivity_{axis}"] = Estimate(s.value, s.uncertainty, "counts/(m/s^2)")
+        table = self.to_json_dict()
         return CalibrationResult(
             procedure="rotary", method=f"rotary bench, rate by {self.rate_method}", model="q_o = S a_ref",
             correction=None, parameters=params, quality=dict(self.quality),
             settings={"tangential": self.tangential_axis, "radial": self.radial_axis,
                       "nominal_rate": self.nominal_rate},
             warnings=list(self.warnings),
+            details={k: v for k, v in table.items() if k not in ("procedure", "quality", "warnings")},
         )
 
 
@@ -352,8 +351,84 @@ def analyse_test(
     setup: RotarySetup | None = None,
     keep_arrays: bool = False,
 ) -> RotaryTest:
-    """Process one rotary test (see the module docstring)."""
+    """Process one rotary test (see the module docstring): each numbered stage is one function below."""
     setup = setup or RotarySetup()
+    i_t, i_r, i_up = check_test_inputs(tangential, radial, nominal_rate, frequency, rate_method)
+    counts = checked_counts(mems)
+    source = mems.meta.get("source", "MEMS recording")
+    if encoder is None:
+        encoder = EncoderLog.from_recording(mems)
+    enc = overlapping_encoder(mems, encoder, counts.shape[0], nominal_rate)
+    ref = encoder_reference(enc, frequency, setup)                                         # 1
+    nu_peak = excitation_on_tangential(counts[:, i_t], ref.frequency, nominal_rate, AXES[i_t], source)
+    f = ref.frequency
+    rate_fit = None
+    if rate_method == "fit":                                                               # 2
+        rate_fit, nu, fs, u_fs = sample_rate_by_fit(counts[:, i_t], nu_peak, f, ref.u_f_rel)
+        fs_for_filter = fs
+    else:
+        # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
+        fs_for_filter = nominal_rate
+    sos, filtered, seg, periods = filter_and_trim(counts, i_t, f, fs_for_filter, setup.filter_cutoff,  # 3
+                                                  nominal_rate, source)
+    if rate_method == "scan":
+        fs, u_fs, nu, sos, filtered = sample_rate_by_scan(counts, filtered, seg, i_t, f, nominal_rate, sos,
+                                                          setup.filter_cutoff)
+    gain = {"at_f": zero_phase_gain(sos, f, fs), "at_2f": zero_phase_gain(sos, 2 * f, fs)}
+    amplitudes = axis_amplitudes(counts, filtered, seg, f, fs, nu, rate_method, gain)    # 4
+    check_axis_roles(amplitudes, i_t, i_r, f)
+    sensitivity, dc_sens = sensitivities(amplitudes, ref.components, i_t, i_r)            # 5
+
+    amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
+    warnings: list[str] = []
+    radial_at_f = amp_r.at_f / sensitivity[AXES[i_r]].value
+    a_tan = ref.components["tangential"]["value"]
+    if radial_at_f > RADIAL_F_LIMIT * (a_tan / 49.0):
+        warnings.append(
+            f"the radial axis {AXES[i_r]} carries {radial_at_f:.3f} m/s^2 at f (the paper's mounting limit is "
+            f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
+        )
+    up_counts = amplitudes[AXES[i_up]].dc
+    quality = {
+        "encoder_residual_sd_rad": ref.fit.residual_sd,
+        "encoder_harmonic_distortion": float(np.sqrt(np.sum(ref.fit.amplitude[1:] ** 2)) / ref.theta0),
+        "radial_axis_at_f_m_s2": float(radial_at_f),
+        "tangential_axis_at_2f_m_s2": float(amp_t.at_2f / sensitivity[AXES[i_t]].value),
+        "up_axis_dc_counts": float(up_counts),
+        "up_axis_dc_over_g": float(up_counts / setup.g),
+        "rate_offset_from_nominal": float(fs / nominal_rate - 1),
+    }
+    if rate_fit is not None:
+        quality["rate_fit_residual_sd_counts"] = rate_fit.residual_sd
+        quality["rate_fit_iterations"] = rate_fit.n_iterations
+    bland = _bland_altman_reference(enc, ref.fit, setup) if enc.ref is not None else None
+    arrays = {"filtered_tangential": filtered[seg, i_t], "filtered_radial": filtered[seg, i_r]} if keep_arrays else {}
+    return RotaryTest(
+        rate_method=rate_method,
+        sample_rate=Estimate(float(fs), float(u_fs), "Hz"),
+        nominal_rate=float(nominal_rate),
+        frequency=Estimate(float(f), float(ref.fit.frequency_uncertainty), "Hz"),
+        theta0=Estimate(ref.theta0, ref.u_theta0, "rad"),
+        reference=ref.components,
+        amplitudes=amplitudes,
+        sensitivity=sensitivity,
+        dc_sensitivity=dc_sens,
+        tangential_axis=AXES[i_t],
+        radial_axis=AXES[i_r],
+        up_axis=AXES[i_up],
+        n_periods=periods,
+        n_samples=seg.stop - seg.start,
+        filter_gain=gain,
+        quality=quality,
+        warnings=warnings,
+        bland_altman=bland,
+        arrays=arrays,
+    )
+
+
+def check_test_inputs(tangential: str, radial: str, nominal_rate: float, frequency: float | None,
+                      rate_method: str) -> tuple[int, int, int]:
+    """The test's settings make sense: returns the indexes of the tangential, radial and up axes."""
     if rate_method not in RATE_METHODS:
         raise DataError(f"rate method {rate_method!r} is not one of {', '.join(RATE_METHODS)}")
     if not nominal_rate or nominal_rate <= 0:
@@ -364,23 +439,25 @@ def analyse_test(
     i_r = parse_axis_name(radial, "radial")
     if i_t == i_r:
         raise DataError(f"--tangential {tangential} and --radial {radial} name the same axis")
-    i_up = 3 - i_t - i_r
+    return i_t, i_r, 3 - i_t - i_r
+
+
+def checked_counts(mems: Recording) -> np.ndarray:
+    """The MEMS samples in counts, refused when they cannot be counts or sit at the int16 full scale."""
     counts = mems_counts(mems)
-    n = counts.shape[0]
-    if n and np.median(np.linalg.norm(counts, axis=1)) < 100:
+    if counts.shape[0] and np.median(np.linalg.norm(counts, axis=1)) < 100:
         # gravity alone is thousands of counts on any MEMS range: these are not counts
         raise DataError(f"{mems.meta.get('source', 'the MEMS recording')}: the values are far too small for counts",
                         "give a recording in counts, or its units (--units m/s2) with the counts scale in its metadata")
-    warnings: list[str] = []
-    source = mems.meta.get("source", "MEMS recording")
     clipped = np.count_nonzero((counts >= 32767) | (counts <= -32768))
     if clipped:
-        raise DataError(f"{source}: {clipped} samples sit at the int16 full scale (clipped)",
-                        "lower the oscillation angle or set a larger range")
-    if encoder is None:
-        encoder = EncoderLog.from_recording(mems)
+        raise DataError(f"{mems.meta.get('source', 'MEMS recording')}: {clipped} samples sit at the int16 full scale "
+                        "(clipped)", "lower the oscillation angle or set a larger range")
+    return counts
 
-    # --- overlap: the MEMS start is the only thing its clock is trusted for
+
+def overlapping_encoder(mems: Recording, encoder: EncoderLog, n: int, nominal_rate: float) -> EncoderLog:
+    """The encoder log over the MEMS record (whose start is the only thing its clock is trusted for)."""
     mems_start = float(mems.t[0])
     mems_stop = mems_start + (n - 1) / nominal_rate
     overlap = min(mems_stop, encoder.t[-1]) - max(mems_start, encoder.t[0])
@@ -395,9 +472,23 @@ def analyse_test(
             f"the encoder log covers only {overlap:.2f} s of the {mems_stop - mems_start:.2f} s MEMS record",
             "record the encoder for the whole test",
         )
-    enc = encoder.window(max(mems_start, encoder.t[0]), min(mems_stop, encoder.t[-1]))
+    return encoder.window(max(mems_start, encoder.t[0]), min(mems_stop, encoder.t[-1]))
 
-    # --- 1. reference from the encoder
+
+@dataclass
+class EncoderReference:
+    """Stage 1's outcome: the encoder's sine fit and the reference accelerations with their budgets."""
+
+    fit: SineFit
+    frequency: float
+    theta0: float
+    u_theta0: float
+    u_f_rel: float
+    components: dict  # component -> {"value", "uncertainty", "relative_uncertainty", "budget"}
+
+
+def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySetup) -> EncoderReference:
+    """Stage 1: f and theta0 from a sine fit of the encoder angle; eq. 3-4 give the reference accelerations."""
     if np.ptp(enc.theta) < 20 * setup.encoder_resolution:
         raise DataError(f"{enc.source or 'encoder'}: the angle hardly moves ({np.degrees(np.ptp(enc.theta)):.3f} deg)",
                         "is the bench running? is theta in radians?")
@@ -428,7 +519,7 @@ def analyse_test(
     enc_rate = (enc.t.size - 1) / (enc.t[-1] - enc.t[0])
     independent_per_period = max(enc_rate / f / 2.0, 1.0)
     u_quant = setup.encoder_resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
-    reference = {}
+    components = {}
     for name, value, c_theta in (("tangential", a_tan, 1.0), ("centripetal", a_cen, 2.0), ("dc", a_cen, 2.0)):
         budget = UncertaintyBudget(
             [
@@ -440,65 +531,75 @@ def analyse_test(
             ],
             correlation=0.0, relative=True, value=value, unit="m/s^2",
         )
-        reference[name] = {"value": value, "uncertainty": budget.absolute(budget.combined),
-                           "relative_uncertainty": budget.combined, "budget": budget.to_dict()}
+        components[name] = {"value": value, "uncertainty": budget.absolute(budget.combined),
+                            "relative_uncertainty": budget.combined, "budget": budget.to_dict()}
+    return EncoderReference(enc_fit, f, theta0, u_theta0, u_f_rel, components)
 
-    # --- 2. the MEMS must show the excitation where expected
-    y_t = counts[:, i_t]
+
+def excitation_on_tangential(y_t: np.ndarray, f: float, nominal_rate: float, axis: str, source: str) -> float:
+    """The MEMS must show the excitation where expected: its cycles per sample on the tangential axis."""
+    n = y_t.size
     nu_expected = f / nominal_rate
-    index = np.arange(n, dtype=float)
     if n < 8 or nu_expected * n < 3:
         raise DataError(f"{source}: {n} samples hold fewer than 3 periods of {f:.3f} Hz", "record longer")
-    nu_peak = interpolated_dft_frequency(index, y_t - y_t.mean())
+    nu_peak = interpolated_dft_frequency(np.arange(n, dtype=float), y_t - y_t.mean())
     if abs(nu_peak / nu_expected - 1) > 0.1:
         seen = nu_peak * nominal_rate
         if abs(nu_peak / (2 * nu_expected) - 1) < 0.1:
             raise DataError(
-                f"axis roles contradict the data: the 'tangential' axis {AXES[i_t]} carries mainly 2f "
+                f"axis roles contradict the data: the 'tangential' axis {axis} carries mainly 2f "
                 f"({seen:.2f} Hz), as a radial axis does",
                 "swap --tangential and --radial, or check the mounting",
             )
         raise DataError(
-            f"excitation frequency {f:.3f} Hz not found on the tangential axis {AXES[i_t]} of {source}: "
+            f"excitation frequency {f:.3f} Hz not found on the tangential axis {axis} of {source}: "
             f"its strongest line is at {seen:.3f} Hz (at the nominal rate {nominal_rate:g} Hz)",
             "check --tangential, --nominal-rate and that the encoder log belongs to this test",
         )
+    return nu_peak
 
-    # --- 3. sampling rate
-    if rate_method == "fit":
-        rate_fit = fit_sine(index, y_t, frequency=nu_peak, harmonics=HARMONICS, fit_frequency=True)
-        if not rate_fit.converged:
-            raise CalibrationError("the sample-index sine fit of the tangential axis did not converge")
-        nu = rate_fit.frequency
-        fs = f / nu
-        u_fs = fs * float(np.sqrt((rate_fit.frequency_uncertainty / nu) ** 2 + u_f_rel**2))
 
-    # --- 4. filter with the rate the method found, trim
-    if rate_method == "scan":
-        # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
-        fs_for_filter = nominal_rate
-    else:
-        fs_for_filter = fs
-    sos = butterworth(fs_for_filter, setup.filter_cutoff)
+def sample_rate_by_fit(y_t: np.ndarray, nu_peak: float, f: float, u_f_rel: float):
+    """Stage 2 (fit): cycles per sample nu by a sample-index sine fit; fs = f / nu.  Returns (fit, nu, fs, u_fs)."""
+    rate_fit = fit_sine(np.arange(y_t.size, dtype=float), y_t, frequency=nu_peak, harmonics=HARMONICS,
+                        fit_frequency=True)
+    if not rate_fit.converged:
+        raise CalibrationError("the sample-index sine fit of the tangential axis did not converge")
+    nu = rate_fit.frequency
+    fs = f / nu
+    u_fs = fs * float(np.sqrt((rate_fit.frequency_uncertainty / nu) ** 2 + u_f_rel**2))
+    return rate_fit, nu, fs, u_fs
+
+
+def filter_and_trim(counts: np.ndarray, i_t: int, f: float, fs: float, cutoff: float, nominal_rate: float,
+                    source: str):
+    """Stage 3: zero-phase low-pass at ``fs``, ends dropped for the filter to settle, then whole periods
+    of the tangential axis.  Returns (sos, filtered, the whole-period slice, periods)."""
+    n = counts.shape[0]
+    sos = butterworth(fs, cutoff)
     filtered = signal.sosfiltfilt(sos, counts, axis=0)
-    settle = int(np.ceil(SETTLE_SECONDS * fs_for_filter))
-    if n - 2 * settle < 4 * fs_for_filter / f:
+    settle = int(np.ceil(SETTLE_SECONDS * fs))
+    if n - 2 * settle < 4 * fs / f:
         raise DataError(f"{source}: {n / nominal_rate:.1f} s is too short", "record at least 5 s per test")
-    period = fs_for_filter / f
-    first, last, periods = whole_periods(filtered[:, i_t], period, settle, n - settle)
-    seg = slice(first, last)
-    if rate_method == "scan":
-        fs, u_fs = scan_sample_rate(filtered[seg, i_t], f, nominal_rate)
-        nu = f / fs
-        if abs(fs / nominal_rate - 1) > 1e-3:  # refilter at the scanned rate (the cutoff moves with fs)
-            sos = butterworth(fs, setup.filter_cutoff)
-            filtered = signal.sosfiltfilt(sos, counts, axis=0)
-    gain_f = zero_phase_gain(sos, f, fs)
-    gain_2f = zero_phase_gain(sos, 2 * f, fs)
-    n_seg = last - first
-    k_seg = index[seg]
+    first, last, periods = whole_periods(filtered[:, i_t], fs / f, settle, n - settle)
+    return sos, filtered, slice(first, last), periods
 
-    # --- 5. amplitudes per axis
+
+def sample_rate_by_scan(counts, filtered, seg, i_t, f, nominal_rate, sos, cutoff):
+    """Stage 2 (scan, the paper's): the rate from the filtered whole-period record; refiltered at that
+    rate when it moved the cutoff.  Returns (fs, u_fs, nu, sos, filtered)."""
+    fs, u_fs = scan_sample_rate(filtered[seg, i_t], f, nominal_rate)
+    if abs(fs / nominal_rate - 1) > 1e-3:  # refilter at the scanned rate (the cutoff moves with fs)
+        sos = butterworth(fs, cutoff)
+        filtered = signal.sosfiltfilt(sos, counts, axis=0)
+    return fs, u_fs, f / fs, sos, filtered
+
+
+def axis_amplitudes(counts, filtered, seg, f, fs, nu, rate_method, gain) -> dict[str, AxisAmplitudes]:
+    """Stage 4: each axis's components at f, 2f and DC over the whole periods, filter gain corrected;
+    their uncertainties from the same model fitted to the unfiltered record (see the module docstring)."""
+    n_seg = seg.stop - seg.start
+    k_seg = np.arange(counts.shape[0], dtype=float)[seg]
     bin_f = int(round(f * n_seg / fs))
     # the FFT reads the bin's frequency, m / N cycles per sample: its noise level is that of a fit there
     nu_amplitudes = nu if rate_method == "fit" else bin_f / n_seg
@@ -512,12 +613,15 @@ def analyse_test(
         else:
             a1, a2, dc = _fft_components(filtered[seg, axis], bin_f)
         amplitudes[AXES[axis]] = AxisAmplitudes(
-            at_f=float(a1 / gain_f), at_f_uncertainty=float(raw_fit.amplitude_uncertainty[0] / gain_f),
-            at_2f=float(a2 / gain_2f), at_2f_uncertainty=float(raw_fit.amplitude_uncertainty[1] / gain_2f),
+            at_f=float(a1 / gain["at_f"]), at_f_uncertainty=float(raw_fit.amplitude_uncertainty[0] / gain["at_f"]),
+            at_2f=float(a2 / gain["at_2f"]), at_2f_uncertainty=float(raw_fit.amplitude_uncertainty[1] / gain["at_2f"]),
             dc=float(dc), dc_uncertainty=float(raw_fit.offset_uncertainty),
         )
+    return amplitudes
 
-    # --- axis roles against the data
+
+def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, f: float) -> None:
+    """The tangential axis carries f and the radial 2f, more than any other axis: else say which axis does."""
     amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
     if amp_t.at_2f > amp_t.at_f:
         raise DataError(
@@ -546,7 +650,10 @@ def analyse_test(
     if amp_t.at_f < 10 * amp_t.at_f_uncertainty:
         raise DataError(f"the tangential axis {AXES[i_t]} shows no clear {f:.3f} Hz line", "check the recording")
 
-    # --- 6. sensitivities
+
+def sensitivities(amplitudes: dict[str, AxisAmplitudes], reference: dict, i_t: int, i_r: int):
+    """Stage 5: counts per m/s^2 (tangential axis from f, radial from 2f; the radial DC reported, not used),
+    each with its budget: the output's noise and the reference's uncertainty.  Returns (used, dc)."""
     def sens(axis: str, component: str, output: float, u_output: float) -> AxisSensitivity:
         ref = reference[component]
         value = output / ref["value"]
@@ -555,60 +662,12 @@ def analyse_test(
         return AxisSensitivity(axis, component, float(value), float(abs(value) * np.hypot(u_noise, u_ref)),
                                float(output), float(ref["value"]), float(u_noise), float(u_ref))
 
-    sensitivity = {
+    amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
+    used = {
         AXES[i_t]: sens(AXES[i_t], "tangential", amp_t.at_f, amp_t.at_f_uncertainty),
         AXES[i_r]: sens(AXES[i_r], "centripetal", amp_r.at_2f, amp_r.at_2f_uncertainty),
     }
-    dc_sens = sens(AXES[i_r], "dc", abs(amp_r.dc), amp_r.dc_uncertainty)
-    s_radial = sensitivity[AXES[i_r]].value
-    radial_at_f = amp_r.at_f / s_radial
-    if radial_at_f > RADIAL_F_LIMIT * (a_tan / 49.0):
-        warnings.append(
-            f"the radial axis {AXES[i_r]} carries {radial_at_f:.3f} m/s^2 at f (the paper's mounting limit is "
-            f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
-        )
-    up_counts = amplitudes[AXES[i_up]].dc
-    quality = {
-        "encoder_residual_sd_rad": enc_fit.residual_sd,
-        "encoder_harmonic_distortion": float(np.sqrt(np.sum(enc_fit.amplitude[1:] ** 2)) / theta0),
-        "radial_axis_at_f_m_s2": float(radial_at_f),
-        "tangential_axis_at_2f_m_s2": float(amp_t.at_2f / sensitivity[AXES[i_t]].value),
-        "up_axis_dc_counts": float(up_counts),
-        "up_axis_dc_over_g": float(up_counts / setup.g),
-        "rate_offset_from_nominal": float(fs / nominal_rate - 1),
-    }
-    if rate_method == "fit":
-        quality["rate_fit_residual_sd_counts"] = rate_fit.residual_sd
-        quality["rate_fit_iterations"] = rate_fit.n_iterations
-
-    bland = None
-    if enc.ref is not None:
-        bland = _bland_altman_reference(enc, enc_fit, setup)
-
-    arrays = {}
-    if keep_arrays:
-        arrays = {"filtered_tangential": filtered[seg, i_t], "filtered_radial": filtered[seg, i_r]}
-    return RotaryTest(
-        rate_method=rate_method,
-        sample_rate=Estimate(float(fs), float(u_fs), "Hz"),
-        nominal_rate=float(nominal_rate),
-        frequency=Estimate(float(f), float(enc_fit.frequency_uncertainty), "Hz"),
-        theta0=Estimate(theta0, u_theta0, "rad"),
-        reference=reference,
-        amplitudes=amplitudes,
-        sensitivity=sensitivity,
-        dc_sensitivity=dc_sens,
-        tangential_axis=AXES[i_t],
-        radial_axis=AXES[i_r],
-        up_axis=AXES[i_up],
-        n_periods=periods,
-        n_samples=n_seg,
-        filter_gain={"at_f": gain_f, "at_2f": gain_2f},
-        quality=quality,
-        warnings=warnings,
-        bland_altman=bland,
-        arrays=arrays,
-    )
+    return used, sens(AXES[i_r], "dc", abs(amp_r.dc), amp_r.dc_uncertainty)
 
 
 def _bland_altman_reference(enc: EncoderLog, enc_fit: SineFit, setup: RotarySetup) -> dict:

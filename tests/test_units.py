@@ -1,0 +1,25 @@
+"""The one saturation rule: int16 rails within one count, in counts and in m/s^2."""
+
+import numpy as np
+
+from accelrig.units import COUNT_MAX, COUNT_MIN, SATURATION_MARGIN, saturated, scale_for_range
+
+
+def test_both_rails_and_one_count_inside_them_are_saturated():
+    counts = np.array([COUNT_MIN, -32767, -32766, 0, 32765, 32766, COUNT_MAX], dtype=np.int16)
+    assert SATURATION_MARGIN == 1
+    assert saturated(counts).tolist() == [True, True, False, False, False, True, True]
+
+
+def test_m_s2_with_a_known_scale_follow_the_same_rule():
+    scale = scale_for_range(8.0)
+    counts = np.array([[COUNT_MIN, 0, 12], [-32767, 5, 0], [-32766, 0, 0], [32766, 0, 0], [COUNT_MAX, 0, 0]])
+    flags = saturated(counts * scale, scale)
+    assert flags.shape == counts.shape
+    np.testing.assert_array_equal(flags, saturated(counts))
+    assert flags.any(axis=1).tolist() == [True, True, False, True, True]
+
+
+def test_a_margin_can_be_stated():
+    assert saturated(np.array([32760, -32761]), margin=7).tolist() == [True, True]
+    assert saturated(np.array([32760, -32761]), margin=6).tolist() == [False, False]
