@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from accelrig.settings import REQUIRED, Setting
+from accelrig.settings import GRAVITY, REQUIRED, Setting
 
 METHODS = ("joint", "paper")
 DEFAULT_BOOTSTRAP = 20
@@ -28,8 +28,8 @@ BOOTSTRAP = Setting("bootstrap", "runs of the parametric bootstrap giving the pa
 CROSS_AXIS_SD = Setting("cross_axis_sd", "prior sd of the correction's off-diagonal (cross-axis) terms, which the "
                         "wheel does not observe; the default reads the datasheet +-2 percent as a uniform bound",
                         default=DEFAULT_CROSS_AXIS_SD, low=0.0, low_open=True)
-# Standard gravity, as accelrig.units.STANDARD_GRAVITY (not imported: it loads numpy, and --help must not).
-G = Setting("g", "local gravity", unit="m/s^2", default=9.80665, low=0.0, low_open=True)
+# Local gravity, declared once for every procedure (default standard gravity, 9.7 .. 9.9 m/s^2).
+G = GRAVITY
 
 SETTINGS = (RADIUS, TILT_DEG, METHOD, BOOTSTRAP, CROSS_AXIS_SD, G)
 
