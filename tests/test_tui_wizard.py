@@ -210,3 +210,21 @@ async def test_settings_form_refuses_in_place_remembers_and_actions_have_keys():
         assert app.screen.field("seconds").value == "600" and app.screen.field("label").value == "bench"
         await pilot.press("escape")   # cancel: back where it was opened
         await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+
+
+@async_test
+async def test_an_action_after_the_results_resumes_feeding_from_the_live_stream():
+    """Forgetting the data after the results makes the procedure need data again: the wizard feeds it
+    from the live stream on (a real-time device here) and computes again."""
+    app = AccelrigApp(device="sim://still?seed=15&seconds=120", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=2)
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
+        first = app.screen
+        fed = wizard.procedure.fed
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is wizard)
+        await pilot.press("f")
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and app.screen is not first)
+        assert wizard.procedure.fed > fed and wizard.procedure.done
+        assert wizard.recorder.reader.lost_total == 0
