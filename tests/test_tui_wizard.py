@@ -222,6 +222,10 @@ async def test_an_action_after_the_results_resumes_feeding_from_the_live_stream(
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         first = app.screen
         fed = wizard.procedure.fed
+        # (escape only once the results are drawn: Textual's Header crashes if its screen goes away before
+        # its title is set)
+        await wait_for(pilot, lambda: first.query_one("#parameters").row_count == 3)
+        await pilot.pause(0.2)
         await pilot.press("escape")
         await wait_for(pilot, lambda: app.screen is wizard)
         await pilot.press("f")

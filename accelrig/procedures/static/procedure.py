@@ -61,9 +61,10 @@ class StaticProcedure(Procedure):
     # ------------------------------------------------------------- contract
     def feed(self, chunk) -> list[Event]:
         events = []
-        if not self._started:
+        if not self._started and len(chunk.t):
             self._started = True
-            events.append(pose_event("start", "put the sensor down on any face and hold it still", 0.0))
+            events.append(pose_event("start", "put the sensor down on any face and hold it still",
+                                     float(chunk.t[0])))
         return events + self.detector.feed(chunk.t, chunk.acc)
 
     def act(self, action: str, **arguments) -> list[Event]:
