@@ -9,7 +9,6 @@ any one calibration.
 
 import numpy as np
 
-
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.procedures.contract import Event, Procedure  # noqa: E402
 from accelrig.result import CalibrationResult, Correction, Estimate  # noqa: E402
@@ -82,7 +81,7 @@ class MeanProcedure(Procedure):
         return CalibrationResult(
             procedure="mean", method="sample mean", model="constant",
             correction=Correction(np.eye(3), np.zeros(3), np.zeros((12, 12))),
-            parameters={f"mean_{a}": Estimate(float(m), float(s), "m/s^2") for a, m, s in zip("xyz", mean, u)},
+            parameters={f"mean_{a}": Estimate(float(m), float(s), "m/s^2") for a, m, s in zip("xyz", mean, u, strict=True)},
             quality={"residual_rms": float(data.std(axis=0).mean()), "n_samples": len(data)},
             arrays={"residuals": data - mean},
         )
