@@ -86,9 +86,9 @@ class Setting:
             return f"{self.default:g}"
         return str(self.default)
 
-    def describe(self) -> str:
-        """Help text with unit, bounds and default, for --help and form labels."""
-        parts = [self.help]
+    def describe(self, text: str | None = None) -> str:
+        """``text`` (default: the help) with unit, choices and default, for --help and form labels."""
+        parts = [text or self.help]
         extra = []
         if self.unit:
             extra.append(self.unit)
@@ -171,11 +171,12 @@ def add_arguments(parser: argparse.ArgumentParser, settings: tuple[Setting, ...]
     """One flag per setting.  Values stay text until ``values_from_args`` so errors read the same everywhere."""
     for s in settings:
         if s.kind == "flag":
-            parser.add_argument(s.flag, dest=s.name, action="store_true", default=None, help=s.describe())
+            parser.add_argument(s.flag, dest=s.name, action="store_true", default=None,
+                                help=s.describe().replace("%", "%%"))
             continue
         metavar = {"float": "X", "int": "N", "floats": "X,Y,..", "path": "PATH", "text": "TEXT"}.get(s.kind)
         parser.add_argument(s.flag, dest=s.name, default=None, metavar=metavar,
-                            choices=s.choices or None, help=s.describe())
+                            choices=s.choices or None, help=s.describe().replace("%", "%%"))
 
 
 def values_from_args(settings, args: argparse.Namespace) -> dict:
@@ -186,3 +187,11 @@ def values_from_args(settings, args: argparse.Namespace) -> dict:
 def values_from_texts(settings, texts: dict[str, str]) -> dict:
     """Parsed values of every setting from form text (labels named in errors)."""
     return {s.name: s.parse(texts.get(s.name), where=s.title) for s in settings}
+
+
+# ------------------------------------------------------------------ settings several procedures declare
+
+# The default is standard gravity, accelrig.units.STANDARD_GRAVITY, written out because units loads numpy
+# and a command's --help must not (tests/test_settings.py checks the two agree).
+GRAVITY = Setting("g", "local gravity", unit="m/s^2", default=9.80665, low=9.7, high=9.9,
+                  label="local gravity", hint="give it in m/s^2, e.g. 9.81")

@@ -35,14 +35,14 @@ def record_sim(url: str) -> Recording:
 
 
 def example_static_faces_vp(seed: int):
-    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.procedures.static.procedure import calibrate_static
 
     rec = record_sim(f"sim://static?seed={seed}&pace=fast")
     return calibrate_static(rec, method="vp"), rec
 
 
 def example_static_faces_paper(seed: int):
-    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.procedures.static.procedure import calibrate_static
 
     rec = record_sim(f"sim://static?seed={seed}&pace=fast")
     return calibrate_static(rec, model="paper", method="paper"), rec
@@ -65,8 +65,8 @@ def example_wheel_paper(seed: int):
 # example name -> (procedure module, function, seed): one per calibration method.  The rotary bench
 # and the slider-crank verify a sensitivity or a rig; they produce no canonical correction, so no profile.
 EXAMPLES = {
-    "static_faces-vp": ("accelrig.procedures.static_faces", example_static_faces_vp, 11),
-    "static_faces-paper": ("accelrig.procedures.static_faces", example_static_faces_paper, 11),
+    "static_faces-vp": ("accelrig.procedures.static.procedure", example_static_faces_vp, 11),
+    "static_faces-paper": ("accelrig.procedures.static.procedure", example_static_faces_paper, 11),
     "wheel-joint": ("accelrig.procedures.wheel.procedure", example_wheel_joint, 12),
     "wheel-paper": ("accelrig.procedures.wheel.procedure", example_wheel_paper, 12),
 }

@@ -7,15 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402
+from accelrig.acquisition.session import Session  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
-from accelrig.result import CalibrationResult, Correction  # noqa: E402
 from accelrig.profiles import profile_from_result, save_profile  # noqa: E402
 from accelrig.profiles.flash import flash_url_profile, plan_flash  # noqa: E402
-from accelrig.acquisition.session import Session  # noqa: E402
+from accelrig.result import CalibrationResult, Correction  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
@@ -162,7 +161,7 @@ def test_static_calibration_through_the_emulated_chip_then_flash_removes_the_tru
     """The whole path: record the six faces from the emulated chip, calibrate, keep the profile,
     flash it on the next connect of the same part, and read it still."""
     from accelrig.acquisition.recorder import record
-    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.procedures.static.procedure import calibrate_static
 
     with driver_for("i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3") as driver:
         recording = record(driver)

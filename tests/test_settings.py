@@ -43,3 +43,19 @@ def test_help_shows_unit_choices_and_default():
     assert STEPS.describe() == "motor speed steps (Hz; default 2.5,4)"
     assert MODEL.describe() == "model (paper|affine|auto; default auto)"
     assert RADIUS.describe() == "caliper crank radius (m; required)"
+
+
+def test_shared_gravity_setting_defaults_to_standard_gravity_and_refuses_implausible_values():
+    from accelrig.settings import GRAVITY
+    from accelrig.units import STANDARD_GRAVITY
+
+    assert GRAVITY.default == STANDARD_GRAVITY and GRAVITY.parse("") == STANDARD_GRAVITY
+    with pytest.raises(DataError, match=r"--g 98.1 m/s\^2 is out of range: it must be >= 9.7 and <= 9.9 m/s\^2 "
+                       r"\(give it in m/s\^2, e.g. 9.81\)"):
+        GRAVITY.parse("98.1")
+
+
+def test_a_percent_sign_in_help_reaches_argparse_intact():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser, (Setting("sd", "prior sd, the datasheet +-2 % as a uniform bound"),))
+    assert "+-2 % as a uniform bound" in parser.format_help()

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
-from accelrig.procedures.static_faces import calibrate_static
-from accelrig.procedures.static_fit import (
+from accelrig.geometry import FACES, rotation_xyz
+from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
-    FACES,
     PAPER_NAMES,
     PoseData,
     face_reference,
@@ -14,9 +13,9 @@ from accelrig.procedures.static_fit import (
     paper_params_to_correction,
     static_crb,
 )
+from accelrig.procedures.static.procedure import calibrate_static
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
-from accelrig.geometry import rotation_xyz
 from accelrig.sim.sensor import SensorModel, SimClock
 
 
@@ -144,7 +143,7 @@ def test_rotation_convention_matches_the_paper_listing():
 
 def test_analytic_rotation_derivatives_match_central_differences():
     from accelrig.estimation import numerical_jacobian
-    from accelrig.procedures.static_fit import _rotation_derivatives
+    from accelrig.procedures.static.fit import _rotation_derivatives
 
     a = np.array([0.1, -0.3, 0.5])
     numeric = numerical_jacobian(lambda x: rotation_xyz(x).ravel(), a).T.reshape(3, 3, 3)

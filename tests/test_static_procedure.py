@@ -5,7 +5,7 @@ import pytest
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import CalibrationError, DataError
-from accelrig.procedures.static_faces import StaticProcedure, calibrate_static, detect_poses
+from accelrig.procedures.static.procedure import StaticProcedure, calibrate_static, detect_poses
 from accelrig.recording import Recording
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig
@@ -24,7 +24,7 @@ def test_offline_poses_lie_inside_the_true_still_intervals_with_the_right_faces(
     proc = detect_poses(rec)
     truth = rig.truth()["poses"]
     assert [p.face for p in proc.poses] == [p["face"] for p in truth]
-    for pose, tp in zip(proc.poses, truth):
+    for pose, tp in zip(proc.poses, truth, strict=True):
         assert tp["start"] - 0.15 <= pose.start and pose.stop <= tp["stop"] + 0.01
         assert pose.duration > 0.75 * rig.hold   # edges trimmed, not the pose thrown away
     assert proc.rejected == []
@@ -38,32 +38,35 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     events, k = [], 0
     while k < len(rec):
         n = int(rng.integers(1, 90))
-        events += proc.feed(rec.t[k:k + n], rec.acc[k:k + n])
+        events += proc.feed(rec.slice(k, k + n))
         k += n
     events += proc.finish()
     assert [(p.face, p.start, p.stop) for p in proc.poses] == [(p.face, p.start, p.stop) for p in offline.poses]
-    kinds = [e.kind for e in events]
+    kinds = [e.data["kind"] for e in events]
     messages = [e.message for e in events]
-    assert kinds[0] == "hold_still" and messages[0] == "hold still: +z down"
+    # the first thing said is what to do; then what the detector sees
+    assert kinds[0] == "start" and events[0].kind == "instruction" and messages[0].startswith("put the sensor down")
+    assert kinds[1] == "hold_still" and messages[1] == "hold still: +z down"
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
-    assert [m for k_, m in zip(kinds, messages) if k_ == "progress"][-1] == "6 of 6"
-    assert kinds[-1] == "complete"
-    assert proc.progress["n_done"] == 6 and proc.progress["n_poses"] == 7
+    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
+    assert kinds[-1] == "complete" and events[-1].kind == "ready"
+    assert proc.faces["n_done"] == 6 and proc.faces["n_poses"] == 7
+    assert proc.progress == 1.0 and proc.done
 
 
 def test_progress_during_a_pose_and_redo():
     rec, rig, _ = _record("sim://static?order=+z,-z&hold=4", seed=3)
     proc = StaticProcedure(rec.rate)
     half = int(2.0 * rec.rate)
-    proc.feed(rec.t[:half], rec.acc[:half])
-    p = proc.progress
+    proc.feed(rec.slice(0, half))
+    p = proc.faces
     assert p["still"] and p["current_face"] == "+z" and 0.3 < p["hold_fraction"] < 0.6
-    proc.feed(rec.t[half:], rec.acc[half:])
+    proc.feed(rec.slice(half, len(rec)))
     proc.finish()
     assert proc.faces_done == ["+z", "-z"]
-    events = proc.redo("+z")
-    assert events[0].kind == "redo" and proc.faces_done == ["-z"]
+    events = proc.act("redo", face="+z")
+    assert events[0].data["kind"] == "redo" and proc.faces_done == ["-z"]
     with pytest.raises(CalibrationError, match="missing"):
         proc.result()
 
@@ -71,9 +74,9 @@ def test_progress_during_a_pose_and_redo():
 def test_too_short_pose_is_reported_live_and_not_used():
     rec, _, _ = _record("sim://static?order=+z,-z,+x&hold=1.2", seed=4)
     proc = StaticProcedure(rec.rate)
-    events = proc.feed(rec.t, rec.acc) + proc.finish()
+    events = proc.feed(rec) + proc.finish()
     assert proc.poses == []
-    assert any(e.kind == "too_short" and "held only" in e.message for e in events)
+    assert any(e.data["kind"] == "too_short" and e.kind == "problem" and "held only" in e.message for e in events)
     with pytest.raises(CalibrationError, match=r"\+z held but too short at t = "):
         proc.result()
 
@@ -141,3 +144,44 @@ def test_correlated_noise_is_detected_and_warned_about():
     filtered = calibrate_static(smoothed)
     assert filtered.quality["noise_correlation_factor"] > 3
     assert any("correlated" in w for w in filtered.warnings)
+
+
+def test_created_from_the_declared_settings_and_the_device_facts():
+    from accelrig.procedures.static.settings import SETTINGS
+    from accelrig.settings import values_from_texts
+
+    values = values_from_texts(SETTINGS, {"min_hold": "5", "g": "9.81"})
+    proc = StaticProcedure.create(values, {"rate": 200.0, "scale": 8 * G / 32768, "range_g": 8})
+    assert (proc.model, proc.method, proc.detector.g) == ("auto", "vp", 9.81)
+    assert proc.detector.min_hold == 5.0 and proc.hold == 5.0   # the live hold is never shorter than min_hold
+    assert proc.detector.full_scale == pytest.approx(32767 * 8 * G / 32768)
+    assert StaticProcedure.create(values_from_texts(SETTINGS, {}), {"rate": 200.0}).hold == 4.0
+    with pytest.raises(DataError, match="local gravity 12 m/s\\^2 is out of range"):
+        values_from_texts(SETTINGS, {"g": "12"})
+    with pytest.raises(DataError, match="no action 'spin'"):
+        proc.act("spin")
+
+
+def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
+    """Live, the sixth face counts once captured (held for ``hold`` s): the wizard computes without
+    waiting for the operator to lift it, and the result holds that pose as far as it was seen."""
+    rec, rig, sensor = _record("sim://static?hold=8", seed=12)
+    last = rig.truth()["poses"][-1]
+    proc = StaticProcedure.create(
+        {"model": "auto", "method": "vp", "g": G, "min_hold": 2.0, "still_threshold": 0.25}, {"rate": rec.rate})
+    events = []
+    for k in range(0, len(rec), 50):
+        events += proc.feed(rec.slice(k, k + 50))
+        if proc.done:
+            break
+    assert proc.done and proc.progress == 1.0 and events[-1].kind == "ready"
+    assert len(proc.poses) == 5 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
+    assert rec.t[k] < last["stop"] - 1.0   # stopped well before the operator lifted it
+    live = proc.result()
+    assert live.quality["n_poses"] == 6 and live.settings["faces"][-1] == last["face"]
+    batch = calibrate_static(rec)
+    u = batch.correction.bias_uncertainty
+    assert np.all(np.abs(live.correction.bias - batch.correction.bias) < 3 * u)
+    # forgetting the face held now takes it out until it qualifies again
+    proc.act("redo", face=last["face"])
+    assert not proc.done and last["face"] in proc.missing_faces

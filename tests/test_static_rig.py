@@ -5,7 +5,7 @@ import pytest
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.procedures.static_fit import face_reference
+from accelrig.procedures.static.fit import face_reference
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
 from accelrig.sim.sensor import SensorModel

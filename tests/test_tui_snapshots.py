@@ -8,8 +8,6 @@ at the SVGs before committing them.
 
 import asyncio
 
-
-
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 
@@ -49,6 +47,7 @@ def test_help_80x24(snap_compare):
 
 
 def test_static_wizard_done_80x24(snap_compare):
+    from accelrig.tui.screens.dialogs import SettingsForm
     from accelrig.tui.screens.results import ResultsScreen
 
     async def run_wizard(pilot):
@@ -58,6 +57,10 @@ def test_static_wizard_done_80x24(snap_compare):
         while app.session is None:
             await pilot.pause(0.05)
         await pilot.press("k", "enter")
+        while not isinstance(app.screen, SettingsForm):
+            assert loop.time() < deadline, "the settings form did not open"
+            await pilot.pause(0.05)
+        await pilot.press("enter")
         while not isinstance(app.screen, ResultsScreen):
             assert loop.time() < deadline, "the wizard did not finish"
             await pilot.pause(0.05)
@@ -71,7 +74,7 @@ def test_static_wizard_done_80x24(snap_compare):
 def test_static_results_120x40(snap_compare):
     from accelrig.acquisition.driver import driver_for
     from accelrig.acquisition.recorder import record
-    from accelrig.procedures.static_faces import calibrate_static
+    from accelrig.procedures.static.procedure import calibrate_static
     from accelrig.tui.screens.results import ResultsScreen
 
     with driver_for("sim://static?seed=3&pace=fast") as driver:

@@ -3,10 +3,9 @@
 
 import numpy as np
 
-
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen  # noqa: E402
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
@@ -24,7 +23,10 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         await pilot.press("k")
-        await pilot.press("enter")  # the first (and only installed) wizard: static
+        await pilot.press("enter")  # the first wizard: static
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        assert app.screen.field("g").placeholder == "9.80665"
+        await pilot.press("enter")  # the settings as they are: the defaults
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, StaticWizard)
@@ -89,6 +91,8 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         await pilot.press("k", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)

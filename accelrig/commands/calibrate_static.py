@@ -1,15 +1,14 @@
-"""accelrig calibrate static REC.csv [--model paper|affine|auto] [--method vp|paper] [--json] [-o PROFILE.yaml]"""
+"""accelrig calibrate static REC.csv [--model paper|affine|auto] [--method vp|paper] [--json] [-o PROFILE.yaml]
+
+The procedure's flags come from its declared settings (accelrig.procedures.static.settings);
+the numerical machinery is imported only when the command runs, so --help stays quick.
+"""
 
 from __future__ import annotations
 
-
-import numpy as np
-
 from accelrig.errors import DataError
-from accelrig.procedures.static_faces import calibrate_static
-from accelrig.recording import load_recording
-from accelrig.units import STANDARD_GRAVITY, scale_for_range
-from accelrig.result import to_json
+from accelrig.procedures.static.settings import SETTINGS
+from accelrig.settings import add_arguments, values_from_args
 
 
 def register(sub, groups) -> None:
@@ -21,40 +20,30 @@ def register(sub, groups) -> None:
         "'+z down' means the +z axis points down (reads -g).",
     )
     p.add_argument("recording", help="recording (.csv interchange or .npz)")
-    p.add_argument("--model", choices=("paper", "affine", "auto"), default="auto",
-                   help="paper: G R raw + c (9 parameters); affine: full matrix + offset (12); "
-                   "auto (default): the one with the lower AIC")
-    p.add_argument("--method", choices=("vp", "paper"), default="vp",
-                   help="vp (default): variable projection + Levenberg-Marquardt; "
-                   "paper: the paper's Nelder-Mead over the angles (9-parameter model only)")
+    add_arguments(p, SETTINGS)
     p.add_argument("--units", choices=("m/s2", "g", "counts"),
                    help="units of ax, ay, az (default: what the file declares, else m/s2)")
     p.add_argument("--range-g", type=float, help="sensor range +-g, for counts without a scale in the file")
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
-    p.add_argument("--g", type=float, default=STANDARD_GRAVITY,
-                   help=f"local gravity in m/s^2 (default {STANDARD_GRAVITY})")
-    p.add_argument("--min-hold", type=float, default=2.0, help="shortest usable pose in s (default 2)")
-    p.add_argument("--still-threshold", type=float, default=0.25,
-                   help="dispersion below which the sensor counts as still, m/s^2 (default 0.25)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
     p.add_argument("-o", "--output", help="write the device profile (YAML) here")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    if not 9.7 < args.g < 9.9:
-        raise DataError(f"--g {args.g} is not a plausible local gravity", "give it in m/s^2, e.g. 9.81")
-    if args.min_hold <= 0 or args.still_threshold <= 0:
-        raise DataError("--min-hold and --still-threshold must be positive")
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.recording import load_recording
+    from accelrig.result import to_json
+    from accelrig.units import scale_for_range
+
+    values = values_from_args(SETTINGS, args)
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     if args.range_g is not None:
         if args.range_g <= 0:
             raise DataError(f"--range-g {args.range_g} must be positive")
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
-    result = calibrate_static(rec, model=args.model, method=args.method, g=args.g,
-                              min_hold=args.min_hold, hold=max(4.0, args.min_hold),
-                              still_threshold=args.still_threshold)
+    result = calibrate_static(rec, **values)
     if args.output:
         _write_profile(result, rec, args.output)
     if args.json:
@@ -73,6 +62,8 @@ def _write_profile(result, rec, path) -> None:
 
 def text_report(result) -> str:
     """What a person reads: faces, parameters with k = 1 uncertainties, the correction, warnings."""
+    import numpy as np
+
     q = result.quality
     lines = [f"static calibration: model {result.model}, method {result.method}, "
              f"{q['n_poses']} poses, {q['n_samples']} samples, noise sd {q['noise_sd']:.4f} m/s^2"]
@@ -88,9 +79,9 @@ def text_report(result) -> str:
         lines.append(f"  {name:10s} {value:+.6f} +- {unc:.6f} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C @ (raw - b)")
-    for row, urow in zip(c.matrix, c.matrix_uncertainty):
-        lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow)))
-    lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty)) + " m/s^2")
+    for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):
+        lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
+    lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
     sel = q["model_selection"]
     lines.append("models: " + "; ".join(f"{m} chi2 {s['chi2']:.1f}/{s['dof']} dof, AIC {s['aic']:.1f}"
                                         for m, s in sel.items()))

@@ -27,14 +27,14 @@ import time
 
 import numpy as np
 
-from accelrig.procedures.static_faces import calibrate_static, detect_poses
-from accelrig.procedures.static_fit import (
+from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
     PAPER_NAMES,
     fit_model,
     paper_params_to_correction,
     static_crb,
 )
+from accelrig.procedures.static.procedure import calibrate_static, detect_poses
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -58,7 +58,7 @@ def paper_truth(rng):
 def ferraris_bias(data):
     """Accelerometer part of Ferraris et al. (1995) as imucal implements it: b_k = (u_k+ + u_k-) / 2,
     each offset from its own axis' pair of faces only."""
-    means = {f: m for f, m in zip(data.faces, data.means)}
+    means = {f: m for f, m in zip(data.faces, data.means, strict=True)}
     # imucal's x_p is 'x reads +g' = our '-x down'
     return np.array([(means["-" + a][k] + means["+" + a][k]) / 2 for k, a in enumerate("xyz")])
 

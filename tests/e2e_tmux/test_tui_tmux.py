@@ -14,7 +14,6 @@ import time
 
 import pytest
 
-
 if shutil.which("tmux") is None:
     pytest.skip("tmux is not installed (CI installs it: apt-get install tmux)", allow_module_level=True)
 
@@ -60,6 +59,10 @@ def test_static_calibration_with_keystrokes_alone(tmp_path):
         tmux.wait_for("sim-random-5")       # connected to the simulated device
         tmux.keys("k")
         tmux.wait_for("Static faces")
+        time.sleep(0.5)   # as a person would: an enter typed the instant a screen appears can arrive twice
+        tmux.keys("Enter")
+        tmux.wait_for("enter starts")       # the settings form: the defaults will do
+        time.sleep(0.5)
         tmux.keys("Enter")
         tmux.wait_for("Save profile")       # the results screen's footer: all six faces done, fit run
         tmux.keys("s")

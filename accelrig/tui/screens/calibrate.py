@@ -15,7 +15,7 @@ from textual.widgets.option_list import Option
 # (key, title, procedure module the wizard drives, wizard screen "module:Class")
 WIZARDS = (
     ("static", "Static faces: six or more still poses (no rig needed)",
-     "accelrig.procedures.static_faces", "accelrig.tui.screens.static_wizard:StaticWizard"),
+     "accelrig.procedures.static.procedure", "accelrig.tui.screens.static_wizard:StaticWizard"),
     ("wheel", "Tilted wheel: spin it and let it coast",
      "accelrig.procedures.wheel.procedure", "accelrig.tui.screens.wheel_wizard:WheelWizard"),
     ("slider-crank", "Slider-crank stand: verify a calibration over motor speed steps",
@@ -61,6 +61,10 @@ class CalibrateMenu(Screen):
 
     @on(OptionList.OptionSelected, "#wizards")
     def start(self, event: OptionList.OptionSelected) -> None:
+        if not self.is_current:
+            # A selection that arrives after this menu gave way to the wizard it started (an enter
+            # typed quickly can reach the list twice in a terminal): one wizard, not two.
+            return
         screens = {key: screen for key, _, screen in available_wizards()}
         session = self.app.session
         if session is None or session.info is None:

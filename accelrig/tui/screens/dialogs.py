@@ -89,6 +89,7 @@ class SettingsForm(ModalScreen):
         Binding("down", "app.focus_next", "Next field", show=False),
         Binding("up", "app.focus_previous", "Previous field", show=False),
     ]
+    AUTO_FOCUS = ".setting-input"
 
     def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
                  check=None):
@@ -103,21 +104,19 @@ class SettingsForm(ModalScreen):
             yield Label(f"[b]{self.title_text}[/b]")
             for s in self.settings:
                 with Horizontal(classes="setting-row"):
-                    yield Label(s.describe(), classes="setting-label")
-                    yield Input(value=self.texts.get(s.name, ""), placeholder=s.example or s.default_text(),
-                                id=f"setting-{s.name}", classes="setting-input")
+                    yield Label(s.describe(s.title), classes="setting-label")
+                    field = Input(value=self.texts.get(s.name, ""), placeholder=s.example or s.default_text(),
+                                  id=f"setting-{s.name}", classes="setting-input")
+                    field.tooltip = s.describe()
+                    yield field
             yield Static("[dim]enter starts, tab or the arrows move between fields, escape cancels[/dim]",
                          id="setup-status")
-
-    def on_mount(self) -> None:
-        if self.settings:
-            self.field(self.settings[0].name).focus()
 
     def field(self, name: str) -> Input:
         return self.query_one(f"#setting-{name}", Input)
 
     @on(Input.Submitted)
-    def submitted(self, event: Input.Submitted) -> None:
+    def action_submit(self) -> None:
         texts = {s.name: self.field(s.name).value.strip() for s in self.settings}
         try:
             values = values_from_texts(self.settings, texts)

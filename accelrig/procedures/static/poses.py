@@ -1,9 +1,10 @@
-"""Six-face static calibration (paper 000): still-pose detection, operator events, result.
+"""Still-pose detection for the six-face calibration: which face is down, held how long, and is it usable.
 
-One procedure object serves the live flow (the TUI feeds blocks as they
-arrive and shows the events) and the offline one (``detect_poses`` and
-``calibrate_static`` feed a whole recording through the same object), so a
-recording gives the same poses whichever way it is processed.
+``PoseDetector`` takes the raw stream in pieces of any size and says what the
+operator should be told as contract ``Event``s; the specific happening is in
+``event.data``: ``kind`` (hold_still, already_done, captured, progress,
+complete, too_short, moved, not_flat, saturated, redo), ``face`` and ``time``.
+Fed a whole recording or the same samples in chunks it finds the same poses.
 
 Detection works on RAW data in m/s^2 (never on calibrated data: the
 calibration does not exist yet, and a wrong one must not hide motion):
@@ -30,32 +31,28 @@ calibration does not exist yet, and a wrong one must not hide motion):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.result import CalibrationResult, Estimate
-from accelrig.procedures.static_fit import (
-    AXES,
-    FACES,
-    MODELS,
-    PoseData,
-    face_reference,
-    fit_model,
-)
-from accelrig.recording import Recording, count_scale
+from accelrig.geometry import AXES, FACES
+from accelrig.procedures.contract import Event
+from accelrig.recording import count_scale
 from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 
+# The detector's own kinds of happening, as the contract's kinds of event (data["kind"] keeps the own one).
+EVENT_KIND = {
+    "start": "instruction", "hold_still": "instruction", "already_done": "instruction", "redo": "instruction",
+    "captured": "captured", "progress": "progress", "complete": "ready",
+    "too_short": "problem", "moved": "problem", "not_flat": "problem", "saturated": "problem",
+}
 
-@dataclass
-class Event:
-    """Something the operator should be told.  ``kind`` is stable (for code); ``message`` is for people."""
 
-    kind: str        # hold_still, already_done, captured, progress, complete, motion, too_short, moved,
-                     # not_flat, saturated, redo
-    message: str
-    time: float
-    face: str | None = None
+def pose_event(kind: str, message: str, time: float, face: str | None = None,
+               progress: float | None = None) -> Event:
+    """A contract Event for one of the detector's happenings (see EVENT_KIND)."""
+    return Event(EVENT_KIND[kind], message, progress, {"kind": kind, "face": face, "time": time})
 
 
 @dataclass
@@ -103,13 +100,13 @@ def classify_face(mean: np.ndarray, tolerance_deg: float) -> tuple[str | None, f
     return (face if angle <= tolerance_deg else None), angle
 
 
-class StaticProcedure:
-    """Live and offline six-face procedure: feed raw samples, read events, get the result.
+class PoseDetector:
+    """Finds the still poses in a raw stream fed in pieces; says what to tell the operator.
 
     ``feed(t, raw)`` takes samples (n,) and (n, 3) in m/s^2 and returns the
     events they caused; ``finish()`` closes the pose in progress at the end
-    of a recording; ``progress`` tells a UI where the operator stands;
-    ``redo(face)`` forgets a face; ``result()`` calibrates from the poses.
+    of the data; ``state`` tells a display where the operator stands;
+    ``forget(face)`` drops a face; ``accepted()`` are the usable poses.
     """
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, hold: float = 4.0, min_hold: float = 2.0,
@@ -146,8 +143,15 @@ class StaticProcedure:
 
     # ------------------------------------------------------------- progress
     @property
+    def _held_captured(self) -> bool:
+        """A pose in progress has been captured (held long enough, no problem found): it counts already."""
+        return self._still and self._seg_captured and not self._seg_problem_reported
+
+    @property
     def faces_done(self) -> list[str]:
-        return [f for f in FACES if any(p.face == f for p in self.poses)]
+        """Faces with a usable pose: the poses closed, and the one held now once captured."""
+        done = {p.face for p in self.poses} | ({self._seg_face} if self._held_captured else set())
+        return [f for f in FACES if f in done]
 
     @property
     def missing_faces(self) -> list[str]:
@@ -155,12 +159,13 @@ class StaticProcedure:
         return [f for f in FACES if f not in done]
 
     @property
-    def progress(self) -> dict:
+    def state(self) -> dict:
+        """Where the operator stands, for a display (the face grid)."""
         held = self._clean_duration() if self._still else 0.0
         return {
             "faces_done": self.faces_done,
             "n_done": len(self.faces_done),
-            "n_poses": len(self.poses),
+            "n_poses": len(self.poses) + self._held_captured,
             "missing": self.missing_faces,
             "current_face": self._seg_face if self._still else None,
             "still": self._still,
@@ -168,15 +173,28 @@ class StaticProcedure:
             "held_seconds": held,
         }
 
-    def redo(self, face: str) -> list[Event]:
+    def accepted(self) -> list[Pose]:
+        """The usable poses: those closed, and the one held now once captured (as it stands, if it
+        still passes the checks)."""
+        if not self._held_captured:
+            return list(self.poses)
+        pose, problem = self._settle(self._current_pose(end_clip=0))
+        if (problem or self._check(pose)) is not None:
+            return list(self.poses)
+        return [*self.poses, pose]
+
+    def forget(self, face: str) -> list[Event]:
         """Forget every pose of ``face`` (the operator wants to take it again)."""
         if face not in FACES:
             raise CalibrationError(f"{face!r} is not a face", "faces are +x, -x, +y, -y, +z, -z")
         before = len(self.poses)
         self.poses = [p for p in self.poses if p.face != face]
         n = before - len(self.poses)
-        return [Event("redo", f"{face} down forgotten ({n} pose{'s' if n != 1 else ''}): put it down again",
-                      self._now, face)]
+        if self._held_captured and self._seg_face == face:
+            self._seg_captured = False   # the pose held now is taken again when it qualifies
+            n += 1
+        return [pose_event("redo", f"{face} down forgotten ({n} pose{'s' if n != 1 else ''}): put it down again",
+                           self._now, face, len(self.faces_done) / len(FACES))]
 
     # ----------------------------------------------------------------- feed
     def feed(self, t: np.ndarray, raw: np.ndarray) -> list[Event]:
@@ -211,7 +229,7 @@ class StaticProcedure:
         # Walk the runs of constant state.
         edges = np.flatnonzero(np.diff(still.astype(np.int8))) + 1
         bounds = np.concatenate([[0], edges, [d.size]])
-        for a, b in zip(bounds[:-1], bounds[1:]):
+        for a, b in pairwise(bounds):
             if still[a]:
                 if not self._still:
                     # Still since the start of the first quiet window.
@@ -257,27 +275,24 @@ class StaticProcedure:
             self._seg_announced = True
             face = self._seg_face
             if face is None:
-                events.append(Event("not_flat", f"not face down ({angle:.0f} degrees off): put one face flat on the table",
-                                    now))
+                events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees off): put one face flat "
+                                         "on the table", now))
             elif face in self.faces_done:
-                events.append(Event("already_done", f"{face} already done (holding it adds data)", now, face))
+                events.append(pose_event("already_done", f"{face} already done (holding it adds data)", now, face))
             else:
-                events.append(Event("hold_still", f"hold still: {face} down", now, face))
+                events.append(pose_event("hold_still", f"hold still: {face} down", now, face))
         if (self._seg_announced and self._seg_face is not None and not self._seg_captured
                 and self._clean_duration() >= self.hold):
             pose, problem = self._settle(self._current_pose(end_clip=0))
             problem = problem or self._check(pose)
             self._seg_captured = True
             if problem is None:
-                events.append(Event("captured", f"{self._seg_face} down captured ({self.hold:.1f} s)", now,
-                                    self._seg_face))
-                done = set(self.faces_done) | {self._seg_face}
-                events.append(Event("progress", f"{len(done)} of 6", now))
-                if len(done) == 6:
-                    events.append(Event("complete", "all six faces captured", now))
+                events.append(pose_event("captured", f"{self._seg_face} down captured ({self.hold:.1f} s)", now,
+                                         self._seg_face))
+                events += self._count_events(now)
             else:
                 self._seg_problem_reported = True
-                events.append(Event(problem[0], problem[1], now, self._seg_face))
+                events.append(pose_event(problem[0], problem[1], now, self._seg_face))
         return events
 
     def _current_pose(self, end_clip: int) -> Pose:
@@ -323,8 +338,8 @@ class StaticProcedure:
             pose.problem, pose.detail = "too_short", f"{pose.duration:.1f} s"
             self.rejected.append(pose)
             if pose.face is not None and self._seg_announced and motion:
-                return [Event("too_short", f"motion detected: {pose.face} down held only {pose.duration:.1f} s, "
-                                           f"hold it {self.hold:.0f} s", now, pose.face)]
+                return [pose_event("too_short", f"motion detected: {pose.face} down held only {pose.duration:.1f} s, "
+                                                f"hold it {self.hold:.0f} s", now, pose.face)]
             return []
         if pose.face is None:
             pose.problem = "not_flat"
@@ -336,14 +351,20 @@ class StaticProcedure:
             self.rejected.append(pose)
             if self._seg_problem_reported:
                 return []
-            return [Event(problem[0], problem[1], now, pose.face)]
+            return [pose_event(problem[0], problem[1], now, pose.face)]
         self.poses.append(pose)
         events = []
         if not self._seg_captured:
-            events.append(Event("captured", f"{pose.face} down captured ({pose.duration:.1f} s)", now, pose.face))
-            events.append(Event("progress", f"{len(self.faces_done)} of 6", now))
-            if len(self.faces_done) == 6:
-                events.append(Event("complete", "all six faces captured", now))
+            events.append(pose_event("captured", f"{pose.face} down captured ({pose.duration:.1f} s)", now, pose.face))
+            events += self._count_events(now)
+        return events
+
+    def _count_events(self, now: float) -> list[Event]:
+        """How many faces are done, after a capture; and 'complete' at six."""
+        n = len(self.faces_done)
+        events = [pose_event("progress", f"{n} of 6", now, progress=n / len(FACES))]
+        if n == len(FACES):
+            events.append(pose_event("complete", "all six faces captured", now, progress=1.0))
         return events
 
     def _check(self, pose: Pose) -> tuple[str, str] | None:
@@ -401,152 +422,8 @@ class StaticProcedure:
         stop = x.shape[0] - tail * b if tail else x.shape[0]
         return Pose(pose.face, pose.t[lead * b:stop], x[lead * b:stop]), None
 
-    # ---------------------------------------------------------------- result
-    def pose_data(self) -> PoseData:
-        if not self.poses:
-            raise CalibrationError("no still pose found", "hold each face still for a few seconds")
-        return PoseData([p.face for p in self.poses], [p.mean for p in self.poses],
-                        [len(p.samples) for p in self.poses], [p.within_ss for p in self.poses], self.g)
 
-    def result(self, model: str = "auto", method: str = "vp") -> CalibrationResult:
-        missing = self.missing_faces
-        if missing:
-            found = ", ".join(self.faces_done) or "none"
-            # Say why a face that was held did not count (too short, moved, ...).
-            why = []
-            for face in missing:
-                tried = [p for p in self.rejected if p.face == face]
-                if tried:
-                    reasons = sorted({f"{p.problem.replace('_', ' ')} at t = {p.start:.1f} s" for p in tried})
-                    why.append(f"{face} held but {'; '.join(reasons)}")
-            detail = f"; {', '.join(why)}" if why else ""
-            raise CalibrationError(f"only {6 - len(missing)} of 6 faces found (have {found}; missing "
-                                   f"{', '.join(missing)}{detail})",
-                                   f"hold each missing face down still for at least {self.min_hold:g} s")
-        return build_result(self.pose_data(), self.poses, model, method, self.settings())
-
-    def settings(self) -> dict:
-        return {"g": self.g, "rate": self.rate, "hold": self.hold, "min_hold": self.min_hold,
-                "window": self.window_n / self.rate, "still_threshold": self.still_threshold,
-                "motion_factor": self.motion_factor, "trim": self.trim_n / self.rate,
-                "face_tolerance_deg": self.face_tolerance_deg, "drift_tolerance": self.drift_tolerance,
-                "settle": self.settle_blocks * self.drift_block_n / self.rate,
-                "full_scale": self.full_scale}
-
-
-# ------------------------------------------------------------------ results
-
-def build_result(data: PoseData, poses: list[Pose], model: str, method: str, settings: dict) -> CalibrationResult:
-    """Fit the requested model (or both, for auto) and package the CalibrationResult."""
-    if model not in (*MODELS, "auto"):
-        raise CalibrationError(f"unknown model {model!r}", "use paper, affine or auto")
-    if model == "affine" and method == "paper":
-        raise CalibrationError("the paper's Nelder-Mead scheme exists only for the 9-parameter model",
-                               "use --method vp with --model affine, or --model paper")
-    fits = {m: fit_model(data, m, method if m == "paper" else "vp") for m in (MODELS if model == "auto" else (model,))}
-    n_obs = 3 * int(np.sum(data.counts))
-    selection = {m: {"chi2": f.chi2, "dof": f.dof, "p_value": f.p_value, "aic": f.aic, "bic": f.bic(n_obs),
-                     "n_parameters": len(f.names)} for m, f in fits.items()}
-    chosen = min(fits.values(), key=lambda f: f.aic)
-    corr = chosen.correction
-    calibrated_residuals = [corr.apply(p.samples) - face_reference(p.face, data.g) for p in poses]
-    all_res = np.concatenate(calibrated_residuals)
-    face_rows = []
-    for p, r, lof in zip(poses, calibrated_residuals, chosen.residuals):
-        face_rows.append({"face": p.face, "start": p.start, "stop": p.stop, "n": len(p.samples),
-                          "noise_sd": p.noise_sd, "residual": (corr.matrix @ lof).tolist(),
-                          "residual_norm": float(np.linalg.norm(corr.matrix @ lof))})
-    correlation = noise_correlation_factor(poses, max(int(round(0.25 * settings["rate"])), 5), data.noise_sd)
-    quality = {
-        "residual_rms": float(np.sqrt(np.mean(all_res**2))),
-        "noise_correlation_factor": correlation,
-        "noise_sd": data.noise_sd,
-        "n_samples": int(np.sum(data.counts)),
-        "n_poses": len(poses),
-        "chi2": chosen.chi2,
-        "dof": chosen.dof,
-        "p_value": chosen.p_value,
-        "model_selection": selection,
-        "faces": face_rows,
-        "n_evaluations": chosen.n_evaluations,
-        "fit_seconds": chosen.seconds,
-    }
-    warnings = []
-    if chosen.dof > 0 and chosen.p_value < 1e-3:
-        warnings.append(f"the poses disagree with the {chosen.model} model beyond their noise (chi2 = "
-                        f"{chosen.chi2:.1f} for {chosen.dof} dof): table not level, cube not square or a pose "
-                        "not flat? The uncertainties may be too small.")
-    if correlation > 1.5:
-        warnings.append(f"the noise is correlated in time (pose means scatter {correlation:.1f} times more in "
-                        "variance than white noise predicts; a digital low-pass filter?): the uncertainties "
-                        "assume white noise and are too small by about the square root of that")
-    if chosen.extra.get("converged") is False:
-        warnings.append(f"Nelder-Mead stopped before converging: {chosen.extra.get('message')}")
-    parameters = {n: Estimate(float(v), float(u), unit)
-                  for n, v, u, unit in zip(chosen.names, chosen.values, chosen.uncertainty, chosen.units)}
-    return CalibrationResult(
-        procedure="static",
-        method=chosen.method,
-        model=chosen.model,
-        correction=corr,
-        parameters=parameters,
-        covariance=chosen.covariance,
-        parameter_names=list(chosen.names),
-        quality=quality,
-        arrays={"pose_means": data.means, "pose_references": data.references, "pose_residuals": chosen.residuals,
-                "pose_times": np.array([[p.start, p.stop] for p in poses])},
-        settings={**settings, "model_requested": model, "faces": list(data.faces)},
-        warnings=warnings,
-    )
-
-
-def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> float:
-    """Variance of block means x block length / sigma^2, pooled over poses and axes.
-
-    About 1 for white noise (the model the uncertainties assume); a low-pass
-    filtered sensor, or a pose that creeps, shows more.  nan when the poses
-    are too short for two blocks.
-    """
-    total, dof = 0.0, 0
-    for p in poses:
-        n_blocks = len(p.samples) // block
-        if n_blocks < 2:
-            continue
-        means = p.samples[: n_blocks * block].reshape(n_blocks, block, 3).mean(axis=1)
-        total += float(np.sum((means - means.mean(axis=0)) ** 2)) * block
-        dof += 3 * (n_blocks - 1)
-    return total / dof / sigma**2 if dof and sigma > 0 else float("nan")
-
-
-# ------------------------------------------------------------------ offline
-
-def full_scale_of(rec: Recording, g: float = STANDARD_GRAVITY) -> float | None:
-    """Sensor full scale in m/s^2 from the recording's metadata, if known."""
-    scale = count_scale(rec.meta)
+def full_scale_of(meta: dict) -> float | None:
+    """Sensor full scale in m/s^2 from a recording's metadata or a device's facts, if known."""
+    scale = count_scale(meta)
     return None if scale is None else COUNT_MAX * scale
-
-
-def detect_poses(rec: Recording, g: float = STANDARD_GRAVITY, **settings) -> StaticProcedure:
-    """Run a whole recording through the procedure; returns it (``.poses``, ``.rejected``)."""
-    if len(rec) < 2:
-        raise DataError("the recording holds fewer than two samples")
-    si = rec.to_si()   # refuses data in other units than declared; unit g means standard g
-    if not np.all(np.isfinite(si.acc)):
-        raise DataError("the recording holds NaN or infinite values")
-    settings.setdefault("full_scale", full_scale_of(rec))
-    proc = StaticProcedure(si.rate, g=g, **settings)
-    proc.feed(si.t, si.acc)
-    proc.finish()
-    return proc
-
-
-def calibrate_static(rec: Recording, model: str = "auto", method: str = "vp", g: float = STANDARD_GRAVITY,
-                     **settings) -> CalibrationResult:
-    """Offline six-face calibration of a recording; bad data raise one clear DataError/CalibrationError."""
-    proc = detect_poses(rec, g=g, **settings)
-    for pose in proc.rejected:
-        if pose.problem in ("moved", "saturated"):
-            raise DataError(pose.detail)
-    result = proc.result(model, method)
-    result.settings["recording"] = rec.meta.get("source") or rec.meta.get("device")
-    return result
