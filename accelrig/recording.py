@@ -82,7 +82,7 @@ class Recording:
             raise DataError("a recording needs at least two samples with increasing times to have a rate")
         return (len(self) - 1) / self.duration
 
-    def to_si(self, check_units: bool = True) -> "Recording":
+    def to_si(self, check_units: bool = True) -> Recording:
         """The same recording with acc in m/s^2: raw = counts x nominal scale (meta['scale']).
 
         Unit g is standard g (9.80665 m/s^2) by definition, as the nominal
@@ -97,7 +97,7 @@ class Recording:
         acc = to_si(self.acc, self.units, self.meta.get("scale"), STANDARD_GRAVITY)
         return Recording(self.t, acc, "m/s^2", dict(self.channels), dict(self.meta))
 
-    def slice(self, start: int, stop: int) -> "Recording":
+    def slice(self, start: int, stop: int) -> Recording:
         return Recording(
             self.t[start:stop],
             self.acc[start:stop],

@@ -43,7 +43,7 @@ class Correction:
         self.covariance = np.asarray(self.covariance, dtype=float).reshape(12, 12)
 
     @classmethod
-    def identity(cls) -> "Correction":
+    def identity(cls) -> Correction:
         return cls(np.eye(3), np.zeros(3), np.zeros((12, 12)))
 
     @property

@@ -12,12 +12,12 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 from accelrig.errors import AccelrigError
 
 
-def check(spec: "Spec", value, error: type[AccelrigError], where: str = "") -> None:
+def check(spec: Spec, value, error: type[AccelrigError], where: str = "") -> None:
     """Validate ``value`` against ``spec``; on failure raise ``error`` naming the field (prefixed by ``where``)."""
     try:
         spec.check(value, "")
@@ -212,12 +212,12 @@ def parse_datetime(text: str) -> datetime:
     """A profile date-time (or a plain date, or any ISO form) as an aware UTC datetime."""
     value = datetime.fromisoformat(text.replace("Z", "+00:00"))
     if value.tzinfo is None:
-        value = value.replace(tzinfo=timezone.utc)
-    return value.astimezone(timezone.utc)
+        value = value.replace(tzinfo=UTC)
+    return value.astimezone(UTC)
 
 
 def format_datetime(value: datetime) -> str:
-    return value.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return value.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 @dataclass

@@ -246,7 +246,7 @@ class I2CDriver(Driver):
                 restored = "restoring the previous offsets failed too: power-cycle the sensor"
             raise DeviceError(f"flashing the offsets failed: {exc.message}; {restored}", exc.hint) from exc
         readback = [FlashWrite(target=w.target, current=f"0x{b:04x}", new=f"0x{n:04x}", meaning=w.meaning)
-                    for w, b, n in zip(plan.writes, back, words)]
+                    for w, b, n in zip(plan.writes, back, words, strict=True)]
         verified = back == list(words)
         if not verified:
             raise DeviceError(

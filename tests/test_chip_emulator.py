@@ -6,7 +6,6 @@ import errno
 
 import numpy as np
 import pytest
-
 from smbus2 import i2c_msg  # noqa: E402
 
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402

@@ -75,7 +75,7 @@ def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsy
         rec = record(d, samples=4000)
     path = tmp_path / "in_g.csv"
     path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665:.6f},{b / 9.80665:.6f},{c / 9.80665:.6f}"
-                                                 for t, (a, b, c) in zip(rec.t, rec.acc)) + "\n")
+                                                 for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
     for args in (["noise", str(path)],
                  ["calibrate", "static", str(path)],
                  ["calibrate", "wheel", str(path), "--radius", "0.28"],

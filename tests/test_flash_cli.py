@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from accelrig.acquisition.driver import driver_for
+from accelrig.acquisition.recorder import record
 from accelrig.cli import main
 from accelrig.errors import DeviceError, ProfileError
-from accelrig.acquisition.recorder import record
-from accelrig.result import CalibrationResult, Correction
 from accelrig.profiles import profile_from_result, save_profile
 from accelrig.profiles.flash import plan_flash
+from accelrig.result import CalibrationResult, Correction
 
 URL = "serial-sim://still?seed=1&pace=fast"
 SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-still-1", "range_g": 4.0}

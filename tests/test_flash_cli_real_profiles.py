@@ -3,12 +3,11 @@
 import numpy as np
 import pytest
 
+from accelrig import profiles
 from accelrig.acquisition.driver import driver_for
 from accelrig.acquisition.recorder import record
 from accelrig.cli import main
 from accelrig.result import CalibrationResult, Correction, Estimate
-
-from accelrig import profiles
 
 
 def saved_profile(tmp_path, url):

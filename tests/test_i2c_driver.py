@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import sys
+from itertools import pairwise
 
 import numpy as np
 import pytest
-
 
 from accelrig.acquisition.chips.icm20948 import ICM20948  # noqa: E402
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402
@@ -22,7 +22,6 @@ from accelrig.sim.rigs.still import StillRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel  # noqa: E402
 from accelrig_drivers.i2c import I2CDriver  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402
-
 
 
 def true_times(counts, scale):
@@ -75,7 +74,7 @@ def test_sustains_2048_hz_for_60_s_of_emulated_real_time_with_no_unexplained_los
     n_out = sum(b.n for b in blocks)
     assert n_out == last - first + 1
     assert all(b.gap_before == 0 for b in blocks)
-    assert all(b.counter == a.counter + a.n for a, b in zip(blocks, blocks[1:]))
+    assert all(b.counter == a.counter + a.n for a, b in pairwise(blocks))
     # The delivered rate is measured, and right: 2048 Hz on a chip 0.4 % fast.
     true_rate = 2048 * 1.004
     assert abs(driver.delivered_rate - true_rate) < max(4 * stream.delivered_rate_uncertainty, 1e-3)

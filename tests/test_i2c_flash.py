@@ -7,15 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-
 from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402
+from accelrig.acquisition.session import Session  # noqa: E402
 from accelrig.acquisition.url import DeviceURL  # noqa: E402
 from accelrig.errors import DeviceError, ProfileError  # noqa: E402
-from accelrig.result import CalibrationResult, Correction  # noqa: E402
 from accelrig.profiles import profile_from_result, save_profile  # noqa: E402
 from accelrig.profiles.flash import flash_url_profile, plan_flash  # noqa: E402
-from accelrig.acquisition.session import Session  # noqa: E402
+from accelrig.result import CalibrationResult, Correction  # noqa: E402
 from accelrig.sim.chips import EMULATORS  # noqa: E402
 from accelrig.sim.chips import mpu9250 as mpu_emulator  # noqa: E402
 from accelrig_drivers.i2c_sim import I2CSimDriver  # noqa: E402

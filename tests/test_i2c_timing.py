@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from accelrig.acquisition.chips.base import offset_value, offset_word, plan_offsets, plan_rate, OFFSET_STEP
+from accelrig.acquisition.chips.base import OFFSET_STEP, offset_value, offset_word, plan_offsets, plan_rate
 from accelrig.acquisition.chips.decimate import RationalResampler
 from accelrig.acquisition.chips.icm20948 import SPEC as ICM
 from accelrig.acquisition.chips.mpu9250 import SPEC as MPU
@@ -79,7 +79,7 @@ def test_counter_fit_estimates_rate_and_uncertainty_honestly():
         fit = CounterClockFit(2048.0)
         host = t0 + np.cumsum(0.01 + rng.uniform(0, 0.002, 500))   # polls, late by jitter
         produced = np.floor((host - t0) * true_rate)                 # samples in the FIFO then
-        for k, h in zip(produced, host):
+        for k, h in zip(produced, host, strict=True):
             fit.add(k, h)
         zs.append((fit.rate - true_rate) / fit.rate_uncertainty)
         # Sample p was taken at t0 + (p + 1) / rate (first tick one period after start).

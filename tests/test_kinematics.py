@@ -17,7 +17,7 @@ def upright(t):
 def test_at_rest_the_axis_pointing_up_reads_plus_g():
     for up in np.eye(3):
         mounting = kinematics.level_mounting(np.roll(up, 1), up)
-        force = kinematics.specific_force(kinematics.at_origin, lambda t: np.broadcast_to(mounting, (t.size, 3, 3)), T)
+        force = kinematics.specific_force(kinematics.at_origin, lambda t, mounting=mounting: np.broadcast_to(mounting, (t.size, 3, 3)), T)
         assert np.array_equal(force, np.broadcast_to(G * up, force.shape))
 
 

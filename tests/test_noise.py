@@ -9,7 +9,6 @@ import sys
 import numpy as np
 import pytest
 
-
 from accelrig.errors import DataError
 from accelrig.estimation.allan import allan_deviation, axis_noise, noise_figures
 from accelrig.recording import Recording, read_csv, write_csv
@@ -129,8 +128,8 @@ def test_noise_cli_table_json_and_profile(tmp_path, cli):
     assert len(data["arrays"]["tau"]) == len(data["arrays"]["adev_x"]) > 5
 
     # store into a profile of the same device; refuse another device's profile without --force
-    from tests.test_profile_io import make_result
     from accelrig.profiles import load_profile, profile_from_result, save_profile
+    from tests.test_profile_io import make_result
 
     prof = tmp_path / "p.yaml"
     save_profile(profile_from_result(make_result(), rec), prof)

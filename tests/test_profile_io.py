@@ -12,9 +12,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from accelrig.errors import ProfileError
-from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.profiles import Profile, json_schema, load_profile, profile_from_result, save_profile
 from accelrig.profiles.io import dump_yaml
+from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock

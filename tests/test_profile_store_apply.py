@@ -5,21 +5,20 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
 import yaml
 
-
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.ringbuffer import RingBuffer
 from accelrig.errors import ProfileError
-from accelrig.result import CalibrationResult, Correction
 from accelrig.profiles import load_profile, profile_from_result, save_profile
 from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_uncertainty
 from accelrig.profiles.store import ProfileStore, default_store_dir, device_key
 from accelrig.recording import Recording, read_csv, write_csv
+from accelrig.result import CalibrationResult, Correction
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -155,7 +154,7 @@ def test_store_choose_latest_closest_and_old(tmp_path):
     paths = [store.add(truth_profile(sensor, created=d)) for d in dates]
     store.add(truth_profile(sensor, identity="dev-2", created=dates[0]))
     assert len(store.entries("dev-1")) == 3 and store.identities() == ["dev-1", "dev-2"]
-    now = datetime(2026, 11, 22, tzinfo=timezone.utc)
+    now = datetime(2026, 11, 22, tzinfo=UTC)
     latest = store.choose("dev-1", now=now)
     assert latest.stored.path == paths[2] and latest.warnings == []
     closest = store.choose("dev-1", date="2026-05-01")

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import pytest
+import smbus2  # noqa: E402
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import smbus2  # noqa: E402
-
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402
 from accelrig.acquisition.registers import (  # noqa: E402
-    Bits, Port, RegisterAccessor, RegisterMap, ROBits, Struct,
+    Bits,
+    Port,
+    RegisterAccessor,
+    RegisterMap,
+    ROBits,
+    Struct,
 )
 from accelrig.errors import DeviceError  # noqa: E402
 from accelrig.sim.chips import EmulatedBus, ICM20948Emulator, MPU9250Emulator  # noqa: E402
@@ -132,7 +136,7 @@ def test_bus_errors_become_device_errors_with_a_hint():
     acc, *_ = accessor_for(MPU9250Emulator, banked=False)
     acc.address = 0x69
     with pytest.raises(DeviceError, match="0x69|address"):
-        MpuDemo(acc).who_am_i
+        _ = MpuDemo(acc).who_am_i
 
 
 @settings(max_examples=60, deadline=None)

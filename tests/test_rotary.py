@@ -6,7 +6,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from accelrig_drivers.sim import build_device
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
@@ -15,8 +14,8 @@ from accelrig.procedures.rotary.bench import EncoderLog, analyse_test, read_enco
 from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.recording import save_recording
-from accelrig.sim.device import simulate
 from accelrig.sim.campaign import paper_sensor, write_sim_campaign
+from accelrig.sim.device import simulate
 from accelrig.sim.rigs.rotary import (
     RotaryRig,
     encoder_samples,
@@ -24,6 +23,7 @@ from accelrig.sim.rigs.rotary import (
     write_encoder_csv,
 )
 from accelrig.sim.sensor import SimClock
+from accelrig_drivers.sim import build_device
 
 NOMINAL = 1660.0
 

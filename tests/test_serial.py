@@ -18,7 +18,6 @@ from accelrig.sim.firmware import PtyFirmware, deliverable_rate
 from accelrig_drivers.serial import SerialDriver, firmware_from_url
 
 
-
 def make_firmware(options="seed=3", max_n=255):
     firmware, _ = firmware_from_url(DeviceURL.parse(f"serial-sim://still?{options}"), max_n)
     return firmware

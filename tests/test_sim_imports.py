@@ -7,6 +7,7 @@ import sys
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.rigs.base import Rig
 
+
 def modules_after(code: str) -> set[str]:
     """The modules a fresh interpreter holds after running ``code``."""
     out = subprocess.run([sys.executable, "-c", code + "\nimport sys, json; print(json.dumps(sorted(sys.modules)))"],

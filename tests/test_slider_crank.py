@@ -357,8 +357,8 @@ def test_cli_table_and_one_line_errors(tmp_path, capsys):
 
 
 def test_cli_verifies_the_calibration_in_a_profile(tmp_path, capsys):
-    from accelrig.result import CalibrationResult
     from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.result import CalibrationResult
 
     faulty = sensor(gain=[0.97, 1.01, 1.0], offset=[0.2, 0.1, -0.3])
     rec = run(SliderCrankRig(steps=[4.0, 7.0, 10.0], clearance=0.00002), faulty, seed=6)

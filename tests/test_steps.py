@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -25,7 +27,7 @@ def cut(rec: Recording, sizes) -> list[Recording]:
     """The stream in chunks of the given sizes (the rest in one last chunk)."""
     edges = np.cumsum([0, *sizes])
     edges = edges[edges < len(rec)].tolist() + [len(rec)]
-    return [rec.slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+    return [rec.slice(a, b) for a, b in pairwise(edges)]
 
 
 def as_tuples(steps):

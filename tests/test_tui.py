@@ -10,7 +10,6 @@ from accelrig.tui.screens.help import HelpScreen  # noqa: E402
 from accelrig.tui.screens.live import LiveScreen  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
-
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
 
 

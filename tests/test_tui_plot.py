@@ -3,8 +3,6 @@
 import asyncio
 
 import numpy as np
-
-
 from textual.app import App  # noqa: E402
 
 from accelrig.tui.widgets.plot import LinePlot, Series, _join  # noqa: E402

@@ -104,10 +104,10 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
             return SETTLE + 0.1 <= into <= SEGMENT - CAPTURE - 0.5
 
         for index in range(len(STEPS)):
-            await wait_for(pilot, lambda: steady(index))
+            await wait_for(pilot, lambda index=index: steady(index))
             await pilot.press("space")  # returns once the process idles: the capture has run by then
             if index < len(STEPS) - 1:
-                await wait_for(pilot, lambda: len(wizard.procedure.steps) == index + 1)
+                await wait_for(pilot, lambda index=index: len(wizard.procedure.steps) == index + 1)
                 # the response plot fills in as the steps are taken
                 assert wizard.query_one("#fr-plot").series[1].x.size == index + 1
         await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))

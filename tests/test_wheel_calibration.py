@@ -57,7 +57,7 @@ def test_joint_recovers_table_i_truth_with_crb_uncertainties(table_i_run):
     true_vec = np.concatenate([[truth.theta0], truth.omega, [truth.tilt], truth.euler, truth.gain, truth.offset])
     u = np.sqrt(np.diag(result.covariance))
     z = (vector(result) - true_vec) / u
-    assert np.all(np.abs(z) < 4), dict(zip(result.parameter_names, np.round(z, 2)))
+    assert np.all(np.abs(z) < 4), dict(zip(result.parameter_names, np.round(z, 2), strict=True))
     # the reported covariance is the CRB (evaluated at the estimate rather than at the truth)
     crb = np.sqrt(np.diag(wheel_crb(rec.t - rec.t[0], truth, free, 0.08)))
     assert np.allclose(u, crb, rtol=0.05)

@@ -124,7 +124,7 @@ class Driver(abc.ABC):
         """Write a plan made by ``plan_flash``, read it back and verify."""
         raise DeviceError(f"{self.scheme}:// devices cannot store a calibration")
 
-    def __enter__(self) -> "Driver":
+    def __enter__(self) -> Driver:
         self.info = self.open()
         return self
 

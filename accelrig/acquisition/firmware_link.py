@@ -321,7 +321,7 @@ class FirmwareDriver(Driver):
                                f"0x{int.from_bytes(record_bytes[-2:], 'big'):04X}", "stored vs computed"),
                 ]
             if not verified:
-                diff = sum(a != b for a, b in zip(raw, record_bytes)) + abs(len(raw) - len(record_bytes))
+                diff = sum(a != b for a, b in zip(raw, record_bytes, strict=True)) + abs(len(raw) - len(record_bytes))
                 notes.append(f"read back differs from what was written in {diff} byte(s)")
         return FlashReport(device=plan.device, verified=verified, readback=readback, residual=plan.residual,
                            notes=notes)

@@ -427,7 +427,7 @@ class Identity:
         return out
 
     @classmethod
-    def from_payload(cls, payload: bytes) -> "Identity":
+    def from_payload(cls, payload: bytes) -> Identity:
         try:
             caps, max_n = IDENTITY_HEAD.unpack_from(payload)
             pos = IDENTITY_HEAD.size
@@ -454,7 +454,7 @@ class LinkConfig:
         return CONFIG_PAYLOAD.pack(self.range_g, int(round(self.rate * 1000)), self.samples_per_frame)
 
     @classmethod
-    def from_payload(cls, payload: bytes) -> "LinkConfig":
+    def from_payload(cls, payload: bytes) -> LinkConfig:
         if len(payload) != CONFIG_PAYLOAD.size:
             raise DeviceError(f"the device sent a CONFIG frame of {len(payload)} bytes, expected {CONFIG_PAYLOAD.size}")
         range_g, rate_mhz, n = CONFIG_PAYLOAD.unpack(payload)
@@ -492,7 +492,7 @@ class CalibrationRecord:
         return head + crc16(head).to_bytes(2, "big")
 
     @classmethod
-    def from_bytes(cls, raw: bytes) -> "CalibrationRecord":
+    def from_bytes(cls, raw: bytes) -> CalibrationRecord:
         if len(raw) != CAL_RECORD_SIZE:
             raise DeviceError(f"calibration record of {len(raw)} bytes, expected {CAL_RECORD_SIZE}")
         if crc16(raw[:-2]) != int.from_bytes(raw[-2:], "big"):
@@ -508,10 +508,10 @@ class CalibrationRecord:
         )
 
     @classmethod
-    def from_correction(cls, correction, range_g: int, profile_id: bytes, written: int) -> "CalibrationRecord":
+    def from_correction(cls, correction, range_g: int, profile_id: bytes, written: int) -> CalibrationRecord:
         return cls(int(range_g), correction.matrix, correction.bias, correction.matrix_uncertainty,
                    correction.bias_uncertainty, profile_id, written)
 
-    def as_float32(self) -> "CalibrationRecord":
+    def as_float32(self) -> CalibrationRecord:
         """What the device will hold after the float32 round trip."""
         return CalibrationRecord.from_bytes(self.to_bytes())

@@ -96,7 +96,7 @@ class RegisterAccessor:
             take = min(length, I2C_RDWR_MAX)
             write = self.msg_class.write(self.address, [reg])
             read = self.msg_class.read(self.address, take)
-            self._call("burst read", reg, lambda: self.bus.i2c_rdwr(write, read))
+            self._call("burst read", reg, lambda write=write, read=read: self.bus.i2c_rdwr(write, read))
             chunk = bytes(read)
             if len(chunk) != take:
                 raise DeviceError(f"{self.label}: burst read of {take} bytes at 0x{reg:02x} returned {len(chunk)}")

@@ -144,7 +144,7 @@ class RingBuffer:
         pos = bisect.bisect_left(self._gap_index, index)
         return self._gap_cum[pos - 1] if pos else self._gap_base
 
-    def reader(self, from_oldest: bool = False) -> "Reader":
+    def reader(self, from_oldest: bool = False) -> Reader:
         """A new independent reader: from now on, or from the oldest sample still held."""
         start = max(self._head - self.capacity, 0) if from_oldest else self._head
         return Reader(self, start)

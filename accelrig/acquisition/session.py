@@ -23,8 +23,8 @@ import enum
 import threading
 import traceback
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -38,7 +38,7 @@ from accelrig.result import Correction
 from accelrig.units import saturated
 
 
-class State(str, enum.Enum):
+class State(enum.StrEnum):
     CLOSED = "closed"              # not opened yet
     OPEN = "open"                  # opened, not pumping
     STREAMING = "streaming"        # the pump thread is delivering

@@ -23,7 +23,7 @@ class DeviceURL:
     params: dict[str, str] = field(default_factory=dict)
 
     @classmethod
-    def parse(cls, url: str) -> "DeviceURL":
+    def parse(cls, url: str) -> DeviceURL:
         if "://" not in url:
             raise DeviceError(
                 f"{url!r} is not a device URL",

@@ -20,8 +20,8 @@ from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
 from accelrig.recording import load_recording, save_recording
-from accelrig.units import STANDARD_GRAVITY
 from accelrig.result import to_json
+from accelrig.units import STANDARD_GRAVITY
 
 
 def register(sub, groups) -> None:
@@ -119,14 +119,14 @@ def run_list(args) -> int:
 def _print_table(rows) -> None:
     widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
-        print("  ".join(str(c).ljust(w) for c, w in zip(r, widths)).rstrip())
+        print("  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
 
 
 def _fmt(value, unc=None, digits: int = 6) -> str:
     if isinstance(value, list):
         if unc is None:
             return "[" + ", ".join(_fmt(v, None, digits) for v in value) + "]"
-        return "[" + ", ".join(_fmt(v, u, digits) for v, u in zip(value, unc)) + "]"
+        return "[" + ", ".join(_fmt(v, u, digits) for v, u in zip(value, unc, strict=True)) + "]"
     text = f"{value:.{digits}g}"
     return text if unc is None else f"{text} +- {unc:.2g}"
 
@@ -247,7 +247,7 @@ def diff_profiles(a: Profile, b: Profile) -> list[str]:
         u = np.sqrt(np.diag(ca.covariance) + np.diag(cb.covariance))
         names = [f"C[{i}][{j}]" for i in range(3) for j in range(3)] + [f"b[{i}]" for i in range(3)]
         lines.append("correction A -> B, E_n = (A - B) / sqrt(U_A^2 + U_B^2), U = 2u (|E_n| <= 1: consistent):")
-        for name, x, y, uu in zip(names, va, vb, u):
+        for name, x, y, uu in zip(names, va, vb, u, strict=True):
             en = (x - y) / (2.0 * uu) if uu > 0 else (math.inf if x != y else 0.0)
             lines.append(f"  {name:8s} {x:+.6g} -> {y:+.6g}  E_n {en:+.2f}")
     return lines

@@ -32,9 +32,8 @@ import numpy as np
 
 from accelrig.errors import DataError
 from accelrig.geometry import AXES
-from accelrig.result import Estimate
 from accelrig.recording import Recording
-
+from accelrig.result import Estimate
 
 BIAS_INSTABILITY_FACTOR = 0.664   # IEEE 952: sigma_min = 0.664 B for flicker noise
 SLOPE_TOLERANCE = 0.1             # how far a log-log slope may stray from -1/2 or +1/2 ...

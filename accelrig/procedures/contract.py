@@ -65,7 +65,7 @@ class Procedure(abc.ABC):
 
     @classmethod
     @abc.abstractmethod
-    def create(cls, values: dict, device: dict) -> "Procedure":
+    def create(cls, values: dict, device: dict) -> Procedure:
         """A fresh procedure from parsed setting values (every declared name present) and device facts."""
 
     @abc.abstractmethod

@@ -122,7 +122,7 @@ class StepCapture:
             starts, stops = starts[:-1], stops[:-1]
         steps = []
         consumed = 0
-        for a, b in zip(starts, stops):
+        for a, b in zip(starts, stops, strict=True):
             consumed = b
             value = step[a]
             if value < 0:

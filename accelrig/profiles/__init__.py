@@ -10,10 +10,10 @@ The schema lives in accelrig/profiles/schema.py and is published as
 profiles/schema-v1.json.
 """
 
+from accelrig.profiles.apply import CalibratedReader, apply_profile, calibrated, check_compatible
 from accelrig.profiles.io import Profile, load_profile, parse_profile_text, profile_from_result, save_profile
 from accelrig.profiles.schema import SCHEMA_VERSION, json_schema, validate
 from accelrig.profiles.store import ProfileStore
-from accelrig.profiles.apply import CalibratedReader, apply_profile, calibrated, check_compatible
 
 __all__ = [
     "CalibratedReader",

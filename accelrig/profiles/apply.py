@@ -16,10 +16,9 @@ import numpy as np
 
 from accelrig.acquisition.ringbuffer import Chunk, Reader
 from accelrig.errors import ProfileError
-from accelrig.result import Correction
-from accelrig.recording import Recording
-
 from accelrig.profiles.io import Profile
+from accelrig.recording import Recording
+from accelrig.result import Correction
 
 UNCERTAINTY_CHANNELS = ("u_ax", "u_ay", "u_az")
 

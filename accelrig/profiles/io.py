@@ -13,7 +13,7 @@ import copy
 import math
 import os
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -21,13 +21,12 @@ import yaml
 
 from accelrig import __version__
 from accelrig.errors import ProfileError
-from accelrig.result import CalibrationResult, Correction, to_plain
 from accelrig.files import atomic_write, read_text_file
-from accelrig.recording import Recording
-from accelrig.units import STANDARD_GRAVITY, scale_for_range
-
 from accelrig.profiles.schema import SCHEMA_VERSION, validate
+from accelrig.recording import Recording
+from accelrig.result import CalibrationResult, Correction, to_plain
 from accelrig.spec import format_datetime, parse_datetime
+from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
 HEADER = (
     "# accelrig device profile (schema v1, profiles/schema-v1.json).\n"
@@ -89,7 +88,7 @@ class Profile:
     def noise(self) -> dict | None:
         return self.data["noise"]
 
-    def copy(self) -> "Profile":
+    def copy(self) -> Profile:
         return Profile(copy.deepcopy(self.data), self.path)
 
     def validate(self) -> None:
@@ -97,7 +96,7 @@ class Profile:
 
 
 def utc_now() -> str:
-    return format_datetime(datetime.now(timezone.utc))
+    return format_datetime(datetime.now(UTC))
 
 
 def profile_from_result(

@@ -183,7 +183,7 @@ def _check_square_symmetric(matrix: list, path: str) -> None:
 
 
 def _check_uncertainty_matches(uncertainty: list[float], variances: list[float], path: str) -> None:
-    for i, (u, var) in enumerate(zip(uncertainty, variances)):
+    for i, (u, var) in enumerate(zip(uncertainty, variances, strict=True)):
         expected = math.sqrt(max(var, 0.0))
         if abs(u - expected) > 1e-6 * max(expected, 1e-300) + 1e-15:
             fail(f"{path}[{i}]", f"{u!r} disagrees with the covariance diagonal (sqrt = {expected!r})")

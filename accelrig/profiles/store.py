@@ -21,11 +21,10 @@ import hashlib
 import os
 import re
 from dataclasses import dataclass
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from accelrig.errors import ProfileError
-
 from accelrig.profiles.io import Profile, load_profile, save_profile
 from accelrig.spec import parse_datetime
 
@@ -140,9 +139,9 @@ class ProfileStore:
             raise ProfileError(f"no stored profile for device {identity!r}", hint)
         if date is None:
             chosen = entries[-1]
-            reference = now or datetime.now(timezone.utc)
+            reference = now or datetime.now(UTC)
         else:
-            reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(timezone.utc)
+            reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(UTC)
             chosen = min(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
         warnings = []
         age = reference - chosen.created

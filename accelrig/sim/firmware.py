@@ -265,11 +265,11 @@ class PtyFirmware:
         self._parser = P.FrameParser()
         self.error: BaseException | None = None
 
-    def start(self) -> "PtyFirmware":
+    def start(self) -> PtyFirmware:
         self._thread.start()
         return self
 
-    def __enter__(self) -> "PtyFirmware":
+    def __enter__(self) -> PtyFirmware:
         return self.start()
 
     def __exit__(self, *exc) -> None:

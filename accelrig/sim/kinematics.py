@@ -37,7 +37,7 @@ power of two, which costs at most (4/3) |p'| ulp(t) / h^2 (1e-6 m/s^2 at
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -54,7 +54,7 @@ class SensorModel:
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(3))
 
     @classmethod
-    def random(cls, rng: np.random.Generator, **overrides) -> "SensorModel":
+    def random(cls, rng: np.random.Generator, **overrides) -> SensorModel:
         """A plausible imperfect MEMS part: offsets of a few tens of mg, gains within 2 %,
         sub-degree misalignment and non-orthogonality."""
         values = dict(

@@ -79,7 +79,7 @@ def time_parser(stream: bytes, repeats: int = 3) -> tuple[float, int]:
         parser = P.FrameParser()
         t0 = time.perf_counter()
         for k in range(0, len(stream), READ_SIZE):
-            for frame in parser.feed(stream[k:k + READ_SIZE]):
+            for _ in parser.feed(stream[k:k + READ_SIZE]):
                 pass
         best = min(best, time.perf_counter() - t0)
         samples = parser.stats.samples

@@ -36,8 +36,8 @@ from accelrig.errors import DataError  # noqa: E402
 from accelrig.estimation.sinefit import fit_sine, interpolated_dft_frequency, sine_crb  # noqa: E402
 from accelrig.procedures.slider_crank.analysis import fft_peak_frequency  # noqa: E402
 from accelrig.procedures.slider_crank.procedure import verify_slider_crank  # noqa: E402
-from accelrig.sim.device import simulate  # noqa: E402
 from accelrig.sim import kinematics  # noqa: E402
+from accelrig.sim.device import simulate  # noqa: E402
 from accelrig.sim.rigs.slider_crank import SliderCrankRig, slider_position  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 
@@ -159,8 +159,8 @@ def table_radius(runs):
             z.append(e / radius.uncertainty)
             holds.append(v["verdict"] == "holds")
             knock.append(np.mean([s["backlash"] for s in v["steps"]]))
-            beyond = [s for s, c in zip(v["steps"], steps) if c > rig.max_speed]
-            below = [s for s, c in zip(v["steps"], steps) if c <= rig.max_speed]
+            beyond = [s for s, c in zip(v["steps"], steps, strict=True) if c > rig.max_speed]
+            below = [s for s, c in zip(v["steps"], steps, strict=True) if c <= rig.max_speed]
             limited_ok.append(np.mean([s["motor_limited"] for s in beyond]))
             false_limited.append(np.mean([s["motor_limited"] for s in below]))
             rolloff.append(v["rolloff_hz"] if v["rolloff_hz"] is not None else np.nan)

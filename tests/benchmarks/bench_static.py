@@ -58,7 +58,7 @@ def paper_truth(rng):
 def ferraris_bias(data):
     """Accelerometer part of Ferraris et al. (1995) as imucal implements it: b_k = (u_k+ + u_k-) / 2,
     each offset from its own axis' pair of faces only."""
-    means = {f: m for f, m in zip(data.faces, data.means)}
+    means = {f: m for f, m in zip(data.faces, data.means, strict=True)}
     # imucal's x_p is 'x reads +g' = our '-x down'
     return np.array([(means["-" + a][k] + means["+" + a][k]) / 2 for k, a in enumerate("xyz")])
 

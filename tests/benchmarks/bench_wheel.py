@@ -108,9 +108,9 @@ def state_from_result(result) -> np.ndarray:
     values = {"theta0": np.deg2rad(p["theta0_deg"].value), "tilt": np.deg2rad(p["tilt_deg"].value)}
     for k in range(4):
         values[f"omega{k}"] = p[f"omega{k}"].value
-    for name, v in zip(("misalignment_theta", "misalignment_phi", "misalignment_psi"), p["misalignment_deg"].value):
+    for name, v in zip(("misalignment_theta", "misalignment_phi", "misalignment_psi"), p["misalignment_deg"].value, strict=True):
         values[name] = np.deg2rad(v)
-    for axis, g, o in zip("xyz", p["gain"].value, p["offset"].value):
+    for axis, g, o in zip("xyz", p["gain"].value, p["offset"].value, strict=True):
         values[f"gain_{axis}"], values[f"offset_{axis}"] = g, o
     return values
 

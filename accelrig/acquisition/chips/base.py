@@ -126,7 +126,7 @@ def plan_offsets(current_words: list[int], bias: np.ndarray) -> OffsetPlan:
     bias = np.asarray(bias, dtype=float).reshape(3)
     steps = [int(round(b / OFFSET_STEP)) for b in bias]
     new_words, meaning = [], []
-    for axis, (word, step) in enumerate(zip(current_words, steps)):
+    for axis, (word, step) in enumerate(zip(current_words, steps, strict=True)):
         new_words.append(offset_word(offset_value(word) - step, word & 1))
         meaning.append(f"offset {'xyz'[axis]}: bias {bias[axis]:+.5f} m/s^2 -> {-step:+d} steps of 0.98 mg")
     residual = bias - np.array(steps) * OFFSET_STEP

@@ -98,7 +98,7 @@ class ICM20948(AccelChip):
         self.regs.fifo_mode = 0
         self.regs.fifo_en_2 = FIFO_EN_ACCEL
         self.fifo_reset()
-        self.regs.int_status_2
+        _ = self.regs.int_status_2    # clear a stale overflow flag (read clears)
         self.regs.user_fifo_en = 1
 
     def fifo_reset(self) -> None:

@@ -97,7 +97,7 @@ class MPU9250(AccelChip):
         self.regs.fifo_mode = 0       # overwrite: an overflow is seen in INT_STATUS and by count
         self.regs.fifo_en = FIFO_EN_ACCEL
         self.fifo_reset()
-        self.regs.int_status          # clear a stale overflow flag (read clears)
+        _ = self.regs.int_status      # clear a stale overflow flag (read clears)
         self.regs.user_fifo_en = 1
 
     def fifo_reset(self) -> None:

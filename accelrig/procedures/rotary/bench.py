@@ -44,12 +44,12 @@ import numpy as np
 from scipy import signal
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.geometry import AXES, parse_axis
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.geometry import AXES, parse_axis
 from accelrig.procedures.rotary.settings import RATE_METHODS
-from accelrig.result import CalibrationResult, Estimate
 from accelrig.recording import Recording, load_recording, read_table
+from accelrig.result import CalibrationResult, Estimate
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 
 COMPONENTS = ("tangential", "centripetal", "dc")

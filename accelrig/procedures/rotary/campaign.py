@@ -235,7 +235,7 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
     k = campaign.coverage_factor
     warnings: list[str] = []
     obs: list[Observation] = []
-    for test, res in zip(campaign.tests, results):
+    for test, res in zip(campaign.tests, results, strict=True):
         obs += observations_of(test.index, test.sensor, res, campaign.components)
         warnings += [f"test {test.index} ({test.label}): {w}" for w in res.warnings]
     sensors = sorted({o.sensor for o in obs})
@@ -340,7 +340,7 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
 
     bland = [
         {"test": t.index, "label": t.label, **r.bland_altman}
-        for t, r in zip(campaign.tests, results) if r.bland_altman is not None
+        for t, r in zip(campaign.tests, results, strict=True) if r.bland_altman is not None
     ]
     parameters = {f"sensitivity_{sensor}_{axis}": Estimate(e["mean_sensitivity"], e["overall_uncertainty"],
                                                            "counts/(m/s^2)")
@@ -362,7 +362,7 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
             "correlation": campaign.correlation,
             "coverage_factor": k,
             "tests": [{"index": t.index, "sensor": t.sensor, "label": t.label, **r.to_json_dict()}
-                      for t, r in zip(campaign.tests, results)],
+                      for t, r in zip(campaign.tests, results, strict=True)],
             "per_axis": per_axis,
             "per_sensor": per_sensor,
             "batch": batch,

@@ -82,7 +82,7 @@ class RotaryProcedure(Procedure):
         self.capture = StepCapture(device)
 
     @classmethod
-    def create(cls, values: dict, device: dict) -> "RotaryProcedure":
+    def create(cls, values: dict, device: dict) -> RotaryProcedure:
         return cls(values, device)
 
     def next_step(self) -> RotaryStep | None:

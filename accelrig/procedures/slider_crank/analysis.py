@@ -32,6 +32,7 @@ and the verdict: does the static calibration hold under motion?
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from itertools import pairwise
 
 import numpy as np
 from scipy import stats
@@ -273,7 +274,7 @@ def speed_steadiness(t, y, frequency, harmonics):
         return False, 0.0
     edges = np.linspace(0, t.size, n_segments + 1).astype(int)
     values, sds = [], []
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in pairwise(edges):
         try:
             seg = fit_sine(t[a:b], y[a:b], frequency=frequency, harmonics=harmonics)
         except DataError:

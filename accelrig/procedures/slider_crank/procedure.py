@@ -58,7 +58,7 @@ class SliderCrankProcedure(Procedure):
         self.marked = "step" in self.device.get("channels", ())
 
     @classmethod
-    def create(cls, values: dict, device: dict, correction: Correction | None = None) -> "SliderCrankProcedure":
+    def create(cls, values: dict, device: dict, correction: Correction | None = None) -> SliderCrankProcedure:
         return cls(values, device, correction)
 
     # ------------------------------------------------------------------ what the operator reads

@@ -43,7 +43,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
-from accelrig.geometry import AXES, face_down_direction, rotation_xyz
+from accelrig.geometry import AXES, FACES, parse_axis, rotation_xyz
 from accelrig.procedures.static.settings import METHODS, MODELS
 from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY
@@ -56,7 +56,14 @@ AFFINE_UNITS = ["1"] * 9 + ["m/s^2"] * 3
 
 def face_reference(face: str, g: float = STANDARD_GRAVITY) -> np.ndarray:
     """Specific force (body frame) of a level pose with ``face`` down: that axis points down and reads -g."""
-    return -g * face_down_direction(face)
+    # Built element by element rather than as -g * direction: the product would put -0.0 in the two
+    # other axes, which changes the fits' last bits (results must not depend on how this was written).
+    axis, sign = parse_axis(face) if face in FACES else (None, None)
+    if axis is None:
+        raise ValueError(f"not a face: {face!r}")
+    f = np.zeros(3)
+    f[axis] = -sign * g
+    return f
 
 
 @dataclass

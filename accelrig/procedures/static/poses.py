@@ -31,6 +31,7 @@ calibration does not exist yet, and a wrong one must not hide motion):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -228,7 +229,7 @@ class PoseDetector:
         # Walk the runs of constant state.
         edges = np.flatnonzero(np.diff(still.astype(np.int8))) + 1
         bounds = np.concatenate([[0], edges, [d.size]])
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in pairwise(bounds):
             if still[a]:
                 if not self._still:
                     # Still since the start of the first quiet window.

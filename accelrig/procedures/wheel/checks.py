@@ -266,7 +266,7 @@ def half_turn_speeds(t: np.ndarray, y: np.ndarray, mean_speed: float, period: fl
     start, stop = times[:-1], times[1:]
     keep = dirs[1:] != dirs[:-1]
     if gap_times is not None and gap_times.size:
-        straddle = np.array([np.any((gap_times > a) & (gap_times < b)) for a, b in zip(start, stop)])
+        straddle = np.array([np.any((gap_times > a) & (gap_times < b)) for a, b in zip(start, stop, strict=True)])
         keep &= ~straddle
     mid = 0.5 * (start + stop)[keep]
     speed = np.pi / (stop - start)[keep]

@@ -75,7 +75,7 @@ def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, max_iter=60):
     cost = float(res @ res)
     lam = 1e-4
     iterations = 0
-    for iterations in range(1, max_iter + 1):
+    for iterations in range(1, max_iter + 1):  # noqa: B007 (the count is returned)
         a = jw.T @ jw
         grad = jw.T @ res
         d = np.sqrt(np.diag(a))

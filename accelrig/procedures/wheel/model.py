@@ -66,7 +66,7 @@ class WheelState:
         self.gain = np.asarray(self.gain, dtype=float).reshape(3)
         self.offset = np.asarray(self.offset, dtype=float).reshape(3)
 
-    def copy(self) -> "WheelState":
+    def copy(self) -> WheelState:
         return WheelState(self.theta0, self.omega.copy(), self.tilt, self.radius, self.rotation.copy(),
                           self.gain.copy(), self.offset.copy())
 
@@ -74,7 +74,7 @@ class WheelState:
     def euler(self) -> np.ndarray:
         return euler_from_rotation(self.rotation)
 
-    def canonical(self) -> "WheelState":
+    def canonical(self) -> WheelState:
         """Fold the model's discrete symmetries onto alpha in [0, pi/2], gains > 0, theta0 in [0, 2pi).
 
         alpha -> -alpha with theta -> theta + pi gives the same data; so does a

@@ -63,7 +63,7 @@ def plan_wheel(radius: float, tilt_deg: float, noise: float, rate: float, second
     deg = {"theta0", "tilt", *ROTATION_NAMES}
     units = {"theta0": "deg", "omega0": "rad/s", "omega1": "rad/s^2", "omega2": "rad/s^3", "omega3": "rad/s^4",
              "tilt": "deg", "gain_x": "1", "gain_y": "1", "gain_z": "1"}
-    for name, value, s in zip(reported_names(free), values, sd):
+    for name, value, s in zip(reported_names(free), values, sd, strict=True):
         factor = np.rad2deg(1.0) if name in deg else 1.0
         rows.append(PlanRow(name + ("_deg" if name in deg else ""), value * factor, s * factor,
                             units.get(name, "deg" if name in deg else "m/s^2")))

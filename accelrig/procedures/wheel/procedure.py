@@ -101,7 +101,7 @@ def calibrate_wheel(
         cov = _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, bootstrap, seed)
         crb = wheel_crb(t, state, free, sigma, g)
         quality = {"bootstrap_runs": bootstrap,
-                   "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb))))}
+                   "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb)), strict=True))}
         uncertainty_source = f"parametric bootstrap of the four steps ({bootstrap} runs)"
     elapsed = time.perf_counter() - started
     names = reported_names(free)

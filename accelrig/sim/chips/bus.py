@@ -64,7 +64,7 @@ class EmulatedBus:
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, force=None) -> list[int]:
         if length > SMBUS_BLOCK_MAX:
-            raise ValueError("Desired block length over %d bytes" % SMBUS_BLOCK_MAX)
+            raise ValueError(f"Desired block length over {SMBUS_BLOCK_MAX} bytes")
         dev = self._device(i2c_addr)
         self._spend([1, length])
         dev.pointer = register
@@ -72,7 +72,7 @@ class EmulatedBus:
 
     def write_i2c_block_data(self, i2c_addr: int, register: int, data, force=None) -> None:
         if len(data) > SMBUS_BLOCK_MAX:
-            raise ValueError("Data length cannot exceed %d bytes" % SMBUS_BLOCK_MAX)
+            raise ValueError(f"Data length cannot exceed {SMBUS_BLOCK_MAX} bytes")
         dev = self._device(i2c_addr)
         self._spend([1 + len(data)])
         dev.pointer = register

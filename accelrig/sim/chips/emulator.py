@@ -71,7 +71,7 @@ class ChipEmulator:
         # and the reserved bit 0 as the factory left it (set on some axes).
         self.factory_words = [
             ((int(v) << 1) & 0xFFFF) | int(b)
-            for v, b in zip(rng.integers(-3000, 3000, 3), rng.integers(0, 2, 3))
+            for v, b in zip(rng.integers(-3000, 3000, 3), rng.integers(0, 2, 3), strict=True)
         ]
         self._trim = np.array([offset_value(w) for w in self.factory_words])
         self._response_t = sensor.response_matrix.T   # the part does not change while it runs
@@ -95,7 +95,7 @@ class ChipEmulator:
         if self.who_am_i_value is not None:
             bank, reg = self.layout.who_am_i
             self.regs[bank][reg] = self.who_am_i_value
-        for (bank, reg), word in zip(self.layout.offsets, self.factory_words):
+        for (bank, reg), word in zip(self.layout.offsets, self.factory_words, strict=True):
             self.regs[bank][reg] = word >> 8
             self.regs[bank][reg + 1] = word & 0xFF
         self.bank = 0

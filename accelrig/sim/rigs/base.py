@@ -35,7 +35,7 @@ class Rig(abc.ABC):
 
     @classmethod
     @abc.abstractmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "Rig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> Rig:
         """Build the rig from its URL options, drawing any random script from ``rng``."""
 
     @abc.abstractmethod

@@ -44,8 +44,8 @@ import numpy as np
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DataError, DeviceError
-from accelrig.geometry import parse_axis as parse_axis_spec
 from accelrig.files import atomic_write
+from accelrig.geometry import parse_axis as parse_axis_spec
 from accelrig.sim import kinematics
 from accelrig.sim.rigs.base import Rig
 from accelrig.units import STANDARD_GRAVITY

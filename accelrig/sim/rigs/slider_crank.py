@@ -247,7 +247,7 @@ class SliderCrankRig(Rig):
         return self.specific_force(t) @ self.axis
 
     @classmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "SliderCrankRig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> SliderCrankRig:
         steps_text = url.get_str("steps")
         steps = (2.5, 4.0, 6.0, 8.0, 10.0, 11.0, 12.0, 13.0)
         if steps_text:

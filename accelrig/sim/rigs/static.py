@@ -119,7 +119,7 @@ class StaticRig(Rig):
         self.duration = t
 
     @classmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "StaticRig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StaticRig:
         order = parse_faces(url.get_str("order")) if url.get_str("order") else DEFAULT_ORDER
         return cls(rng, order=order, hold=url.get_float("hold", 4.0), tilt_deg=url.get_float("tilt", 0.0),
                    shake=url.get_float("shake", 3.0), moved=url.get_int("moved"),

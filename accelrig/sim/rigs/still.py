@@ -31,7 +31,7 @@ class StillRig(Rig):
         self._mounting = kinematics.level_mounting(np.roll(up_vector, 1), up_vector)
 
     @classmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "StillRig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StillRig:
         return cls(up=url.get_str("up", "+z").replace(" ", "+"), duration=url.get_float("seconds"))
 
     def orientation(self, t: np.ndarray) -> np.ndarray:

@@ -111,7 +111,7 @@ class WheelRig(Rig):
         ])
 
     @classmethod
-    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> "WheelRig":
+    def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> WheelRig:
         spin = url.get_choice("spin", ("normal", "barely"), "normal")
         speed = url.get_float("speed", BARELY_SPEED if spin == "barely" else DEFAULT_SPEED)
         omega = _floats(url, "omega", 4)

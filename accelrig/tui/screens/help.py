@@ -25,7 +25,7 @@ class HelpScreen(ModalScreen):
     def compose(self) -> ComposeResult:
         rows = []
         seen = set()
-        for key, active in self.below.active_bindings.items():
+        for active in self.below.active_bindings.values():
             binding = active.binding
             if not binding.description or (binding.action, binding.description) in seen:
                 continue

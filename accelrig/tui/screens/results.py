@@ -22,8 +22,8 @@ from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import format_plan, plan_flash
-from accelrig.result import CalibrationResult
 from accelrig.recording import Recording
+from accelrig.result import CalibrationResult
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.widgets.plot import LinePlot, Series
 
