@@ -36,7 +36,7 @@ class StaticProcedure(Procedure):
     """Six faces in any order (repeats add data), each held still; then the fit."""
 
     name = "static"
-    title = "static six-face calibration"
+    title = "six-face static calibration"
     settings = SETTINGS
     actions = {"redo": "redo a face"}   # act("redo", face="+x"): take that face again
 
