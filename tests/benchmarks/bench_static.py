@@ -34,7 +34,7 @@ from accelrig.procedures.static.fit import (
     paper_params_to_correction,
     static_crb,
 )
-from accelrig.procedures.static.procedure import calibrate_static, detect_poses
+from accelrig.procedures.static.procedure import calibrate_static, detect_poses, pose_data
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -69,7 +69,7 @@ def run_once(seed, sensor, tilt=0.0, models=(("paper", "vp"), ("paper", "paper")
     t0 = time.perf_counter()
     proc = detect_poses(rec)
     detect_seconds = time.perf_counter() - t0
-    data = proc.pose_data()
+    data = pose_data(proc.poses, proc.detector.g)
     fits = {}
     for model, method in models:
         t0 = time.perf_counter()
