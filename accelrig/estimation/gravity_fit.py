@@ -352,14 +352,14 @@ def multiposition_crb(matrix: np.ndarray, bias: np.ndarray, directions: np.ndarr
     """CRB (12 x 12, correction order, upper-triangular gauge) of a planned multi-position run.
 
     matrix, bias  the expected correction (any gauge: it is reduced to upper_gauge(matrix));
-    directions    (P, 3) directions of the specific force (calibrated frame, the axis up reads +g);
+    directions    (P, 3) directions of the specific force in the frame of ``matrix`` (the axis up reads +g);
     counts        samples per pose (scalar or P);  sigma  white noise sd per raw axis (m/s^2).
     """
     r = upper_gauge(matrix)
     dirs = np.asarray(directions, dtype=float).reshape(-1, 3)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(dirs),))
-    means = np.linalg.solve(r, (g * dirs).T).T + np.asarray(bias, dtype=float)
+    means = np.linalg.solve(np.asarray(matrix, dtype=float), (g * dirs).T).T + np.asarray(bias, dtype=float)
     x = np.concatenate([r.ravel()[list(UPPER_INDEX)], bias])
     _, jac, u = _multi_residual_jacobian(x, means, g)
     s = np.sqrt([sigma**2 / n * (uk @ r @ r.T @ uk) for uk, n in zip(u, counts)])
@@ -611,13 +611,16 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
 
 def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequence[str], counts, sigma: float,
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 params: np.ndarray | None = None) -> np.ndarray:
+                 params: np.ndarray | None = None, draws: int = 0, seed: int = 0) -> np.ndarray:
     """Bound (12 x 12, correction order) of a planned six-face run with the flatness prior.
 
-    The hybrid (Bayesian) CRB: the inverse of the data information at the truth (poses exactly on
-    their faces) plus the prior information of the tilts, marginal block of the model parameters,
-    propagated to the correction.  ``params`` gives the paper model's parameters directly (else they are
-    taken from ``matrix``, ``bias`` with zero angles only if C is diagonal: pass them).
+    The hybrid CRB: the inverse of the data information at zero tilt plus the prior information of the
+    tilts, marginal block of the model parameters, propagated to the correction (``draws`` > 0 averages
+    the data information over tilts drawn from the prior instead: the Van Trees form).  Both are first
+    order: the affine model's offsets carry a further ~ g s^2 / 2 from the product of the unknown tilt
+    difference of a face pair and its shear (docs/static-tilt-notes.md), which no first-order bound shows.
+    With flatness 0 it is the plain CRB.
+    ``params`` gives the paper model's parameters (else derived from ``matrix``, ``bias`` with zero angles).
     """
     m = _Model(model)
     counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(faces),))
@@ -627,8 +630,13 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     tau = float(np.tan(np.radians(pose_flatness_deg)))
     system, n_t = _six_face_system(m, poses, g, tau)
     p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
-    _, jac = system(np.concatenate([p, np.zeros(n_t)]))
-    cov = np.linalg.inv(jac.T @ jac)[:m.size, :m.size]
+    rng = np.random.default_rng(seed)
+    samples = [np.zeros(n_t)] if n_t == 0 or draws == 0 else [tau * rng.standard_normal(n_t) for _ in range(draws)]
+    info = np.zeros((m.size + n_t, m.size + n_t))
+    for t in samples:
+        jac = system(np.concatenate([p, t]))[1]
+        info += jac.T @ jac / len(samples)
+    cov = np.linalg.inv(info)[:m.size, :m.size]
     return propagate_covariance(m.to_correction, p, cov)[1]
 
 
