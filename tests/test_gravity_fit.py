@@ -28,7 +28,7 @@ from accelrig.estimation.gravity_fit import (
     six_face_crb,
     upper_gauge,
 )
-from accelrig.procedures.static_faces import detect_poses
+from accelrig.procedures.static.procedure import detect_poses
 from accelrig.recording import load_recording
 
 DATA = Path(__file__).parent / "data"
@@ -43,7 +43,7 @@ _spec.loader.exec_module(bench)
 
 
 def _poses(name: str) -> list[PoseStats]:
-    proc = detect_poses(load_recording(DATA / name), face_tolerance_deg=90.0)   # every still pose, any angle
+    proc = detect_poses(load_recording(DATA / name))   # every still pose, any angle
     return [PoseStats.from_samples(p.samples, p.face, f"pose {k + 1}") for k, p in enumerate(proc.poses)]
 
 

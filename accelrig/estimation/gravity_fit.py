@@ -52,7 +52,7 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
-from accelrig.estimation.crb import numerical_jacobian, propagate_covariance, unidentifiable_direction
+from accelrig.estimation.crb import propagate_covariance, unidentifiable_direction
 from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
 from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY
@@ -105,7 +105,7 @@ class PoseStats:
             raise CalibrationError(f"pose {self.name or '?'}: {self.face!r} is not a face", "faces are +x, -x, +y, -y, +z, -z")
 
     @classmethod
-    def from_samples(cls, samples: np.ndarray, face: str | None = None, name: str = "") -> "PoseStats":
+    def from_samples(cls, samples: np.ndarray, face: str | None = None, name: str = "") -> PoseStats:
         x = np.asarray(samples, dtype=float).reshape(-1, 3)
         if len(x) < 2:
             raise CalibrationError(f"pose {name or '?'}: needs at least 2 samples")
@@ -296,15 +296,15 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
     def sds(x, extra_var):
         _, _, u = _multi_residual_jacobian(x, means, g)
         c_mat = _upper(x)
-        return np.sqrt([uk @ c_mat @ v @ c_mat.T @ uk + extra_var for uk, v in zip(u, covs)])
+        return np.sqrt([uk @ c_mat @ v @ c_mat.T @ uk + extra_var for uk, v in zip(u, covs, strict=True)])
 
     def solve(extra_var):
         nonlocal n_eval
         x = x_start
         for _ in range(3):                   # weights s_p from the current C (they change little)
             s = sds(x, extra_var)
-            sol = least_squares(lambda y: _multi_residual_jacobian(y, means, g)[0] / s, x,
-                                jac=lambda y: _multi_residual_jacobian(y, means, g)[1] / s[:, None],
+            sol = least_squares(lambda y, s=s: _multi_residual_jacobian(y, means, g)[0] / s, x,
+                                jac=lambda y, s=s: _multi_residual_jacobian(y, means, g)[1] / s[:, None],
                                 method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=500)
             x, n_eval = sol.x, n_eval + int(sol.nfev)
         signs = np.sign(np.diag(_upper(x)))  # the sign of a row of C is a gauge too: keep the diagonal positive
@@ -362,7 +362,7 @@ def multiposition_crb(matrix: np.ndarray, bias: np.ndarray, directions: np.ndarr
     means = np.linalg.solve(np.asarray(matrix, dtype=float), (g * dirs).T).T + np.asarray(bias, dtype=float)
     x = np.concatenate([r.ravel()[list(UPPER_INDEX)], bias])
     _, jac, u = _multi_residual_jacobian(x, means, g)
-    s = np.sqrt([sigma**2 / n * (uk @ r @ r.T @ uk) for uk, n in zip(u, counts)])
+    s = np.sqrt([sigma**2 / n * (uk @ r @ r.T @ uk) for uk, n in zip(u, counts, strict=True)])
     jw = jac / s[:, None]
     problem = unidentifiable_direction(jw, MULTI_NAMES)
     if problem:
@@ -454,7 +454,7 @@ def _six_face_system(model: _Model, poses: Sequence[PoseStats], g: float, tau: f
 
     def directions(t):
         out, derivs = [], []
-        for k, (e, (t1, t2)) in enumerate(zip(downs, tangents)):
+        for k, (e, (t1, t2)) in enumerate(zip(downs, tangents, strict=True)):
             if tau > 0:
                 a, b = t[2 * k], t[2 * k + 1]
                 v = e + a * t1 + b * t2
@@ -474,7 +474,7 @@ def _six_face_system(model: _Model, poses: Sequence[PoseStats], g: float, tau: f
         ds, dds = directions(t)
         res = np.zeros(3 * n_pose + n_t)
         jac = np.zeros((3 * n_pose + n_t, n_m + n_t))
-        for i, (d, dd, wi, m) in enumerate(zip(ds, dds, whiten, means)):
+        for i, (d, dd, wi, m) in enumerate(zip(ds, dds, whiten, means, strict=True)):
             f = -g * d
             pred = k_mat @ f + o
             rows = slice(3 * i, 3 * i + 3)
@@ -498,7 +498,7 @@ def _six_face_system(model: _Model, poses: Sequence[PoseStats], g: float, tau: f
 
 def _require_faces(poses: Sequence[PoseStats]) -> None:
     missing = [f for f in FACES if not any(p.face == f for p in poses)]
-    unnamed = [n for p, n in zip(poses, _names(poses)) if p.face is None]
+    unnamed = [n for p, n in zip(poses, _names(poses), strict=True) if p.face is None]
     if unnamed:
         raise CalibrationError(f"six-face mode needs the face of every pose; {', '.join(unnamed)} has none",
                                "classify the poses first (face_tilts) or use the multi-position fit")
@@ -626,7 +626,7 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(faces),))
     c = np.asarray(matrix, dtype=float)
     k_true, o_true = np.linalg.inv(c), np.asarray(bias, dtype=float)
-    poses = [PoseStats(k_true @ (-g * face_down_direction(f)) + o_true, sigma, n, f) for f, n in zip(faces, counts)]
+    poses = [PoseStats(k_true @ (-g * face_down_direction(f)) + o_true, sigma, n, f) for f, n in zip(faces, counts, strict=True)]
     tau = float(np.tan(np.radians(pose_flatness_deg)))
     system, n_t = _six_face_system(m, poses, g, tau)
     p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
@@ -711,7 +711,7 @@ def face_tilts(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY) -> list[
         if sol.success and np.all(sol.x[:3] > 0):
             corrected = (means - sol.x[3:]) * sol.x[:3]
     out = []
-    for name, v in zip(_names(poses), corrected):
+    for name, v in zip(_names(poses), corrected, strict=True):
         k = int(np.argmax(np.abs(v)))
         angle = float(np.degrees(np.arccos(min(abs(v[k]) / np.linalg.norm(v), 1.0))))
         out.append(FaceTilt(name, ("+" if v[k] < 0 else "-") + AXES[k], angle))

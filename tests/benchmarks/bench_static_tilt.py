@@ -112,7 +112,7 @@ def draw_poses(rng, c_mat, bias, kind, table_deg, hand_deg):
             v = rng.standard_normal(3)
             downs.append(v / np.linalg.norm(v))
     faces = FACE_LIST if kind == "faces" else [None] * len(downs)
-    for d, face in zip(downs, faces):
+    for d, face in zip(downs, faces, strict=True):
         mean = k_mat @ (-G * d) + bias + SIGMA / np.sqrt(N) * rng.standard_normal(3)
         poses.append(PoseStats(mean, SIGMA, N, face))
     return poses, np.array(downs)
@@ -130,17 +130,17 @@ def run_scenario(name, runs, seed):
         if kind == "sphere":
             truth = np.concatenate([upper_gauge(c_mat).ravel(), bias])
             bound = np.sqrt(np.diag(multiposition_crb(c_mat, bias, -downs, N, SIGMA, G)))
-            fits = {"multi-position": lambda: fit_multiposition(poses, G)}
+            fits = {"multi-position": lambda poses=poses: fit_multiposition(poses, G)}
             bounds = {"multi-position": bound}
         else:
             truth = np.concatenate([c_mat.ravel(), bias])
             b_aff = np.sqrt(np.diag(six_face_crb("affine", c_mat, bias, FACE_LIST, N, SIGMA, stated, G)))
             b_pap = np.sqrt(np.diag(six_face_crb("paper", c_mat, bias, FACE_LIST, N, SIGMA, stated, G, params=paper)))
             fits = {
-                "six-face affine": lambda: fit_six_face(poses, "affine", stated, G),
-                "six-face paper": lambda: fit_six_face(poses, "paper", stated, G),
-                "ferraris": lambda: fit_ferraris(poses, G),
-                "exact-face paper": lambda: fit_six_face(poses, "paper", 0.0, G, inflation="none"),
+                "six-face affine": lambda poses=poses: fit_six_face(poses, "affine", stated, G),
+                "six-face paper": lambda poses=poses: fit_six_face(poses, "paper", stated, G),
+                "ferraris": lambda poses=poses: fit_ferraris(poses, G),
+                "exact-face paper": lambda poses=poses: fit_six_face(poses, "paper", 0.0, G, inflation="none"),
             }
             bounds = {"six-face affine": b_aff, "six-face paper": b_pap, "ferraris": b_aff, "exact-face paper": b_pap}
         for model, fit_fn in fits.items():
