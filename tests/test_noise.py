@@ -219,9 +219,7 @@ def test_slow_bump_is_refused_with_when():
 
 
 def test_real_xsens_multipose_refused_by_cli():
-    path = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "imutk-xsens-multipose.csv"
-    if not path.exists():
-        pytest.skip(f"{path} not here")
+    path = Path(__file__).parent / "data" / "imutk-xsens-multipose.csv"
     r = run_cli("noise", str(path))
     assert r.returncode != 0 and r.stdout == ""
     assert r.stderr.count("\n") == 1 and "turned" in r.stderr and "resting" in r.stderr
