@@ -53,3 +53,10 @@ def axis_vector(spec: str) -> np.ndarray | None:
     v = np.zeros(3)
     v[parsed[0]] = parsed[1]
     return v
+
+
+def face_down_direction(face: str) -> np.ndarray:
+    """Unit vector (sensor frame) of the axis that points down when the housing rests on ``face``."""
+    if face not in FACES:
+        raise ValueError(f"not a face: {face!r}")
+    return axis_vector(face)

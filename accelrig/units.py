@@ -30,8 +30,6 @@ _UNIT_ALIASES = {
     "lsb": "counts",
 }
 
-ACCEL_UNITS = ("m/s^2", "g", "counts")
-
 
 def normalise_unit(unit: str) -> str:
     """Return the canonical spelling of an acceleration unit or raise DataError."""

@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from accelrig.commands.noise import still_stretch
 from accelrig.errors import DataError
 from accelrig.estimation.allan import allan_deviation, axis_noise, noise_figures
 from accelrig.recording import Recording, read_csv, write_csv
@@ -80,6 +82,9 @@ def test_random_walk_and_flicker_are_found_when_present():
     # the minimum of a noisy flat curve is biased low, white noise adds a little: within -15 % .. +25 %
     assert 0.85 < an.bias_instability.value / b_true < 1.25
     assert an.bias_instability_tau > 1.0
+    # read at a flat bottom, and says where: the slopes either side are flat, not a fall and a rise
+    before, after = an.bias_instability_slopes
+    assert abs(before) < 0.3 and abs(after) < 0.3
 
 
 def test_gaps_and_short_records_are_refused():
@@ -146,3 +151,75 @@ def test_noise_cli_table_json_and_profile(tmp_path, cli):
     assert r.returncode != 0
     assert r.stderr.count("\n") == 1 and "someone-else" in r.stderr and "--force" in r.stderr
     assert other.read_text() == before
+
+
+def with_added(rec: Recording, extra: np.ndarray) -> Recording:
+    return Recording(rec.t, rec.acc + extra, rec.units, dict(rec.channels), dict(rec.meta))
+
+
+def test_sinusoid_hump_is_not_bias_instability():
+    """White noise plus a 12 s oscillation (0.5 mg): the dip before its hump is no flat bottom."""
+    rng = np.random.default_rng(3)
+    fs, density = 100.0, 300e-6 * G
+    t = np.arange(int(600 * fs)) / fs
+    white = rng.standard_normal(t.size) * density * np.sqrt(fs / 2)
+    an = axis_noise(allan_deviation(white + 5e-3 * np.sin(2 * np.pi * t / 12.0), fs))
+    assert an.bias_instability is None and an.bias_instability_slopes is None
+    assert any("hump" in n and "periodic" in n for n in an.notes), an.notes
+    assert abs(an.density.value - density) < 3 * an.density.uncertainty
+
+
+def test_still_white_noise_is_accepted_whole():
+    rec = still(300, seconds=120, seed=11)
+    start, stop = still_stretch(rec.to_si())
+    report = noise_figures(rec, (start, stop))
+    assert report.still_segment["of_total"] - report.still_segment["seconds"] < 1.0
+    for axis in "xyz":
+        d = report.axes[axis].density
+        assert abs(d.value - 300e-6 * G) < 3 * d.uncertainty + 0.001 * 300e-6 * G
+
+
+def test_hand_rotation_is_refused():
+    """Turned by hand: gravity sweeps round the sensor, a few seconds per quarter turn."""
+    t = np.arange(int(60 * 200)) / 200.0
+    angle = 0.5 * t + 0.3 * np.sin(1.3 * t)
+    acc = G * np.column_stack([np.sin(angle), np.zeros_like(t), np.cos(angle)])
+    acc += np.random.default_rng(2).standard_normal(acc.shape) * 0.03
+    with pytest.raises(DataError, match="moving throughout|turned") as e:
+        still_stretch(Recording(t, acc))
+    assert "resting" in e.value.hint and "\n" not in str(e.value)
+
+
+def test_knock_is_excluded_and_stated():
+    """Still for 120 s but knocked for 2 s at t = 60 s: read on the longer still side, within 10 %."""
+    rec = still(300, seconds=120, seed=4)
+    tt = rec.t - 60.0
+    knock = np.zeros_like(rec.acc)
+    inside = (tt >= 0) & (tt < 2)
+    knock[inside, 0] = 3.0 * np.sin(2 * np.pi * 8 * tt[inside]) * np.exp(-tt[inside])
+    knocked = with_added(rec, knock)
+    assert noise_figures(knocked).axes["x"].density.value > 2 * 300e-6 * G     # read whole, it is wrong
+    start, stop = still_stretch(knocked.to_si())
+    assert stop < 60.0 or start > 62.0
+    report = noise_figures(knocked, (start, stop))
+    assert report.still_segment["seconds"] > 55 and report.still_segment["of_total"] == pytest.approx(120, abs=0.1)
+    for axis in "xyz":
+        assert abs(report.axes[axis].density.value / (300e-6 * G) - 1) < 0.10
+
+
+def test_slow_bump_is_refused_with_when():
+    """A 2 s push (0.3 m/s^2, below the motion threshold) while resting: the detector calls it moved."""
+    rec = still(300, seconds=120, seed=5)
+    tt = rec.t - 60.0
+    bump = np.zeros_like(rec.acc)
+    inside = (tt >= 0) & (tt < 2)
+    bump[inside, 0] = 0.3 * np.sin(np.pi * tt[inside] / 2)
+    with pytest.raises(DataError, match=r"not still: .*moved .*t = 6\d\.\d s"):
+        still_stretch(with_added(rec, bump).to_si())
+
+
+def test_real_xsens_multipose_refused_by_cli():
+    path = Path(__file__).parent / "data" / "imutk-xsens-multipose.csv"
+    r = run_cli("noise", str(path))
+    assert r.returncode != 0 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and "turned" in r.stderr and "resting" in r.stderr

@@ -23,7 +23,7 @@ def six_face_csv(tmp_path_factory):
 
 def test_json_holds_the_contracted_fields(six_face_csv, capsys):
     path, rec = six_face_csv
-    assert main(["calibrate", "static", str(path), "--json"]) == 0
+    assert main(["calibrate", "static", str(path), "--model", "paper", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["method"] == "vp" and out["model"] in ("paper", "affine")
     corr = out["correction"]

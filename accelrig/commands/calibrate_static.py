@@ -1,4 +1,5 @@
-"""accelrig calibrate static REC.csv [--model paper|affine|auto] [--method vp|paper] [--json] [-o PROFILE.yaml]
+"""accelrig calibrate static REC.csv [--model auto|six-face|multi-position|paper|affine] [--pose-flatness-deg D]
+[--method vp|paper] [--json] [-o PROFILE.yaml]
 
 The procedure's flags come from its declared settings (accelrig.procedures.static.settings);
 the numerical machinery is imported only when the command runs, so --help stays quick.
@@ -14,10 +15,11 @@ from accelrig.settings import add_arguments, values_from_args
 def register(sub, groups) -> None:
     p = groups["calibrate"].add_parser(
         "static",
-        help="six-face static calibration (paper 000): 9-parameter or affine model",
+        help="static calibration from still poses: six faces (tilt-robust) or any orientations",
         description="Calibrate from a recording of the sensor held still on each of its six faces "
-        "(any order, repeats add data) with handling in between. Poses are found on the raw data; "
-        "'+z down' means the +z axis points down (reads -g).",
+        "(any order, repeats add data), or in at least 9 orientations (multi-position), with handling in "
+        "between. Poses are found on the raw data; '+z down' means the +z axis points down (reads -g). "
+        "A pose too far from a face for six-face mode is refused by name; no profile is written then.",
     )
     p.add_argument("recording", help="recording (.csv interchange or .npz)")
     add_arguments(p, SETTINGS)
@@ -61,16 +63,20 @@ def _write_profile(result, rec, path) -> None:
 
 
 def text_report(result) -> str:
-    """What a person reads: faces, parameters with k = 1 uncertainties, the correction, warnings."""
+    """What a person reads: every still pose and its fate, parameters with k = 1 uncertainties, the
+    correction, what the uncertainty holds, warnings."""
     import numpy as np
 
     q = result.quality
     lines = [f"static calibration: model {result.model}, method {result.method}, "
-             f"{q['n_poses']} poses, {q['n_samples']} samples, noise sd {q['noise_sd']:.4f} m/s^2"]
-    lines.append("  face   start    stop      n  noise sd  residual (m/s^2)")
-    for f in q["faces"]:
-        lines.append(f"  {f['face']:>4} {f['start']:7.2f} {f['stop']:7.2f} {f['n']:6d}  {f['noise_sd']:.4f}   "
-                     f"{f['residual_norm']:.4f}")
+             f"{q['n_poses']} of {q['n_poses_found']} still poses used, {q['n_samples']} samples, "
+             f"noise sd {q['noise_sd']:.4f} m/s^2"]
+    lines.append("  pose   start    stop      n  nearest face  fate        |g| residual (m/s^2)")
+    for r in result.details["poses"]:
+        fit = f"{r['magnitude_residual']:+.4f}" if "magnitude_residual" in r else r["reason"]
+        lines.append(f"  {r['index']:4d} {r['start']:7.2f} {r['stop']:7.2f} {r['n']:6d}  {r['face']:>4} "
+                     f"{r['angle_deg']:5.1f} deg  "
+                     f"{r['fate']:10s}  {fit}")
     lines.append("parameters (standard uncertainty, k = 1):")
     for name, est in result.parameters.items():
         value, unc, unit = est.value, est.uncertainty, est.unit
@@ -82,9 +88,9 @@ def text_report(result) -> str:
     for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):
         lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
     lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
-    sel = q["model_selection"]
-    lines.append("models: " + "; ".join(f"{m} chi2 {s['chi2']:.1f}/{s['dof']} dof, AIC {s['aic']:.1f}"
-                                        for m, s in sel.items()))
-    lines.append(f"residual rms {q['residual_rms']:.4f} m/s^2")
+    lines.append(f"lack of fit: chi2 {q['chi2']:.1f} for {q['dof']} dof (p = {q['p_value']:.3g})")
+    lines.append(f"uncertainty: {q['uncertainty_source']}")
+    lines.append(f"residual rms {q['residual_rms']:.4f} m/s^2, largest |g| residual of a pose "
+                 f"{q['max_magnitude_residual']:.4f} m/s^2")
     lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines)

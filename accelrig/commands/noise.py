@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from accelrig.geometry import AXES
 from accelrig.units import STANDARD_GRAVITY
 
 UG = 1e6 / STANDARD_GRAVITY   # (m/s^2) -> micro-g
+ONE_ORIENTATION_DEG = 2.0     # still stretches further apart than this: the sensor was turned, not knocked
+MAX_MOVING_FRACTION = 0.10    # a still recording moves (or is trimmed at still-motion edges) at most this much
+EXCLUDED_SILENTLY = 1.0       # s: the detector's edge trims; more left out than this is said on stderr
 
 
 def register(sub, groups) -> None:
@@ -39,12 +44,17 @@ def run(args) -> int:
         profile = load_profile(args.profile)   # refuse a bad profile before computing anything
         for w in check_compatible(profile, rec.meta, "m/s^2", args.force):
             print(f"accelrig: warning: {w}", file=sys.stderr)
-    report = noise_figures(rec)
+    start, stop = still_stretch(rec.to_si())
+    report = noise_figures(rec, (start, stop))
+    seg = report.still_segment
+    if seg["of_total"] - seg["seconds"] > EXCLUDED_SILENTLY:
+        print(f"accelrig: note: the sensor was disturbed; reading only its longest still stretch, "
+              f"t = {start:.1f}-{stop:.1f} s ({seg['seconds']:.1f} s of {seg['of_total']:.1f} s)", file=sys.stderr)
     if profile is not None:
         profile.data["noise"] = report.to_profile_dict(utc_now())
         save_profile(profile, args.profile)
     if args.json:
-        section = report.to_profile_dict(utc_now())
+        section = report.to_json_dict(utc_now())
         section["arrays"] = {k: v.tolist() for k, v in report.arrays().items()}
         print(to_json(section))
         return 0
@@ -54,11 +64,53 @@ def run(args) -> int:
     return 0
 
 
+def still_stretch(rec) -> tuple[float, float]:
+    """(start, stop) in s of the stretch to read the noise from: the longest still pose the static
+    procedure's detector finds (any orientation counts). Refuses, in one line, a recording that is
+    not of a sensor resting in one position apart from short disturbances (see docs/noise.md)."""
+    from accelrig.errors import DataError
+    from accelrig.procedures.static.poses import PoseDetector, full_scale_of
+
+    detector = PoseDetector(rec.rate, face_tolerance_deg=90.0, full_scale=full_scale_of(rec.meta))
+    detector.feed(rec.t, rec.acc)
+    detector.finish()
+    poses, total = detector.poses, rec.duration
+    todo = "record the sensor resting on a bench, untouched, in one position"
+    if not poses:
+        shifted = [p for p in detector.rejected if p.problem in ("moved", "saturated")]
+        if shifted:
+            raise DataError(f"the sensor was not still: {shifted[0].detail.rsplit(': ', 1)[0]}", todo)
+        span = float(np.linalg.norm(np.ptp(rec.acc, axis=0)))
+        raise DataError(f"the sensor was moving throughout t = {rec.t[0]:.1f}-{rec.t[-1]:.1f} s (its acceleration "
+                        f"spans {span:.1f} m/s^2): never still for {detector.min_hold:g} s", todo)
+    longest = max(poses, key=lambda p: p.duration)
+    angles = [angle_deg(p.mean, longest.mean) for p in poses]
+    if max(angles) > ONE_ORIENTATION_DEG:
+        far = poses[int(np.argmax(angles))]
+        raise DataError(f"the sensor was turned: it rested in {len(poses)} positions up to {max(angles):.0f} degrees "
+                        f"apart (t = {longest.start:.1f} s and t = {far.start:.1f} s, with motion between)", todo)
+    moving = total - sum(p.duration for p in poses)
+    if moving > MAX_MOVING_FRACTION * total:
+        first = min(poses, key=lambda p: p.start)
+        when = rec.t[0] if first.start - rec.t[0] > EXCLUDED_SILENTLY else first.stop
+        raise DataError(f"the sensor moved for {moving:.1f} s of {total:.1f} s (first at t = {when:.1f} s), more than "
+                        f"{MAX_MOVING_FRACTION:.0%} of the recording: not a still recording", todo)
+    return longest.start, longest.stop
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle between two mean accelerations (the direction of gravity in the sensor), degrees."""
+    cos = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return float(np.degrees(np.arccos(min(max(cos, -1.0), 1.0))))
+
+
 def noise_table(report) -> str:
     """The closing-note table: one row per axis, datasheet units."""
     lines = [
         f"{report.n_samples} samples, {report.duration:.1f} s at {report.rate:.2f} Hz; "
         "overlapping Allan deviation at octave taus; uncertainties k = 1",
+        *([f"read on the longest still stretch, t = {seg['start']:.1f}-{seg['stop']:.1f} s of a "
+           f"{seg['of_total']:.1f} s recording"] if (seg := report.still_segment) else []),
         "",
         "| axis | density ug/sqrt(Hz) | density (m/s^2)/sqrt(Hz) | bias instability ug (tau) | rate random walk (m/s^2)/sqrt(s) |",
         "|---|---|---|---|---|",

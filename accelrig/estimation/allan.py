@@ -40,6 +40,7 @@ SLOPE_TOLERANCE = 0.1             # how far a log-log slope may stray from -1/2 
 SLOPE_SIGMAS = 2.0                # ... beyond its own statistical scatter
 MIN_SAMPLES = 64
 MIN_EDF_BIAS = 20.0              # trust a minimum only where sigma is known to ~16 %
+HUMP_TAU_PER_PERIOD = 0.37        # a sinusoid's Allan deviation peaks at tau = 0.37 x its period
 
 
 @dataclass
@@ -125,6 +126,7 @@ class AxisNoise:
     density: Estimate                       # (m/s^2)/sqrt(Hz), one-sided
     bias_instability: Estimate | None       # m/s^2
     bias_instability_tau: float | None      # s
+    bias_instability_slopes: tuple[float, float] | None   # log-log slopes just before and after that tau
     random_walk: Estimate | None            # (m/s^2)/sqrt(s)
     white_points: np.ndarray                # indices of the taus on the white-noise line
     notes: list[str] = field(default_factory=list)
@@ -135,6 +137,15 @@ class AxisNoise:
             "bias_instability": None if self.bias_instability is None else self.bias_instability.to_dict(),
             "bias_instability_tau": self.bias_instability_tau,
             "random_walk": None if self.random_walk is None else self.random_walk.to_dict(),
+        }
+
+    def reading(self) -> dict:
+        """Where the bias instability was read (or why not) and the notes: the JSON beside the figures."""
+        slopes = self.bias_instability_slopes
+        return {
+            "bias_instability_read_at": None if slopes is None else {
+                "tau": self.bias_instability_tau, "slope_before": slopes[0], "slope_after": slopes[1]},
+            "notes": list(self.notes),
         }
 
 
@@ -158,6 +169,61 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     if start is not None:
         runs.append((start, len(mask)))
     return runs
+
+
+def _bias_instability(curve: AllanCurve, density: float, slope: np.ndarray, white_end: int
+                      ) -> tuple[Estimate | None, float | None, tuple[float, float] | None, int, str]:
+    """Bias instability at a flat bottom of the curve: (estimate, tau, slopes around it, index of the
+    minimum, reason when not reached).
+
+    The minimum is taken over the points with enough degrees of freedom to trust (flicker edf >=
+    MIN_EDF_BIAS) and read only where (1) the curve has no hump from the end of the white-noise line
+    (``white_end``) to two octaves past the minimum (a sinusoid of period P makes one near tau = 0.37 P:
+    the dip before it, or the trough after it, is no bias instability), (2) it lies clearly (3 sd) above
+    the white-noise line (for white noise the minimum is just the last point still falling), (3) no slope
+    within two octaves after it is steeper than a random walk's +1/2 by 2 sd (a sinusoid's rise, or a
+    drift ramp's: conservative), and (4) both neighbours agree with it within 2 combined sd: a flat
+    bottom, not a dip between a fall and a rise. Uncertainties from the flicker edf.
+    """
+    edf = np.array([flicker_edf(curve.n_samples, float(m)) for m in curve.m])
+    r = 1.0 / np.sqrt(2.0 * edf)
+    u_slope = np.sqrt(r[1:] ** 2 + r[:-1] ** 2) / np.log(curve.tau[1:] / curve.tau[:-1])
+    candidates = np.flatnonzero(edf >= MIN_EDF_BIAS)
+    k = int(np.argmin(curve.adev))
+    if candidates.size < 2:
+        return None, None, None, k, f"fewer than 2 points of the curve have {MIN_EDF_BIAS:.0f} degrees of freedom"
+    k = int(candidates[np.argmin(curve.adev[candidates])])
+    # A hump between the white-noise line and two octaves past the minimum: a point clearly (2 combined
+    # sd) above a point before it and one after it. Flicker and random walk never make one.
+    humps = [j for j in range(white_end + 1, min(k + 3, curve.tau.size - 1))
+             if np.any(curve.adev[j] > curve.adev[white_end:j] * (1.0 + SLOPE_SIGMAS * np.hypot(r[white_end:j], r[j])))
+             and np.any(curve.adev[j] > curve.adev[j + 1:] * (1.0 + SLOPE_SIGMAS * np.hypot(r[j + 1:], r[j])))]
+    if humps:
+        j = max(humps, key=lambda i: curve.adev[i])
+        return None, None, None, k, (
+                f"the curve has a hump at tau = {curve.tau[j]:.3g} s: a periodic disturbance (period roughly "
+                f"{curve.tau[j] / HUMP_TAU_PER_PERIOD:.2g} s), not a flat bottom")
+    white_line = density / np.sqrt(2.0 * curve.tau[k])
+    if not curve.adev[k] > white_line * (1.0 + 3.0 * curve.relative_uncertainty[k]):
+        return None, None, None, k, "the Allan deviation is still falling at the longest tau"
+    if k == 0 or k == curve.tau.size - 1:
+        return None, None, None, k, f"the minimum is at the end of the curve (tau = {curve.tau[k]:.3g} s)"
+    after = np.arange(k, min(k + 2, slope.size))
+    steep = after[slope[after] - SLOPE_SIGMAS * u_slope[after] > 0.5]
+    if steep.size:
+        j = int(steep[0])
+        return None, None, None, k, (
+            f"the curve rises with slope {slope[j]:+.2f} after tau = {curve.tau[k]:.3g} s, steeper than a random "
+            "walk's +1/2 (a sinusoid or a drift ramp rises at +1): not a flat bottom")
+    for j in (k - 1, k + 1):
+        if abs(curve.adev[j] / curve.adev[k] - 1.0) > SLOPE_SIGMAS * np.hypot(r[j], r[k]):
+            return None, None, None, k, (
+                f"no flat bottom: at tau = {curve.tau[j]:.3g} s the curve differs from its minimum at "
+                f"tau = {curve.tau[k]:.3g} s by {100 * (curve.adev[j] / curve.adev[k] - 1):+.0f} %, "
+                "beyond 2 sd")
+    b = curve.adev[k] / BIAS_INSTABILITY_FACTOR
+    return (Estimate(float(b), float(b * r[k]), "m/s^2"), float(curve.tau[k]),
+            (float(slope[k - 1]), float(slope[k])), k, "")
 
 
 def axis_noise(curve: AllanCurve) -> AxisNoise:
@@ -187,24 +253,9 @@ def axis_noise(curve: AllanCurve) -> AxisNoise:
     density_u = density * float(np.min(r[points]))
     notes: list[str] = []
 
-    # Bias instability: the minimum over the points with enough degrees of freedom to trust
-    # (flicker edf >= MIN_EDF_BIAS), and only where the curve really flattened away from the
-    # white line: for pure white noise the minimum is just the last point still falling.
-    white_line = density / np.sqrt(2.0 * curve.tau)
-    edf_flicker = np.array([flicker_edf(curve.n_samples, float(m)) for m in curve.m])
-    candidates = np.flatnonzero(edf_flicker >= MIN_EDF_BIAS)
-    bias = bias_tau = None
-    k_min = int(np.argmin(curve.adev))
-    if candidates.size >= 2:
-        k_min = int(candidates[np.argmin(curve.adev[candidates])])
-        flattened = curve.adev[k_min] > white_line[k_min] * (1.0 + 3.0 * r[k_min])
-        turned = k_min < candidates[-1] or slope[k_min - 1] > -0.25
-        if flattened and turned:
-            b = curve.adev[k_min] / BIAS_INSTABILITY_FACTOR
-            bias = Estimate(float(b), float(b * _relative(edf_flicker[k_min])), "m/s^2")
-            bias_tau = float(curve.tau[k_min])
+    bias, bias_tau, bias_slopes, k_min, reason = _bias_instability(curve, density, slope, int(points[-1]))
     if bias is None:
-        notes.append("bias instability not reached: the Allan deviation is still falling at the longest tau")
+        notes.append(f"bias instability not reached: {reason}")
 
     # Rate random walk: >= 2 slopes at +1/2 after the minimum, clearly above it.
     random_walk = None
@@ -226,6 +277,7 @@ def axis_noise(curve: AllanCurve) -> AxisNoise:
         density=Estimate(density, density_u, "m/s^2/sqrt(Hz)"),
         bias_instability=bias,
         bias_instability_tau=bias_tau,
+        bias_instability_slopes=bias_slopes,
         random_walk=random_walk,
         white_points=points,
         notes=notes,
@@ -242,6 +294,7 @@ class NoiseReport:
     curves: dict[str, AllanCurve]
     axes: dict[str, AxisNoise]
     recording_hash: str | None = None
+    still_segment: dict | None = None    # start, stop, seconds, of_total (s) when only a stretch was read
 
     def arrays(self) -> dict[str, np.ndarray]:
         """What the TUI plots: tau, the ADEV per axis with its uncertainty, and the fitted white line."""
@@ -267,10 +320,31 @@ class NoiseReport:
             "axes": {axis: self.axes[axis].to_dict() for axis in AXES},
         }
 
+    def to_json_dict(self, date: str) -> dict:
+        """The profile section, with the still stretch read and where each bias instability was read (or why not)."""
+        out = self.to_profile_dict(date)
+        out["still_segment"] = self.still_segment
+        for axis in AXES:
+            out["axes"][axis].update(self.axes[axis].reading())
+        return out
 
-def noise_figures(rec: Recording) -> NoiseReport:
-    """Allan deviation and noise figures of a still recording (any units with a known scale)."""
+
+def noise_figures(rec: Recording, span: tuple[float, float] | None = None) -> NoiseReport:
+    """Allan deviation and noise figures of a still recording (any units with a known scale).
+
+    ``span`` (start, stop) in s: read only the samples with start <= t <= stop (the still stretch of a
+    recording with disturbances; the caller decides which); the report states it as ``still_segment``
+    and keeps the whole recording's hash.
+    """
     rec = rec.to_si()
+    recording_hash = rec.content_hash()
+    still_segment = None
+    if span is not None:
+        inside = np.flatnonzero((rec.t >= span[0]) & (rec.t <= span[1]))
+        whole = rec.duration
+        rec = rec.slice(int(inside[0]), int(inside[-1]) + 1) if inside.size else rec.slice(0, 0)
+        still_segment = {"start": float(span[0]), "stop": float(span[1]), "seconds": rec.duration,
+                         "of_total": whole}
     n = len(rec)
     if n < MIN_SAMPLES:
         raise DataError(f"the recording has {n} samples; noise figures need at least {MIN_SAMPLES}",
@@ -298,4 +372,4 @@ def noise_figures(rec: Recording) -> NoiseReport:
             )
     curves = {axis: allan_deviation(rec.acc[:, i], rate) for i, axis in enumerate(AXES)}
     axes = {axis: axis_noise(curves[axis]) for axis in AXES}
-    return NoiseReport(rate, n, rec.duration, curves, axes, rec.content_hash())
+    return NoiseReport(rate, n, rec.duration, curves, axes, recording_hash, still_segment)

@@ -64,9 +64,10 @@ class Procedure(abc.ABC):
     channels_needed: ClassVar[tuple[str, ...]] = ()  # device channels the procedure cannot do without
 
     @classmethod
-    @abc.abstractmethod
-    def create(cls, values: dict, device: dict) -> Procedure:
-        """A fresh procedure from parsed setting values (every declared name present) and device facts."""
+    def create(cls, values: dict, device: dict, **arguments) -> Procedure:
+        """A fresh procedure from parsed setting values (every declared name present) and device facts;
+        ``arguments``: what a rig takes beyond them (the slider-crank's correction under test)."""
+        return cls(values, device, **arguments)
 
     @abc.abstractmethod
     def feed(self, chunk) -> list[Event]:

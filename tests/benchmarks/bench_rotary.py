@@ -26,12 +26,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from accelrig.estimation.sinefit import sine_crb  # noqa: E402
-from accelrig.procedures.rotary.bench import PAPER_ORIENTATIONS, EncoderLog, RotarySetup, analyse_test  # noqa: E402
+from accelrig.procedures.rotary.bench import EncoderLog, RotarySetup, analyse_test  # noqa: E402
 from accelrig.procedures.rotary.campaign import Campaign, CampaignTest, analyse_campaign  # noqa: E402
 from accelrig.procedures.rotary.settings import PAPER_PLAN  # noqa: E402
 from accelrig.sim.campaign import paper_sensor  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
 from accelrig.sim.rigs.rotary import (  # noqa: E402
+    PAPER_ORIENTATIONS,
     RotaryRig,
     encoder_samples,
     true_sensitivity,

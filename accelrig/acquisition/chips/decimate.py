@@ -56,10 +56,6 @@ class RationalResampler:
         self._consumed = 0      # input samples dropped from the front of the history
         self._next_out = 0      # index of the next output sample
 
-    @property
-    def output_rate_factor(self) -> float:
-        return self.up / self.down
-
     def process(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Feed inputs (n, c); return (outputs (m, c), input positions (m,))."""
         x = np.asarray(x, dtype=float)

@@ -60,8 +60,6 @@ SCAN_STEP = 1.0  # Hz
 SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
 HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
 RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
-# Orientations of the paper's three supports (section 2.2): (tangential, radial)
-PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
 
 
 @dataclass

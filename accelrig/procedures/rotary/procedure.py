@@ -81,10 +81,6 @@ class RotaryProcedure(Procedure):
         self.results: list[tuple[RotaryStep, RotaryTest]] = []
         self.capture = StepCapture(device)
 
-    @classmethod
-    def create(cls, values: dict, device: dict) -> RotaryProcedure:
-        return cls(values, device)
-
     def next_step(self) -> RotaryStep | None:
         return None if self.done else self.steps[len(self.results)]
 

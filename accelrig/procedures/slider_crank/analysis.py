@@ -40,6 +40,7 @@ from scipy import stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.estimation.stats import robust_sd
 from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
 from accelrig.recording import Recording, count_scale
 from accelrig.result import CalibrationResult, Estimate
@@ -190,7 +191,7 @@ def clipped_samples(rec: Recording) -> int:
 def robust_noise_sd(residuals: np.ndarray) -> float:
     """Noise sd from first differences, median-based so knocks and rare spikes do not inflate it."""
     d = np.diff(residuals)
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2))
+    return float(robust_sd(d) / np.sqrt(2))
 
 
 def fold_residuals(t, residuals, frequency, phase1, samples_per_bin: float = 2.0):

@@ -57,10 +57,6 @@ class SliderCrankProcedure(Procedure):
         self.capture = StepCapture(self.device)
         self.marked = "step" in self.device.get("channels", ())
 
-    @classmethod
-    def create(cls, values: dict, device: dict, correction: Correction | None = None) -> SliderCrankProcedure:
-        return cls(values, device, correction)
-
     # ------------------------------------------------------------------ what the operator reads
     def instruction(self) -> str:
         """What to do now."""

@@ -17,8 +17,11 @@ calibration does not exist yet, and a wrong one must not hide motion):
               window of a pose and ``trim`` s at both ends are dropped;
   hold        a pose counts once it has ``min_hold`` s of clean data; the live
               flow asks for ``hold`` s (default 4) before saying "captured";
-  face        the axis with the largest |mean| within ``face_tolerance_deg``
-              of vertical; its sign names the face down (+z down: az ~ -g);
+  face        the nearest face (the axis with the largest |mean|; its sign names
+              the face down, +z down: az ~ -g) and the angle from it, on the raw
+              axes; every still pose is kept whatever the angle (the model decides:
+              six-face mode refuses a pose far from a face, multi-position uses it);
+              the live face grid counts a face done within ``face_tolerance_deg``;
   moved       means of 0.25 s blocks must agree with the pose's plateau within
               ``drift_tolerance`` (0.05 m/s^2, about 0.3 degrees of tilt) or 6
               noise sd, whichever is larger; up to ``settle`` s (1.0) off the
@@ -62,8 +65,9 @@ class Pose:
     face: str | None
     t: np.ndarray
     samples: np.ndarray
-    problem: str | None = None       # None for an accepted pose; else moved / saturated / not_flat / too_short
+    problem: str | None = None       # None for an accepted pose; else moved / saturated / too_short
     detail: str = ""
+    angle_deg: float = float("nan")  # from the nearest face, raw axes (before any calibration)
 
     @property
     def start(self) -> float:
@@ -90,14 +94,14 @@ class Pose:
         return float(np.sqrt(self.within_ss / max(3 * (len(self.samples) - 1), 1)))
 
 
-def classify_face(mean: np.ndarray, tolerance_deg: float) -> tuple[str | None, float]:
-    """(face down, angle of the dominant axis from vertical in degrees); face None if too far off."""
+def classify_face(mean: np.ndarray) -> tuple[str, float]:
+    """(nearest face down, angle of the dominant axis from vertical in degrees)."""
     mean = np.asarray(mean, dtype=float)
     k = int(np.argmax(np.abs(mean)))
     norm = float(np.linalg.norm(mean))
     angle = float(np.degrees(np.arccos(min(abs(mean[k]) / norm, 1.0)))) if norm > 0 else 90.0
     face = ("+" if mean[k] < 0 else "-") + AXES[k]
-    return (face if angle <= tolerance_deg else None), angle
+    return face, angle
 
 
 class PoseDetector:
@@ -111,7 +115,7 @@ class PoseDetector:
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, hold: float = 4.0, min_hold: float = 2.0,
                  window: float = 0.2, still_threshold: float = 0.25, motion_factor: float = 2.0,
-                 trim: float = 0.3, face_tolerance_deg: float = 25.0, drift_block: float = 0.25,
+                 trim: float = 0.3, face_tolerance_deg: float = 10.0, drift_block: float = 0.25,
                  drift_tolerance: float = 0.05, settle: float = 1.0, full_scale: float | None = None):
         if not rate or rate <= 0:
             raise DataError("the sample rate must be positive to detect still poses")
@@ -136,6 +140,7 @@ class PoseDetector:
         self._seg_x: list[np.ndarray] = []
         self._seg_n = 0
         self._seg_face: str | None = None
+        self._seg_flat = False
         self._seg_announced = False
         self._seg_captured = False
         self._seg_problem_reported = False
@@ -150,7 +155,8 @@ class PoseDetector:
     @property
     def faces_done(self) -> list[str]:
         """Faces with a usable pose: the poses closed, and the one held now once captured."""
-        done = {p.face for p in self.poses} | ({self._seg_face} if self._held_captured else set())
+        done = ({p.face for p in self.poses if p.angle_deg <= self.face_tolerance_deg}
+                | ({self._seg_face} if self._held_captured and self._seg_flat else set()))
         return [f for f in FACES if f in done]
 
     @property
@@ -167,7 +173,7 @@ class PoseDetector:
             "n_done": len(self.faces_done),
             "n_poses": len(self.poses) + self._held_captured,
             "missing": self.missing_faces,
-            "current_face": self._seg_face if self._still else None,
+            "current_face": self._seg_face if self._still and self._seg_flat else None,
             "still": self._still,
             "hold_fraction": min(held / self.hold, 1.0),
             "held_seconds": held,
@@ -254,7 +260,7 @@ class PoseDetector:
     def _open_segment(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
         self._still = True
         self._seg_t, self._seg_x, self._seg_d, self._seg_n = [t], [x], [d], t.size
-        self._seg_face = None
+        self._seg_face, self._seg_flat = None, False
         self._seg_announced = self._seg_captured = self._seg_problem_reported = False
 
     def _append(self, t: np.ndarray, x: np.ndarray, d: np.ndarray) -> None:
@@ -271,24 +277,25 @@ class PoseDetector:
         now = float(self._seg_t[-1][-1])
         if not self._seg_announced and self._seg_n >= self.window_n + self.trim_n:
             x = np.concatenate(self._seg_x)
-            self._seg_face, angle = classify_face(x.mean(axis=0), self.face_tolerance_deg)
+            self._seg_face, angle = classify_face(x.mean(axis=0))
+            self._seg_flat = angle <= self.face_tolerance_deg
             self._seg_announced = True
             face = self._seg_face
-            if face is None:
-                events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees off): put one face flat "
-                                         "on the table", now))
+            if not self._seg_flat:
+                events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
+                                         "multi-position model; for six faces put one face flat on the table", now))
             elif face in self.faces_done:
                 events.append(pose_event("already_done", f"{face} already done (holding it adds data)", now, face))
             else:
                 events.append(pose_event("hold_still", f"hold still: {face} down", now, face))
-        if (self._seg_announced and self._seg_face is not None and not self._seg_captured
+        if (self._seg_announced and not self._seg_captured
                 and self._clean_duration() >= self.hold):
             pose, problem = self._settle(self._current_pose(end_clip=0))
             problem = problem or self._check(pose)
             self._seg_captured = True
             if problem is None:
-                events.append(pose_event("captured", f"{self._seg_face} down captured ({self.hold:.1f} s)", now,
-                                         self._seg_face))
+                events.append(pose_event("captured", f"{self._describe(self._seg_face, self._seg_flat)} captured "
+                                         f"({self.hold:.1f} s)", now, self._seg_face))
                 events += self._count_events(now)
             else:
                 self._seg_problem_reported = True
@@ -320,8 +327,8 @@ class PoseDetector:
             stop -= end_clip
         stop -= self.trim_n
         t, x = t[start:max(stop, start)], x[start:max(stop, start)]
-        face = classify_face(x.mean(axis=0), self.face_tolerance_deg)[0] if t.size else None
-        return Pose(face, t, x)
+        face, angle = classify_face(x.mean(axis=0)) if t.size else (None, float("nan"))
+        return Pose(face, t, x, angle_deg=angle)
 
     def _close_segment(self, motion: bool) -> list[Event]:
         """Motion (or the end of data) ends the pose; keep it if it is long, flat, unmoved, unsaturated."""
@@ -330,20 +337,14 @@ class PoseDetector:
         pose = self._current_pose(end_clip=self.window_n - 1 if motion else 0)
         now = self._now
         self._seg_t, self._seg_x, self._seg_d, self._seg_n = [], [], [], 0
-        if pose.face is not None:
-            pose, problem = self._settle(pose)
-        else:
-            problem = None
+        pose, problem = self._settle(pose)
         if pose.t.size < 2 or pose.duration < self.min_hold:
             pose.problem, pose.detail = "too_short", f"{pose.duration:.1f} s"
             self.rejected.append(pose)
-            if pose.face is not None and self._seg_announced and motion:
-                return [pose_event("too_short", f"motion detected: {pose.face} down held only {pose.duration:.1f} s, "
+            if self._seg_announced and motion:
+                what = self._describe(pose.face, self._seg_flat)
+                return [pose_event("too_short", f"motion detected: {what} held only {pose.duration:.1f} s, "
                                                 f"hold it {self.hold:.0f} s", now, pose.face)]
-            return []
-        if pose.face is None:
-            pose.problem = "not_flat"
-            self.rejected.append(pose)
             return []
         problem = problem or self._check(pose)
         if problem is not None:
@@ -355,9 +356,14 @@ class PoseDetector:
         self.poses.append(pose)
         events = []
         if not self._seg_captured:
-            events.append(pose_event("captured", f"{pose.face} down captured ({pose.duration:.1f} s)", now, pose.face))
+            events.append(pose_event("captured", f"{self._describe(pose.face, self._seg_flat)} captured "
+                                                 f"({pose.duration:.1f} s)", now, pose.face))
             events += self._count_events(now)
         return events
+
+    @staticmethod
+    def _describe(face: str | None, flat: bool) -> str:
+        return f"{face} down" if flat else f"still pose (nearest {face})"
 
     def _count_events(self, now: float) -> list[Event]:
         """How many faces are done, after a capture; and 'complete' at six."""
@@ -420,7 +426,8 @@ class PoseDetector:
             return pose, ("moved", f"{pose.face} down moved during the pose at t = {pose.t[k * b]:.1f} s "
                                    f"({size:.2f} m/s^2, about {deg:.1f} degrees): hold that face still again")
         stop = x.shape[0] - tail * b if tail else x.shape[0]
-        return Pose(pose.face, pose.t[lead * b:stop], x[lead * b:stop]), None
+        face, angle = classify_face(x[lead * b:stop].mean(axis=0))
+        return Pose(face, pose.t[lead * b:stop], x[lead * b:stop], angle_deg=angle), None
 
 
 def full_scale_of(meta: dict) -> float | None:

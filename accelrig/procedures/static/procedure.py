@@ -12,6 +12,12 @@ the same poses whichever way it is processed.
     proc.progress, proc.done        faces done / 6; all six in
     proc.faces                      the face grid's details (done, held, hold fraction, ...)
     proc.result()                   the CalibrationResult (model and method from the settings)
+
+Which model: ``six-face`` (default through ``auto`` when every pose is near a face) is the paper's
+9-parameter model with each pose's tilt from its face a nuisance under a flatness prior
+(``gravity_fit.fit_six_face``); ``multi-position`` fits gravity magnitudes from any orientations
+(``gravity_fit.fit_multiposition``); ``paper`` / ``affine`` are the exact-face fits of ``fit``.
+Every still pose found is reported with its fate (``details["poses"]``).
 """
 
 from __future__ import annotations
@@ -19,11 +25,21 @@ from __future__ import annotations
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.gravity_fit import (
+    FACE_REFUSE_SD,
+    MULTI_MIN_DISTINCT,
+    PoseStats,
+    check_faces,
+    distinct_orientations,
+    face_tilts,
+    fit_multiposition,
+    fit_six_face,
+)
 from accelrig.geometry import FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
-from accelrig.procedures.static.settings import SETTINGS
+from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Estimate
 from accelrig.units import STANDARD_GRAVITY
@@ -41,11 +57,10 @@ class StaticProcedure(Procedure):
     actions = {"redo": "redo a face"}   # act("redo", face="+x"): take that face again
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, model: str = "auto", method: str = "vp",
-                 **detection):
+                 pose_flatness_deg: float = POSE_FLATNESS_DEG, **detection):
         """``detection``: PoseDetector's settings (hold, min_hold, still_threshold, full_scale, ...)."""
-        if model not in (*MODELS, "auto"):
-            raise CalibrationError(f"unknown model {model!r}", "use paper, affine or auto")
-        self.model, self.method = model, method
+        _check_model(model, method)
+        self.model, self.method, self.pose_flatness_deg = model, method, float(pose_flatness_deg)
         self.detector = PoseDetector(rate, g=g, **detection)
         self._started = False
 
@@ -55,7 +70,7 @@ class StaticProcedure(Procedure):
         if not rate:
             raise DataError("the sample rate is not known", "give the rate of a file without a t column (--rate)")
         return cls(rate, g=values["g"], model=values["model"], method=values["method"],
-                   min_hold=values["min_hold"], hold=max(HOLD, values["min_hold"]),
+                   pose_flatness_deg=values.get("pose_flatness_deg", POSE_FLATNESS_DEG), min_hold=values["min_hold"], hold=max(HOLD, values["min_hold"]),
                    still_threshold=values["still_threshold"], full_scale=full_scale_of(device))
 
     # ------------------------------------------------------------- contract
@@ -115,60 +130,158 @@ class StaticProcedure(Procedure):
 
     # ---------------------------------------------------------------- result
     def result(self) -> CalibrationResult:
-        missing = self.missing_faces
-        if missing:
-            found = ", ".join(self.faces_done) or "none"
-            # Say why a face that was held did not count (too short, moved, ...).
-            why = []
-            for face in missing:
-                tried = [p for p in self.rejected if p.face == face]
-                if tried:
-                    reasons = sorted({f"{p.problem.replace('_', ' ')} at t = {p.start:.1f} s" for p in tried})
-                    why.append(f"{face} held but {'; '.join(reasons)}")
-            detail = f"; {', '.join(why)}" if why else ""
-            raise CalibrationError(f"only {6 - len(missing)} of 6 faces found (have {found}; missing "
-                                   f"{', '.join(missing)}{detail})",
-                                   f"hold each missing face down still for at least {self.detector.min_hold:g} s")
-        poses = self.detector.accepted()
-        return build_result(pose_data(poses, self.detector.g), poses, self.model, self.method, self.settings_used())
+        """The calibration, or a CalibrationError saying what cannot be calibrated and what to do."""
+        rows, used = pose_table(self.detector.accepted(), self.rejected)
+        if not used:
+            self._require_six_faces(set())   # says which faces were held and why they did not count
+        stats = [PoseStats.from_samples(p.samples, p.face, f"pose {k}") for k, p in used]
+        model = self.model
+        if model == "auto":
+            model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
+        if model != "multi-position":
+            try:
+                tilts = check_faces(stats, self.pose_flatness_deg, self.detector.g)
+            except CalibrationError as exc:
+                raise CalibrationError(exc.message, "use --model multi-position or place the face flat") from None
+            self._require_six_faces({t.face for t in tilts})
+            for s, tilt in zip(stats, tilts, strict=True):
+                s.face = tilt.face
+            for (k, _), tilt in zip(used, tilts, strict=True):
+                rows[k - 1].update(face=tilt.face, angle_deg=tilt.angle_deg)
+        settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
+                    "model_requested": self.model}
+        return build_result([p for _, p in used], stats, rows, model, self.method, settings)
+
+    def _require_six_faces(self, present: set[str]) -> None:
+        missing = [f for f in FACES if f not in present]
+        if not missing:
+            return
+        found = ", ".join(f for f in FACES if f in present) or "none"
+        # Say why a face that was held did not count (too short, moved, ...).
+        why = []
+        for face in missing:
+            tried = [p for p in self.rejected if p.face == face]
+            if tried:
+                reasons = sorted({f"{p.problem.replace('_', ' ')} at t = {p.start:.1f} s" for p in tried})
+                why.append(f"{face} held but {'; '.join(reasons)}")
+        detail = f"; {', '.join(why)}" if why else ""
+        raise CalibrationError(f"only {6 - len(missing)} of 6 faces found (have {found}; missing "
+                               f"{', '.join(missing)}{detail})",
+                               f"hold each missing face down still for at least {self.detector.min_hold:g} s")
 
     def settings_used(self) -> dict:
         d = self.detector
         return {"g": d.g, "rate": d.rate, "hold": d.hold, "min_hold": d.min_hold,
                 "window": d.window_n / d.rate, "still_threshold": d.still_threshold,
                 "motion_factor": d.motion_factor, "trim": d.trim_n / d.rate,
-                "face_tolerance_deg": d.face_tolerance_deg, "drift_tolerance": d.drift_tolerance,
+                "live_face_tolerance_deg": d.face_tolerance_deg, "drift_tolerance": d.drift_tolerance,
                 "settle": d.settle_blocks * d.drift_block_n / d.rate,
                 "full_scale": d.full_scale}
 
 
-def pose_data(poses: list[Pose], g: float) -> PoseData:
-    if not poses:
-        raise CalibrationError("no still pose found", "hold each face still for a few seconds")
-    return PoseData([p.face for p in poses], [p.mean for p in poses],
-                    [len(p.samples) for p in poses], [p.within_ss for p in poses], g)
+FATES = {None: "used", "too_short": "too short", "moved": "moved", "saturated": "saturated"}
 
 
-def build_result(data: PoseData, poses: list[Pose], model: str, method: str, settings: dict) -> CalibrationResult:
-    """Fit the requested model (or both, for auto) and package the CalibrationResult."""
-    if model not in (*MODELS, "auto"):
-        raise CalibrationError(f"unknown model {model!r}", "use paper, affine or auto")
-    if model == "affine" and method == "paper":
+def _check_model(model: str, method: str) -> None:
+    if model not in MODEL_CHOICES:
+        raise CalibrationError(f"unknown model {model!r}", f"use one of {', '.join(MODEL_CHOICES)}")
+    if method == "paper" and model != "paper":
         raise CalibrationError("the paper's Nelder-Mead scheme exists only for the 9-parameter model",
-                               "use --method vp with --model affine, or --model paper")
-    fits = {m: fit_model(data, m, method if m == "paper" else "vp") for m in (MODELS if model == "auto" else (model,))}
-    n_obs = 3 * int(np.sum(data.counts))
-    selection = {m: {"chi2": f.chi2, "dof": f.dof, "p_value": f.p_value, "aic": f.aic, "bic": f.bic(n_obs),
-                     "n_parameters": len(f.names)} for m, f in fits.items()}
-    chosen = min(fits.values(), key=lambda f: f.aic)
-    corr = chosen.correction
-    calibrated_residuals = [corr.apply(p.samples) - face_reference(p.face, data.g) for p in poses]
-    all_res = np.concatenate(calibrated_residuals)
-    face_rows = []
-    for p, lof in zip(poses, chosen.residuals, strict=True):
-        face_rows.append({"face": p.face, "start": p.start, "stop": p.stop, "n": len(p.samples),
-                          "noise_sd": p.noise_sd, "residual": (corr.matrix @ lof).tolist(),
-                          "residual_norm": float(np.linalg.norm(corr.matrix @ lof))})
+                               "use --method vp, or --model paper")
+
+
+def pose_table(accepted: list[Pose], rejected: list[Pose]) -> tuple[list[dict], list[tuple[int, Pose]]]:
+    """Every still pose found, in time order and numbered from 1, with its fate; and the (number, pose) used.
+
+    Stretches with fewer than 2 samples left once their edges are trimmed (a hand pausing between poses)
+    are not poses and are left out."""
+    every = sorted([p for p in [*accepted, *rejected] if p.t.size >= 2], key=lambda p: p.start)
+    rows, used = [], []
+    for k, p in enumerate(every, start=1):
+        rows.append({"index": k, "start": p.start, "stop": p.stop, "n": len(p.samples), "face": p.face, "angle_deg": p.angle_deg, "fate": FATES[p.problem],
+                     "reason": p.detail})
+        if p.problem is None:
+            used.append((k, p))
+    return rows, used
+
+
+def choose_model(stats: list[PoseStats], g: float, flatness_deg: float) -> str:
+    """auto: six-face when every pose is near a face, multi-position when not (and enough orientations)."""
+    limit = FACE_REFUSE_SD * flatness_deg
+    tilts = face_tilts(stats, g)
+    off = [t for t in tilts if t.angle_deg > limit]
+    if not off:
+        return "six-face"
+    n_distinct = distinct_orientations(np.array([s.mean for s in stats]))
+    if n_distinct >= MULTI_MIN_DISTINCT:
+        return "multi-position"
+    worst = max(off, key=lambda t: t.angle_deg)
+    raise CalibrationError(
+        f"{len(off)} of {len(stats)} poses are more than {limit:.1f} degrees from a face ({worst.name} is "
+        f"{worst.angle_deg:.1f} from {worst.face}) and the poses hold only {n_distinct} distinct orientations",
+        f"place each face flat for six-face mode, or hold the sensor still in at least {MULTI_MIN_DISTINCT} "
+        "orientations for --model multi-position")
+
+
+def _units(name: str) -> str:
+    return "rad" if name.startswith("angle") else "m/s^2" if name[0] in "ob" else "1"
+
+
+def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
+                 settings: dict) -> CalibrationResult:
+    """Fit ``model`` (exact-face paper / affine, six-face, multi-position) and package the CalibrationResult.
+
+    ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order."""
+    g = settings["g"]
+    data = PoseData([s.face for s in stats], [p.mean for p in poses], [len(p.samples) for p in poses],
+                    [p.within_ss for p in poses], g)
+    warnings = []
+    if model in MODELS:
+        fit = fit_model(data, model, method if model == "paper" else "vp")
+        corr, source = fit.correction, "noise of the pose means (faces assumed exact: a tilted pose biases the fit)"
+        names, values, uncertainty, units, cov = fit.names, fit.values, fit.uncertainty, fit.units, fit.covariance
+        chi2, dof, p_value, label, method_used = fit.chi2, fit.dof, fit.p_value, fit.model, fit.method
+        n_eval, seconds = fit.n_evaluations, fit.seconds
+        n_obs = 3 * int(np.sum(data.counts))
+        extra = {"model_selection": {model: {"chi2": fit.chi2, "dof": fit.dof, "p_value": fit.p_value,
+                                             "aic": fit.aic, "bic": fit.bic(n_obs), "n_parameters": len(fit.names)}}}
+        calibrated_residuals = [corr.apply(p.samples) - face_reference(f, g) for p, f in zip(poses, data.faces, strict=True)]
+        extra["faces"] = [{"face": f, "start": p.start, "stop": p.stop, "n": len(p.samples), "noise_sd": p.noise_sd,
+                           "residual": (corr.matrix @ lof).tolist(), "residual_norm": float(np.linalg.norm(corr.matrix @ lof))}
+                          for p, f, lof in zip(poses, data.faces, fit.residuals, strict=True)]
+        arrays = {"pose_references": data.references, "pose_residuals": fit.residuals}
+        if dof > 0 and p_value < 1e-3:
+            warnings.append(f"the poses disagree with the {label} model beyond their noise (chi2 = "
+                            f"{chi2:.1f} for {dof} dof): table not level, cube not square or a pose "
+                            "not flat? The uncertainties may be too small (the six-face model allows for tilted poses).")
+        if fit.extra.get("converged") is False:
+            warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
+    else:
+        if model == "six-face":
+            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g)
+            method_used = "map"
+        else:
+            fit = fit_multiposition(stats, g)
+            method_used = "lm"
+        corr, source, label = fit.correction, fit.uncertainty_source, model
+        names, values, uncertainty, cov = fit.names, fit.values, fit.uncertainty, fit.covariance
+        units = [_units(n) for n in names]
+        chi2, dof, p_value = fit.chi2_before, fit.dof, fit.p_value
+        n_eval, seconds = fit.n_evaluations, fit.seconds
+        calibrated_residuals = [np.linalg.norm(corr.apply(p.samples), axis=1) - g for p in poses]
+        extra = {"pose_flatness_deg_used": fit.pose_flatness_deg, "repeatability_sd": fit.repeatability_sd,
+                 "chi2_after_inflation": fit.chi2, "gauge": fit.gauge, **fit.extra}
+        if fit.tilts_deg is not None:
+            extra["tilts_deg"] = fit.tilts_deg
+        arrays = {}
+        warnings += list(fit.extra.get("notes", []))
+        if fit.inflated:
+            warnings.append(f"uncertainty: {source}")
+    magnitudes = np.linalg.norm(corr.apply(data.means), axis=1) - g
+    used_rows = [r for r in rows if r["fate"] == "used"]
+    for r, m in zip(used_rows, magnitudes, strict=True):
+        r["magnitude_residual"] = float(m)
+    all_res = np.concatenate([np.ravel(r) for r in calibrated_residuals])
     correlation = noise_correlation_factor(poses, max(int(round(0.25 * settings["rate"])), 5), data.noise_sd)
     quality = {
         "residual_rms": float(np.sqrt(np.mean(all_res**2))),
@@ -176,40 +289,35 @@ def build_result(data: PoseData, poses: list[Pose], model: str, method: str, set
         "noise_sd": data.noise_sd,
         "n_samples": int(np.sum(data.counts)),
         "n_poses": len(poses),
-        "chi2": chosen.chi2,
-        "dof": chosen.dof,
-        "p_value": chosen.p_value,
-        "model_selection": selection,
-        "faces": face_rows,
-        "n_evaluations": chosen.n_evaluations,
-        "fit_seconds": chosen.seconds,
+        "n_poses_found": len(rows),
+        "chi2": chi2,
+        "dof": dof,
+        "p_value": p_value,
+        "uncertainty_source": source,
+        "max_magnitude_residual": float(np.max(np.abs(magnitudes))),
+        "n_evaluations": n_eval,
+        "fit_seconds": seconds,
+        **extra,
     }
-    warnings = []
-    if chosen.dof > 0 and chosen.p_value < 1e-3:
-        warnings.append(f"the poses disagree with the {chosen.model} model beyond their noise (chi2 = "
-                        f"{chosen.chi2:.1f} for {chosen.dof} dof): table not level, cube not square or a pose "
-                        "not flat? The uncertainties may be too small.")
     if correlation > 1.5:
         warnings.append(f"the noise is correlated in time (pose means scatter {correlation:.1f} times more in "
                         "variance than white noise predicts; a digital low-pass filter?): the uncertainties "
                         "assume white noise and are too small by about the square root of that")
-    if chosen.extra.get("converged") is False:
-        warnings.append(f"Nelder-Mead stopped before converging: {chosen.extra.get('message')}")
     parameters = {n: Estimate(float(v), float(u), unit)
-                  for n, v, u, unit in zip(chosen.names, chosen.values, chosen.uncertainty, chosen.units, strict=True)}
+                  for n, v, u, unit in zip(names, values, uncertainty, units, strict=True)}
     return CalibrationResult(
         procedure="static",
-        method=chosen.method,
-        model=chosen.model,
+        method=method_used,
+        model=label,
         correction=corr,
         parameters=parameters,
-        covariance=chosen.covariance,
-        parameter_names=list(chosen.names),
+        covariance=cov,
+        parameter_names=list(names),
         quality=quality,
-        arrays={"pose_means": data.means, "pose_references": data.references, "pose_residuals": chosen.residuals,
-                "pose_times": np.array([[p.start, p.stop] for p in poses])},
-        settings={**settings, "model_requested": model, "faces": list(data.faces)},
+        arrays={"pose_means": data.means, **arrays, "pose_times": np.array([[p.start, p.stop] for p in poses])},
+        settings={**settings, "faces": list(data.faces)},
         warnings=warnings,
+        details={"poses": rows},
     )
 
 

@@ -4,16 +4,24 @@ from __future__ import annotations
 
 from accelrig.settings import GRAVITY, Setting
 
-MODELS = ("paper", "affine")
+MODELS = ("paper", "affine")                           # the exact-face models of accelrig.procedures.static.fit
+MODEL_CHOICES = ("auto", "six-face", "multi-position", *MODELS)
 METHODS = ("vp", "paper")
+# = accelrig.estimation.gravity_fit.DEFAULT_POSE_FLATNESS_DEG (a test holds them equal; this module stays light)
+POSE_FLATNESS_DEG = 1.0
 
 SETTINGS = (
-    Setting("model", "model fitted: paper = G R raw + c (9 parameters), affine = full matrix + offset (12), "
-            "auto = the one with the lower AIC", kind="choice", choices=(*MODELS, "auto"), default="auto",
+    Setting("model", "six-face = the paper's 9 parameters with each pose's tilt from its face a nuisance "
+            "(flatness prior); multi-position = |C (raw - b)| = g from >= 9 orientations (imu_tk); "
+            "paper / affine = exact faces (9 / 12 parameters, no tilt); auto = six-face when every pose is "
+            "near a face, multi-position when not", kind="choice", choices=MODEL_CHOICES, default="auto",
             label="model"),
     Setting("method", "vp = variable projection + Levenberg-Marquardt; paper = the paper's Nelder-Mead over "
             "the angles (9-parameter model only)", kind="choice", choices=METHODS, default="vp", label="method"),
     GRAVITY,
+    Setting("pose_flatness_deg", "sd of each pose's tilt from its face (six-face Type B term); a pose more "
+            "than 5 x this from a face is refused in six-face mode", unit="deg", default=POSE_FLATNESS_DEG,
+            low=0.0, low_open=True, high=10.0, label="pose flatness"),
     Setting("min_hold", "shortest usable pose", unit="s", default=2.0, low=0.0, low_open=True, high=600.0,
             label="shortest pose"),
     Setting("still_threshold", "dispersion below which the sensor counts as still", unit="m/s^2", default=0.25,

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.stats import robust_sd
 from accelrig.recording import count_scale
 from accelrig.units import STANDARD_GRAVITY, saturated
 
@@ -59,7 +60,7 @@ def noise_sd(acc: np.ndarray) -> float:
     if acc.shape[0] < 5:
         return 0.0
     d2 = np.diff(acc, n=2, axis=0)
-    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) * 1.4826
+    mad = robust_sd(d2, axis=0)
     return float(np.sqrt(np.mean(mad**2) / 6.0))
 
 
@@ -70,7 +71,7 @@ def timestamp_figures(t: np.ndarray) -> tuple[float, int, int, float]:
     gap = dt > 1.5 * period
     missing = int(np.sum(np.rint(dt[gap] / period) - 1))
     regular = dt[~gap]
-    jitter = float(np.median(np.abs(regular - period)) * 1.4826) if regular.size else 0.0
+    jitter = float(robust_sd(regular, center=period)) if regular.size else 0.0
     return period, int(np.count_nonzero(gap)), missing, jitter
 
 

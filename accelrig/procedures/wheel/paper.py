@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from accelrig.errors import CalibrationError
+from accelrig.estimation.stats import robust_sd
 from accelrig.geometry import rot_x, rot_y, rot_z
 from accelrig.procedures.wheel.checks import WheelSurvey, half_turn_speeds
 from accelrig.procedures.wheel.model import (
@@ -96,7 +97,7 @@ def fit_motion(t: np.ndarray, ry: np.ndarray, survey: WheelSurvey, gap_times: np
     # a robust cubic: refit without samples far off the first fit (a mistimed crossing)
     coef = np.polyfit(mid, speed, 3)
     resid = speed - np.polyval(coef, mid)
-    mad = np.median(np.abs(resid)) * 1.4826 + 1e-12
+    mad = robust_sd(resid, center=0.0) + 1e-12
     good = np.abs(resid) < 5 * mad
     coef = np.polyfit(mid[good], speed[good], 3)
     omega = coef[::-1].copy()                                    # w0 .. w3

@@ -54,7 +54,7 @@ SURVEY_EVERY = 1.0             # seconds of data between looks at the live strea
 MIN_LOOK_SAMPLES = 200
 
 
-def _prepare(recording: Recording, g: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _prepare(recording: Recording) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rec = recording.to_si()  # unit g is standard g: the canonical raw is counts x nominal scale
     t = rec.t - rec.t[0]
     v = rec.acc
@@ -84,7 +84,7 @@ def calibrate_wheel(
                         "give the datasheet cross-axis sensitivity as an sd, e.g. 0.0115 for +-2 % uniform")
     tilt = None if tilt_deg is None else float(np.deg2rad(tilt_deg))
     free = free_set(radius, tilt)
-    t, v, gap_times = _prepare(recording, g)
+    t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g)
     warnings = check_capture(look, radius, g)
     started = time.perf_counter()
@@ -233,10 +233,6 @@ class WheelProcedure(Procedure):
         self._started = False
         self._progress = 0.0
         self._done = False
-
-    @classmethod
-    def create(cls, values: dict, device: dict) -> WheelProcedure:
-        return cls(values, device)
 
     @property
     def progress(self) -> float:

@@ -49,19 +49,6 @@ class EmulatedBus:
         dev.pointer = register
         dev.write(bytes([value & 0xFF]))
 
-    def read_word_data(self, i2c_addr: int, register: int, force=None) -> int:
-        dev = self._device(i2c_addr)
-        self._spend([1, 2])
-        dev.pointer = register
-        lo, hi = dev.read(2)          # SMBus words are little-endian on the wire
-        return lo | hi << 8
-
-    def write_word_data(self, i2c_addr: int, register: int, value: int, force=None) -> None:
-        dev = self._device(i2c_addr)
-        self._spend([3])
-        dev.pointer = register
-        dev.write(bytes([value & 0xFF, (value >> 8) & 0xFF]))
-
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, force=None) -> list[int]:
         if length > SMBUS_BLOCK_MAX:
             raise ValueError(f"Desired block length over {SMBUS_BLOCK_MAX} bytes")

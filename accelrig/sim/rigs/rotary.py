@@ -52,7 +52,7 @@ from accelrig.units import STANDARD_GRAVITY
 
 # Paper 001's test plan, (frequency Hz, oscillation angle peak to peak deg), and its three
 # mountings (tangential, radial axis).  Facts of the paper's rig, kept here because the
-# simulator imports no procedure code (accelrig.procedures.rotary has its own copy).
+# simulator imports no procedure code (accelrig.procedures.rotary has its own copy of the plan).
 PAPER_PLAN = ((5.0, 34.0), (5.0, 20.0), (8.0, 13.0), (8.0, 6.0))
 PAPER_ORIENTATIONS = (("x", "y"), ("z", "x"), ("y", "z"))
 

@@ -24,9 +24,6 @@ class RotaryWizard(ProcedureWizard):
     ACTION_KEYS = {"space": "capture"}
     progress_label = "steps"
 
-    def opening_instruction(self) -> str:
-        return self.procedure.instruction()
-
     def compose_body(self) -> ComposeResult:
         yield LinePlot("sensitivity per step (counts per m/s²)", x_label="step", id="sensitivity-plot")
 

@@ -30,9 +30,6 @@ class SliderCrankWizard(ProcedureWizard):
         """The calibration under test: the profile's correction, applied to every step first."""
         return {"correction": load_profile(values["profile"]).correction} if values["profile"] else {}
 
-    def opening_instruction(self) -> str:
-        return self.procedure.instruction()
-
     def compose_body(self) -> ComposeResult:
         yield Static("", id="slider-steps")
         yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="fr-plot")

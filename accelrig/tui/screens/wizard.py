@@ -120,7 +120,9 @@ class ProcedureWizard(Screen):
         return {}
 
     def opening_instruction(self) -> str:
-        """What the operator reads once the device streams."""
+        """What the operator reads once the device streams: the procedure's ``instruction()`` if it has one."""
+        if hasattr(self.procedure, "instruction"):
+            return self.procedure.instruction()
         return f"{self.procedure_class.title}: streaming, follow the instructions below"
 
     def compose_body(self) -> ComposeResult:

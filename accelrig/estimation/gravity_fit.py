@@ -1,0 +1,735 @@
+"""Static calibration from still poses: gravity-magnitude (multi-position) and tilt-robust six-face fits.
+
+Input is pose statistics, not recordings, so these estimators are
+independent of how the still poses were found: per pose the mean raw vector
+(m/s^2), the covariance of one sample (or its sd), the number of samples and,
+for six-face mode, the nominal face down.  Output is the canonical correction
+``calibrated = C (raw - b)`` with its 12 x 12 covariance.  docs/static-tilt-notes.md
+gives the reasoning; the short form:
+
+multi-position (Tedaldi, Pretto, Menegatti, ICRA 2014; imu_tk)
+    minimise sum_p (|C (m_p - b)| - g)^2 / s_p^2 over an upper-triangular C
+    (6) and b (3).  |C x| is unchanged by C -> Q C for any rotation Q, so 3 of
+    the 12 entries are a gauge; C = Q R (QR, positive diagonal) is unique, and
+    the upper-triangular gauge (imu_tk's) puts the calibrated x axis on the
+    sensor's x axis and y in the sensor's xy plane.  s_p^2 = u^T C V_p C^T u is
+    the variance of the pose's magnitude from the mean's covariance V_p.
+    Gauss-Newton / LM with the analytic Jacobian, started from an algebraic
+    ellipsoid fit; covariance (J^T W J)^-1, chi^2 against P - 9 dof.
+six-face, tilt-robust (MAP, flatness prior)
+    the true down direction of pose p is its face direction tilted by an
+    unknown small angle (2 nuisance parameters per pose) with a Gaussian prior
+    of sd ``pose_flatness_deg``; the prior enters as pseudo-observations and
+    the fit is the exact nonlinear MAP (model and tilts jointly).  The
+    covariance of the model parameters is the block of the inverse
+    information, i.e. the tilts are marginalised (to first order at the MAP
+    point) and the flatness is the Type B term.  With flatness 0 it is the
+    paper's exact-face model.
+Ferraris pairing (as imucal)
+    C = 2 g (U_- - U_+)^-1 from opposite faces, b_k = mean of axis k on its two faces.
+
+Uncertainty: when chi^2 rejects the model (p < ``CHI2_ALPHA``) the observed
+scatter inflates it, one of two ways (``inflation``), and the fit says which
+(``uncertainty_source``):
+  "repeatability" (default)  an additive per-pose error of sd sigma_r (isotropic,
+      independent between poses: drift, hand pressure, re-seating) is added to
+      every pose mean's covariance and solved so that chi^2 = dof (Paule-Mandel);
+      the fit is redone with those weights.
+  "birge"  the covariance is multiplied by the Birge ratio squared chi^2/dof.
+On real hand-held sessions the excess sits in a few poses (a sensor drifting
+between repeats of one face), which the uniform Birge factor spreads thin; the
+additive term puts it where it is (docs/static-tilt-notes.md).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import chi2 as chi2_dist
+
+from accelrig.errors import CalibrationError
+from accelrig.estimation.crb import propagate_covariance, unidentifiable_direction
+from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
+from accelrig.result import Correction
+from accelrig.units import STANDARD_GRAVITY
+
+# A hand pressing a housing on an ordinary bench: bench not levelled (0.5 deg is common for tables and
+# floors), housing face and sensor mounting in it (0.5 deg), rocking of the hand (0.2 deg): root sum of
+# squares about 0.7 deg, rounded up.  Per tilt component (two per pose), standard uncertainty.
+DEFAULT_POSE_FLATNESS_DEG = 1.0
+# A pose further from its face than this many flatness sd is not a face pose (probability e^-12.5 under the prior).
+FACE_REFUSE_SD = 5.0
+CHI2_ALPHA = 0.01            # chi^2 p-value below which the model is rejected and the scatter inflation applied
+INFLATIONS = ("repeatability", "birge", "none")
+MULTI_MIN_DISTINCT = 9       # 9 parameters: at least 9 distinct orientations
+DISTINCT_DEG = 10.0          # two poses closer than this repeat (nearly) the same orientation
+MULTI_MIN_RCOND = 1e-6       # reciprocal condition of the column-scaled Jacobian below which we refuse
+
+UPPER_INDEX = (0, 1, 2, 4, 5, 8)          # C.ravel() entries free in the upper-triangular gauge
+MULTI_NAMES = ["C_xx", "C_xy", "C_xz", "C_yy", "C_yz", "C_zz", "b_x", "b_y", "b_z"]
+AFFINE_K_NAMES = [f"K_{r}{c}" for r in AXES for c in AXES] + [f"o_{a}" for a in AXES]
+PAPER_NAMES = [f"angle_{a}" for a in AXES] + [f"gain_{a}" for a in AXES] + [f"offset_{a}" for a in AXES]
+CORRECTION_NAMES = [f"C_{r}{c}" for r in AXES for c in AXES] + [f"b_{a}" for a in AXES]
+
+
+# ------------------------------------------------------------------ inputs
+
+@dataclass
+class PoseStats:
+    """Sufficient statistics of one still pose.
+
+    mean  (3,) raw m/s^2;  cov  (3, 3) covariance of ONE sample (or a scalar sd
+    per axis);  n  number of samples (the mean's covariance is cov / n; pass an
+    effective n when the samples are correlated);  face  nominal face down
+    ("+z": z points down, reads -g) for six-face mode;  name  for messages.
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray | float
+    n: float
+    face: str | None = None
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        self.mean = np.asarray(self.mean, dtype=float).reshape(3)
+        cov = np.asarray(self.cov, dtype=float)
+        self.cov = np.eye(3) * float(cov) ** 2 if cov.ndim == 0 else cov.reshape(3, 3)
+        self.n = float(self.n)
+        if self.n < 1 or not np.all(np.isfinite(self.mean)) or not np.all(np.isfinite(self.cov)):
+            raise CalibrationError(f"pose {self.name or '?'}: needs a finite mean, covariance and n >= 1")
+        if self.face is not None and self.face not in FACES:
+            raise CalibrationError(f"pose {self.name or '?'}: {self.face!r} is not a face", "faces are +x, -x, +y, -y, +z, -z")
+
+    @classmethod
+    def from_samples(cls, samples: np.ndarray, face: str | None = None, name: str = "") -> PoseStats:
+        x = np.asarray(samples, dtype=float).reshape(-1, 3)
+        if len(x) < 2:
+            raise CalibrationError(f"pose {name or '?'}: needs at least 2 samples")
+        return cls(x.mean(axis=0), np.cov(x.T), len(x), face, name)
+
+    @property
+    def mean_cov(self) -> np.ndarray:
+        """Covariance of the mean (m/s^2)^2, floored so a noiseless pose stays usable."""
+        v = self.cov / self.n
+        return v + np.eye(3) * max(1e-12, 1e-9 * np.trace(v))
+
+
+def _names(poses: Sequence[PoseStats]) -> list[str]:
+    return [p.name or f"pose {k + 1}" for k, p in enumerate(poses)]
+
+
+# ------------------------------------------------------------------ result
+
+@dataclass
+class GravityFit:
+    """One fit: the correction with its covariance, the model's own parameters, and the quality figures.
+
+    ``magnitude_residuals``: |C (m_p - b)| - g per pose (m/s^2).  ``tilts_deg``: for six-face fits the
+    estimated angle of each pose's gravity from its face (degrees).  ``uncertainty_source`` says what the
+    covariance holds: "noise", "noise + flatness prior (Type B)", and "x Birge ratio" when chi^2 rejected.
+    ``gauge``: which correction entries are fixed by convention (their covariance rows are zero).
+    """
+
+    model: str
+    correction: Correction
+    names: list[str]
+    values: np.ndarray
+    covariance: np.ndarray
+    chi2: float
+    dof: int
+    birge: float
+    inflated: bool
+    uncertainty_source: str
+    magnitude_residuals: np.ndarray
+    pose_names: list[str]
+    g: float
+    pose_flatness_deg: float | None = None
+    tilts_deg: np.ndarray | None = None
+    gauge: str = "none: the faces fix the orientation of C"
+    n_evaluations: int = 0
+    seconds: float = 0.0
+    repeatability_sd: float = 0.0   # sigma_r (m/s^2) of the "repeatability" inflation, 0 when not applied
+    chi2_before: float | None = None  # chi^2 before inflation (equals chi2 for Birge or none)
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def uncertainty(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @property
+    def p_value(self) -> float:
+        """p-value of the lack of fit before any inflation."""
+        c = self.chi2 if self.chi2_before is None else self.chi2_before
+        return float(chi2_dist.sf(c, self.dof)) if self.dof > 0 else float("nan")
+
+
+def _birge(chi2: float, dof: int) -> tuple[float, bool]:
+    """Birge ratio sqrt(chi^2/dof) and whether it is applied (chi^2 rejects the model at CHI2_ALPHA)."""
+    if dof <= 0:
+        return 1.0, False
+    ratio = float(np.sqrt(chi2 / dof))
+    rejected = chi2_dist.sf(chi2, dof) < CHI2_ALPHA
+    return ratio, bool(rejected and ratio > 1.0)
+
+
+def _solve_repeatability(chi2_of, dof: int) -> float:
+    """Additive variance v >= 0 with chi2_of(v) = dof (chi2_of decreasing in v): Paule-Mandel by bracketing."""
+    from scipy.optimize import brentq
+
+    lo, hi = 0.0, 1e-8
+    while chi2_of(hi) > dof:
+        lo, hi = hi, hi * 10.0
+        if hi > 1e4:
+            raise CalibrationError("the pose scatter is too large to calibrate (repeatability above 100 m/s^2)")
+    return float(brentq(lambda v: chi2_of(v) - dof, lo, hi, xtol=1e-14, rtol=1e-6))
+
+
+def _check_inflation(inflation: str) -> None:
+    if inflation not in INFLATIONS:
+        raise CalibrationError(f"unknown inflation {inflation!r}", "use repeatability, birge or none")
+
+
+def _magnitudes(correction: Correction, poses: Sequence[PoseStats], g: float) -> np.ndarray:
+    return np.linalg.norm(correction.apply(np.array([p.mean for p in poses])), axis=1) - g
+
+
+# ------------------------------------------------------------------ gauge helpers
+
+def upper_gauge(matrix: np.ndarray) -> np.ndarray:
+    """The upper-triangular R with positive diagonal such that C = Q R (Q a rotation or reflection).
+
+    |C x| = |R x| for every x: the representative of C a gravity-magnitude fit can see.
+    """
+    q, r = np.linalg.qr(np.asarray(matrix, dtype=float))
+    signs = np.sign(np.diag(r))
+    signs[signs == 0] = 1.0
+    return signs[:, None] * r
+
+
+def distinct_orientations(means: np.ndarray, min_angle_deg: float = DISTINCT_DEG) -> int:
+    """Number of pose directions more than ``min_angle_deg`` apart (greedy clustering)."""
+    dirs = np.asarray(means, dtype=float)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    cos_lim = np.cos(np.radians(min_angle_deg))
+    centres: list[np.ndarray] = []
+    for d in dirs:
+        if not any(d @ c > cos_lim for c in centres):
+            centres.append(d)
+    return len(centres)
+
+
+# ------------------------------------------------------------------ multi-position
+
+def _upper(x: np.ndarray) -> np.ndarray:
+    c = np.zeros(9)
+    c[list(UPPER_INDEX)] = x[:6]
+    return c.reshape(3, 3)
+
+
+def _multi_residual_jacobian(x: np.ndarray, means: np.ndarray, g: float):
+    """r_p = |C (m_p - b)| - g and dr/dx (analytic): dr/dC_ij = u_i (m - b)_j, dr/db = -C^T u."""
+    c_mat, b = _upper(x), x[6:9]
+    d = means - b
+    v = d @ c_mat.T
+    norm = np.linalg.norm(v, axis=1)
+    u = v / norm[:, None]
+    dc = (u[:, :, None] * d[:, None, :]).reshape(-1, 9)[:, list(UPPER_INDEX)]
+    db = -u @ c_mat
+    return norm - g, np.hstack([dc, db]), u
+
+
+def _ellipsoid_start(means: np.ndarray, g: float) -> np.ndarray:
+    """Algebraic fit of the quadric (m - b)^T A (m - b) = 1 (least squares on the 10 coefficients), as start."""
+    x = means / g
+    design = np.column_stack([x[:, 0] ** 2, x[:, 1] ** 2, x[:, 2] ** 2, 2 * x[:, 0] * x[:, 1],
+                              2 * x[:, 0] * x[:, 2], 2 * x[:, 1] * x[:, 2], 2 * x, np.ones(len(x))])
+    coef = np.linalg.svd(design)[2][-1]
+    a = np.array([[coef[0], coef[3], coef[4]], [coef[3], coef[1], coef[5]], [coef[4], coef[5], coef[2]]])
+    if np.trace(a) < 0:
+        a, coef = -a, -coef
+    q, c0 = coef[6:9], coef[9]
+    try:
+        centre = -np.linalg.solve(a, q)
+        k = centre @ a @ centre - c0
+        c_mat = np.linalg.cholesky(a / k).T          # upper triangular, positive diagonal
+    except np.linalg.LinAlgError:
+        centre, c_mat = np.zeros(3), np.eye(3)
+    if not np.all(np.isfinite(c_mat)):
+        centre, c_mat = np.zeros(3), np.eye(3)
+    return np.concatenate([c_mat.ravel()[list(UPPER_INDEX)], centre * g])
+
+
+def _multi_covariance_to_correction(cov9: np.ndarray) -> np.ndarray:
+    idx = list(UPPER_INDEX) + [9, 10, 11]
+    full = np.zeros((12, 12))
+    full[np.ix_(idx, idx)] = cov9
+    return full
+
+
+def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
+                      min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability") -> GravityFit:
+    """Tedaldi et al. (imu_tk) multi-position fit: |C (m_p - b)| = g, C upper triangular (9 parameters).
+
+    Refuses (CalibrationError) with fewer than ``min_distinct`` orientations more than DISTINCT_DEG apart,
+    or when the poses leave a parameter combination undetermined (column-scaled Jacobian's reciprocal
+    condition below MULTI_MIN_RCOND).  The correction's covariance has zero rows for C_yx, C_zx, C_zy
+    (fixed to 0 by the gauge).  ``inflation``: see the module docstring.
+    """
+    start = time.perf_counter()
+    _check_inflation(inflation)
+    poses = list(poses)
+    means = np.array([p.mean for p in poses]).reshape(-1, 3)
+    n_distinct = distinct_orientations(means) if len(poses) else 0
+    if n_distinct < min_distinct:
+        raise CalibrationError(
+            f"{len(poses)} still poses in {n_distinct} distinct orientations: the multi-position fit "
+            f"(9 parameters) needs at least {min_distinct} orientations more than {DISTINCT_DEG:.0f} degrees apart",
+            "hold the sensor still in more orientations, between the faces too, or use six-face mode")
+    covs = [p.mean_cov for p in poses]
+    x_start = _ellipsoid_start(means, g)
+    n_eval = 0
+
+    def sds(x, extra_var):
+        _, _, u = _multi_residual_jacobian(x, means, g)
+        c_mat = _upper(x)
+        return np.sqrt([uk @ c_mat @ v @ c_mat.T @ uk + extra_var for uk, v in zip(u, covs, strict=True)])
+
+    def solve(extra_var):
+        nonlocal n_eval
+        x = x_start
+        for _ in range(3):                   # weights s_p from the current C (they change little)
+            s = sds(x, extra_var)
+            sol = least_squares(lambda y, s=s: _multi_residual_jacobian(y, means, g)[0] / s, x,
+                                jac=lambda y, s=s: _multi_residual_jacobian(y, means, g)[1] / s[:, None],
+                                method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=500)
+            x, n_eval = sol.x, n_eval + int(sol.nfev)
+        signs = np.sign(np.diag(_upper(x)))  # the sign of a row of C is a gauge too: keep the diagonal positive
+        signs[signs == 0] = 1.0
+        x = np.concatenate([(signs[:, None] * _upper(x)).ravel()[list(UPPER_INDEX)], x[6:9]])
+        s = sds(x, extra_var)
+        resid, jac_raw, _ = _multi_residual_jacobian(x, means, g)
+        return x, resid, jac_raw / s[:, None], float(np.sum((resid / s) ** 2))
+
+    x, resid, jw, chi2 = solve(0.0)
+    norms = np.linalg.norm(jw, axis=0)
+    sv = np.linalg.svd(jw / norms, compute_uv=False)
+    problem = unidentifiable_direction(jw, MULTI_NAMES)
+    if problem or sv[-1] < MULTI_MIN_RCOND * sv[0]:
+        raise CalibrationError(
+            f"the {len(poses)} poses ({n_distinct} orientations) do not span the sphere enough to determine "
+            f"C and b ({problem or f'reciprocal condition {sv[-1] / sv[0]:.1e}'})",
+            "add poses in orientations far from the ones held, e.g. tilted between two faces")
+    dof = len(poses) - 9
+    chi2_before = chi2
+    birge, rejected = _birge(chi2, dof)
+    source, sigma_r = "noise of the pose means", 0.0
+    cov_scale = 1.0
+    if rejected and inflation == "repeatability":
+        v = _solve_repeatability(lambda var: solve(var)[3], dof)
+        x, resid, jw, chi2 = solve(v)
+        sigma_r = float(np.sqrt(v))
+        source += f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for {dof} dof)"
+    elif rejected and inflation == "birge":
+        cov_scale = birge**2
+        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2:.3g} for {dof} dof)"
+    cov9 = np.linalg.inv(jw.T @ jw) * cov_scale
+    cov9 = 0.5 * (cov9 + cov9.T)
+    correction = Correction(_upper(x), x[6:9], _multi_covariance_to_correction(cov9))
+    return GravityFit("multi-position", correction, list(MULTI_NAMES), x.copy(), cov9, chi2, dof, birge,
+                      bool(rejected and inflation != "none"), source, resid, _names(poses), g,
+                      gauge="C upper triangular (C_yx = C_zx = C_zy = 0 exactly, zero covariance): "
+                            "calibrated x on the sensor's x axis, y in its xy plane",
+                      n_evaluations=n_eval, seconds=time.perf_counter() - start, repeatability_sd=sigma_r,
+                      chi2_before=chi2_before, extra={"n_distinct": n_distinct, "rcond": float(sv[-1] / sv[0])})
+
+
+def multiposition_crb(matrix: np.ndarray, bias: np.ndarray, directions: np.ndarray, counts, sigma: float,
+                      g: float = STANDARD_GRAVITY) -> np.ndarray:
+    """CRB (12 x 12, correction order, upper-triangular gauge) of a planned multi-position run.
+
+    matrix, bias  the expected correction (any gauge: it is reduced to upper_gauge(matrix));
+    directions    (P, 3) directions of the specific force in the frame of ``matrix`` (the axis up reads +g);
+    counts        samples per pose (scalar or P);  sigma  white noise sd per raw axis (m/s^2).
+    """
+    r = upper_gauge(matrix)
+    dirs = np.asarray(directions, dtype=float).reshape(-1, 3)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(dirs),))
+    means = np.linalg.solve(np.asarray(matrix, dtype=float), (g * dirs).T).T + np.asarray(bias, dtype=float)
+    x = np.concatenate([r.ravel()[list(UPPER_INDEX)], bias])
+    _, jac, u = _multi_residual_jacobian(x, means, g)
+    s = np.sqrt([sigma**2 / n * (uk @ r @ r.T @ uk) for uk, n in zip(u, counts, strict=True)])
+    jw = jac / s[:, None]
+    problem = unidentifiable_direction(jw, MULTI_NAMES)
+    if problem:
+        raise CalibrationError(f"these orientations cannot determine the 9 parameters: {problem}",
+                               f"plan at least {MULTI_MIN_DISTINCT} orientations spread over the sphere")
+    return _multi_covariance_to_correction(np.linalg.inv(jw.T @ jw))
+
+
+# ------------------------------------------------------------------ six faces: models
+
+def _rotation_derivatives(alpha: np.ndarray) -> np.ndarray:
+    """d R / d angle_k of R = Rz(c) Ry(b) Rx(a) (geometry.rotation_xyz, the paper's Listing 1)."""
+    a, b, c = alpha
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
+    drx = np.array([[0, 0, 0], [0, -sa, -ca], [0, ca, -sa]])
+    dry = np.array([[-sb, 0, cb], [0, 0, 0], [-cb, 0, -sb]])
+    drz = np.array([[-sc, -cc, 0], [cc, -sc, 0], [0, 0, 0]])
+    return np.array([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx])
+
+
+class _Model:
+    """Forward model raw = K f + o of a six-face fit, in the model's own parameters, with dK/dp, do/dp."""
+
+    def __init__(self, kind: str):
+        if kind not in ("affine", "paper"):
+            raise CalibrationError(f"unknown six-face model {kind!r}", "use affine or paper")
+        self.kind = kind
+        self.names = AFFINE_K_NAMES if kind == "affine" else PAPER_NAMES
+        self.size = 12 if kind == "affine" else 9
+
+    def forward(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(K, o, dKo) with dKo (12, size): derivative of [K.ravel(), o] with respect to p."""
+        if self.kind == "affine":
+            return p[:9].reshape(3, 3), p[9:12], np.eye(12)
+        angles, gains, offs = p[:3], p[3:6], p[6:9]
+        r = rotation_xyz(angles)
+        ginv = 1.0 / gains
+        k = r.T * ginv[None, :]                       # R^T diag(1/G)
+        o = -k @ offs
+        d = np.zeros((12, 9))
+        for j, dr in enumerate(_rotation_derivatives(angles)):
+            dk = dr.T * ginv[None, :]
+            d[:9, j], d[9:, j] = dk.ravel(), -dk @ offs
+        for j in range(3):
+            dk = np.zeros((3, 3))
+            dk[:, j] = -r.T[:, j] * ginv[j] ** 2
+            d[:9, 3 + j], d[9:, 3 + j] = dk.ravel(), -dk @ offs
+        d[9:, 6:9] = -k
+        return k, o, d
+
+    def to_correction(self, p: np.ndarray) -> np.ndarray:
+        k, o, _ = self.forward(p)
+        return np.concatenate([np.linalg.inv(k).ravel(), o])
+
+    def start(self, k: np.ndarray, o: np.ndarray) -> np.ndarray:
+        if self.kind == "affine":
+            return np.concatenate([k.ravel(), o])
+        c = np.linalg.inv(k)
+        gains = np.linalg.norm(c, axis=1)
+        return np.concatenate([np.zeros(3), gains, -c @ o])
+
+
+def _tangents(e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    k = int(np.argmax(np.abs(e)))
+    others = [j for j in range(3) if j != k]
+    return np.eye(3)[others[0]], np.eye(3)[others[1]]
+
+
+def _affine_exact_start(poses: Sequence[PoseStats], g: float) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of raw = K f + o with f the exact face references (closed form start)."""
+    f = np.array([-g * face_down_direction(p.face) for p in poses])
+    design = np.column_stack([f, np.ones(len(poses))])
+    w = np.sqrt([p.n for p in poses])
+    sol = np.linalg.lstsq(design * w[:, None], np.array([p.mean for p in poses]) * w[:, None], rcond=None)[0]
+    return sol[:3].T, sol[3]
+
+
+def _six_face_system(model: _Model, poses: Sequence[PoseStats], g: float, tau: float, extra_var: float = 0.0):
+    """Residual and Jacobian of the MAP problem: whitened pose means (3 per pose) and tilt priors (2 per pose)."""
+    downs = [face_down_direction(p.face) for p in poses]
+    tangents = [_tangents(e) for e in downs]
+    whiten = [np.linalg.inv(np.linalg.cholesky(p.mean_cov + extra_var * np.eye(3))) for p in poses]
+    means = [p.mean for p in poses]
+    n_pose, n_m = len(poses), model.size
+    n_t = 2 * n_pose if tau > 0 else 0
+
+    def directions(t):
+        out, derivs = [], []
+        for k, (e, (t1, t2)) in enumerate(zip(downs, tangents, strict=True)):
+            if tau > 0:
+                a, b = t[2 * k], t[2 * k + 1]
+                v = e + a * t1 + b * t2
+                nv = np.linalg.norm(v)
+                d = v / nv
+                proj = (np.eye(3) - np.outer(d, d)) / nv
+                derivs.append((proj @ t1, proj @ t2))
+            else:
+                d = e
+                derivs.append(None)
+            out.append(d)
+        return out, derivs
+
+    def system(x):
+        p, t = x[:n_m], x[n_m:]
+        k_mat, o, dko = model.forward(p)
+        ds, dds = directions(t)
+        res = np.zeros(3 * n_pose + n_t)
+        jac = np.zeros((3 * n_pose + n_t, n_m + n_t))
+        for i, (d, dd, wi, m) in enumerate(zip(ds, dds, whiten, means, strict=True)):
+            f = -g * d
+            pred = k_mat @ f + o
+            rows = slice(3 * i, 3 * i + 3)
+            res[rows] = wi @ (m - pred)
+            # d pred / d [K.ravel(), o]: K_ab -> f_b in row a; o -> I
+            dpred_ko = np.zeros((3, 12))
+            for a in range(3):
+                dpred_ko[a, 3 * a:3 * a + 3] = f
+            dpred_ko[:, 9:] = np.eye(3)
+            jac[rows, :n_m] = -wi @ dpred_ko @ dko
+            if tau > 0:
+                jac[rows, n_m + 2 * i] = -wi @ (k_mat @ (-g * dd[0]))
+                jac[rows, n_m + 2 * i + 1] = -wi @ (k_mat @ (-g * dd[1]))
+        if tau > 0:
+            res[3 * n_pose:] = t / tau
+            jac[3 * n_pose:, n_m:] = np.eye(n_t) / tau
+        return res, jac
+
+    return system, n_t
+
+
+def _require_faces(poses: Sequence[PoseStats]) -> None:
+    missing = [f for f in FACES if not any(p.face == f for p in poses)]
+    unnamed = [n for p, n in zip(poses, _names(poses), strict=True) if p.face is None]
+    if unnamed:
+        raise CalibrationError(f"six-face mode needs the face of every pose; {', '.join(unnamed)} has none",
+                               "classify the poses first (face_tilts) or use the multi-position fit")
+    if missing:
+        raise CalibrationError(f"six-face mode needs all six faces; missing {', '.join(missing)} down",
+                               "put the sensor down on the missing faces too")
+
+
+def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float, extra_var: float) -> tuple[float, np.ndarray]:
+    """chi^2 of the gravity magnitudes |C (m_p - b)| - g against their variance from each mean's covariance."""
+    c_mat, b = correction_vec[:9].reshape(3, 3), correction_vec[9:12]
+    total, resid = 0.0, []
+    for p in poses:
+        v = c_mat @ (p.mean - b)
+        u = v / np.linalg.norm(v)
+        var = u @ c_mat @ (p.mean_cov + extra_var * np.eye(3)) @ c_mat.T @ u
+        r = np.linalg.norm(v) - g
+        total += r * r / var
+        resid.append(r)
+    return float(total), np.array(resid)
+
+
+def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
+                 pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
+                 inflation: str = "repeatability") -> GravityFit:
+    """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
+
+    model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
+    ``pose_flatness_deg``: sd of each of the two tilt components of a pose (0: the paper's exact faces).
+
+    Two lack-of-fit tests, because a tilt prior that is conservative makes the overall chi^2 small while
+    the gravity magnitudes may still disagree:
+      tilts      sum (tilt / flatness)^2 against 2 P dof: when it rejects (p < CHI2_ALPHA) the stated
+                 flatness was too optimistic (a tilted table) and it is replaced by the observed one,
+                 flatness x sqrt(chi^2 / 2P), and the fit redone;
+      magnitudes |C (m_p - b)| - g against P - 6 dof (tilt-free: what the data say beyond the faces):
+                 when it rejects, ``inflation`` ("repeatability": an additive per-pose sd, or "birge").
+    With flatness 0 (exact faces) the test is the whole chi^2 against 3 P - parameters.
+    """
+    start = time.perf_counter()
+    _check_inflation(inflation)
+    poses = list(poses)
+    _require_faces(poses)
+    if pose_flatness_deg < 0 or not np.isfinite(pose_flatness_deg):
+        raise CalibrationError(f"pose flatness must be >= 0 degrees, got {pose_flatness_deg}")
+    m = _Model(model)
+    k0, o0 = _affine_exact_start(poses, g)
+    n_eval = 0
+    n_pose = len(poses)
+
+    def solve(flat_deg, extra_var):
+        nonlocal n_eval
+        tau = float(np.tan(np.radians(flat_deg)))
+        system, n_t = _six_face_system(m, poses, g, tau, extra_var)
+        x0 = np.concatenate([m.start(k0, o0), np.zeros(n_t)])
+        sol = least_squares(lambda x: system(x)[0], x0, jac=lambda x: system(x)[1], method="lm",
+                            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=400)
+        n_eval += int(sol.nfev)
+        res, jac = system(sol.x)
+        corr = m.to_correction(sol.x[:m.size])
+        if tau > 0:
+            chi2_t = float(np.sum((sol.x[m.size:] / tau) ** 2))
+            chi2_m = _magnitude_chi2(corr, poses, g, extra_var)[0]
+        else:
+            chi2_t, chi2_m = 0.0, float(res @ res)
+        return sol.x, jac, chi2_m, chi2_t, n_t
+
+    flat = float(pose_flatness_deg)
+    x, jac, chi2_m, chi2_t, n_t = solve(flat, 0.0)
+    names = list(m.names) + [f"tilt{k}" for k in range(n_t)]
+    problem = unidentifiable_direction(jac, names)
+    if problem:
+        raise CalibrationError(f"the six-face poses do not determine the {model} model: {problem}")
+    notes = []
+    source = "noise" if flat == 0 else f"noise + flatness prior {flat:g} deg (Type B)"
+    if flat > 0 and chi2_dist.sf(chi2_t, 2 * n_pose) < CHI2_ALPHA and inflation != "none":
+        observed = flat * float(np.sqrt(chi2_t / (2 * n_pose)))
+        notes.append(f"tilts exceed the stated flatness {flat:g} deg (chi^2 {chi2_t:.3g} for {2 * n_pose}): "
+                     f"flatness {observed:.2g} deg from the observed tilts used")
+        source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
+        flat = observed
+        x, jac, chi2_m, chi2_t, n_t = solve(flat, 0.0)
+    dof = n_pose - 6 if flat > 0 else 3 * n_pose - m.size
+    chi2_before = chi2_m
+    birge, rejected = _birge(chi2_m, dof)
+    cov_scale, sigma_r = 1.0, 0.0
+    if rejected and inflation == "repeatability":
+        v = _solve_repeatability(lambda var: solve(flat, var)[2], dof)
+        x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
+        sigma_r = float(np.sqrt(v))
+        source += f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for {dof} dof)"
+    elif rejected and inflation == "birge":
+        cov_scale = birge**2
+        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2_m:.3g} for {dof} dof)"
+    cov = np.linalg.inv(jac.T @ jac)[:m.size, :m.size] * cov_scale
+    p = x[:m.size]
+    corr_values, corr_cov = propagate_covariance(m.to_correction, p, cov)
+    correction = Correction(corr_values[:9].reshape(3, 3), corr_values[9:], corr_cov)
+    tilts = (np.degrees(np.arctan(np.hypot(x[m.size::2], x[m.size + 1::2]))) if n_t
+             else np.zeros(n_pose))
+    label = f"six-face {model}" if pose_flatness_deg > 0 else f"exact-face {model}"
+    return GravityFit(label, correction, list(m.names), p, 0.5 * (cov + cov.T), chi2_m, dof, birge,
+                      bool(rejected and inflation != "none") or flat != pose_flatness_deg, source,
+                      _magnitudes(correction, poses, g), _names(poses), g, pose_flatness_deg=flat,
+                      tilts_deg=tilts, n_evaluations=n_eval, seconds=time.perf_counter() - start,
+                      repeatability_sd=sigma_r, chi2_before=chi2_before,
+                      extra={"chi2_tilts": chi2_t, "tilt_dof": 2 * n_pose if n_t else 0, "notes": notes,
+                             "stated_flatness_deg": float(pose_flatness_deg)})
+
+
+def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequence[str], counts, sigma: float,
+                 pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
+                 params: np.ndarray | None = None, draws: int = 0, seed: int = 0) -> np.ndarray:
+    """Bound (12 x 12, correction order) of a planned six-face run with the flatness prior.
+
+    The hybrid CRB: the inverse of the data information at zero tilt plus the prior information of the
+    tilts, marginal block of the model parameters, propagated to the correction (``draws`` > 0 averages
+    the data information over tilts drawn from the prior instead: the Van Trees form).  Both are first
+    order: the affine model's offsets carry a further ~ g s^2 / 2 from the product of the unknown tilt
+    difference of a face pair and its shear (docs/static-tilt-notes.md), which no first-order bound shows.
+    With flatness 0 it is the plain CRB.
+    ``params`` gives the paper model's parameters (else derived from ``matrix``, ``bias`` with zero angles).
+    """
+    m = _Model(model)
+    counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(faces),))
+    c = np.asarray(matrix, dtype=float)
+    k_true, o_true = np.linalg.inv(c), np.asarray(bias, dtype=float)
+    poses = [PoseStats(k_true @ (-g * face_down_direction(f)) + o_true, sigma, n, f) for f, n in zip(faces, counts, strict=True)]
+    tau = float(np.tan(np.radians(pose_flatness_deg)))
+    system, n_t = _six_face_system(m, poses, g, tau)
+    p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
+    rng = np.random.default_rng(seed)
+    samples = [np.zeros(n_t)] if n_t == 0 or draws == 0 else [tau * rng.standard_normal(n_t) for _ in range(draws)]
+    info = np.zeros((m.size + n_t, m.size + n_t))
+    for t in samples:
+        jac = system(np.concatenate([p, t]))[1]
+        info += jac.T @ jac / len(samples)
+    cov = np.linalg.inv(info)[:m.size, :m.size]
+    return propagate_covariance(m.to_correction, p, cov)[1]
+
+
+# ------------------------------------------------------------------ Ferraris pairing
+
+def fit_ferraris(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY, repeatability_sd: float = 0.0) -> GravityFit:
+    """Opposite-face pairing of Ferraris et al. (1995) as imucal implements it (poses of one face pooled).
+
+    U_d = [m(-k down) - m(+k down)]_k (columns), C = 2 g U_d^-1, b_k = (m(-k)_k + m(+k)_k) / 2.
+    Uncertainty: the noise of the pose means propagated (the method states none), plus an optional
+    per-pose ``repeatability_sd`` (e.g. the one a fit of the same session found); no tilt term.
+    """
+    start = time.perf_counter()
+    poses = list(poses)
+    _require_faces(poses)
+    pooled = {}
+    for f in FACES:
+        group = [p for p in poses if p.face == f]
+        n = sum(p.n for p in group)
+        extra = repeatability_sd**2 * np.eye(3)
+        pooled[f] = (sum(p.n * p.mean for p in group) / n, sum(p.n**2 * (p.mean_cov + extra) for p in group) / n**2)
+    x = np.concatenate([pooled[f][0] for f in FACES])             # +x, -x, +y, -y, +z, -z
+    vx = np.zeros((18, 18))
+    for k, f in enumerate(FACES):
+        vx[3 * k:3 * k + 3, 3 * k:3 * k + 3] = pooled[f][1]
+
+    def correction_of(y):
+        m = y.reshape(6, 3)
+        u_d = np.column_stack([m[2 * k + 1] - m[2 * k] for k in range(3)])
+        bias = np.array([(m[2 * k + 1][k] + m[2 * k][k]) / 2 for k in range(3)])
+        return np.concatenate([(2 * g * np.linalg.inv(u_d)).ravel(), bias])
+
+    values, cov = propagate_covariance(correction_of, x, vx)
+    correction = Correction(values[:9].reshape(3, 3), values[9:], cov)
+    return GravityFit("ferraris", correction, list(CORRECTION_NAMES), values, cov, float("nan"), 0, 1.0, False,
+                      "noise of the pose means" + (f" + pose repeatability {repeatability_sd:.2g} m/s^2"
+                                                   if repeatability_sd else ""), _magnitudes(correction, poses, g), _names(poses), g,
+                      seconds=time.perf_counter() - start)
+
+
+# ------------------------------------------------------------------ face classifier
+
+@dataclass
+class FaceTilt:
+    name: str
+    face: str
+    angle_deg: float
+
+
+def face_tilts(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY) -> list[FaceTilt]:
+    """How far each pose's gravity is from the nearest face, in degrees.
+
+    The means are first corrected by per-axis gains and offsets from an axis-aligned gravity-magnitude fit
+    (|D (m - o)| = g, D diagonal: insensitive to tilts, so a 25-degree pose does not bias it), which
+    needs at least 6 poses with both ends of every axis; otherwise the raw means are used.  What is left
+    (cross-axis terms, mounting of the sensor in its housing, typically under 1-2 degrees) counts as tilt.
+    """
+    means = np.array([p.mean for p in poses]).reshape(-1, 3)
+    corrected = means
+    dominant = np.argmax(np.abs(means), axis=1)
+    both_ends = all(np.any((dominant == k) & (means[:, k] > 0)) and np.any((dominant == k) & (means[:, k] < 0))
+                    for k in range(3))
+    if len(poses) >= 6 and both_ends:
+        hi = np.array([means[(dominant == k) & (means[:, k] > 0), k].mean() for k in range(3)])
+        lo = np.array([means[(dominant == k) & (means[:, k] < 0), k].mean() for k in range(3)])
+        x0 = np.concatenate([2 * g / (hi - lo), (hi + lo) / 2])
+
+        def fun(x):
+            return np.linalg.norm((means - x[3:]) * x[:3], axis=1) - g
+
+        sol = least_squares(fun, x0, method="lm" if len(poses) >= 6 else "trf")
+        if sol.success and np.all(sol.x[:3] > 0):
+            corrected = (means - sol.x[3:]) * sol.x[:3]
+    out = []
+    for name, v in zip(_names(poses), corrected, strict=True):
+        k = int(np.argmax(np.abs(v)))
+        angle = float(np.degrees(np.arccos(min(abs(v[k]) / np.linalg.norm(v), 1.0))))
+        out.append(FaceTilt(name, ("+" if v[k] < 0 else "-") + AXES[k], angle))
+    return out
+
+
+def check_faces(poses: Sequence[PoseStats], pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG,
+                g: float = STANDARD_GRAVITY, refuse_sd: float = FACE_REFUSE_SD) -> list[FaceTilt]:
+    """Six-face mode's gate: refuse (one line, naming the pose and its angle) any pose further than
+    ``refuse_sd`` x the flatness from a face; otherwise return the classification (face and angle per pose)."""
+    limit = refuse_sd * pose_flatness_deg
+    tilts = face_tilts(poses, g)
+    bad = [t for t in tilts if t.angle_deg > limit]
+    if bad:
+        worst = max(bad, key=lambda t: t.angle_deg)
+        others = f" ({len(bad)} of {len(tilts)} poses are)" if len(bad) > 1 else ""
+        raise CalibrationError(
+            f"{worst.name} is {worst.angle_deg:.1f} degrees from {worst.face}, more than {limit:.1f} "
+            f"({refuse_sd:g} x the pose flatness {pose_flatness_deg:g} deg){others}",
+            "use the multi-position model or place the face flat")
+    return tilts

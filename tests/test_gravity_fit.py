@@ -1,0 +1,184 @@
+"""Issue 12 estimation core: multi-position and tilt-robust six-face fits, on real recordings and Monte Carlo.
+
+Real recordings (tests/data, with licences) are judged against the published tools' answers; the
+Monte Carlo draws pose statistics from first principles (tests/benchmarks/bench_static_tilt.py) and
+judges coverage and the bound.  Thresholds are the issue's, not fitted to these files.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from accelrig.errors import CalibrationError
+from accelrig.estimation.gravity_fit import (
+    DEFAULT_POSE_FLATNESS_DEG,
+    FACE_REFUSE_SD,
+    PoseStats,
+    check_faces,
+    face_tilts,
+    fit_ferraris,
+    fit_multiposition,
+    fit_six_face,
+    multiposition_crb,
+    six_face_crb,
+    upper_gauge,
+)
+from accelrig.procedures.static.procedure import detect_poses
+from accelrig.recording import load_recording
+
+DATA = Path(__file__).parent / "data"
+IMUCAL_G = 9.81                # imucal's FerrarisCalibration default grav
+IMUTK_G = 9.81744              # imu_tk's g for its Xsens data
+IMUCAL_OFFSETS = np.array([0.53711742, -0.61620299, 0.39886734])   # imucal 2.6.0 on the annotated sections
+IMUCAL_IMUTK_AGREEMENT = 0.0024   # README: imucal and imu_tk agree on the offsets to this (m/s^2)
+
+_spec = importlib.util.spec_from_file_location("bench_static_tilt", Path(__file__).parent / "benchmarks" / "bench_static_tilt.py")
+bench = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(bench)
+
+
+def _poses(name: str) -> list[PoseStats]:
+    proc = detect_poses(load_recording(DATA / name))   # every still pose, any angle
+    return [PoseStats.from_samples(p.samples, p.face, f"pose {k + 1}") for k, p in enumerate(proc.poses)]
+
+
+@pytest.fixture(scope="module")
+def imucal_poses():
+    return _poses("imucal-ferraris-session.csv")
+
+
+@pytest.fixture(scope="module")
+def xsens_poses():
+    return _poses("imutk-xsens-multipose.csv")
+
+
+@pytest.fixture(scope="module")
+def imucal_annotated():
+    rec = load_recording(DATA / "imucal-ferraris-session.csv")
+    ann = json.loads((DATA / "imucal-ferraris-session-annotation.json").read_text())
+    faces = {"x_p": "-x", "x_a": "+x", "y_p": "-y", "y_a": "+y", "z_p": "-z", "z_a": "+z"}
+    return [PoseStats.from_samples(rec.to_si().acc[ann[k]["start"]:ann[k]["end"]], f, k) for k, f in faces.items()]
+
+
+# ------------------------------------------------------------------ real: imucal's hand-held Ferraris session
+
+@pytest.mark.parametrize("model", ["affine", "paper"])
+def test_imucal_session_six_face(imucal_poses, imucal_annotated, model):
+    assert len(imucal_poses) == 13
+    fit = fit_six_face(imucal_poses, model, g=IMUCAL_G)
+    # every still pose's calibrated gravity magnitude within 0.005 m/s^2 of g
+    assert np.max(np.abs(fit.magnitude_residuals)) < 0.005
+    # offsets agree with imucal's within 3 combined standard uncertainties; imucal states none, so its u is
+    # its own formula's noise propagation on its sections plus the per-pose repeatability this session shows
+    ref = fit_ferraris(imucal_annotated, g=IMUCAL_G, repeatability_sd=fit.repeatability_sd)
+    assert np.allclose(ref.correction.bias, IMUCAL_OFFSETS, atol=1e-7)       # our pairing is imucal's formula
+    u = fit.correction.bias_uncertainty
+    u_c = np.hypot(u, ref.correction.bias_uncertainty)
+    assert np.all(np.abs(fit.correction.bias - IMUCAL_OFFSETS) <= 3 * u_c)
+    # every u at least what the imucal / imu_tk disagreement justifies: |d| <= 2 sqrt(2) u for two methods
+    assert np.all(u >= IMUCAL_IMUTK_AGREEMENT / (2 * np.sqrt(2)))
+    # ... and at least the sd of the offsets across the methods run on this session
+    others = [fit_six_face(imucal_poses, m, g=IMUCAL_G).correction.bias for m in ("affine", "paper")]
+    spread = np.std(np.vstack(others + [fit_ferraris(imucal_poses, g=IMUCAL_G).correction.bias, IMUCAL_OFFSETS]),
+                    axis=0, ddof=1)
+    assert np.all(u >= spread)
+    # the lack of fit was seen and said
+    assert fit.inflated and "repeatability" in fit.uncertainty_source
+
+
+def test_imucal_session_exact_faces_is_what_issue_12_reports(imucal_poses):
+    """The exact-face model (today's) is off imucal by many of its noise-only uncertainties."""
+    fit = fit_six_face(imucal_poses, "affine", pose_flatness_deg=0.0, g=IMUCAL_G, inflation="none")
+    assert np.max(np.abs(fit.correction.bias - IMUCAL_OFFSETS) / fit.correction.bias_uncertainty) > 20
+    assert fit.p_value < 1e-6
+
+
+def test_imucal_session_refused_by_multiposition(imucal_poses):
+    with pytest.raises(CalibrationError, match=r"6 distinct orientations.*at least 9"):
+        fit_multiposition(imucal_poses, g=IMUCAL_G)
+
+
+def test_imucal_session_faces_pass_classifier(imucal_poses):
+    tilts = check_faces(imucal_poses)
+    assert [t.face for t in tilts] == [p.face for p in imucal_poses]
+    assert max(t.angle_deg for t in tilts) < FACE_REFUSE_SD * DEFAULT_POSE_FLATNESS_DEG
+
+
+# ------------------------------------------------------------------ real: imu_tk's Xsens multi-position data
+
+def test_xsens_multiposition(xsens_poses):
+    fit = fit_multiposition(xsens_poses, g=IMUTK_G)
+    assert len(xsens_poses) >= 30
+    assert np.max(np.abs(fit.magnitude_residuals)) < 0.005
+    c = fit.correction
+    assert np.all(c.matrix[[1, 2, 2], [0, 0, 1]] == 0) and np.all(c.covariance[[3, 6, 7]] == 0)
+    # the nominal scale in the file is a guess: the fit finds a gain 8 % off it, stated to < 1e-3
+    assert np.all(np.abs(np.diag(c.matrix) - 1) > 0.05) and np.all(c.matrix_uncertainty[[0, 1, 2], [0, 1, 2]] < 1e-3)
+    assert np.all(c.bias_uncertainty < 0.005)
+
+
+def test_xsens_refused_by_six_face_classifier(xsens_poses):
+    with pytest.raises(CalibrationError, match=r"pose \d+ is \d+\.\d degrees from [+-][xyz].*multi-position"):
+        check_faces(xsens_poses)
+    off = [t for t in face_tilts(xsens_poses, IMUTK_G) if t.angle_deg > FACE_REFUSE_SD * DEFAULT_POSE_FLATNESS_DEG]
+    assert len(off) >= 10
+
+
+# ------------------------------------------------------------------ synthetic checks
+
+def test_multiposition_refuses_a_great_circle():
+    rng = np.random.default_rng(3)
+    angles = rng.uniform(0, 2 * np.pi, 14)
+    poses = [PoseStats(9.80665 * np.array([np.cos(a), np.sin(a), 0.0]) + 0.1, 0.02, 400) for a in angles]
+    with pytest.raises(CalibrationError, match="span the sphere"):
+        fit_multiposition(poses)
+
+
+def test_multiposition_exact_and_crb_matches_covariance():
+    rng = np.random.default_rng(4)
+    c_true, b_true, _ = bench.draw_truth(rng)
+    dirs = rng.standard_normal((20, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    means = np.linalg.solve(c_true, (9.80665 * dirs).T).T + b_true
+    fit = fit_multiposition([PoseStats(m, 0.02, 400) for m in means])
+    assert np.allclose(fit.correction.matrix, upper_gauge(c_true), atol=1e-9)
+    assert np.allclose(fit.correction.bias, b_true, atol=1e-9)
+    crb = multiposition_crb(c_true, b_true, dirs, 400, 0.02)
+    assert np.allclose(crb, fit.correction.covariance, rtol=1e-6, atol=1e-15)
+
+
+def test_six_face_flatness_zero_is_exact_face_and_tilts_do_not_bias_offsets():
+    rng = np.random.default_rng(5)
+    c_true, b_true, paper = bench.draw_truth(rng)
+    poses, _ = bench.draw_poses(rng, c_true, b_true, "faces", 0.0, 0.0)
+    exact = fit_six_face(poses, "paper", 0.0)
+    assert exact.model == "exact-face paper" and exact.tilts_deg.max() == 0
+    crb = six_face_crb("paper", c_true, b_true, bench.FACE_LIST, bench.N, bench.SIGMA, 0.0, params=paper)
+    assert np.allclose(np.sqrt(np.diag(crb))[9:], exact.correction.bias_uncertainty, rtol=0.05)
+
+
+@pytest.mark.parametrize("scenario, models", [
+    ("hand 0.3", ["six-face affine", "six-face paper"]),
+    ("hand 1", ["six-face paper"]),
+    ("arbitrary", ["multi-position"]),
+])
+def test_monte_carlo_small(scenario, models):
+    """A fast version of the benchmark: coverage of +-2u and the bound hold for the tilt-robust models;
+    the paper's exact-face model and Ferraris pairing fail on the same tilted poses."""
+    result = bench.run_scenario(scenario, 120, seed=11)
+    for model in models:
+        s = bench.summarise(result[model])
+        cover = np.concatenate([s["cover_C"], s["cover_b"]])
+        assert 0.90 <= cover.mean() <= 0.985, (model, cover)
+        assert cover.min() >= 0.84, (model, cover)
+        assert np.all(s["ratio_b"] < 1.3) and np.all(s["ratio_b"] > 0.75), (model, s["ratio_b"])
+    if scenario.startswith("hand"):
+        exact = bench.summarise(result["exact-face paper"])
+        assert exact["ratio_b"].min() > 10                     # the offsets are off by tens of their bound
+        ferraris = bench.summarise(result["ferraris"])
+        assert ferraris["cover_C"].min() < 0.9                 # noise-only u on the cross terms does not cover
