@@ -29,6 +29,19 @@ def rotation_xyz(angles: np.ndarray) -> np.ndarray:
     return rot_z(c) @ rot_y(b) @ rot_x(a)
 
 
+def rotation_xyz_derivatives(alpha: np.ndarray) -> np.ndarray:
+    """d R / d angle_k (3, 3, 3) of R = Rz(c) Ry(b) Rx(a), the convention of rotation_xyz and Listing 1."""
+    a, b, c = alpha
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
+    drx = np.array([[0, 0, 0], [0, -sa, -ca], [0, ca, -sa]])
+    dry = np.array([[-sb, 0, cb], [0, 0, 0], [-cb, 0, -sb]])
+    drz = np.array([[-sc, -cc, 0], [cc, -sc, 0], [0, 0, 0]])
+    return np.array([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx])
+
+
 # ---------------------------------------------------------------- axes and faces
 # The sensor's axes by name, and the six faces a cube-shaped housing rests on.
 # A face is named by the axis that points DOWN ("+z" down: the sensor lies on its

@@ -53,7 +53,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation.crb import propagate_covariance, unidentifiable_direction
-from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz
+from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz, rotation_xyz_derivatives
 from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY
 
@@ -373,19 +373,6 @@ def multiposition_crb(matrix: np.ndarray, bias: np.ndarray, directions: np.ndarr
 
 # ------------------------------------------------------------------ six faces: models
 
-def _rotation_derivatives(alpha: np.ndarray) -> np.ndarray:
-    """d R / d angle_k of R = Rz(c) Ry(b) Rx(a) (geometry.rotation_xyz, the paper's Listing 1)."""
-    a, b, c = alpha
-    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
-    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
-    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
-    drx = np.array([[0, 0, 0], [0, -sa, -ca], [0, ca, -sa]])
-    dry = np.array([[-sb, 0, cb], [0, 0, 0], [-cb, 0, -sb]])
-    drz = np.array([[-sc, -cc, 0], [cc, -sc, 0], [0, 0, 0]])
-    return np.array([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx])
-
-
 class _Model:
     """Forward model raw = K f + o of a six-face fit, in the model's own parameters, with dK/dp, do/dp."""
 
@@ -406,7 +393,7 @@ class _Model:
         k = r.T * ginv[None, :]                       # R^T diag(1/G)
         o = -k @ offs
         d = np.zeros((12, 9))
-        for j, dr in enumerate(_rotation_derivatives(angles)):
+        for j, dr in enumerate(rotation_xyz_derivatives(angles)):
             dk = dr.T * ginv[None, :]
             d[:9, j], d[9:, j] = dk.ravel(), -dk @ offs
         for j in range(3):

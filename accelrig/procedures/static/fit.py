@@ -43,7 +43,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
-from accelrig.geometry import AXES, FACES, parse_axis, rotation_xyz
+from accelrig.geometry import AXES, FACES, parse_axis, rotation_xyz, rotation_xyz_derivatives
 from accelrig.procedures.static.settings import METHODS, MODELS
 from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY
@@ -108,19 +108,6 @@ class PoseData:
 
 # --------------------------------------------------------------- model algebra
 
-def _rotation_derivatives(alpha: np.ndarray) -> np.ndarray:
-    """d R / d angle_k (3, 3, 3) of R = Rz(c) Ry(b) Rx(a), the convention of rotation_xyz and Listing 1."""
-    a, b, c = alpha
-    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
-    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
-    rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
-    drx = np.array([[0, 0, 0], [0, -sa, -ca], [0, ca, -sa]])
-    dry = np.array([[-sb, 0, cb], [0, 0, 0], [-cb, 0, -sb]])
-    drz = np.array([[-sc, -cc, 0], [cc, -sc, 0], [0, 0, 0]])
-    return np.array([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx])
-
-
 def _paper_columns(r: np.ndarray, refs: np.ndarray) -> np.ndarray:
     n = refs.shape[0]
     slope = np.einsum("kj,ik->ijk", r, refs).reshape(3 * n, 3)
@@ -139,7 +126,7 @@ def _paper_basis(refs: np.ndarray):
         return _paper_columns(rotation_xyz(alpha), refs)
 
     def derivatives(alpha):
-        return np.array([_paper_columns(d, refs) for d in _rotation_derivatives(np.asarray(alpha, float))])
+        return np.array([_paper_columns(d, refs) for d in rotation_xyz_derivatives(np.asarray(alpha, float))])
 
     return basis, derivatives
 
