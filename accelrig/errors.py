@@ -72,3 +72,15 @@ class ProfileError(AccelrigError):
     """A device profile is malformed, of another schema version, or for another device."""
 
     exit_code = 6
+
+
+class StorageError(AccelrigError):
+    """Recorded data could not be written: an unwritable directory, an I/O error, a full disk."""
+
+    exit_code = 7
+
+
+class StorageFull(StorageError):
+    """The disk (or quota) is full.  The writer that raised it stays consistent: the block is
+    wholly in the open segment or not at all, so the caller counts it as a "disk full" gap and
+    writes again once space returns."""

@@ -12,6 +12,10 @@ from pathlib import Path
 
 from accelrig.errors import AccelrigError, DataError
 
+# The one metadata comment line of accelrig's interchange CSV (recording.py reads and writes it;
+# segments.py writes it into the CSV copy of a segment).
+META_PREFIX = "# accelrig-meta:"
+
 
 def _umask() -> int:
     # os.umask can only be read by setting it; set it straight back.
@@ -46,10 +50,11 @@ def atomic_write(path: str | os.PathLike, writer, text: bool) -> None:
         except FileNotFoundError:
             pass
         raise
-    _fsync_directory(directory)
+    fsync_directory(directory)
 
 
-def _fsync_directory(directory: Path) -> None:
+def fsync_directory(directory: Path) -> None:
+    """Make a rename or a new file in ``directory`` survive a power cut (best effort)."""
     try:
         fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:
