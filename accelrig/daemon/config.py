@@ -29,7 +29,7 @@ from accelrig.errors import AccelrigError
 from accelrig.spec import Boolean, Field, Integer, ListOf, Nullable, Number, Object, String, check, optional
 
 SCHEMA_ID = "https://accelrig.invalid/profiles/daemon-config-v1.json"
-NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.\-]*"
+NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_\-]*"   # also the stem of the device's segment files
 
 
 class ConfigError(AccelrigError):
@@ -44,7 +44,8 @@ DEVICE = Object(
             "device URL, as for 'accelrig record' (e.g. sim://still?seed=1, i2c://1/0x68?rate=1000, "
             "serial:///dev/ttyUSB0)"))),
         "name": Field(String(pattern=NAME_PATTERN, description=(
-            "unique name: the directory under output, the name in status and logs"))),
+            "unique name (letters, digits, - and _): the directory under output, the stem of its segment "
+            "files, the name in status and logs"))),
         "profile": optional(String(min_length=1, description=(
             "'store' (default): the newest profile of the device's identity in the profile store, if any; "
             "'none': no profile; or the path of a profile file"))),
