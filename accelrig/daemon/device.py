@@ -149,6 +149,7 @@ class DeviceRunner:
         self.last_data = time.monotonic()    # monotonic time of the last sample received
         self.heartbeat = time.monotonic()    # the loop's last turn (the watchdog checks it)
         self._stop = threading.Event()
+        self.stop_reason = "the daemon was stopped"
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._pending: PendingGap | None = None
@@ -159,18 +160,60 @@ class DeviceRunner:
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> None:
-        from accelrig.segments import recover
-
         self.directory.mkdir(parents=True, exist_ok=True)
-        for report in recover(self.directory):   # segments a crash (kill -9, power cut) left open
-            self.log(f"{self.device.name}: {report}")
-            self._journal("recovered", report=str(report), samples=report.samples,
-                          lost_samples=report.lost_samples, lost_bytes=report.lost_bytes)
+        self._pending = self._since_last_run()
         self._thread = threading.Thread(target=self._run, name=f"accelrig daemon {self.device.name}", daemon=True)
         self._thread.start()
 
-    def stop(self) -> None:
-        """Ask the thread to flush and stop (returns at once; ``join`` waits)."""
+    def _since_last_run(self) -> PendingGap | None:
+        """Finish what a crash left open, and the gap between the last run's last sample and this run.
+
+        A run that stopped says when and why in its journal's last "stop" event;
+        one that was killed left an open segment whose last complete block says when.
+        """
+        from accelrig.errors import DataError
+        from accelrig.segments import OPEN_SUFFIX, recover, scan
+
+        last_ns = None
+        for path in sorted(self.directory.glob("*" + OPEN_SUFFIX)):
+            try:
+                scanned = scan(path)
+            except DataError:
+                continue    # recover() says what is wrong with it
+            if scanned.last_ns is not None:
+                last_ns = max(last_ns or scanned.last_ns, scanned.last_ns)
+        reports = recover(self.directory)   # segments a crash (kill -9, power cut) left open
+        for report in reports:
+            self.log(f"{self.device.name}: {report}")
+            self._journal("recovered", report=str(report), samples=report.samples,
+                          lost_samples=report.lost_samples, lost_bytes=report.lost_bytes)
+        if reports:
+            since = last_ns / 1e9 if last_ns is not None else None
+            return PendingGap("not recording: the previous run ended without stopping (killed or crashed)", since)
+        last = self._last_journal_event()
+        if last is not None and last.get("event") == "stop" and last.get("last_sample_utc") is not None:
+            return PendingGap(f"not recording: {last.get('reason', 'stopped')}", float(last["last_sample_utc"]))
+        if last is not None:
+            return PendingGap("not recording: the previous run ended without stopping (killed or crashed)", None)
+        return None
+
+    def _last_journal_event(self) -> dict | None:
+        path = self.directory / "journal.jsonl"
+        try:
+            with open(path, "rb") as fh:
+                fh.seek(max(fh.seek(0, 2) - 65536, 0))
+                lines = fh.read().splitlines()
+        except FileNotFoundError:
+            return None
+        for line in reversed(lines):
+            try:
+                return json.loads(line)
+            except ValueError:
+                continue   # a line torn by a crash
+        return None
+    def stop(self, reason: str = "the daemon was stopped") -> None:
+        """Ask the thread to flush and stop (returns at once; ``join`` waits); ``reason`` goes to the journal."""
+        self.stop_reason = reason
         self._stop.set()
 
     def join(self, timeout: float | None = None) -> bool:
@@ -268,6 +311,9 @@ class DeviceRunner:
             raise
         self.session, self.info, self._reader = session, info, reader
         self.counts.connects += 1
+        self._journal("connect", connection=self.counts.connects, url=info.url, identity=info.identity,
+                      nominal_rate=info.nominal_rate, profile=self._profile_reference(), flashed=flashed,
+                      hardware_bias_removed=info.hardware_bias_removed)
         self.last_data = time.monotonic()
         self._set("streaming", None)
         self.log(f"{self.device.name}: connected to {info.url} ({info.chip} {info.identity}, "
@@ -401,7 +447,7 @@ class DeviceRunner:
             session.release(self._reader)
             clock = session.driver.clock
             self.measured_rate = clock.measured_rate or self.measured_rate
-            self._journal("disconnect", reason=reason or self.state, clock=clock.describe(),
+            self._journal("disconnect", reason=reason or (self.stop_reason if self._stop.is_set() else self.state), clock=clock.describe(),
                           last_sample=utc_text(self.last_sample_utc))
             if reason is not None:
                 self._pending = PendingGap(reason, self.last_sample_utc)
@@ -456,7 +502,7 @@ class DeviceRunner:
             self._write_gap(float(t[0]), p.samples, p.cause, seconds)
         full = self._disk_full
         if full is not None and time.monotonic() < full["next_try"]:
-            self._drop(t, n)
+            self._drop(t, n)    # not yet time to try again
             return
         try:
             if full is not None:
@@ -472,11 +518,11 @@ class DeviceRunner:
             self.writer.write(t, chunk.counts[start:stop], self._channels(chunk, start, stop))
             self.counts.written += n
         except StorageFull as exc:
-            self._drop(t, n, "disk full", str(exc))
+            self._drop(t, n, "disk full", str(exc), tried=True)
         except StorageError as exc:   # an I/O error: the same care, its own cause
-            self._drop(t, n, "write failed", str(exc))
+            self._drop(t, n, "write failed", str(exc), tried=True)
 
-    def _drop(self, t: np.ndarray, n: int, cause: str = "", error: str | None = None) -> None:
+    def _drop(self, t: np.ndarray, n: int, cause: str = "", error: str | None = None, tried: bool = False) -> None:
         """Samples delivered that cannot be written: counted, and one gap record once writing resumes."""
         self.counts.dropped += n
         if self._disk_full is None:
@@ -485,7 +531,8 @@ class DeviceRunner:
             self.log(f"{self.device.name}: {cause} ({error}); samples are counted and dropped until writing "
                      "succeeds again")
         self._disk_full["samples"] += n
-        self._disk_full["next_try"] = time.monotonic() + DISK_RETRY
+        if tried:
+            self._disk_full["next_try"] = time.monotonic() + DISK_RETRY
 
     def _channels(self, chunk, start: int, stop: int) -> dict[str, np.ndarray] | None:
         from accelrig.acquisition.ringbuffer import Chunk
@@ -536,7 +583,9 @@ class DeviceRunner:
             self._set("stopped", self.last_error)
         status = self.status()
         self._journal("stop", counts={**self.counts.__dict__, "bytes_written": status["bytes_written"],
-                                      "segments": status["segments"]}, state=self.state)
+                                      "segments": status["segments"]}, state=self.state,
+                      reason=self.stop_reason, last_sample=utc_text(self.last_sample_utc),
+                      last_sample_utc=self.last_sample_utc)
         self.log(f"{self.device.name}: stopped: delivered {self.counts.delivered}, written {self.counts.written}, "
                  f"dropped {self.counts.dropped}, missing {self.counts.missing}, gaps {self.counts.gaps}")
 

@@ -139,7 +139,8 @@ class Daemon:
         stop = [name for name, d in old_devices.items()
                 if name not in new_devices or everything or not d.same_as(new_devices[name])]
         for name in stop:
-            self.runners[name].stop()
+            self.runners[name].stop("removed from the configuration" if name not in new_devices
+                                    else "restarted: its configuration changed")
         for name in stop:
             self.runners[name].join(STOP_SECONDS)
             del self.runners[name]
