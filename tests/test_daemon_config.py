@@ -168,3 +168,32 @@ def test_load_config_reads_yaml_booleans_and_relative_paths(tmp_path):
     assert config.output == tmp_path / "data"
     assert config.status_socket == tmp_path / "run" / "s.sock"
     assert config.devices[0].profile == str(tmp_path / "p.yaml") and config.devices[0].flash is True
+
+
+def test_utc_clock_keeps_time_increasing_measures_the_rate_and_slews_to_the_host(monkeypatch):
+    import numpy as np
+
+    from accelrig.daemon import clock as clock_module
+
+    host = {"mono": 100.0}
+    monkeypatch.setattr(clock_module.time, "time", lambda: 1.7e9 + host["mono"] - 100.0)
+    monkeypatch.setattr(clock_module.time, "monotonic", lambda: host["mono"])
+    rate, true_rate = 1000.0, 1000.0 * (1 + 300e-6)   # the device runs 300 ppm fast of the host
+    clock = clock_module.UtcClock(rate)
+    out = []
+    k = 0
+    for block in range(400):   # 40 s of 100-sample blocks
+        t = (k + np.arange(100)) / rate                 # the driver's device time (nominal rate)
+        if block >= 200:
+            t = t - 0.004                               # its time base steps 4 ms back once
+        k += 100
+        host["mono"] = 100.0 + k / true_rate + 0.002    # arrival: after the block's last sample
+        out.append(clock.map(t, host["mono"]))
+    utc = np.concatenate(out)
+    steps = np.diff(utc)
+    assert np.all(steps > 0)
+    assert clock.steps_back == 1 and abs(clock.largest_step_back - 0.0035) < 1e-9   # -3 ms step vs half a period
+    assert abs(clock.measured_rate - true_rate) < 0.05
+    assert abs(clock.ratio - 1 / (1 + 300e-6)) < 20e-6
+    # host-anchored: the last sample within a few ms of its arrival time, despite 12 ms of drift and the step
+    assert abs(utc[-1] - (1.7e9 + host["mono"] - 100.0)) < 0.005

@@ -18,6 +18,11 @@ so the daemon maps it to UTC per connection:
   clock) by at most ``max_slew`` (200 ppm) of each step, as NTP slews a clock,
   so weeks of drift between device and host crystal never accumulate.
 
+The driver's ``t`` may step back when its own alignment changes (the
+firmware link switching to host alignment, an I2C FIFO fit restarting): the
+step is then taken as half a period, so time always increases, the slew takes
+the difference back, and ``describe`` counts such steps.
+
 A ratio further than ``max_drift`` (0.1 %) from 1 means the blocks are not
 arriving in real time (a device fed as fast as it is read): the device clock
 is then used alone (ratio 1, no slew) and ``alignment`` says so.
@@ -51,6 +56,9 @@ class UtcClock:
         self.ratio = 1.0
         self.alignment = "host clock (anchored at the first block; too little data for the rate yet)"
         self.anchor_utc: float | None = None
+        self.min_step = 0.5 / self.nominal_rate   # the shortest step between samples taken as real
+        self.steps_back = 0                       # steps shorter than that (see map)
+        self.largest_step_back = 0.0              # s, the largest amount by which a step fell short
 
     def map(self, t: np.ndarray, arrival: float, missing_before: int = 0) -> np.ndarray:
         """UTC seconds of samples with times ``t`` (one block or chunk), which arrived at ``arrival``
@@ -62,14 +70,28 @@ class UtcClock:
         self._index += max(missing_before, 0) + n
         self._index_line.add(float(self._index - 1), arrival_utc)
         self._time_line.add(float(t[-1]), arrival_utc)
-        if self._last_t is None:
+        first = self._last_t is None
+        if first:
             # the block left the device after its last sample was taken
             self.anchor_utc = arrival_utc - float(t[-1] - t[0])
             self._last_t, self._last_utc = float(t[0]), self.anchor_utc
         self._update_ratio()
         steps = np.diff(t, prepend=self._last_t)
+        short = steps < self.min_step
+        short[0] &= not first
+        if short.any():
+            # The driver's time base stepped back (its own alignment changed): time must still
+            # increase, so such a step counts as half a period and the slew takes the rest back.
+            self.steps_back += int(np.count_nonzero(short))
+            self.largest_step_back = max(self.largest_step_back, float(np.max(self.min_step - steps[short])))
+            steps[short] = self.min_step
+            steps[0] = 0.0 if first else steps[0]
+            # the line through the old time base would bias the rate: start a new one (the ratio
+            # found so far stays in use until the new line spans min_span)
+            self._time_line = RunningLine()
+            self._time_line.add(float(t[-1]), arrival_utc)
         utc = self._last_utc + self.ratio * np.cumsum(steps)
-        if self.alignment.startswith("host clock (regression"):
+        if self.alignment.startswith("host clock (regression") and self._time_line.span() >= self.min_span:
             # slew toward the line through the arrivals, at most max_slew of the span mapped
             slope = self._time_line.slope()
             target = self._time_line.y_at(float(t[-1]), slope)
@@ -113,4 +135,6 @@ class UtcClock:
             "host_seconds_per_device_second": self.ratio,
             "measured_rate": self.measured_rate,
             "nominal_rate": self.nominal_rate,
+            "driver_steps_back": self.steps_back,
+            "largest_step_back": self.largest_step_back,
         }
