@@ -23,11 +23,11 @@ from accelrig.recording import read_segments
 DEVICE_GAP_CAUSES = ("FIFO overflow", "frames lost on the link", "samples lost by the device")
 
 
-def start(config: dict, path: Path) -> subprocess.Popen:
+def start(config: dict, path: Path, env: dict | None = None) -> subprocess.Popen:
     path.write_text(yaml.safe_dump(config))
     log = open(path.with_suffix(".log"), "ab")
     return subprocess.Popen([sys.executable, "-m", "accelrig", "daemon", "--config", str(path)],
-                            stdout=log, stderr=log)
+                            stdout=log, stderr=log, env={**os.environ, **(env or {})})
 
 
 def status(config_path: Path) -> dict:
@@ -295,3 +295,58 @@ def test_disk_full_drops_counted_samples_and_resumes(tmp_path):
         assert [g["missing"] for g in gaps if g["cause"] == "disk full"] == [total["dropped"]]
     finally:
         subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
+    import socket
+    import urllib.request
+
+    from accelrig.tui.app import AccelrigApp
+    from tui_support import async_test, wait_for
+
+    notify_path = tmp_path / "notify"
+    receiver = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    receiver.bind(str(notify_path))
+    receiver.settimeout(0.2)
+    with socket.socket() as probe:   # a free port on localhost
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    out = tmp_path / "out"
+    config = {"output": str(out), "metrics_port": port,
+              "devices": [{"name": "a", "url": "sim://still?seed=1&rate=200"},
+                          {"name": "gone", "url": "serial:///dev/nonexistent-accelrig-test"}]}
+    config_path = tmp_path / "daemon.yaml"
+    proc = start(config, config_path, env={"NOTIFY_SOCKET": str(notify_path), "WATCHDOG_USEC": "1000000"})
+    messages = []
+    try:
+        wait_until(proc, config_path, lambda d: d["a"]["written"] > 0 and d["gone"]["failed_connects"] >= 1)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and sum("WATCHDOG=1" in m for m in messages) < 2:
+            try:
+                messages.append(receiver.recv(4096).decode())
+            except TimeoutError:
+                pass
+        text = urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=10).read().decode()
+
+        @async_test
+        async def screen():
+            app = AccelrigApp(daemon_socket=out / "daemon.sock")
+            async with app.run_test(size=(120, 30)) as pilot:
+                from textual.widgets import DataTable
+
+                await wait_for(pilot, lambda: app.screen.query_one(DataTable).row_count == 2, timeout=20)
+                table = app.screen.query_one(DataTable)
+                return [table.get_row_at(i)[:2] for i in range(2)]
+
+        rows = screen()
+        terminate(proc)
+    finally:
+        receiver.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    assert messages[0].startswith("READY=1\nSTATUS=")   # READY although one device is missing
+    assert any(m.startswith("WATCHDOG=1") for m in messages)
+    assert 'accelrig_samples_written_total{device="a"}' in text
+    assert 'accelrig_device_up{device="gone",state="waiting"} 0.0' in text
+    assert rows == [["a", "streaming"], ["gone", "waiting"]]

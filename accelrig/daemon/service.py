@@ -91,7 +91,7 @@ class Daemon:
                 self._ready_sent = True
                 notify(f"READY=1\nSTATUS={self.summary()}")
                 log(f"ready: {self.summary()}")
-            if watchdog is not None and now >= next_watchdog:
+            if watchdog is not None and self._ready_sent and now >= next_watchdog:
                 sick = [r.device.name for r in self.runners.values() if not r.healthy]
                 if not sick:   # a hung device loop stops the pings, and systemd restarts us
                     notify(f"WATCHDOG=1\nSTATUS={self.summary()}")
