@@ -197,3 +197,15 @@ def test_utc_clock_keeps_time_increasing_measures_the_rate_and_slews_to_the_host
     assert abs(clock.ratio - 1 / (1 + 300e-6)) < 20e-6
     # host-anchored: the last sample within a few ms of its arrival time, despite 12 ms of drift and the step
     assert abs(utc[-1] - (1.7e9 + host["mono"] - 100.0)) < 0.005
+
+
+def test_a_reload_with_a_broken_config_keeps_the_running_one(tmp_path, capsys):
+    from accelrig.daemon.service import Daemon
+
+    path = tmp_path / "d.yaml"
+    path.write_text(yaml.safe_dump({"output": "out", "devices": [{"url": "sim://still", "name": "a"}]}))
+    daemon = Daemon(path)
+    path.write_text("output: out\ndevices:\n  - {url: 'sim://still', name: a, output: both}\n")
+    daemon.reload()
+    assert "reload refused, the running configuration is kept" in capsys.readouterr().err
+    assert daemon.config.devices[0].output == "raw" and daemon.reloads == 0

@@ -233,6 +233,7 @@ class DeviceRunner:
         try:
             while not self._stop.is_set():
                 self.heartbeat = time.monotonic()
+                streamed = False
                 try:
                     self._connect()
                 except ConfigError as exc:
@@ -248,7 +249,13 @@ class DeviceRunner:
                     self._wait(backoff)
                     backoff = min(backoff * 2, self.config.reconnect_max)
                     continue
-                streamed, reason = self._stream()
+                except Exception as exc:
+                    reason = self._internal_error(exc)
+                else:
+                    try:
+                        streamed, reason = self._stream()
+                    except Exception as exc:
+                        reason = self._internal_error(exc)
                 if streamed:
                     backoff = self.config.reconnect_initial
                 if reason is None:          # stopped by the daemon, or a finite source ended
@@ -256,16 +263,22 @@ class DeviceRunner:
                 self._set("waiting", reason)
                 self.log(f"{self.device.name}: {reason}; reconnecting in {backoff:g} s")
                 self._wait(backoff)
-                if streamed:
-                    continue
-                backoff = min(backoff * 2, self.config.reconnect_max)
-        except Exception as exc:  # a bug: say so in the status, never die silently
-            import traceback
-
-            traceback.print_exc()
-            self._fail(f"internal error: {type(exc).__name__}: {exc}")
+                if not streamed:
+                    backoff = min(backoff * 2, self.config.reconnect_max)
         finally:
             self._finish()
+
+    def _internal_error(self, exc: Exception) -> str:
+        """A bug met while connecting or streaming: shown in full, recorded, and the device reconnected
+        (a daemon that runs for weeks must not lose a device to one bad block)."""
+        import traceback
+
+        traceback.print_exc()
+        reason = f"internal error: {type(exc).__name__}: {exc}"
+        self._journal("internal_error", error=reason, traceback=traceback.format_exc())
+        if self._pending is None:
+            self._pending = PendingGap(reason, self.last_sample_utc)
+        return reason
 
     def _wait(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -419,6 +432,7 @@ class DeviceRunner:
         session, stall = self.session, self.config.stall_seconds
         streamed = False
         reason: str | None = None
+        finished = 0
         try:
             while True:
                 self.heartbeat = time.monotonic()
@@ -429,6 +443,10 @@ class DeviceRunner:
                 if n:
                     streamed = True
                     self.last_data = now
+                if self.writer.segments_finished != finished:
+                    # a segment was finished: the rate measured so far, beside it in the journal
+                    finished = self.writer.segments_finished
+                    self._journal("clock", segments_finished=finished, clock=session.driver.clock.describe())
                 stats = session.stats()
                 self.delivered_rate = stats.delivered_rate
                 if session.interrupted:
@@ -443,7 +461,10 @@ class DeviceRunner:
                     break
         finally:
             session.stop()
-            self._drain()                 # what the pump took before it stopped
+            try:
+                self._drain()             # what the pump took before it stopped
+            except Exception as exc:
+                reason = self._internal_error(exc)
             session.release(self._reader)
             clock = session.driver.clock
             self.measured_rate = clock.measured_rate or self.measured_rate
