@@ -307,7 +307,7 @@ class SegmentWriter:
 
     def gap(self, t, samples: int, cause: str, seconds: float | None = None) -> None:
         """Record ``samples`` missing (-1: unknown) from time ``t`` on, and why."""
-        t_ns = int(to_ns(np.asarray([t]))[0])
+        t_ns = int(to_ns(np.asarray([t]))[0])   # seconds, or int ns
         record = {"t_ns": t_ns, "samples": int(samples), "cause": str(cause),
                   "seconds": None if seconds is None else float(seconds)}
         self._rotate_if_due(t_ns)
