@@ -105,7 +105,7 @@ def record_bench(hours: float, work: Path) -> dict:
 
 
 READ_PROBE = textwrap.dedent("""
-    import json, resource, sys, time
+    import json, sys, time
     start = time.perf_counter()
     kind, path = sys.argv[1], sys.argv[2]
     if kind == "npz":
@@ -123,7 +123,9 @@ READ_PROBE = textwrap.dedent("""
         import pandas
         n = len(pandas.read_parquet(path))
     wall = time.perf_counter() - start
-    print(json.dumps({"n": n, "wall_s": wall, "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+    # VmHWM, not ru_maxrss: a child's ru_maxrss starts at its parent's at fork
+    hwm = next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith("VmHWM"))
+    print(json.dumps({"n": n, "wall_s": wall, "maxrss": hwm}))
 """)
 
 
