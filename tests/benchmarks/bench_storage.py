@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -49,16 +48,19 @@ def sim_cpu(devices: int, seconds: float, rate: int = RATE) -> dict:
             "delivered_hz_per_device": delivered / wall / devices}
 
 
-def rss_of(pid: int) -> int:
-    """Resident set of a process tree (the process and its children), bytes."""
-    total = 0
+def rss_of(pid: int) -> tuple[int, int]:
+    """Resident set of a process tree (the process and its children) and its anonymous part
+    (RssAnon: without the shared libraries' code pages), bytes."""
+    total = anon = 0
     for p in [pid, *_children(pid)]:
         try:
-            with open(f"/proc/{p}/statm") as fh:
-                total += int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+            with open(f"/proc/{p}/status") as fh:
+                fields = {line.split(":")[0]: line.split()[1:] for line in fh}
         except OSError:
-            pass
-    return total
+            continue
+        total += int(fields["VmRSS"][0]) * 1024
+        anon += int(fields["RssAnon"][0]) * 1024
+    return total, anon
 
 
 def _children(pid: int) -> list[int]:
@@ -71,7 +73,7 @@ def _children(pid: int) -> list[int]:
 
 
 def run_sampled(cmd: list[str], interval: float = 0.5) -> dict:
-    """Run a command, sampling its RSS; returns wall time, peak and the samples over time."""
+    """Run a command, sampling its RSS every ``interval`` s; returns wall time, peaks and the samples."""
     start = time.monotonic()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     samples = []
@@ -82,7 +84,8 @@ def run_sampled(cmd: list[str], interval: float = 0.5) -> dict:
     if proc.returncode:
         raise SystemExit(f"{cmd} failed: {err}")
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return {"wall_s": time.monotonic() - start, "peak_rss": max((s[1] for s in samples), default=0),
+    return {"wall_s": time.monotonic() - start, "peak_rss": max((s[1][0] for s in samples), default=0),
+            "peak_anon": max((s[1][1] for s in samples), default=0),
             "samples": samples, "stdout": out, "maxrss_children": usage.ru_maxrss * 1024}
 
 
@@ -96,10 +99,11 @@ def record_bench(hours: float, work: Path) -> dict:
     size = sum(f.stat().st_size for f in files)
     import pyarrow.parquet as pq
     n = sum(pq.ParquetFile(f).metadata.num_rows for f in files)
-    rss = [s[1] for s in r["samples"]]
+    rss = [s[1][0] for s in r["samples"]]
     # flat: the second half's peak against the first half's (after start-up)
     half = len(rss) // 2
     return {"hours": hours, "samples": n, "wall_s": r["wall_s"], "peak_rss_mb": r["peak_rss"] / 2**20,
+            "peak_anon_mb": r["peak_anon"] / 2**20,
             "rss_first_half_mb": max(rss[1:half] or [0]) / 2**20, "rss_second_half_mb": max(rss[half:]) / 2**20,
             "files": len(files), "bytes": size, "bytes_per_sample": size / n, "out": str(out)}
 
@@ -180,10 +184,10 @@ def main() -> None:
             rec = record_bench(args.hours, work)
         if "record" in args.parts:
             print(f"## accelrig record, {args.hours:g} h at {RATE} Hz (fast-paced sim, real writer path)\n")
-            print("| samples | wall s | peak RSS MB | RSS peak 1st half / 2nd half MB | segments | bytes on disk "
-                  "| bytes/sample |")
-            print("|---|---|---|---|---|---|---|")
-            print(f"| {rec['samples']} | {rec['wall_s']:.1f} | {rec['peak_rss_mb']:.1f} | "
+            print("| samples | wall s | peak RSS MB | of which anonymous MB | RSS peak 1st half / 2nd half MB "
+                  "| segments | bytes on disk | bytes/sample |")
+            print("|---|---|---|---|---|---|---|---|")
+            print(f"| {rec['samples']} | {rec['wall_s']:.1f} | {rec['peak_rss_mb']:.1f} | {rec['peak_anon_mb']:.1f} | "
                   f"{rec['rss_first_half_mb']:.1f} / {rec['rss_second_half_mb']:.1f} | {rec['files']} | "
                   f"{rec['bytes']} | {rec['bytes_per_sample']:.2f} |\n")
         if "read" in args.parts:
