@@ -67,7 +67,7 @@ SEGMENT_SUFFIXES = (OPEN_SUFFIX, FINISHED_SUFFIX)
 FORMAT = "accelrig-segment"
 FORMAT_VERSION = 1
 META_KEY = b"accelrig"
-ROW_GROUP = 1 << 20                 # samples per Parquet row group (and per read when finishing)
+ROW_GROUP = 1 << 17                 # samples per Parquet row group (and per read when finishing): 64 s at 2048 Hz
 NS = 1_000_000_000
 STEM_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
 NAME_PATTERN = re.compile(r"^(?P<stem>[A-Za-z0-9][A-Za-z0-9_-]*)\.(?P<index>\d{6})(?:\.(?P<stamp>\d{8}T\d{6}Z))?"
@@ -307,7 +307,7 @@ class SegmentWriter:
 
     def gap(self, t, samples: int, cause: str, seconds: float | None = None) -> None:
         """Record ``samples`` missing (-1: unknown) from time ``t`` on, and why."""
-        t_ns = int(to_ns(np.asarray([t]))[0])
+        t_ns = int(to_ns(np.asarray([t]))[0])   # seconds, or int ns
         record = {"t_ns": t_ns, "samples": int(samples), "cause": str(cause),
                   "seconds": None if seconds is None else float(seconds)}
         self._rotate_if_due(t_ns)
@@ -584,7 +584,34 @@ class _Part:
     path: Path
     info: dict                     # stem, index, scale, channels, meta, gaps, samples, first_ns, last_ns
     scanned: Scan | None = None    # an open segment's scan
-    times: np.ndarray | None = None
+    parquet: object | None = None  # a finished segment's pyarrow.parquet.ParquetFile
+
+    def groups(self) -> list[tuple[int, int | None, int | None]]:
+        """(rows, first ns, last ns) of each row group (an open segment is one group); None: not recorded."""
+        if self.scanned is not None:
+            return [(self.scanned.samples, self.scanned.first_ns, self.scanned.last_ns)]
+        out = []
+        for i in range(self.parquet.metadata.num_row_groups):
+            group = self.parquet.metadata.row_group(i)
+            stats = group.column(0).statistics
+            known = stats is not None and stats.has_min_max
+            out.append((group.num_rows, stats.min_raw if known else None, stats.max_raw if known else None))
+        return out
+
+    def times(self, group: int) -> np.ndarray:
+        """A group's sample times, ns (its time column alone)."""
+        if self.scanned is not None:
+            return _read_scanned(self.scanned, 0, self.scanned.samples)[0]
+        return self.parquet.read_row_group(group, columns=["time"]).column("time").cast("int64").to_numpy()
+
+    def rows(self, group: int, a: int, b: int):
+        """Rows [a, b) of a group: (t_ns, [ax, ay, az] counts, [channel arrays])."""
+        if self.scanned is not None:
+            t_ns, counts, chans = _read_scanned(self.scanned, a, b)
+            return t_ns, [counts[:, k] for k in range(3)], chans
+        table = self.parquet.read_row_group(group).slice(a, b - a)
+        return (table.column("time").cast("int64").to_numpy(), [table.column(x).to_numpy() for x in ("ax", "ay", "az")],
+                [table.column(c).to_numpy() for c in self.info["channels"]])
 
 
 def segment_files(path: str | os.PathLike, stem: str | None = None) -> list[Path]:
@@ -625,7 +652,8 @@ def _part(path: Path) -> _Part:
     import pyarrow.parquet as pq
 
     try:
-        metadata = pq.ParquetFile(path).schema_arrow.metadata or {}
+        parquet = pq.ParquetFile(path)
+        metadata = parquet.schema_arrow.metadata or {}
     except FileNotFoundError:
         raise DataError(f"{path}: no such file") from None
     except Exception as exc:   # pyarrow's errors for a file that is not Parquet vary by version
@@ -637,7 +665,7 @@ def _part(path: Path) -> _Part:
     if info.get("recovered", {}).get("gap"):
         gaps.append(info["recovered"]["gap"])
     info["gaps"] = gaps
-    return _Part(path, info)
+    return _Part(path, info, parquet=parquet)
 
 
 def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float | None = None,
@@ -659,47 +687,64 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
     names = parts[0].info["channels"]
     if any(p.info["channels"] != names for p in parts):
         raise DataError(f"{path}: the segments do not all carry the same channels")
-    # pass 1: which samples of each part fall in the range (reads the time column only)
-    plan = []
+    # pass 1: the rows of each row group in range, from the groups' recorded time spans; only
+    # a group the range cuts has its time column read
+    plan = []   # (part, group, a, b)
     for part in parts:
-        first, last = part.info["first_ns"], part.info["last_ns"]
-        if first is None or (hi_ns is not None and first >= hi_ns) or (lo_ns is not None and last < lo_ns):
-            plan.append((part, 0, 0, None))
-            continue
-        times = _times(part)
-        a = 0 if lo_ns is None else int(np.searchsorted(times, lo_ns, "left"))
-        b = times.size if hi_ns is None else int(np.searchsorted(times, hi_ns, "left"))
-        plan.append((part, a, b, times[a] if b > a else None))
-    total = sum(b - a for _, a, b, _ in plan)
+        for group, (rows, first, last) in enumerate(part.groups()):
+            if not rows or (first is not None and hi_ns is not None and first >= hi_ns) \
+                    or (last is not None and lo_ns is not None and last < lo_ns):
+                continue
+            inside = first is not None and last is not None and (lo_ns is None or first >= lo_ns) \
+                and (hi_ns is None or last < hi_ns)
+            a, b = 0, rows
+            if not inside:
+                times = part.times(group)
+                a = 0 if lo_ns is None else int(np.searchsorted(times, lo_ns, "left"))
+                b = rows if hi_ns is None else int(np.searchsorted(times, hi_ns, "left"))
+            if b > a:
+                plan.append((part, group, a, b))
+    total = sum(b - a for _, _, a, b in plan)
     if not total:
         raise DataError(f"{path}: no samples between {start} and {stop}" if start is not None or stop is not None
                         else f"{path}: the segments hold no samples")
-    origin_ns = int(next(t0 for _, a, b, t0 in plan if b > a))
     scale = float(parts[0].info["scale"])
+    factor = 1.0 if units == "counts" else scale
     t = np.empty(total)
     acc = np.empty((total, 3))
     channels = {name: np.empty(total) for name in names}
-    gaps: list[dict] = []
+    origin_ns = None
     filled = 0
-    for part, a, b, _ in plan:
+    starts = {}   # part path -> index of its first returned sample
+    for part, group, a, b in plan:
+        t_ns, axes, chans = part.rows(group, a, b)
+        origin_ns = int(t_ns[0]) if origin_ns is None else origin_ns
+        starts.setdefault(part.path, filled)
+        k = t_ns.size
+        t[filled:filled + k] = (t_ns - origin_ns) / NS
+        for axis in range(3):
+            np.multiply(axes[axis], factor, out=acc[filled:filled + k, axis])
+        for name, values in zip(names, chans, strict=True):
+            channels[name][filled:filled + k] = values
+        filled += k
+    # gap records at their place among the returned samples (the same float arithmetic as t)
+    gaps: list[dict] = []
+    for part in parts:
         for g in part.info["gaps"]:
             g_ns = g.get("t_ns")
-            if g_ns is not None and ((lo_ns is not None and g_ns < lo_ns) or (hi_ns is not None and g_ns >= hi_ns)):
+            if g_ns is None:
+                if part.path not in starts:
+                    continue
+                index = starts[part.path]
+            elif (lo_ns is not None and g_ns < lo_ns) or (hi_ns is not None and g_ns >= hi_ns):
                 continue
-            # its index among the returned samples: the samples of this part before its time
-            within = a if g_ns is None else int(np.clip(np.searchsorted(_times(part), g_ns, "left"), a, b))
-            gaps.append({"index": filled + within - a, "missing": g["samples"], "cause": g["cause"],
+            else:
+                index = int(np.searchsorted(t, (np.int64(g_ns) - origin_ns) / NS, "left"))
+            gaps.append({"index": index, "missing": g["samples"], "cause": g["cause"],
                          "seconds": g.get("seconds"), "segment": part.path.name})
-        for t_ns, counts, chans in _chunks(part, a, b):
-            k = t_ns.size
-            t[filled:filled + k] = (t_ns - origin_ns) / NS
-            np.multiply(counts, 1.0 if units == "counts" else scale, out=acc[filled:filled + k])
-            for name, values in zip(names, chans, strict=True):
-                channels[name][filled:filled + k] = values
-            filled += k
     meta = dict(parts[0].info["meta"])
     meta.update(scale=scale, units=units, gaps=gaps, time_origin=float(ns_to_seconds([origin_ns])[0]),
-                time_origin_ns=origin_ns, segments=[p.path.name for p, a, b, _ in plan if b > a],
+                time_origin_ns=origin_ns, segments=list(dict.fromkeys(p.path.name for p, _, _, _ in plan)),
                 source=str(path))
     return t, acc, units, channels, meta
 
@@ -738,41 +783,3 @@ def _bound(path, name: str, value, first: float, utc: bool) -> float | None:
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
     return when.timestamp()
-
-
-def _times(part: _Part) -> np.ndarray:
-    """The part's sample times, ns (read once: the time column alone)."""
-    if part.times is None:
-        if part.scanned is not None:
-            part.times = _read_scanned(part.scanned, 0, part.scanned.samples)[0]
-        else:
-            import pyarrow.parquet as pq
-
-            part.times = pq.read_table(part.path, columns=["time"]).column("time").cast("int64").to_numpy()
-    return part.times
-
-
-def _chunks(part: _Part, a: int, b: int):
-    """(t_ns, counts, channel arrays) over samples [a, b) of a part, a row group at a time."""
-    if b <= a:
-        return
-    if part.scanned is not None:
-        for lo in range(a, b, ROW_GROUP):
-            t_ns, counts, chans = _read_scanned(part.scanned, lo, min(lo + ROW_GROUP, b))
-            yield t_ns, counts, chans
-        return
-    import pyarrow.parquet as pq
-
-    pf = pq.ParquetFile(part.path)
-    names = part.info["channels"]
-    position = 0
-    for group in range(pf.num_row_groups):
-        n = pf.metadata.row_group(group).num_rows
-        if position + n > a and position < b:
-            table = pf.read_row_group(group)
-            lo, hi = max(a - position, 0), min(b - position, n)
-            table = table.slice(lo, hi - lo)
-            counts = np.column_stack([table.column(x).to_numpy() for x in ("ax", "ay", "az")])
-            yield (table.column("time").cast("int64").to_numpy(), counts,
-                   [table.column(c).to_numpy() for c in names])
-        position += n
