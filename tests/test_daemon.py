@@ -350,3 +350,6 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     assert 'accelrig_samples_written_total{device="a"}' in text
     assert 'accelrig_device_up{device="gone",state="waiting"} 0.0' in text
     assert rows == [["a", "streaming"], ["gone", "waiting"]]
+    waits = [e["retry_in"] for e in journal(out / "gone") if e["event"] == "connect_failed"]
+    assert len(waits) >= 2 and waits == [min(2.0 ** i, 60) for i in range(len(waits))]   # exponential backoff
+    assert [e["event"] for e in journal(out / "gone")][-1] == "stop"

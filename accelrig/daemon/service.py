@@ -145,8 +145,10 @@ class Daemon:
         for name in stop:
             self.runners[name].stop("removed from the configuration" if name not in new_devices
                                     else "restarted: its configuration changed")
+        deadline = time.monotonic() + STOP_SECONDS
         for name in stop:
-            self.runners[name].join(STOP_SECONDS)
+            if not self.runners[name].join(max(deadline - time.monotonic(), 0.0)):
+                log(f"{name}: did not stop within {STOP_SECONDS:g} s (a driver call hangs); it stops when it returns")
             del self.runners[name]
         self.config = new
         if new.status_socket != old.status_socket:
