@@ -327,7 +327,10 @@ class SegmentWriter:
         if (self._seg_first_ns is not None and t_ns - self._seg_first_ns >= self.segment_ns) \
                 or self._size >= self.segment_bytes:
             self._close_open()
-            self._finish_pending()
+            try:
+                self._finish_pending()
+            except StorageFull:
+                pass  # the closed segment stays complete and readable as it is; finished at the next try
 
     def _open(self, t_ns: int) -> None:
         stamp = f".{_utc_stamp(t_ns)}" if self.meta.get("time_base") == "utc" else ""

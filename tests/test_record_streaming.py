@@ -33,7 +33,7 @@ def wait_for_samples(proc, path_glob, parent, timeout=30.0):
     raise AssertionError("no samples written")
 
 
-@pytest.mark.parametrize("output", ["segments", "run.npz", "run.csv"])
+@pytest.mark.parametrize("output", ["segments", "run.parquet", "run.npz", "run.csv"])
 def test_ctrl_c_keeps_everything_recorded_so_far(tmp_path, output):
     out = tmp_path / output
     proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000", "-o",

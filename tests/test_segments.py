@@ -138,6 +138,25 @@ def test_finishing_is_atomic_and_a_full_disk_leaves_the_open_segment(tmp_path, m
     np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(10))[1])
 
 
+def test_a_rotation_the_full_disk_cannot_finish_keeps_writing(tmp_path, monkeypatch):
+    import pyarrow.parquet as pq_module
+
+    real = pq_module.ParquetWriter.write_table
+
+    def full(self, table, *a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    w = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001, segment_seconds=1.0)
+    monkeypatch.setattr(pq_module.ParquetWriter, "write_table", full)
+    write_blocks(w, range(50), jitter=False)        # rotates at 1 s: the first segment cannot be finished
+    assert len(w.pending) == 1 and w.samples_written == 50 * 64
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+    monkeypatch.setattr(pq_module.ParquetWriter, "write_table", real)
+    assert len(w.close()) == 2 and not w.pending
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".parquet", ".parquet"]
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+
+
 def test_disk_full_injected_leaves_no_partial_block(tmp_path, monkeypatch):
     """ENOSPC part-way through a block (os.write patched): the block is wholly absent; writing resumes."""
     w = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001)
