@@ -96,3 +96,16 @@ def test_every_reader_takes_a_directory_over_a_time_range(tmp_path):
     assert abs(part.duration - 10.0) < 0.01
     r = accelrig("noise", str(out), "--start", "tomorrow")
     assert r.returncode != 0 and r.stderr.count("\n") == 1 and "neither seconds nor an ISO-8601 time" in r.stderr
+
+
+def test_record_into_a_directory_a_crash_left_open_recovers_it_first(tmp_path, capsys):
+    from accelrig.segments import SegmentWriter
+
+    out = tmp_path / "segs"
+    w = SegmentWriter(out, stem="sim-random-1", meta={}, scale=0.001)
+    w.write(np.arange(10) / 100.0 + 1.7e9, np.zeros((10, 3), np.int16))
+    import os
+    os.close(w._fd)                                   # the recording process died here
+    assert main(["record", "sim://still?seed=1&pace=fast", "--seconds", "1", "-o", str(out)]) == 0
+    assert "closed after a crash: 10 samples in 1 complete blocks kept; nothing lost" in capsys.readouterr().err
+    assert sorted(p.suffix for p in out.iterdir()) == [".parquet", ".parquet"]
