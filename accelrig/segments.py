@@ -128,6 +128,7 @@ class Scan:
     size: int = 0                 # file size
     lost_samples: int | None = 0  # samples in the torn last frame, when its header says (None: unknown)
     problem: str | None = None    # why the scan stopped before the end of the file
+    starts: np.ndarray | None = None   # the sample index each data frame starts at (built when reading)
 
     @property
     def lost_bytes(self) -> int:
@@ -203,10 +204,15 @@ def _read_scanned(scanned: Scan, lo: int, hi: int):
     """Samples [lo, hi) of a scanned open segment: (t_ns, counts, channels list)."""
     names = scanned.header.get("channels", [])
     parts_t, parts_c, parts_ch = [], [], [[] for _ in names]
-    position = 0
+    if scanned.starts is None or len(scanned.starts) != len(scanned.data):
+        scanned.starts = np.cumsum([0] + [n for _, n in scanned.data])
+    first = max(int(np.searchsorted(scanned.starts, lo, "right")) - 1, 0)   # the frame holding sample lo
+    position = int(scanned.starts[first]) if scanned.data else 0
     with open(scanned.path, "rb") as fh:
-        for offset, n in scanned.data:
-            if position + n <= lo or position >= hi or not n:
+        for offset, n in scanned.data[first:]:
+            if position >= hi:
+                break
+            if position + n <= lo or not n:
                 position += n
                 continue
             fh.seek(offset + 4)
