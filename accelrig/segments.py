@@ -383,10 +383,13 @@ class SegmentWriter:
             self._sync()
 
     def _sync(self) -> None:
+        """Push the open segment to the disk (against power cuts; a crash of the process loses nothing
+        written already).  Best effort: the block is in the file whatever fsync says, so a failure
+        here must not be reported as a block not written; the next interval tries again."""
         try:
             os.fsync(self._fd)
-        except OSError as exc:
-            raise _storage_error(exc, self.open_path) from None
+        except OSError:
+            pass
         self._last_sync = time.monotonic()
 
     def _close_open(self) -> None:
@@ -525,6 +528,8 @@ class RecoveryReport:
     problem: str | None            # why the tail was unreadable
 
     def __str__(self) -> str:
+        if self.finished is None and not self.samples and self.problem:
+            return f"{self.segment.name}: {self.problem}"
         kept = f"{self.samples} samples in {self.blocks} complete blocks kept"
         if not self.lost_bytes:
             return f"{self.segment.name}: closed after a crash: {kept}; nothing lost"
@@ -545,7 +550,11 @@ def recover(directory: str | os.PathLike) -> list[RecoveryReport]:
         if finished.exists() and _complete_parquet(finished):
             path.unlink()   # the crash came between the rename and the removal: the Parquet file is whole
             continue
-        scanned = scan(path)
+        try:
+            scanned = scan(path)
+        except DataError as exc:
+            reports.append(_unreadable(path, exc))
+            continue
         recovered = {"recovered_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                      "lost_bytes": scanned.lost_bytes, "lost_samples": scanned.lost_samples,
                      "problem": scanned.problem}
@@ -558,6 +567,18 @@ def recover(directory: str | os.PathLike) -> list[RecoveryReport]:
         reports.append(RecoveryReport(path, result, scanned.samples, len(scanned.data), scanned.lost_bytes,
                                       scanned.lost_samples, scanned.problem))
     return reports
+
+
+def _unreadable(path: Path, exc: DataError) -> RecoveryReport:
+    """A segment without a readable header: torn at creation (removed: it held no sample) or not ours (left)."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        start = fh.read(len(FILE_MAGIC))
+    torn = FILE_MAGIC.startswith(start) or (start == FILE_MAGIC and size < 4096)
+    if torn:
+        path.unlink()
+        return RecoveryReport(path, None, 0, 0, size, 0, "the writer stopped while creating it (no samples yet)")
+    return RecoveryReport(path, None, 0, 0, 0, 0, f"left alone: {exc.message}")
 
 
 def _held(path: Path) -> bool:

@@ -355,3 +355,22 @@ def test_csv_on_request_reads_back_through_the_interchange_reader(tmp_path):
     np.testing.assert_array_equal(rec.acc, counts)
     assert rec.units == "counts" and rec.meta["scale"] == 0.001
     np.testing.assert_allclose(rec.t, t, rtol=0, atol=1e-9)
+
+
+def test_pyarrow_is_imported_only_to_finish_or_read_a_segment():
+    probe = ("import sys\nimport accelrig.recording, accelrig.segments, accelrig.acquisition.session\n"
+             "from accelrig.cli import main\ntry:\n    main(['record', '--help'])\nexcept SystemExit:\n    pass\n"
+             "print('pyarrow' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert done.stdout.strip().splitlines()[-1] == "False", done.stderr
+
+
+def test_recover_removes_a_segment_torn_while_being_created_and_leaves_a_foreign_file(tmp_path):
+    (tmp_path / "dev.000000.seg").write_bytes(segments.FILE_MAGIC[:5])          # killed inside the header write
+    (tmp_path / "dev.000001.seg").write_bytes(b"something else entirely" * 500)
+    reports = recover(tmp_path)
+    assert [str(r) for r in reports] == [
+        "dev.000000.seg: the writer stopped while creating it (no samples yet)",
+        "dev.000001.seg: left alone: " + str(reports[1].problem).split(": ", 1)[1]]
+    assert "not an accelrig open segment" in str(reports[1])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dev.000001.seg"]
