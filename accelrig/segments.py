@@ -128,6 +128,7 @@ class Scan:
     size: int = 0                 # file size
     lost_samples: int | None = 0  # samples in the torn last frame, when its header says (None: unknown)
     problem: str | None = None    # why the scan stopped before the end of the file
+    starts: np.ndarray | None = None   # the sample index each data frame starts at (built when reading)
 
     @property
     def lost_bytes(self) -> int:
@@ -203,10 +204,15 @@ def _read_scanned(scanned: Scan, lo: int, hi: int):
     """Samples [lo, hi) of a scanned open segment: (t_ns, counts, channels list)."""
     names = scanned.header.get("channels", [])
     parts_t, parts_c, parts_ch = [], [], [[] for _ in names]
-    position = 0
+    if scanned.starts is None or len(scanned.starts) != len(scanned.data):
+        scanned.starts = np.cumsum([0] + [n for _, n in scanned.data])
+    first = max(int(np.searchsorted(scanned.starts, lo, "right")) - 1, 0)   # the frame holding sample lo
+    position = int(scanned.starts[first]) if scanned.data else 0
     with open(scanned.path, "rb") as fh:
-        for offset, n in scanned.data:
-            if position + n <= lo or position >= hi or not n:
+        for offset, n in scanned.data[first:]:
+            if position >= hi:
+                break
+            if position + n <= lo or not n:
                 position += n
                 continue
             fh.seek(offset + 4)
@@ -327,7 +333,10 @@ class SegmentWriter:
         if (self._seg_first_ns is not None and t_ns - self._seg_first_ns >= self.segment_ns) \
                 or self._size >= self.segment_bytes:
             self._close_open()
-            self._finish_pending()
+            try:
+                self._finish_pending()
+            except StorageFull:
+                pass  # the closed segment stays complete and readable as it is; finished at the next try
 
     def _open(self, t_ns: int) -> None:
         stamp = f".{_utc_stamp(t_ns)}" if self.meta.get("time_base") == "utc" else ""
@@ -374,10 +383,13 @@ class SegmentWriter:
             self._sync()
 
     def _sync(self) -> None:
+        """Push the open segment to the disk (against power cuts; a crash of the process loses nothing
+        written already).  Best effort: the block is in the file whatever fsync says, so a failure
+        here must not be reported as a block not written; the next interval tries again."""
         try:
             os.fsync(self._fd)
-        except OSError as exc:
-            raise _storage_error(exc, self.open_path) from None
+        except OSError:
+            pass
         self._last_sync = time.monotonic()
 
     def _close_open(self) -> None:
@@ -516,6 +528,8 @@ class RecoveryReport:
     problem: str | None            # why the tail was unreadable
 
     def __str__(self) -> str:
+        if self.finished is None and not self.samples and self.problem:
+            return f"{self.segment.name}: {self.problem}"
         kept = f"{self.samples} samples in {self.blocks} complete blocks kept"
         if not self.lost_bytes:
             return f"{self.segment.name}: closed after a crash: {kept}; nothing lost"
@@ -536,7 +550,11 @@ def recover(directory: str | os.PathLike) -> list[RecoveryReport]:
         if finished.exists() and _complete_parquet(finished):
             path.unlink()   # the crash came between the rename and the removal: the Parquet file is whole
             continue
-        scanned = scan(path)
+        try:
+            scanned = scan(path)
+        except DataError as exc:
+            reports.append(_unreadable(path, exc))
+            continue
         recovered = {"recovered_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                      "lost_bytes": scanned.lost_bytes, "lost_samples": scanned.lost_samples,
                      "problem": scanned.problem}
@@ -549,6 +567,18 @@ def recover(directory: str | os.PathLike) -> list[RecoveryReport]:
         reports.append(RecoveryReport(path, result, scanned.samples, len(scanned.data), scanned.lost_bytes,
                                       scanned.lost_samples, scanned.problem))
     return reports
+
+
+def _unreadable(path: Path, exc: DataError) -> RecoveryReport:
+    """A segment without a readable header: torn at creation (removed: it held no sample) or not ours (left)."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        start = fh.read(len(FILE_MAGIC))
+    torn = FILE_MAGIC.startswith(start) or (start == FILE_MAGIC and size < 4096)
+    if torn:
+        path.unlink()
+        return RecoveryReport(path, None, 0, 0, size, 0, "the writer stopped while creating it (no samples yet)")
+    return RecoveryReport(path, None, 0, 0, 0, 0, f"left alone: {exc.message}")
 
 
 def _held(path: Path) -> bool:

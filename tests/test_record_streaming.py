@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -33,7 +34,7 @@ def wait_for_samples(proc, path_glob, parent, timeout=30.0):
     raise AssertionError("no samples written")
 
 
-@pytest.mark.parametrize("output", ["segments", "run.npz", "run.csv"])
+@pytest.mark.parametrize("output", ["segments", "run.parquet", "run.npz", "run.csv"])
 def test_ctrl_c_keeps_everything_recorded_so_far(tmp_path, output):
     out = tmp_path / output
     proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000", "-o",
@@ -96,3 +97,31 @@ def test_every_reader_takes_a_directory_over_a_time_range(tmp_path):
     assert abs(part.duration - 10.0) < 0.01
     r = accelrig("noise", str(out), "--start", "tomorrow")
     assert r.returncode != 0 and r.stderr.count("\n") == 1 and "neither seconds nor an ISO-8601 time" in r.stderr
+
+
+def test_record_into_a_directory_a_crash_left_open_recovers_it_first(tmp_path, capsys):
+    from accelrig.segments import SegmentWriter
+
+    out = tmp_path / "segs"
+    w = SegmentWriter(out, stem="sim-random-1", meta={}, scale=0.001)
+    w.write(np.arange(10) / 100.0 + 1.7e9, np.zeros((10, 3), np.int16))
+    os.close(w._fd)                                   # the recording process died here
+    assert main(["record", "sim://still?seed=1&pace=fast", "--seconds", "1", "-o", str(out)]) == 0
+    assert "closed after a crash: 10 samples in 1 complete blocks kept; nothing lost" in capsys.readouterr().err
+    assert sorted(p.suffix for p in out.iterdir()) == [".parquet", ".parquet"]
+
+
+def test_gaps_the_link_reported_are_recorded_where_they_happened(tmp_path):
+    out = tmp_path / "lossy"
+    assert main(["record", "sim://still?seed=4&pace=fast&rate=1000&block=50&drop=0.2", "--seconds", "20",
+                 "-o", str(out)]) == 0
+    rec = load_recording(out, units="counts")
+    gaps = rec.meta["gaps"]
+    assert len(gaps) > 20 and {g["cause"] for g in gaps} == {"device/link"}
+    # every jump in the sample times is a gap record at that index, of the size the jump says
+    step = np.median(np.diff(rec.t))
+    jumps = np.flatnonzero(np.diff(rec.t) > 1.5 * step) + 1
+    assert [g["index"] for g in gaps] == jumps.tolist()
+    sizes = np.rint(np.diff(rec.t)[jumps - 1] / step).astype(int) - 1
+    assert [g["missing"] for g in gaps] == sizes.tolist()
+    assert len(rec) + sum(g["missing"] for g in gaps) == pytest.approx(20 * 1000 * 1.004, abs=60)

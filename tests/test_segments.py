@@ -138,6 +138,25 @@ def test_finishing_is_atomic_and_a_full_disk_leaves_the_open_segment(tmp_path, m
     np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(10))[1])
 
 
+def test_a_rotation_the_full_disk_cannot_finish_keeps_writing(tmp_path, monkeypatch):
+    import pyarrow.parquet as pq_module
+
+    real = pq_module.ParquetWriter.write_table
+
+    def full(self, table, *a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    w = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001, segment_seconds=1.0)
+    monkeypatch.setattr(pq_module.ParquetWriter, "write_table", full)
+    write_blocks(w, range(50), jitter=False)        # rotates at 1 s: the first segment cannot be finished
+    assert len(w.pending) == 1 and w.samples_written == 50 * 64
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+    monkeypatch.setattr(pq_module.ParquetWriter, "write_table", real)
+    assert len(w.close()) == 2 and not w.pending
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".parquet", ".parquet"]
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+
+
 def test_disk_full_injected_leaves_no_partial_block(tmp_path, monkeypatch):
     """ENOSPC part-way through a block (os.write patched): the block is wholly absent; writing resumes."""
     w = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001)
@@ -336,3 +355,22 @@ def test_csv_on_request_reads_back_through_the_interchange_reader(tmp_path):
     np.testing.assert_array_equal(rec.acc, counts)
     assert rec.units == "counts" and rec.meta["scale"] == 0.001
     np.testing.assert_allclose(rec.t, t, rtol=0, atol=1e-9)
+
+
+def test_pyarrow_is_imported_only_to_finish_or_read_a_segment():
+    probe = ("import sys\nimport accelrig.recording, accelrig.segments, accelrig.acquisition.session\n"
+             "from accelrig.cli import main\ntry:\n    main(['record', '--help'])\nexcept SystemExit:\n    pass\n"
+             "print('pyarrow' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert done.stdout.strip().splitlines()[-1] == "False", done.stderr
+
+
+def test_recover_removes_a_segment_torn_while_being_created_and_leaves_a_foreign_file(tmp_path):
+    (tmp_path / "dev.000000.seg").write_bytes(segments.FILE_MAGIC[:5])          # killed inside the header write
+    (tmp_path / "dev.000001.seg").write_bytes(b"something else entirely" * 500)
+    reports = recover(tmp_path)
+    assert [str(r) for r in reports] == [
+        "dev.000000.seg: the writer stopped while creating it (no samples yet)",
+        "dev.000001.seg: left alone: " + str(reports[1].problem).split(": ", 1)[1]]
+    assert "not an accelrig open segment" in str(reports[1])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dev.000001.seg"]

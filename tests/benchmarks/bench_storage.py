@@ -105,7 +105,8 @@ def record_bench(hours: float, work: Path) -> dict:
     return {"hours": hours, "samples": n, "wall_s": r["wall_s"], "peak_rss_mb": r["peak_rss"] / 2**20,
             "peak_anon_mb": r["peak_anon"] / 2**20,
             "rss_first_half_mb": max(rss[1:half] or [0]) / 2**20, "rss_second_half_mb": max(rss[half:]) / 2**20,
-            "files": len(files), "bytes": size, "bytes_per_sample": size / n, "out": str(out)}
+            "files": len(files), "bytes": size, "bytes_per_sample": size / n, "out": str(out),
+            "over_time": [(t, m[0] / 2**20) for t, m in r["samples"]]}
 
 
 READ_PROBE = textwrap.dedent("""
@@ -190,6 +191,10 @@ def main() -> None:
             print(f"| {rec['samples']} | {rec['wall_s']:.1f} | {rec['peak_rss_mb']:.1f} | {rec['peak_anon_mb']:.1f} | "
                   f"{rec['rss_first_half_mb']:.1f} / {rec['rss_second_half_mb']:.1f} | {rec['files']} | "
                   f"{rec['bytes']} | {rec['bytes_per_sample']:.2f} |\n")
+            series = rec["over_time"]
+            step = max(len(series) // 12, 1)
+            print("RSS over the run (wall s: MB): " + ", ".join(f"{t:.0f}: {mb:.0f}" for t, mb in series[::step])
+                  + "\n")
         if "read" in args.parts:
             print(f"## Reading {args.hours:g} h back (fresh process each)\n")
             print("| reader | samples | wall s | peak RSS MB | file MB |")
