@@ -89,7 +89,7 @@ def test_xsens_six_face_mode_refuses_in_one_line_naming_a_pose_and_its_angle(tmp
         err = capsys.readouterr().err.strip()
         assert code == CalibrationError.exit_code and not out.exists()
         assert len(err.splitlines()) == 1
-        assert "pose 27 is 45.7 degrees from -y" in err and "--model multi-position" in err
+        assert "pose 27 is 45.9 degrees from -y" in err and "--model multi-position" in err
 
 
 def test_xsens_multi_position_leaves_every_pose_on_g(tmp_path, capsys):
