@@ -125,11 +125,16 @@ def test_wrong_units_are_named_with_the_flag(factor, declared, flag):
         calibrate_static(wrong)
 
 
-def test_tilted_poses_raise_a_lack_of_fit_warning():
-    rec, _, _ = _record("sim://static?tilt=1.5", seed=10)   # each component sd 1.5 deg
+def test_tilted_poses_raise_a_lack_of_fit_warning_and_the_exact_face_u_grows():
+    rec, _, sensor = _record("sim://static?tilt=1.5", seed=10)   # each component sd 1.5 deg
+    level = calibrate_static(_record("sim://static", seed=10, sensor=sensor)[0], model="affine")
     result = calibrate_static(rec, model="affine")
     assert result.quality["p_value"] < 1e-3
-    assert any("table not level" in w for w in result.warnings)
+    assert any("table not level" in w and "Birge" in w for w in result.warnings)
+    assert "Birge ratio" in result.quality["uncertainty_source"]
+    u = result.correction.bias_uncertainty
+    assert np.all(u > 10 * level.correction.bias_uncertainty)   # the misfit, not the noise, sets the u now
+    assert np.all(np.abs(result.correction.bias - sensor.correction().bias) < 4 * u)
 
 
 def test_correlated_noise_is_detected_and_warned_about():

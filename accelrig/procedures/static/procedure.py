@@ -26,6 +26,7 @@ import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gravity_fit import (
+    CHI2_ALPHA,
     DISTINCT_DEG,
     FACE_REFUSE_SD,
     MULTI_MIN_DISTINCT,
@@ -42,7 +43,7 @@ from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
-from accelrig.result import CalibrationResult, Estimate
+from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.units import STANDARD_GRAVITY
 
 # Seconds a face is held before the live flow says "captured" (a pose still counts from min_hold on).
@@ -320,10 +321,18 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
                            "residual": (corr.matrix @ lof).tolist(), "residual_norm": float(np.linalg.norm(corr.matrix @ lof))}
                           for p, f, lof in zip(poses, data.faces, fit.residuals, strict=True)]
         arrays = {"pose_references": data.references, "pose_residuals": fit.residuals}
-        if dof > 0 and p_value < 1e-3:
+        if dof > 0 and p_value < CHI2_ALPHA:
+            # The data disagree with exact faces: the stated u grows with the misfit (Birge ratio), the
+            # numbers stay the fit's.  Tilted poses are better served by the six-face model, which says so.
+            birge = float(np.sqrt(chi2 / dof))
+            cov, uncertainty = cov * birge**2, uncertainty * birge
+            corr = Correction(corr.matrix, corr.bias, corr.covariance * birge**2)
+            source = (f"noise of the pose means x Birge ratio {birge:.3g} (chi^2 {chi2:.1f} for {dof} dof: "
+                      "the poses are not exact faces)")
             warnings.append(f"the poses disagree with the {label} model beyond their noise (chi2 = "
                             f"{chi2:.1f} for {dof} dof): table not level, cube not square or a pose "
-                            "not flat? The uncertainties may be too small (the six-face model allows for tilted poses).")
+                            f"not flat? The uncertainties are scaled by the Birge ratio {birge:.3g}; the six-face "
+                            "model (--model six-face) allows for tilted poses.")
         if fit.extra.get("converged") is False:
             warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
     else:
