@@ -211,6 +211,8 @@ def test_any_orientation_flow_counts_distinct_orientations_capture_by_capture(bl
     assert [e.data["kind"] for e in events].count("complete") == 1
     assert not any("of 6" in e.message or "faces" in e.message for e in events)
     assert proc.done and proc.progress == 1.0 and proc.orientations["more"] == 0
+    with pytest.raises(DataError, match="no face to redo"):
+        proc.act("redo", face="+x")
     result = proc.result()
     assert result.model == "multi-position"
     truth = sensor.correction()

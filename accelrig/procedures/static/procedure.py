@@ -135,6 +135,9 @@ class StaticProcedure(Procedure):
     def act(self, action: str, **arguments) -> list[Event]:
         if action != "redo":
             return super().act(action, **arguments)
+        if self.any_orientation:
+            raise DataError("any-orientation mode keeps every pose: there is no face to redo",
+                            "hold more orientations instead")
         if "face" not in arguments:
             raise DataError("redo needs the face to take again", "faces are +x, -x, +y, -y, +z, -z")
         return self.detector.forget(arguments["face"])
