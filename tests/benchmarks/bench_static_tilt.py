@@ -18,7 +18,8 @@ arbitrary orientations):
 For each model the 12 correction entries (9 for multi-position: its gauge fixes 3) are compared with
 the truth: sd / bound (six-face: the hybrid CRB with the stated flatness; multi-position: its CRB) and
 the coverage of +-2u, printed as min-max over the entries of C and of b.  The paper's exact-face model
-and the Ferraris pairing (noise-only u, no inflation: as they are used today) are judged against the
+and the Ferraris pairing (noise-only u, no inflation; the procedure's --model paper adds a Birge ratio when chi^2
+rejects, see --through-sim) are judged against the
 same bound as the tilt models on the same poses.
 
 ``--through-sim`` runs the whole pipeline instead: sim://static (``accelrig.sim.rigs.static``: hand
