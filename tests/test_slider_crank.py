@@ -234,6 +234,29 @@ def test_a_stand_without_step_marks_takes_timed_captures_and_verifies_when_told(
     assert proc.result().details["verdict"] == "holds"
 
 
+def test_a_marked_step_the_analysis_refuses_is_skipped_and_the_kept_steps_are_verified():
+    """At +-2 g the 9 Hz step clips: the stand goes on to its next step, so the procedure leaves that one
+    out (said, 1-based) instead of waiting for it forever, and verifies the steps it kept."""
+    speeds = [3.0, 9.0, 6.0]
+    rec = run(SliderCrankRig(steps=speeds), sensor(range_g=2.0), seed=5)
+    proc = SliderCrankProcedure.create(live_values(speeds), {**rec.meta, "channels": ["step"]})
+    events = [e for a in range(0, len(rec), 700) for e in proc.feed(rec.slice(a, a + 700))] + proc.finish()
+    problems = [e.message for e in events if e.kind == "problem"]
+    assert len(problems) == 1 and problems[0].startswith("step 2 skipped") and "clipping" in problems[0]
+    assert proc.done and [round(s.frequency_hz.value) for s in proc.steps] == [3, 6]
+    verification = proc.result()
+    assert [s["commanded_hz"] for s in verification.details["steps"]] == [3.0, 6.0]
+    assert verification.warnings[0].startswith("step 2 left out")
+
+
+def test_an_unmarked_step_can_be_skipped_by_the_operator():
+    proc = SliderCrankProcedure.create(live_values([3.0, 6.0], seconds=1.0), {"rate": FS, "range_g": 8.0})
+    events = proc.act("skip")
+    assert events[0].message.startswith("step 1 skipped") and "Step 2 of 2" in events[1].message
+    assert proc.position == 1 and not proc.done
+    assert proc.act("verify")[0].kind == "problem"   # nothing kept yet: nothing to verify
+
+
 # ---------------------------------------------------------------- bad input
 
 def test_clipping_names_the_step():

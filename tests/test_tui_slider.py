@@ -9,7 +9,7 @@ from accelrig.sim.rigs.slider_crank import SliderCrankRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import ChoiceScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.slider_wizard import SliderCrankWizard, VerificationScreen  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
@@ -17,13 +17,21 @@ from tui_support import async_test, wait_for  # noqa: E402
 DEVICE = "sim://slider-crank?seed=5&range=8&pace=fast&rate=2048&steps=3,6,9&noise=0.08&clearance=0.0002&truth=ideal"
 
 
-async def start_wizard(app, pilot):
+async def pick(pilot, options, key):
+    """Highlight the option ``key`` of an OptionList and press enter."""
+    options.highlighted = [options.get_option_at_index(i).id for i in range(options.option_count)].index(key)
+    await pilot.press("enter")
+
+
+async def start_wizard(app, pilot, wrong_kind=False):
     await wait_for(pilot, lambda: app.session is not None)
     await pilot.press("k")
     await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
-    menu = app.screen.query_one("#wizards")
-    menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("slider-crank")
-    await pilot.press("enter")
+    await pick(pilot, app.screen.query_one("#wizards"), "slider-crank")
+    if wrong_kind:   # the device is said to be of the wrong kind; the operator uses it anyway
+        await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
+        assert "simulated still rig" in str(app.screen.query_one("#question").render())
+        await pick(pilot, app.screen.query_one("#choices"), "anyway")
     await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
 
 
@@ -52,15 +60,24 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
 async def test_a_bad_profile_is_refused_and_a_device_without_step_marks_asks_for_space():
     app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
-        await start_wizard(app, pilot)
+        await start_wizard(app, pilot, wrong_kind=True)
         # a profile that cannot be read is refused in the setup, naming the problem
         await pilot.press(*"0.006", "down", *"0.035", "down", "down", "down", "down", "down", *"nope.yaml", "enter")
         status = app.screen.query_one("#setup-status")
         await wait_for(pilot, lambda: "nope.yaml" in str(status.render()))
         await pilot.press(*["backspace"] * len("nope.yaml"), "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard))
-        await wait_for(pilot, lambda: "Press space to capture 2 s" in str(app.screen.query_one("#instruction").render()))
-        assert not app.screen.procedure.marked
+        wizard = app.screen
+        assert "Press space to capture 2 s" in wizard.procedure.instruction()
+        assert not wizard.procedure.marked
+        # the 2 s source ends before any step: the headline says so and what can still be done
+        await wait_for(pilot, lambda: "source ended" in str(wizard.query_one("#instruction").render()))
+        headline = str(wizard.query_one("#instruction").render())
+        assert "v: verify with the steps taken so far" in headline and "w writes" in headline
+        # capturing needs samples that will never come: refused at once, nothing waits forever
+        await pilot.press("space")
+        await wait_for(pilot, lambda: "needs new samples" in str(wizard.query_one("#instruction").render()))
+        assert not wizard.procedure.capture.armed
 
 
 # A real rig without step marks, played back at its own pace (looping, so the test need not

@@ -52,11 +52,9 @@ class MeanProcedure(Procedure):
         return self.progress >= 1.0
 
     def feed(self, chunk):
+        events = [Event("instruction", "hold the sensor still")] if self.fed == 0 else []
         if self.t0 is None:
             self.t0 = chunk.t[0]
-            events = [Event("instruction", "hold the sensor still")]
-        else:
-            events = []
         self.parts.append(chunk.acc)
         self.fed += len(chunk.t)
         self.last = chunk.t[-1]
@@ -171,7 +169,8 @@ async def test_cancel_asks_first_and_returns_to_the_live_view():
 
 @async_test
 async def test_settings_form_refuses_in_place_remembers_and_actions_have_keys():
-    app = AccelrigApp(device="sim://still?seed=14&pace=fast&seconds=30", refresh_interval=0.05)
+    # at its own pace (1000 Hz): a source that has ended takes no action that needs new samples
+    app = AccelrigApp(device="sim://still?seed=14&rate=1000&seconds=120", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         app.push_screen(MeanWizard(app.session))

@@ -23,7 +23,7 @@ def response_series(frequency, measured, model) -> list[Series]:
 
 class SliderCrankWizard(ProcedureWizard):
     procedure_class = SliderCrankProcedure
-    ACTION_KEYS = {"space": "capture", "v": "verify"}
+    ACTION_KEYS = {"space": "capture", "x": "skip", "v": "verify"}
     progress_label = "steps"
 
     def create_arguments(self, values: dict) -> dict:
@@ -35,10 +35,14 @@ class SliderCrankWizard(ProcedureWizard):
         yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="fr-plot")
 
     def show_procedure(self, events: list) -> None:
-        steps = self.procedure.steps
-        cells = [f"[green]✓[/] {s.frequency_hz.value:.3g}" for s in steps]
-        cells += [("[b]▶[/] " if i == len(steps) else "· ") + f"{speed:g}"
-                  for i, speed in enumerate(self.procedure.schedule or []) if i >= len(steps)]
+        procedure = self.procedure
+        steps, position = procedure.steps, procedure.position
+        skipped = {n for n, _ in procedure.skipped}
+        kept = iter(steps)
+        cells = [f"[red]✗[/] {procedure.schedule[n]:g}" if n in skipped else f"[green]✓[/] {next(kept).frequency_hz.value:.3g}"
+                 for n in range(position)]   # (only a planned schedule has skipped steps)
+        cells += [("[b]▶[/] " if i == position else "· ") + f"{speed:g}"
+                  for i, speed in enumerate(procedure.schedule or []) if i >= position]
         self.query_one("#slider-steps", Static).update("steps (Hz): " + "  ".join(cells))
         if any(e.kind == "captured" for e in events):
             self.query_one("#fr-plot", LinePlot).set_series(response_series(
