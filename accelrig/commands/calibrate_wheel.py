@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from accelrig.commands.profile_output import add_profile_arguments, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -19,7 +20,7 @@ def register(sub, groups) -> None:
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("-o", "--output", help="write a device profile (YAML) with the correction")
+    add_profile_arguments(p)
     p.set_defaults(func=run_calibrate)
 
     q = groups["plan"].add_parser(
@@ -43,17 +44,11 @@ def run_calibrate(args) -> int:
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
                              bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
-    if args.output:
-        # profiles validate and write atomically: nothing half-written on error
-        from accelrig.profiles import profile_from_result, save_profile
-
-        save_profile(profile_from_result(result, rec), args.output)
+    write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))
         return 0
     print(_human(result))
-    if args.output:
-        print(f"profile written to {args.output}")
     return 0
 
 
