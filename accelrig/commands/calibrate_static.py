@@ -46,7 +46,10 @@ def run(args) -> int:
             raise DataError(f"--range-g {args.range_g} must be positive")
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
-    result = calibrate_static(rec, **values)
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"calibrating from {args.recording}"):
+        result = calibrate_static(rec, **values)
     write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))

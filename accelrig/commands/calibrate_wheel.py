@@ -42,8 +42,11 @@ def run_calibrate(args) -> int:
 
     v = values_from_args(SETTINGS, args)
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
-    result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
-                             bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"fitting the wheel ({v['method']} method)"):
+        result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
+                                 bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
     write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))

@@ -44,9 +44,12 @@ def run(args) -> int:
     profile_warnings: list[str] = []
     if values["profile"]:
         correction, profile_warnings = _profile_correction(values["profile"], recordings, values["force"])
-    result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
-                                 correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
-                                 profile=values["profile"])
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"analysing {len(recordings)} recording(s)"):
+        result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
+                                     correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
+                                     profile=values["profile"])
     result.warnings = profile_warnings + result.warnings
     if args.json:
         print(to_json(result.to_json_dict()))
