@@ -134,7 +134,7 @@ class SliderCrankProcedure(Procedure):
             if self.capture.marked and not self.capture.taken:
                 raise DataError(f"{self.source}: the step column marks no step (all values negative: settling only)")
             for step in steps:
-                label = f"{self.source} step {step.index:g}" if len(steps) > 1 else self.source
+                label = f"{self.source} step {step.index + 1:g}" if len(steps) > 1 else self.source   # 1-based
                 self.add_step(step.recording, label)
             self.source, self._queued = None, []
             return []
@@ -153,9 +153,10 @@ class SliderCrankProcedure(Procedure):
         try:
             result = self.add_step(step.recording, f"step {n + 1}")
         except AccelrigError as exc:
+            why = str(exc).removeprefix(f"step {n + 1}: ")
             if step.index is not None:   # the stand goes on to its next step: this one is left out
-                return self._skip(f"not kept: {exc}")
-            return [Event("problem", f"step {n + 1} not kept: {exc}; press space to capture it again"
+                return self._skip(why)
+            return [Event("problem", f"step {n + 1} not kept: {why}; press space to capture it again"
                                      + (", or skip it" if self.schedule else ""))]
         events = [Event("captured", f"step {n + 1}: {result.frequency_hz.value:.3f} Hz, first harmonic "
                                     f"{result.amplitude.value:.3f} ± {result.amplitude.uncertainty:.2g} m/s², radius "
@@ -186,7 +187,7 @@ class SliderCrankProcedure(Procedure):
         clipped = clipped_samples(rec)
         if clipped:
             raise DataError(
-                f"step {index} ({label}): {clipped} samples at the sensor's full scale (clipping)",
+                f"{label}: {clipped} samples at the sensor's full scale (clipping)",
                 "choose a larger range (e.g. 8 g) or a lower speed",
             )
         acc = self.correction.apply(rec.acc) if self.correction is not None else rec.acc

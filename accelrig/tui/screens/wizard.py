@@ -182,6 +182,24 @@ class ProcedureWizard(Screen):
         else:
             self.find_rig()
 
+    def help_text(self) -> str:
+        """What ? shows in a wizard: what this procedure needs and does, then its keys (listed by the help)."""
+        from rich.markup import escape
+
+        from accelrig.tui.rigs import NEEDS
+
+        cls = self.procedure_class
+        needs = NEEDS.get(cls.name)
+        lines = [f"[b]{escape(cls.title)}[/b] on {escape(self.url)}"]
+        if needs is not None:
+            lines.append(f"Needs {escape(needs.motion)}; without such a device, the simulated rig "
+                         f"({escape(needs.demo_note)}) shows how it goes.")
+        if self.procedure is not None and hasattr(self.procedure, "instruction") and not self._pumping:
+            lines.append(f"Now: {escape(self.procedure.instruction())}")
+        lines.append("The headline says what to do; w writes the samples captured so far at any time; escape "
+                     "leaves (asking first when something is unsaved).")
+        return "\n".join(lines)
+
     def use_device(self, session: Session) -> None:
         """Run on ``session``'s device from now on (the operator picked another one)."""
         self.url = session.url
