@@ -45,7 +45,8 @@ async def test_a_wheel_wizard_on_a_static_rig_says_so_and_offers_the_simulated_w
 
 @async_test
 async def test_quitting_with_unsaved_captures_asks_and_after_writing_does_not(tmp_path):
-    app = AccelrigApp(device="sim://still?seed=4&rate=1000&seconds=120", refresh_interval=0.05, profile_dir=tmp_path)
+    # a source that ends soon: the app falls idle, so Pilot's key presses stay quick
+    app = AccelrigApp(device="sim://still?seed=4&pace=fast&seconds=5", refresh_interval=0.05, profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         wizard = MeanWizard(app.session, values={"seconds": 600, "label": "sensor"})
@@ -58,7 +59,7 @@ async def test_quitting_with_unsaved_captures_asks_and_after_writing_does_not(tm
             await pilot.press("n")   # stay: nothing lost
             await wait_for(pilot, lambda: app.screen is wizard)
         assert app.return_code is None
-        wizard.stop_feeding()   # no more samples (as once a procedure has enough), so the file holds them all
+        await wait_for(pilot, lambda: wizard.source_ended)   # no more samples: the file will hold them all
         await pilot.press("w")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         await pilot.press("enter")
@@ -71,7 +72,7 @@ async def test_quitting_with_unsaved_captures_asks_and_after_writing_does_not(tm
 @async_test
 async def test_the_setup_form_is_remembered_in_the_accelrig_home_between_runs():
     for run in range(2):
-        app = AccelrigApp(device="sim://still?seed=6&rate=1000&seconds=60", refresh_interval=0.05)
+        app = AccelrigApp(device="sim://still?seed=6&pace=fast&seconds=1", refresh_interval=0.05)
         async with app.run_test(size=(80, 24)) as pilot:
             await wait_for(pilot, lambda app=app: app.session is not None)
             app.push_screen(MeanWizard(app.session))

@@ -29,6 +29,7 @@ class MeanProcedure(Procedure):
     settings = (Setting("seconds", "seconds of still data", unit="s", default=REQUIRED, low=1, high=3600),
                 Setting("label", "what the sensor is", kind="text", default="sensor"))
     actions = {"forget": "drop the data so far"}
+    closing_actions = ("forget",)   # needs no new samples: allowed once the source ended
 
     def __init__(self, seconds: float):
         self.seconds = seconds
@@ -169,8 +170,7 @@ async def test_cancel_asks_first_and_returns_to_the_live_view():
 
 @async_test
 async def test_settings_form_refuses_in_place_remembers_and_actions_have_keys():
-    # at its own pace (1000 Hz): a source that has ended takes no action that needs new samples
-    app = AccelrigApp(device="sim://still?seed=14&rate=1000&seconds=120", refresh_interval=0.05)
+    app = AccelrigApp(device="sim://still?seed=14&pace=fast&seconds=30", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         app.push_screen(MeanWizard(app.session))
