@@ -31,25 +31,47 @@ from accelrig.tui.widgets.plot import LinePlot, Series
 SERIES_STYLES = ("red", "green", "dodger_blue1", "yellow", "magenta", "cyan")
 
 
+# Units of the arrays the procedures return (plotted with their name); an array not listed is drawn
+# with its name alone.
+ARRAY_UNITS = {
+    "residuals": "m/s²", "pose_means": "m/s²", "pose_references": "m/s²", "pose_residuals": "m/s²",
+    "pose_times": "s", "speed_samples": "rad/s", "speed_fit": "rad/s", "speed_residuals": "rad/s",
+    "amplitude": "m/s²", "amplitude_uncertainty": "m/s²", "model_amplitude": "m/s²", "model_lower": "m/s²",
+    "model_upper": "m/s²", "radius_m": "m", "radius_uncertainty_m": "m",
+    "filtered_tangential": "m/s²", "filtered_radial": "m/s²",
+}
+# x arrays, by name (NAME_x of any array; t and *_time in s; frequency in Hz)
+X_NAMES = ("t", "frequency", "frequency_hz")
+
+
+def x_label(name: str) -> str:
+    if name == "t" or name.endswith("_time"):
+        return "time (s)"
+    if name.startswith("frequency"):
+        return "frequency (Hz)"
+    return name
+
+
 def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
-    """How to draw ``arrays[name]``: against its x array when the result gives one.
+    """How to draw ``arrays[name]``: (x axis label, series), against its x array when the result gives one.
 
     Convention used by the procedures' ``arrays``: ``NAME`` (1-D or n x k)
-    and optionally ``NAME_x`` or a shared ``t`` / ``frequency`` of the same
-    length as the x axis; otherwise samples are drawn against their index.
+    and optionally ``NAME_x``, or a time (``t``, ``*_time``) or frequency array of the
+    same length as the x axis; otherwise entries are drawn against their number.
     """
     y = np.asarray(arrays[name], dtype=float)
     if y.ndim == 0 or y.size < 2 or y.ndim > 2:
         return None
     n = y.shape[0]
     x = None
-    x_name = "index"
-    for candidate in (f"{name}_x", "t", "frequency"):
+    x_name = "pose number" if name.startswith("pose_") else "entry number"
+    candidates = [f"{name}_x", *X_NAMES, *(key for key in arrays if key.endswith("_time"))]
+    for candidate in candidates:
         if candidate != name and candidate in arrays and np.asarray(arrays[candidate]).shape == (n,):
-            x, x_name = np.asarray(arrays[candidate], dtype=float), candidate
+            x, x_name = np.asarray(arrays[candidate], dtype=float), x_label(candidate)
             break
     if x is None:
-        x = np.arange(n, dtype=float)
+        x = np.arange(n, dtype=float) + 1.0
     columns = y.reshape(n, -1)
     labels = ("x", "y", "z") if columns.shape[1] == 3 else tuple(str(i) for i in range(columns.shape[1]))
     series = [
@@ -62,7 +84,7 @@ def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
 def plottable(arrays: dict) -> list[str]:
     names = []
     for name in arrays:
-        if name.endswith("_x") or name in ("t", "frequency"):
+        if name.endswith(("_x", "_time")) or name in X_NAMES:
             continue
         if plot_series(name, arrays) is not None:
             names.append(name)
@@ -81,9 +103,6 @@ def cell_text(value) -> str:
     if isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) for v in value):
         return ", ".join(f"{v:.3g}" for v in value)
     return str(value)
-
-
-X_LABELS = {"t": "time (s)", "frequency": "frequency (Hz)", "index": "sample number"}
 
 
 def can_flash(session: Session | None) -> bool:
@@ -215,8 +234,10 @@ class ResultsScreen(Screen):
             return
         name = self.plots[self.plot_index % len(self.plots)]
         x_name, series = plot_series(name, self.result.arrays)
-        plot.title = f"{name}  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)"
-        plot.x_label = X_LABELS.get(x_name, x_name)
+        unit = ARRAY_UNITS.get(name)
+        plot.title = (f"{name}" + (f" ({unit})" if unit else "")
+                      + f"  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)")
+        plot.x_label = x_name
         plot.set_series(series)
 
     def set_status(self, text: str) -> None:
