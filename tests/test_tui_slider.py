@@ -136,3 +136,30 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
     assert all(abs(s["n_samples"] - CAPTURE * RATE) <= 2 and not s["speed_unsteady"] for s in verification["steps"])
     assert abs(radius.value - rig.effective_radius) < 4 * radius.uncertainty
     assert verification["verdict"] == "holds"
+
+
+@async_test
+async def test_a_profile_for_another_range_is_refused_as_on_the_command_line_unless_forced(tmp_path):
+    """The same check as `verify slider-crank --profile` (device, chip, range), with the same override."""
+    from accelrig.cli import main
+
+    static, profile = tmp_path / "static.csv", tmp_path / "two-g.yaml"
+    assert main(["record", "sim://static?seed=5&pace=fast&rate=200", "-o", str(static)]) == 0   # +-2 g
+    assert main(["calibrate", "static", str(static), "-o", str(profile)]) == 0
+    app = AccelrigApp(device=DEVICE.replace("&truth=ideal", ""), refresh_interval=0.05)   # the same part at +-8 g
+    async with app.run_test(size=(80, 24)) as pilot:
+        await start_wizard(app, pilot)
+        form = app.screen
+        for field, value in (("crank_radius", "0.00635"), ("rod_length", "0.0353"), ("clearance", "0.0002"),
+                             ("speeds", "3,6,9"), ("profile", str(profile))):
+            form.query_one(f"#setting-{field}").value = value
+        await form.query_one("#setting-profile").action_submit()
+        status = form.query_one("#setup-status")
+        await wait_for(pilot, lambda: "range but the data were taken at +-8 g" in str(status.render()))
+        assert isinstance(app.screen, SettingsForm)
+        form.query_one("#setting-force").value = "yes"
+        await form.query_one("#setting-force").action_submit()
+        await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
+        warnings = app.screen.verification.warnings
+        await pilot.pause(0.2)
+    assert any(w.startswith("forced: ") and "+-2 g range" in w for w in warnings)
