@@ -26,7 +26,7 @@ async def test_a_wheel_wizard_on_a_static_rig_says_so_and_offers_the_simulated_w
         await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
         await pick(pilot, app.screen.query_one("#wizards"), "wheel")
         await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
-        assert "simulated static rig: it has no rotation" in str(app.screen.query_one("#question").render())
+        assert "simulated static rig: it lacks rotation" in str(app.screen.query_one("#question").render())
         # the connect list puts what fits the wheel first: its simulated rig, then emulated chips on a wheel
         await pick(pilot, app.screen.query_one("#choices"), "connect")
         await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))

@@ -73,7 +73,7 @@ def rig_problem(procedure, url: str, device: dict) -> str | None:
     missing = [c for c in procedure.channels_needed if c not in device.get("channels", ())]
     rig = simulated_rig(url)
     if needs is not None and rig is not None and rig != needs.sim_rig:
-        return (f"{url} is a simulated {rig} rig: it has no {needs.motion}, which the {procedure.title} needs")
+        return f"{url} is a simulated {rig} rig: it lacks {needs.motion}, which the {procedure.title} needs"
     if missing:
         return f"{url} delivers no {', '.join(missing)} channel: the {procedure.title} needs {needs.motion if needs else 'it'}"
     return None

@@ -89,7 +89,7 @@ def test_wheel_wizard_offers_its_simulated_rig_and_saves_a_profile(tmp_path):
     tmux = start_tui(tmp_path, "wheel")
     try:
         choose_wizard(tmux, 1)
-        take_the_simulated_rig(tmux, "no rotation")
+        take_the_simulated_rig(tmux, "lacks rotation")
         save_and_quit(tmux, tmp_path, "s saves the profile", "profile saved", timeout=150)
     finally:
         tmux.run("kill-server", check=False)

@@ -89,7 +89,8 @@ class ChoiceScreen(ModalScreen[str | None]):
 
     @on(OptionList.OptionSelected, "#choices")
     def picked(self, event: OptionList.OptionSelected) -> None:
-        self.dismiss(event.option.id)
+        if self.is_current:   # an enter typed twice in a terminal can select twice: one answer
+            self.dismiss(event.option.id)
 
     def action_cancel(self) -> None:
         self.dismiss(None)
