@@ -47,7 +47,8 @@ class I2CSimDriver(I2CDriver):
 
     @classmethod
     def discover(cls) -> list[str]:
-        return [f"i2c-sim://{name}?rig=still" for name in sorted(EMULATORS)]
+        # the static rig: calibrate, then flash the offsets (the chips can store them)
+        return [f"i2c-sim://{name}?rig=static" for name in sorted(EMULATORS)]
 
     def _rig_class(self):
         name = self.url.get_str("rig", "still")

@@ -193,7 +193,7 @@ def test_missing_bus_is_a_device_error_and_missing_smbus2_a_missing_extra(monkey
 def test_discover_lists_buses_without_probing():
     found = I2CDriver.discover()
     assert all(u.startswith("i2c://") and u.endswith("/0x68") for u in found)
-    assert I2CSimDriver.discover() == ["i2c-sim://icm20948?rig=still", "i2c-sim://mpu9250?rig=still"]
+    assert I2CSimDriver.discover() == ["i2c-sim://icm20948?rig=static", "i2c-sim://mpu9250?rig=static"]
 
 
 def test_a_fifo_larger_than_the_datasheet_figure_is_noticed_by_counting():

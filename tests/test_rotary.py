@@ -300,6 +300,7 @@ def test_cli_campaign_writes_report(campaign, tmp_path, capsys):
     assert "Group results (Table 3)" in text
     # two tests of one amplitude: no line can be drawn, and the report says so instead of inventing u_l
     assert "linearity not evaluated" in text
+    assert "span only 1.0" in text and "needs at least 1.5 : 1" in text   # how much spread a line needs
     assert main(["calibrate", "rotary", "--campaign", str(small), "--mems", "x.csv"]) == 4
     assert "drop --mems" in capsys.readouterr().err
 

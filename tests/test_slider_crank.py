@@ -234,12 +234,35 @@ def test_a_stand_without_step_marks_takes_timed_captures_and_verifies_when_told(
     assert proc.result().details["verdict"] == "holds"
 
 
+def test_a_marked_step_the_analysis_refuses_is_skipped_and_the_kept_steps_are_verified():
+    """At +-2 g the 9 Hz step clips: the stand goes on to its next step, so the procedure leaves that one
+    out (said, 1-based) instead of waiting for it forever, and verifies the steps it kept."""
+    speeds = [3.0, 9.0, 6.0]
+    rec = run(SliderCrankRig(steps=speeds), sensor(range_g=2.0), seed=5)
+    proc = SliderCrankProcedure.create(live_values(speeds), {**rec.meta, "channels": ["step"]})
+    events = [e for a in range(0, len(rec), 700) for e in proc.feed(rec.slice(a, a + 700))] + proc.finish()
+    problems = [e.message for e in events if e.kind == "problem"]
+    assert len(problems) == 1 and problems[0].startswith("step 2 skipped") and "clipping" in problems[0]
+    assert proc.done and [round(s.frequency_hz.value) for s in proc.steps] == [3, 6]
+    verification = proc.result()
+    assert [s["commanded_hz"] for s in verification.details["steps"]] == [3.0, 6.0]
+    assert verification.warnings[0].startswith("step 2 left out")
+
+
+def test_an_unmarked_step_can_be_skipped_by_the_operator():
+    proc = SliderCrankProcedure.create(live_values([3.0, 6.0], seconds=1.0), {"rate": FS, "range_g": 8.0})
+    events = proc.act("skip")
+    assert events[0].message.startswith("step 1 skipped") and "Step 2 of 2" in events[1].message
+    assert proc.position == 1 and not proc.done
+    assert proc.act("verify")[0].kind == "problem"   # nothing kept yet: nothing to verify
+
+
 # ---------------------------------------------------------------- bad input
 
 def test_clipping_names_the_step():
     rig = SliderCrankRig(steps=[3.0, 11.0])
     rec = run(rig, sensor(range_g=2.0))
-    with pytest.raises(DataError, match=r"step 1 .*full scale \(clipping\)"):
+    with pytest.raises(DataError, match=r"sim step 2: .*full scale \(clipping\)"):
         verify_slider_crank([("sim", rec)], RADIUS, ROD)
 
 
@@ -255,7 +278,7 @@ def test_flat_tops_count_as_clipping_when_the_file_declares_no_range():
 
 def test_too_few_cycles_names_the_step():
     rig = SliderCrankRig(steps=[2.5], step_seconds=0.5)
-    with pytest.raises(DataError, match=r"step 0 .*1\.\d+ cycles|step 0 .*cycles"):
+    with pytest.raises(DataError, match=r"step 1 \(short\): .*cycles"):
         verify_slider_crank([("short", run(rig))], RADIUS, ROD)
 
 
@@ -282,7 +305,7 @@ def test_a_still_recording_given_as_a_step_is_refused(tmp_path, capsys):
     """No crank motion: the noise 'fit' is refused by name instead of reporting a radius."""
     still = simulate(RIGS["static"](np.random.default_rng(0), hold=4.0), sensor(), SimClock(FS), seconds=2.0, seed=3)
     moving = run(SliderCrankRig(steps=[4.0], settle=0.0))
-    with pytest.raises(DataError, match=r"step 1 \(still.csv\): no crank motion: the first harmonic .* not clearly above"):
+    with pytest.raises(DataError, match=r"step 2 \(still.csv\): no crank motion: the first harmonic .* not clearly above"):
         verify_slider_crank([("moving.csv", moving), ("still.csv", still)], RADIUS, ROD)
     path = tmp_path / "still.csv"
     save_recording(still, path)
@@ -299,7 +322,7 @@ def test_a_slow_drift_fitted_below_two_cycles_is_refused():
     acc[:, 2] = 9.8 * np.cos(2 * np.pi * 0.8 * t) + rng.normal(0, SIGMA, t.size)
     acc[:, 0] = rng.normal(0, SIGMA, t.size)
     acc[:, 1] = rng.normal(0, SIGMA, t.size)
-    with pytest.raises(DataError, match=r"step 0 \(pose\): .*cycles"):
+    with pytest.raises(DataError, match=r"step 1 \(pose\): .*cycles"):
         verify_slider_crank([("pose", Recording(t, acc))], RADIUS, ROD)
 
 

@@ -56,8 +56,11 @@ async def test_connect_screen_switches_device_and_shows_identity():
         await pilot.pause()
         assert isinstance(app.screen, ConnectScreen)
         found = app.screen.query_one("#found")
-        await wait_for(pilot, lambda: any(str(found.get_option_at_index(i).prompt) == "sim://still"
+        await wait_for(pilot, lambda: any(found.get_option_at_index(i).id == "sim://still"
                                           for i in range(found.option_count)))
+        ids = [found.get_option_at_index(i).id for i in range(found.option_count)]
+        # the flashable emulated chips are offered (calibrate on the static rig, then flash)
+        assert "i2c-sim://mpu9250?rig=static" in ids
         url_input = app.screen.query_one("#url")
         url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
         url_input.focus()
@@ -68,7 +71,7 @@ async def test_connect_screen_switches_device_and_shows_identity():
         shown = text_of(app, "#connected-device")
         assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown
         await pilot.press("escape")
-        assert isinstance(app.screen, LiveScreen)
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
 
 
 @async_test

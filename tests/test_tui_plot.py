@@ -57,3 +57,16 @@ def test_points_only_series_are_not_joined_and_nan_is_skipped():
             assert dots == 2
 
     asyncio.run(run())
+
+
+def test_result_arrays_are_drawn_against_their_time_or_frequency_with_units():
+    from accelrig.tui.screens.results import ARRAY_UNITS, plot_series, plottable
+
+    arrays = {"t": np.arange(5.0), "residuals": np.zeros((5, 3)), "speed_time": np.arange(3.0) + 0.5,
+              "speed_samples": np.array([9.0, 8.5, 8.1]), "pose_means": np.ones((6, 3))}
+    assert plottable(arrays) == ["residuals", "speed_samples", "pose_means"]
+    label, series = plot_series("speed_samples", arrays)
+    assert label == "time (s)" and np.array_equal(series[0].x, arrays["speed_time"])
+    label, series = plot_series("pose_means", arrays)
+    assert label == "pose number" and series[0].x.tolist() == [1, 2, 3, 4, 5, 6] and len(series) == 3
+    assert ARRAY_UNITS["speed_samples"] == "rad/s" and ARRAY_UNITS["residuals"] == "m/s²"

@@ -6,7 +6,7 @@
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
@@ -16,8 +16,8 @@ DEVICE = "sim://rotary?seed=2&range=8&rate=1000&seconds=60"
 
 
 @async_test
-async def test_rotary_steps_by_keystroke_to_the_campaign_report():
-    app = AccelrigApp(device=DEVICE, refresh_interval=0.05)
+async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
+    app = AccelrigApp(device=DEVICE, refresh_interval=0.05, profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         await pilot.press("k")
@@ -40,9 +40,22 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report():
         await pilot.press("space")
         await wait_for(pilot, lambda: len(wizard.procedure.results) == 1)
         await pilot.press("space")
-        await wait_for(pilot, lambda: isinstance(app.screen, CampaignScreen) and app.screen.query("#campaign-report"))
+        await wait_for(pilot, lambda: isinstance(app.screen, CampaignScreen) and app.screen.query("#campaign-3"))
         await pilot.pause(0.2)  # let the screen finish mounting before the app closes
-        assert "per_axis" in str(app.screen.query_one("#campaign-report").render())
+        campaign = app.screen
+        # one amplitude (two repeats of 5:34): no linearity line, left out of the budget and warned
+        assert "linearity not evaluated" in str(campaign.query_one("#campaign-warnings").render())
+        assert "span only" in str(campaign.query_one("#campaign-warnings").render())
+        budget = campaign.query_one("#campaign-1")
+        assert budget.row_count == 2 and "left out" in budget.get_row_at(0)
+        assert campaign.query_one("#campaign-0").row_count == 4   # 2 steps x 2 axes
+        # the report is saved as Markdown
+        await pilot.press("s")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: campaign.saved_path is not None)
+        report = campaign.saved_path.read_text()
+        assert report.startswith("# Rotary bench campaign") and "linearity not evaluated" in report
         truth = true_sensitivity(app.session.info.truth)
         results = [result for _, result in wizard.procedure.results]
     assert len(results) == 2

@@ -9,7 +9,7 @@ from accelrig.sim.rigs.slider_crank import SliderCrankRig  # noqa: E402
 from accelrig.sim.sensor import SensorModel, SimClock  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import ChoiceScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.slider_wizard import SliderCrankWizard, VerificationScreen  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
 
@@ -17,13 +17,21 @@ from tui_support import async_test, wait_for  # noqa: E402
 DEVICE = "sim://slider-crank?seed=5&range=8&pace=fast&rate=2048&steps=3,6,9&noise=0.08&clearance=0.0002&truth=ideal"
 
 
-async def start_wizard(app, pilot):
+async def pick(pilot, options, key):
+    """Highlight the option ``key`` of an OptionList and press enter."""
+    options.highlighted = [options.get_option_at_index(i).id for i in range(options.option_count)].index(key)
+    await pilot.press("enter")
+
+
+async def start_wizard(app, pilot, wrong_kind=False):
     await wait_for(pilot, lambda: app.session is not None)
     await pilot.press("k")
     await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
-    menu = app.screen.query_one("#wizards")
-    menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("slider-crank")
-    await pilot.press("enter")
+    await pick(pilot, app.screen.query_one("#wizards"), "slider-crank")
+    if wrong_kind:   # the device is said to be of the wrong kind; the operator uses it anyway
+        await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
+        assert "simulated still rig" in str(app.screen.query_one("#question").render())
+        await pick(pilot, app.screen.query_one("#choices"), "anyway")
     await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
 
 
@@ -52,15 +60,24 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
 async def test_a_bad_profile_is_refused_and_a_device_without_step_marks_asks_for_space():
     app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
-        await start_wizard(app, pilot)
+        await start_wizard(app, pilot, wrong_kind=True)
         # a profile that cannot be read is refused in the setup, naming the problem
         await pilot.press(*"0.006", "down", *"0.035", "down", "down", "down", "down", "down", *"nope.yaml", "enter")
         status = app.screen.query_one("#setup-status")
         await wait_for(pilot, lambda: "nope.yaml" in str(status.render()))
         await pilot.press(*["backspace"] * len("nope.yaml"), "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SliderCrankWizard))
-        await wait_for(pilot, lambda: "Press space to capture 2 s" in str(app.screen.query_one("#instruction").render()))
-        assert not app.screen.procedure.marked
+        wizard = app.screen
+        assert "Press space to capture 2 s" in wizard.procedure.instruction()
+        assert not wizard.procedure.marked
+        # the 2 s source ends before any step: the headline says so and what can still be done
+        await wait_for(pilot, lambda: "source ended" in str(wizard.query_one("#instruction").render()))
+        headline = str(wizard.query_one("#instruction").render())
+        assert "v: verify with the steps taken so far" in headline and "w writes" in headline
+        # capturing needs samples that will never come: refused at once, nothing waits forever
+        await pilot.press("space")
+        await wait_for(pilot, lambda: "needs new samples" in str(wizard.query_one("#instruction").render()))
+        assert not wizard.procedure.capture.armed
 
 
 # A real rig without step marks, played back at its own pace (looping, so the test need not
@@ -119,3 +136,30 @@ async def test_space_captures_each_step_of_a_device_without_step_marks(tmp_path)
     assert all(abs(s["n_samples"] - CAPTURE * RATE) <= 2 and not s["speed_unsteady"] for s in verification["steps"])
     assert abs(radius.value - rig.effective_radius) < 4 * radius.uncertainty
     assert verification["verdict"] == "holds"
+
+
+@async_test
+async def test_a_profile_for_another_range_is_refused_as_on_the_command_line_unless_forced(tmp_path):
+    """The same check as `verify slider-crank --profile` (device, chip, range), with the same override."""
+    from accelrig.cli import main
+
+    static, profile = tmp_path / "static.csv", tmp_path / "two-g.yaml"
+    assert main(["record", "sim://static?seed=5&pace=fast&rate=200", "-o", str(static)]) == 0   # +-2 g
+    assert main(["calibrate", "static", str(static), "-o", str(profile)]) == 0
+    app = AccelrigApp(device=DEVICE.replace("&truth=ideal", ""), refresh_interval=0.05)   # the same part at +-8 g
+    async with app.run_test(size=(80, 24)) as pilot:
+        await start_wizard(app, pilot)
+        form = app.screen
+        for field, value in (("crank_radius", "0.00635"), ("rod_length", "0.0353"), ("clearance", "0.0002"),
+                             ("speeds", "3,6,9"), ("profile", str(profile))):
+            form.query_one(f"#setting-{field}").value = value
+        await form.query_one("#setting-profile").action_submit()
+        status = form.query_one("#setup-status")
+        await wait_for(pilot, lambda: "range but the data were taken at +-8 g" in str(status.render()))
+        assert isinstance(app.screen, SettingsForm)
+        form.query_one("#setting-force").value = "yes"
+        await form.query_one("#setting-force").action_submit()
+        await wait_for(pilot, lambda: isinstance(app.screen, VerificationScreen))
+        warnings = app.screen.verification.warnings
+        await pilot.pause(0.2)
+    assert any(w.startswith("forced: ") and "+-2 g range" in w for w in warnings)

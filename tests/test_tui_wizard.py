@@ -29,6 +29,7 @@ class MeanProcedure(Procedure):
     settings = (Setting("seconds", "seconds of still data", unit="s", default=REQUIRED, low=1, high=3600),
                 Setting("label", "what the sensor is", kind="text", default="sensor"))
     actions = {"forget": "drop the data so far"}
+    closing_actions = ("forget",)   # needs no new samples: allowed once the source ended
 
     def __init__(self, seconds: float):
         self.seconds = seconds
@@ -52,11 +53,9 @@ class MeanProcedure(Procedure):
         return self.progress >= 1.0
 
     def feed(self, chunk):
+        events = [Event("instruction", "hold the sensor still")] if self.fed == 0 else []
         if self.t0 is None:
             self.t0 = chunk.t[0]
-            events = [Event("instruction", "hold the sensor still")]
-        else:
-            events = []
         self.parts.append(chunk.acc)
         self.fed += len(chunk.t)
         self.last = chunk.t[-1]

@@ -47,8 +47,11 @@ def run(args) -> int:
 
     v = values_from_args(TEST_SETTINGS, args)
     setup = RotarySetup(radius=v["radius"], radius_uncertainty=v["radius_uncertainty"], ref_radius=v["ref_radius"])
-    result = analyse_files(args.mems, args.encoder, v["tangential"], v["radial"], v["nominal_rate"],
-                           v["frequency"], v["rate_method"], setup, units=args.units)
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"analysing {args.mems}"):
+        result = analyse_files(args.mems, args.encoder, v["tangential"], v["radial"], v["nominal_rate"],
+                               v["frequency"], v["rate_method"], setup, units=args.units)
     if args.json:
         print(to_json(result.to_calibration_result().to_json_dict()))
         return 0
@@ -68,17 +71,13 @@ def run(args) -> int:
 
 
 def _run_campaign(args) -> int:
+    from accelrig.commands.progress import Progress
     from accelrig.procedures.rotary.campaign import report_markdown, run_campaign, write_report
     from accelrig.result import to_json
 
-    def progress(test, result) -> None:
-        if sys.stderr.isatty():
-            sys.stderr.write(f"\rtest {test.index + 1}: {test.label}  ")
-            sys.stderr.flush()
-
-    report = run_campaign(args.campaign, on_test=progress)
-    if sys.stderr.isatty():
-        sys.stderr.write("\n")
+    with Progress(f"analysing the campaign {args.campaign}") as progress:
+        report = run_campaign(args.campaign, on_test=lambda test, _: progress.step(
+            f"test {test.index + 1} done: {test.label}"))
     if args.output:
         write_report(report, args.output)
     if args.json:

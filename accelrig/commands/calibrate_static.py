@@ -8,6 +8,7 @@ the numerical machinery is imported only when the command runs, so --help stays 
 from __future__ import annotations
 
 from accelrig.commands import add_time_range
+from accelrig.commands.profile_output import add_profile_arguments, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.static.settings import SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -30,7 +31,7 @@ def register(sub, groups) -> None:
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
     add_time_range(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
-    p.add_argument("-o", "--output", help="write the device profile (YAML) here")
+    add_profile_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -47,21 +48,16 @@ def run(args) -> int:
             raise DataError(f"--range-g {args.range_g} must be positive")
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
-    result = calibrate_static(rec, **values)
-    if args.output:
-        _write_profile(result, rec, args.output)
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"calibrating from {args.recording}"):
+        result = calibrate_static(rec, **values)
+    write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))
     else:
         print(text_report(result))
     return 0
-
-
-def _write_profile(result, rec, path) -> None:
-    # Imported here: the profiles package is optional for computing a calibration.
-    from accelrig.profiles import profile_from_result, save_profile
-
-    save_profile(profile_from_result(result, rec), path)
 
 
 def text_report(result) -> str:

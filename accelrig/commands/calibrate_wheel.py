@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from accelrig.commands import add_time_range
+from accelrig.commands.profile_output import add_profile_arguments, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -21,7 +22,7 @@ def register(sub, groups) -> None:
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     add_time_range(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("-o", "--output", help="write a device profile (YAML) with the correction")
+    add_profile_arguments(p)
     p.set_defaults(func=run_calibrate)
 
     q = groups["plan"].add_parser(
@@ -43,19 +44,16 @@ def run_calibrate(args) -> int:
 
     v = values_from_args(SETTINGS, args)
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
-    result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
-                             bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
-    if args.output:
-        # profiles validate and write atomically: nothing half-written on error
-        from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.commands.progress import Progress
 
-        save_profile(profile_from_result(result, rec), args.output)
+    with Progress(f"fitting the wheel ({v['method']} method)"):
+        result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
+                                 bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+    write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))
         return 0
     print(_human(result))
-    if args.output:
-        print(f"profile written to {args.output}")
     return 0
 
 

@@ -14,7 +14,8 @@ def register(sub, groups) -> None:
     p.add_argument("--device", default=None,
                    help="device URL to open first (default: sim://static, a simulated device)")
     p.add_argument("--profile-dir", default=None,
-                   help="directory the wizards offer for saving profiles (default: the current directory)")
+                   help="directory the wizards offer for saving profiles, captures and reports (default: profiles "
+                   "into the profile store, $ACCELRIG_HOME/profiles; captures and reports beside it)")
     p.add_argument("--daemon", metavar="SOCKET_OR_CONFIG", default=None,
                    help="watch a running daemon's devices (read-only): its status socket or its configuration")
     p.set_defaults(func=run)

@@ -23,8 +23,6 @@ def register(sub, groups) -> None:
     geometry = p.add_mutually_exclusive_group(required=True)
     add_arguments(geometry, [ROD_LENGTH])
     geometry.add_argument("--lambda", dest="lam", type=float, metavar="L", help="crank radius / rod length instead")
-    p.add_argument("--force", action="store_true",
-                   help="apply the profile even if it names another device, range or unit (warned)")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az when the file does not say")
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate for files without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -45,10 +43,13 @@ def run(args) -> int:
     correction = None
     profile_warnings: list[str] = []
     if values["profile"]:
-        correction, profile_warnings = _profile_correction(values["profile"], recordings, args.force)
-    result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
-                                 correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
-                                 profile=values["profile"])
+        correction, profile_warnings = _profile_correction(values["profile"], recordings, values["force"])
+    from accelrig.commands.progress import Progress
+
+    with Progress(f"analysing {len(recordings)} recording(s)"):
+        result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
+                                     correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
+                                     profile=values["profile"])
     result.warnings = profile_warnings + result.warnings
     if args.json:
         print(to_json(result.to_json_dict()))

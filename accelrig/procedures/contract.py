@@ -61,6 +61,8 @@ class Procedure(abc.ABC):
     title: ClassVar[str]                    # for people: 'six-face static calibration'
     settings: ClassVar[tuple[Setting, ...]] = ()
     actions: ClassVar[dict[str, str]] = {}  # action -> what it does, for keys and help
+    # actions that need no new samples (finish with what was taken): still possible once the source ended
+    closing_actions: ClassVar[tuple[str, ...]] = ()
     channels_needed: ClassVar[tuple[str, ...]] = ()  # device channels the procedure cannot do without
 
     @classmethod

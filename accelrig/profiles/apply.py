@@ -62,7 +62,7 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     if problems:
         if not force:
             more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-            raise ProfileError(problems[0] + more, "pass --force to use it anyway")
+            raise ProfileError(problems[0] + more, "pass --force (in the TUI: force yes) to use it anyway")
         warnings.extend(f"forced: {p}" for p in problems)
     return warnings
 

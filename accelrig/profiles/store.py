@@ -79,8 +79,8 @@ class ProfileStore:
     def device_dir(self, identity: str) -> Path:
         return self.root / device_key(identity)
 
-    def add(self, profile: Profile) -> Path:
-        """Keep a profile for its device; returns where.  Never overwrites an existing file."""
+    def path_for(self, profile: Profile) -> Path:
+        """Where ``add`` would keep ``profile`` (a name not taken yet)."""
         identity = profile.identity
         if identity is None:
             raise ProfileError(
@@ -88,7 +88,6 @@ class ProfileStore:
                 "set device.identity in the profile, or keep it as a file",
             )
         directory = self.device_dir(identity)
-        directory.mkdir(parents=True, exist_ok=True)
         stamp = profile.created.strftime("%Y%m%dT%H%M%SZ")
         base = f"{stamp}-{re.sub(r'[^A-Za-z0-9_-]+', '_', profile.procedure)}"
         path = directory / f"{base}.yaml"
@@ -96,6 +95,12 @@ class ProfileStore:
         while path.exists():
             k += 1
             path = directory / f"{base}-{k}.yaml"
+        return path
+
+    def add(self, profile: Profile) -> Path:
+        """Keep a profile for its device; returns where.  Never overwrites an existing file."""
+        path = self.path_for(profile)
+        path.parent.mkdir(parents=True, exist_ok=True)
         save_profile(profile, path, overwrite=False)
         return path
 

@@ -4,19 +4,39 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
 from textual import work
 from textual.app import App
 from textual.binding import Binding
 
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
+from accelrig.files import atomic_write
 from accelrig.profiles.flash import flash_url_profile
+from accelrig.profiles.store import default_store_dir
 from accelrig.tui.screens.help import HelpScreen
 from accelrig.tui.screens.live import LiveScreen
 
 # With no hardware the TUI opens on a simulated static rig at the device's own pace,
 # so a newcomer sees data flow at once.
 DEFAULT_DEVICE = "sim://static"
+
+
+def settings_file() -> Path:
+    """Where the setup forms' last values are kept between runs: beside the profile store."""
+    return default_store_dir().parent / "tui-settings.yaml"
+
+
+def load_setting_texts() -> dict[str, dict[str, str]]:
+    """The forms' last values (procedure name -> field -> text); a missing or unreadable file is no memory."""
+    try:
+        data = yaml.safe_load(settings_file().read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {str(name): {str(k): str(v) for k, v in texts.items()}
+            for name, texts in data.items() if isinstance(texts, dict)}
 
 
 class AccelrigApp(App):
@@ -28,6 +48,7 @@ class AccelrigApp(App):
     BINDINGS = [
         Binding("question_mark,f1", "help", "Help", key_display="?"),
         Binding("q", "quit", "Quit"),
+        Binding("ctrl+q", "quit", "Quit", show=False, priority=True),
     ]
 
     def __init__(self, device: str = DEFAULT_DEVICE, refresh_interval: float = 0.1,
@@ -37,13 +58,58 @@ class AccelrigApp(App):
         self.daemon_socket = daemon_socket  # set: watch a running daemon instead of opening a device
         self.device = device
         self.refresh_interval = refresh_interval
-        self.profile_dir = Path(profile_dir) if profile_dir is not None else Path.cwd()
+        # None: profiles go into the store (accelrig.profiles.store), captures beside it
+        self.profile_dir = Path(profile_dir) if profile_dir is not None else None
         self.buffer_seconds = buffer_seconds
         self.session: Session | None = None
         self.connect_error: str | None = None
         # What the operator last typed into each procedure's setup form (procedure name -> texts),
-        # offered again the next time that wizard starts in this session of the app.
-        self.setting_texts: dict[str, dict[str, str]] = {}
+        # offered again the next time that wizard starts (kept in settings_file() between runs).
+        self.setting_texts: dict[str, dict[str, str]] = load_setting_texts()
+
+    @property
+    def output_dir(self) -> Path:
+        """Where captures and reports are offered to be written: --profile-dir, else the accelrig home."""
+        return self.profile_dir if self.profile_dir is not None else default_store_dir().parent
+
+    def remember_settings(self, procedure: str, texts: dict[str, str]) -> None:
+        """Keep what was typed into ``procedure``'s form, for this run and the next (best effort: a
+        read-only home only loses the memory, never the calibration)."""
+        self.setting_texts[procedure] = dict(texts)
+        path = settings_file()
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            text = yaml.safe_dump(self.setting_texts, sort_keys=True)
+            atomic_write(path, lambda fh: fh.write(text), text=True)
+        except (OSError, AccelrigError) as exc:
+            self.notify(f"the form's values are not kept for the next run: {exc}", severity="warning")
+
+    def unsaved_work(self) -> str | None:
+        """What quitting now would lose (captured samples or a result neither written nor saved), or None."""
+        for screen in self.screen_stack:
+            unsaved = getattr(screen, "unsaved", None)
+            if unsaved:
+                return unsaved
+        return None
+
+    async def action_quit(self) -> None:
+        """q / ctrl+q: asks first when captured data or a result would be lost (as escape in a wizard does)."""
+        from accelrig.tui.screens.dialogs import ConfirmScreen
+
+        if isinstance(self.screen, ConfirmScreen):
+            return   # a question is open: it wants y or n
+        unsaved = self.unsaved_work()
+        if unsaved:
+            self.ask_quit(unsaved)
+            return
+        self.exit()
+
+    @work(exclusive=True, group="quit")
+    async def ask_quit(self, unsaved: str) -> None:
+        from accelrig.tui.screens.dialogs import ConfirmScreen
+
+        if await self.push_screen_wait(ConfirmScreen(f"Quit? {unsaved}", "Quit", "Stay")):
+            self.exit()
 
     def on_mount(self) -> None:
         if self.daemon_socket is not None:

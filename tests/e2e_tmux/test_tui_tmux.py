@@ -66,7 +66,7 @@ def test_static_calibration_with_keystrokes_alone(tmp_path):
         tmux.keys("Enter")
         tmux.wait_for("Save profile")       # the results screen's footer: all six faces done, fit run
         tmux.keys("s")
-        tmux.wait_for("Save the profile to:")
+        tmux.wait_for("Save the profile to")
         tmux.keys("Enter")
         tmux.wait_for("profile saved")
         tmux.keys("q")

@@ -62,6 +62,12 @@ from accelrig.recording import load_recording
 from accelrig.result import CalibrationResult, Estimate, to_plain
 from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
 
+# A linearity line q_o = S q_i + b through reference amplitudes that barely differ is an extrapolation:
+# its slope sd grows as 1 / (spread of q_i), and three repeats at one setting (spread ~0.1 %) gave a
+# +-60 % "linearity" term.  The regression is run only when the largest reference amplitude is at least
+# this many times the smallest (the paper's plan spans about 5 : 1); otherwise the term is left out, warned.
+LINEARITY_MIN_SPAN = 1.5
+
 # Keys a test may take from the campaign's top level (per-test values override them).
 DEFAULT_FIELDS = {
     "radius": optional(Number(exclusive_minimum=0.0, description="m")),
@@ -267,7 +273,12 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
             # linearity over amplitudes
             q_i = np.array([o.reference for o in mine])
             q_o = np.array([o.output for o in mine])
+            span = float(np.max(np.abs(q_i)) / np.min(np.abs(q_i)))
             try:
+                if span < LINEARITY_MIN_SPAN:
+                    raise CalibrationError(
+                        f"the reference amplitudes span only {span:.3f} : 1 and a regression needs at least "
+                        f"{LINEARITY_MIN_SPAN:g} : 1; record steps at several amplitudes")
                 line = linear_regression(q_i, q_o)
                 u_l = line.slope_sd / abs(line.slope)
                 entry["linearity"] = {**line.to_dict(), "relative_slope_sd": float(u_l),

@@ -61,7 +61,9 @@ class RotaryProcedure(Procedure):
     name = "rotary"
     title = "rotary bench calibration"
     settings = SETTINGS
-    actions = {"capture": "record the current step's seconds from now (the bench runs steadily)"}
+    actions = {"capture": "record the current step's seconds from now (the bench runs steadily)",
+               "finish": "end the session: the campaign of the steps recorded so far"}
+    closing_actions = ("finish",)
     channels_needed = ("theta",)
 
     def __init__(self, values: dict, device: dict):
@@ -80,6 +82,7 @@ class RotaryProcedure(Procedure):
                       for i, (f, a) in enumerate(parse_plan(values["plan"])) for r in range(repeats)]
         self.results: list[tuple[RotaryStep, RotaryTest]] = []
         self.capture = StepCapture(device)
+        self._finish_requested = False
 
     def next_step(self) -> RotaryStep | None:
         return None if self.done else self.steps[len(self.results)]
@@ -97,9 +100,16 @@ class RotaryProcedure(Procedure):
 
     @property
     def done(self) -> bool:
-        return len(self.results) == len(self.steps)
+        return len(self.results) == len(self.steps) or self._finish_requested
 
     def act(self, action: str, **arguments) -> list[Event]:
+        if action == "finish":
+            if not self.results:
+                return [Event("problem", "no step recorded yet: record at least one (space)")]
+            self._finish_requested = True
+            self.capture.finish()
+            return [Event("ready", f"the campaign of the {len(self.results)} of {len(self.steps)} planned steps "
+                                   "recorded")]
         if action != "capture":
             return super().act(action, **arguments)
         step = self.next_step()
@@ -150,7 +160,11 @@ class RotaryProcedure(Procedure):
             for step, _ in self.results
         ]
         campaign = Campaign(name="sensor live session", tests=tests)
-        return analyse_campaign(campaign, [r for _, r in self.results])
+        result = analyse_campaign(campaign, [r for _, r in self.results])
+        if len(self.results) < len(self.steps):
+            result.warnings.insert(0, f"{len(self.results)} of the {len(self.steps)} planned steps were recorded: "
+                                      "the campaign covers those only")
+        return result
 
     def sensitivities(self) -> dict[str, np.ndarray]:
         """Per axis, the sensitivities of the steps done so far (for a live plot)."""

@@ -342,7 +342,8 @@ def analyse_step(
     harmonics: int = DEFAULT_HARMONICS,
 ) -> StepResult:
     """Analyse one step's calibrated samples (t in s, acc (n, 3) in m/s^2)."""
-    where = f"step {index} ({label})"
+    # 1-based, as every message to the operator; a live step's label is already "step N"
+    where = label if label.startswith("step ") else f"step {index + 1} ({label})"
     if acc.shape[0] < MIN_STEP_SAMPLES:
         raise DataError(f"{where}: only {acc.shape[0]} samples", f"record at least {MIN_STEP_SAMPLES} per step")
     if not (np.all(np.isfinite(acc)) and np.all(np.isfinite(t))):

@@ -37,7 +37,9 @@ class SliderCrankProcedure(Procedure):
     title = "slider-crank verification"
     settings = SETTINGS
     actions = {"capture": "capture the next step for the set seconds (a stand that marks no steps)",
+               "skip": "skip the step due (its speed is left out; go on to the next)",
                "verify": "verify with the steps taken so far"}
+    closing_actions = ("verify",)
 
     def __init__(self, values: dict, device: dict, correction: Correction | None = None):
         check_geometry(values["crank_radius"], values["rod_length"], values["clearance"])
@@ -51,6 +53,7 @@ class SliderCrankProcedure(Procedure):
         self.correction = correction
         self.device = dict(device)
         self.steps: list[StepResult] = []
+        self.skipped: list[tuple[int, str]] = []   # (0-based position in the schedule, why)
         self.source: str | None = None   # the file being fed; None for a live stream
         self._queued: list[Step] = []
         self._verify_requested = False
@@ -60,7 +63,7 @@ class SliderCrankProcedure(Procedure):
     # ------------------------------------------------------------------ what the operator reads
     def instruction(self) -> str:
         """What to do now."""
-        i = len(self.steps)
+        i = self.position
         if self.schedule is None:
             text = f"Step {i + 1}: set the next motor speed, wait until it runs steadily, then capture."
         elif i >= len(self.schedule):
@@ -74,14 +77,19 @@ class SliderCrankProcedure(Procedure):
         return text + f" Press space to capture {self.seconds:g} s."
 
     @property
+    def position(self) -> int:
+        """The 0-based step due: steps kept plus steps skipped."""
+        return len(self.steps) + len(self.skipped)
+
+    @property
     def progress(self) -> float:
         if not self.schedule:
             return 0.0
-        return min((len(self.steps) + (self.capture.progress or 0.0)) / len(self.schedule), 1.0)
+        return min((self.position + (self.capture.progress or 0.0)) / len(self.schedule), 1.0)
 
     @property
     def done(self) -> bool:
-        complete = self.schedule is not None and len(self.steps) >= len(self.schedule)
+        complete = self.schedule is not None and self.position >= len(self.schedule)
         return complete or self._verify_requested
 
     # ------------------------------------------------------------------ samples
@@ -105,6 +113,12 @@ class SliderCrankProcedure(Procedure):
                 return [Event("problem", "no step taken yet: capture at least one")]
             self._verify_requested = True
             return [Event("ready", f"verifying with {len(self.steps)} steps")]
+        if action == "skip":
+            if self.schedule is None:
+                return [Event("problem", "no speeds were planned: set another speed and capture, or verify")]
+            if self.done:
+                return []
+            return self._skip("skipped by the operator")
         if action != "capture":
             return super().act(action, **arguments)
         if self.done:
@@ -120,7 +134,7 @@ class SliderCrankProcedure(Procedure):
             if self.capture.marked and not self.capture.taken:
                 raise DataError(f"{self.source}: the step column marks no step (all values negative: settling only)")
             for step in steps:
-                label = f"{self.source} step {step.index:g}" if len(steps) > 1 else self.source
+                label = f"{self.source} step {step.index + 1:g}" if len(steps) > 1 else self.source   # 1-based
                 self.add_step(step.recording, label)
             self.source, self._queued = None, []
             return []
@@ -133,14 +147,17 @@ class SliderCrankProcedure(Procedure):
     def _take_live(self, step: Step) -> list[Event]:
         if self.done:
             return []
-        n = len(self.steps)
+        n = self.position
         if step.index is not None and step.index != n:
-            return [Event("problem", f"the stand ran step {step.index} while step {n} was due: ignored")]
+            return [Event("problem", f"the stand ran step {step.index + 1} while step {n + 1} was due: ignored")]
         try:
             result = self.add_step(step.recording, f"step {n + 1}")
         except AccelrigError as exc:
-            again = "" if step.index is not None else "; press space to capture it again"
-            return [Event("problem", f"step {n + 1} not kept: {exc}{again}")]
+            why = str(exc).removeprefix(f"step {n + 1}: ")
+            if step.index is not None:   # the stand goes on to its next step: this one is left out
+                return self._skip(why)
+            return [Event("problem", f"step {n + 1} not kept: {why}; press space to capture it again"
+                                     + (", or skip it" if self.schedule else ""))]
         events = [Event("captured", f"step {n + 1}: {result.frequency_hz.value:.3f} Hz, first harmonic "
                                     f"{result.amplitude.value:.3f} ± {result.amplitude.uncertainty:.2g} m/s², radius "
                                     f"{result.radius_m.value * 1e3:.4f} ± {result.radius_m.uncertainty * 1e3:.2g} mm",
@@ -153,14 +170,24 @@ class SliderCrankProcedure(Procedure):
             events.append(Event("instruction", self.instruction()))
         return events
 
+    def _skip(self, why: str) -> list[Event]:
+        n = self.position
+        self.skipped.append((n, why))
+        events = [Event("problem", f"step {n + 1} skipped ({why})", self.progress, {"step": n, "skipped": True})]
+        if self.done:
+            events.append(Event("ready", f"all steps done ({len(self.steps)} kept, {len(self.skipped)} skipped)"))
+        else:
+            events.append(Event("instruction", self.instruction()))
+        return events
+
     def add_step(self, rec: Recording, label: str) -> StepResult:
         """Analyse one step.  A bad step raises DataError and is not kept (capture it again)."""
-        index = len(self.steps)
+        index = self.position
         rec = rec.to_si()
         clipped = clipped_samples(rec)
         if clipped:
             raise DataError(
-                f"step {index} ({label}): {clipped} samples at the sensor's full scale (clipping)",
+                f"{label}: {clipped} samples at the sensor's full scale (clipping)",
                 "choose a larger range (e.g. 8 g) or a lower speed",
             )
         acc = self.correction.apply(rec.acc) if self.correction is not None else rec.acc
@@ -173,10 +200,15 @@ class SliderCrankProcedure(Procedure):
         return result
 
     def result(self) -> CalibrationResult:
-        if self.schedule is not None and len(self.steps) != len(self.schedule) and not self._verify_requested:
+        if self.schedule is not None and self.position != len(self.schedule) and not self._verify_requested:
             raise DataError(f"{len(self.schedule)} commanded speeds for {len(self.steps)} steps",
                             "give one speed per step")
-        return verify_steps(self.steps, self.crank_radius, self.rod_length, self.clearance, self.profile)
+        if not self.steps:
+            raise DataError("no step was kept", "; ".join(f"step {n + 1} {why}" for n, why in self.skipped)
+                            or "capture at least one step")
+        result = verify_steps(self.steps, self.crank_radius, self.rod_length, self.clearance, self.profile)
+        result.warnings = [f"step {n + 1} left out: {why}" for n, why in self.skipped] + list(result.warnings)
+        return result
 
 
 def verify_slider_crank(

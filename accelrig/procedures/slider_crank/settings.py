@@ -19,11 +19,14 @@ HARMONICS = Setting("harmonics", "harmonics sharing the frequency in the fit", k
                     low=1, high=20)
 PROFILE = Setting("profile", "device profile whose calibration is applied first (the one verified; blank: raw data)",
                   kind="path", example="sensor.yaml")
+# The one compatibility override of accelrig.profiles.apply.check_compatible (CLI flag and TUI field alike).
+FORCE = Setting("force", "apply the profile even if it names another device, chip, range or unit (warned)",
+                kind="flag", default=False)
 # Seconds of steady running captured per key press: the analysis needs at least 1 s; twice that halves the
 # variance of the first harmonic and is still quick at the bench.
 SECONDS = Setting("seconds", "seconds captured per step on a key press, for a stand that marks no steps", unit="s",
                   default=2.0, low=0.5, high=600.0)
 
 # What a recorded file needs (the CLI's flags) and what a live stand adds.
-FILE_SETTINGS = (CRANK_RADIUS, ROD_LENGTH, CLEARANCE, SPEEDS, HARMONICS, PROFILE)
-SETTINGS = (CRANK_RADIUS, ROD_LENGTH, CLEARANCE, SPEEDS, SECONDS, HARMONICS, PROFILE)
+FILE_SETTINGS = (CRANK_RADIUS, ROD_LENGTH, CLEARANCE, SPEEDS, HARMONICS, PROFILE, FORCE)
+SETTINGS = (CRANK_RADIUS, ROD_LENGTH, CLEARANCE, SPEEDS, SECONDS, HARMONICS, PROFILE, FORCE)

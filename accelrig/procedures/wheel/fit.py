@@ -40,7 +40,8 @@ def free_set(radius: float | None, tilt: float | None) -> FreeSet:
         raise CalibrationError(
             "the wheel needs the radius or the tilt: with both unknown, r, the tilt, the gains and "
             "the z offset trade off against each other and the data cannot tell them apart",
-            "measure the distance from the sensor to the wheel axis and give --radius METRES (or --tilt-deg)",
+            "measure the distance from the sensor to the wheel axis and give it as the radius in metres "
+            "(--radius, the form's radius field), or the tilt (--tilt-deg)",
         )
     if radius is not None and not radius > 0:
         raise DataError(f"radius {radius} m must be positive")

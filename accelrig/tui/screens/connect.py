@@ -14,15 +14,22 @@ from accelrig.acquisition.driver import load_drivers
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import flash_url_profile
+from accelrig.tui.rigs import fits, suggested_urls
 
 URL_HINT = "sim://static?seed=1   replay://run.csv   i2c://1/0x68   serial:///dev/ttyUSB0   ble://AA:BB:..."
 
 
 class ConnectScreen(Screen):
+    """``wizard``: the procedure name of the wizard that asked for a device; what fits it is listed first."""
+
     BINDINGS = [
         Binding("escape", "back", "Back"),
         Binding("r", "rescan", "Rescan"),
     ]
+
+    def __init__(self, wizard: str | None = None):
+        super().__init__()
+        self.wizard = wizard
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -47,7 +54,7 @@ class ConnectScreen(Screen):
     def scan(self) -> None:
         """Ask every installed driver what it can find (a BLE scan takes a few seconds)."""
         self.app.call_from_thread(self._set_status, "scanning ...")
-        found: list[tuple[str, str]] = []
+        found: list[tuple[str, str]] = list(suggested_urls(self.wizard))
         problems: list[str] = []
         try:
             drivers = load_drivers()
@@ -58,7 +65,8 @@ class ConnectScreen(Screen):
             cls = drivers[scheme]
             try:
                 for url in cls.discover():
-                    found.append((url, cls.description))
+                    if url not in (known for known, _ in found):
+                        found.append((url, cls.description))
             except AccelrigError as exc:
                 problems.append(f"{scheme}://: {exc}")
         self.app.call_from_thread(self._show_found, found, problems)
@@ -66,7 +74,9 @@ class ConnectScreen(Screen):
     def _show_found(self, found: list[tuple[str, str]], problems: list[str]) -> None:
         options = self.query_one("#found", OptionList)
         options.clear_options()
-        options.add_options([Option(f"{url}", id=url) for url, _ in found])
+        if self.wizard is not None:   # what certainly fits the wizard first (a stable sort keeps the order)
+            found = sorted(found, key=lambda item: not fits(self.wizard, item[0]))
+        options.add_options([Option(f"{url}  [dim]{why}[/dim]", id=url) for url, why in found])
         self._set_status("\n".join(problems) if problems else f"{len(found)} device(s) found")
 
     def _set_status(self, text: str) -> None:
@@ -99,7 +109,8 @@ class ConnectScreen(Screen):
 
     def _connected(self, session) -> None:
         self.app.use_session(session)
-        self._set_status(f"[green]connected[/] to {session.url} (escape returns to the live view)")
+        self._set_status(f"[green]connected[/] to {session.url} (escape goes back"
+                         + (" to the wizard)" if self.wizard else " to the live view)"))
         self.show_device()
 
     def show_device(self) -> None:
@@ -123,4 +134,4 @@ class ConnectScreen(Screen):
         self.scan()
 
     def action_back(self) -> None:
-        self.app.pop_screen()
+        self.dismiss()

@@ -7,7 +7,8 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Button, Input, Label, OptionList, Static
+from textual.widgets.option_list import Option
 
 from accelrig.errors import AccelrigError, DataError
 from accelrig.settings import Setting, values_from_texts
@@ -69,6 +70,30 @@ class PathScreen(ModalScreen[str | None]):
     def action_cancel(self) -> None:
         self.dismiss(None)
 
+
+class ChoiceScreen(ModalScreen[str | None]):
+    """Ask the operator to pick one of a few ``(id, text)`` choices; dismisses with the id, or None on escape."""
+
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, question: str, choices: list[tuple[str, str]]):
+        super().__init__()
+        self.question = question
+        self.choices = choices
+
+    def compose(self) -> ComposeResult:
+        with Vertical(classes="dialog"):
+            yield Static(self.question, id="question")
+            yield OptionList(*[Option(text, id=key) for key, text in self.choices], id="choices")
+            yield Static("[dim]enter picks, escape goes back[/dim]")
+
+    @on(OptionList.OptionSelected, "#choices")
+    def picked(self, event: OptionList.OptionSelected) -> None:
+        if self.is_current:   # an enter typed twice in a terminal can select twice: one answer
+            self.dismiss(event.option.id)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)
 
 
 class SettingsForm(ModalScreen):

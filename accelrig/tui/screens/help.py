@@ -32,8 +32,9 @@ class HelpScreen(ModalScreen):
             seen.add((binding.action, binding.description))
             shown = binding.key_display or self.app.get_key_display(binding)
             rows.append(f"  [b]{shown:>10}[/b]  {binding.description}")
+        guide = getattr(self.below, "help_text", None)
         with VerticalScroll(id="help-box"):
-            yield Static(INTRO, id="help-intro")
+            yield Static(guide() if guide is not None else INTRO, id="help-intro")
             yield Static("[b]Keys on this screen[/b]\n" + "\n".join(rows), id="help-keys")
             yield Static("[dim]tab / shift+tab move between fields, enter activates, "
                          "the mouse works too.  escape closes this help.[/dim]")

@@ -18,6 +18,7 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Label, Static
 
+from accelrig.acquisition.driver import Driver
 from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
@@ -30,25 +31,47 @@ from accelrig.tui.widgets.plot import LinePlot, Series
 SERIES_STYLES = ("red", "green", "dodger_blue1", "yellow", "magenta", "cyan")
 
 
+# Units of the arrays the procedures return (plotted with their name); an array not listed is drawn
+# with its name alone.
+ARRAY_UNITS = {
+    "residuals": "m/s²", "pose_means": "m/s²", "pose_references": "m/s²", "pose_residuals": "m/s²",
+    "pose_times": "s", "speed_samples": "rad/s", "speed_fit": "rad/s", "speed_residuals": "rad/s",
+    "amplitude": "m/s²", "amplitude_uncertainty": "m/s²", "model_amplitude": "m/s²", "model_lower": "m/s²",
+    "model_upper": "m/s²", "radius_m": "m", "radius_uncertainty_m": "m",
+    "filtered_tangential": "m/s²", "filtered_radial": "m/s²",
+}
+# x arrays, by name (NAME_x of any array; t and *_time in s; frequency in Hz)
+X_NAMES = ("t", "frequency", "frequency_hz")
+
+
+def x_label(name: str) -> str:
+    if name == "t" or name.endswith("_time"):
+        return "time (s)"
+    if name.startswith("frequency"):
+        return "frequency (Hz)"
+    return name
+
+
 def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
-    """How to draw ``arrays[name]``: against its x array when the result gives one.
+    """How to draw ``arrays[name]``: (x axis label, series), against its x array when the result gives one.
 
     Convention used by the procedures' ``arrays``: ``NAME`` (1-D or n x k)
-    and optionally ``NAME_x`` or a shared ``t`` / ``frequency`` of the same
-    length as the x axis; otherwise samples are drawn against their index.
+    and optionally ``NAME_x``, or a time (``t``, ``*_time``) or frequency array of the
+    same length as the x axis; otherwise entries are drawn against their number.
     """
     y = np.asarray(arrays[name], dtype=float)
     if y.ndim == 0 or y.size < 2 or y.ndim > 2:
         return None
     n = y.shape[0]
     x = None
-    x_name = "index"
-    for candidate in (f"{name}_x", "t", "frequency"):
+    x_name = "pose number" if name.startswith("pose_") else "entry number"
+    candidates = [f"{name}_x", *X_NAMES, *(key for key in arrays if key.endswith("_time"))]
+    for candidate in candidates:
         if candidate != name and candidate in arrays and np.asarray(arrays[candidate]).shape == (n,):
-            x, x_name = np.asarray(arrays[candidate], dtype=float), candidate
+            x, x_name = np.asarray(arrays[candidate], dtype=float), x_label(candidate)
             break
     if x is None:
-        x = np.arange(n, dtype=float)
+        x = np.arange(n, dtype=float) + 1.0
     columns = y.reshape(n, -1)
     labels = ("x", "y", "z") if columns.shape[1] == 3 else tuple(str(i) for i in range(columns.shape[1]))
     series = [
@@ -61,7 +84,7 @@ def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
 def plottable(arrays: dict) -> list[str]:
     names = []
     for name in arrays:
-        if name.endswith("_x") or name in ("t", "frequency"):
+        if name.endswith(("_x", "_time")) or name in X_NAMES:
             continue
         if plot_series(name, arrays) is not None:
             names.append(name)
@@ -82,6 +105,25 @@ def cell_text(value) -> str:
     return str(value)
 
 
+def can_flash(session: Session | None) -> bool:
+    """The device can store a calibration: its driver writes one, and the device does not say it cannot."""
+    if session is None or session.info is None or session.driver is None:
+        return False
+    if type(session.driver).plan_flash is Driver.plan_flash:
+        return False
+    return session.info.calibration_store is not False
+
+
+def correction_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """The canonical correction a = C (raw - b) as rows per axis: C's row, b, with u (k = 1)."""
+    c = result.correction
+    if c is None:
+        return []
+    u_c, u_b = c.matrix_uncertainty, c.bias_uncertainty
+    return [(axis, *(f"{c.matrix[i, j]:.6f} ± {u_c[i, j]:.2g}" for j in range(3)),
+             f"{c.bias[i]:+.5f} ± {u_b[i]:.2g}") for i, axis in enumerate("xyz")]
+
+
 def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
     identity = session.info.identity if session is not None and session.info is not None else "device"
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity)).strip("-") or "device"
@@ -91,7 +133,7 @@ def default_profile_name(result: CalibrationResult, session: Session | None) -> 
 class ResultsScreen(Screen):
     BINDINGS = [
         Binding("s", "save", "Save profile"),
-        Binding("f", "flash", "Flash"),
+        Binding("f", "flash", "Flash to device"),
         Binding("n", "next_plot", "Next plot"),
         Binding("escape", "close", "Close"),
     ]
@@ -111,7 +153,13 @@ class ResultsScreen(Screen):
         yield Header()
         with VerticalScroll(id="results"):
             yield Static(f"[b]{r.procedure}[/b]  method {r.method}  model {r.model}", id="results-title")
-            yield Static("s saves the profile, f flashes it to the device, n shows the next plot", id="results-status")
+            yield Static("s saves the profile" + (", f flashes it to the device" if can_flash(self.session) else "")
+                         + ", n shows the next plot", id="results-status")
+            if r.correction is not None:
+                yield Label("[b]Correction[/b] a = C (raw − b), b in m/s², u at k = 1 (what the profile applies)")
+                yield DataTable(id="correction", show_cursor=False, zebra_stripes=True)
+            yield Label("[b]Parameters[/b] as the method estimates them (the sensor's view: gain, offset, ...), "
+                        "u at k = 1")
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
             yield Static(self.quality_text(), id="quality")
             for key, _ in self.quality_tables():
@@ -123,6 +171,11 @@ class ResultsScreen(Screen):
 
     def on_mount(self) -> None:
         self.sub_title = "results"
+        if self.result.correction is not None:
+            table = self.query_one("#correction", DataTable)
+            table.add_columns("axis", "C ·x", "C ·y", "C ·z", "b (m/s²)")
+            for row in correction_rows(self.result):
+                table.add_row(*row)
         table = self.query_one("#parameters", DataTable)
         table.add_columns("parameter", "value", "u (k=1)", "unit")
         for name, estimate in self.result.parameters.items():
@@ -181,12 +234,18 @@ class ResultsScreen(Screen):
             return
         name = self.plots[self.plot_index % len(self.plots)]
         x_name, series = plot_series(name, self.result.arrays)
-        plot.title = f"{name}  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)"
+        unit = ARRAY_UNITS.get(name)
+        plot.title = (f"{name}" + (f" ({unit})" if unit else "")
+                      + f"  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)")
         plot.x_label = x_name
         plot.set_series(series)
 
     def set_status(self, text: str) -> None:
         self.query_one("#results-status", Static).update(text)
+
+    def check_action(self, action: str, parameters) -> bool | None:
+        # flash is offered only where the device can store a calibration
+        return can_flash(self.session) if action == "flash" else True
 
     def action_next_plot(self) -> None:
         self.plot_index += 1
@@ -202,9 +261,16 @@ class ResultsScreen(Screen):
     @work(exclusive=True, group="save")
     async def save_flow(self) -> None:
         from accelrig.profiles import save_profile
+        from accelrig.profiles.store import ProfileStore
 
-        default = str(Path(self.app.profile_dir) / default_profile_name(self.result, self.session))
-        path = await self.app.push_screen_wait(PathScreen("Save the profile to:", default))
+        if self.app.profile_dir is not None:
+            default = str(Path(self.app.profile_dir) / default_profile_name(self.result, self.session))
+        else:
+            try:
+                default = str(ProfileStore().path_for(self.profile))   # the store, where the CLI finds it
+            except AccelrigError:
+                default = str(ProfileStore().root / default_profile_name(self.result, self.session))
+        path = await self.app.push_screen_wait(PathScreen("Save the profile to (the store by default):", default))
         if path is None:
             self.set_status("not saved")
             return
@@ -214,6 +280,7 @@ class ResultsScreen(Screen):
                 self.set_status(f"not saved: {target} kept as it was")
                 return
         try:
+            target.parent.mkdir(parents=True, exist_ok=True)
             save_profile(self.profile, target, overwrite=True)
         except (AccelrigError, OSError) as exc:
             self.set_status(f"[red]not saved:[/] {exc}")
@@ -223,6 +290,10 @@ class ResultsScreen(Screen):
 
     # ------------------------------------------------------------------ flash
     def action_flash(self) -> None:
+        if not can_flash(self.session):
+            self.set_status("[red]this device cannot store a calibration:[/] keep the profile (s) and apply it "
+                            "to the stream instead")
+            return
         if self.profile is None:
             self.set_status("[red]there is no profile to flash[/]")
             return

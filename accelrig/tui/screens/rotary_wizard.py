@@ -1,18 +1,24 @@
 """The rotary bench wizard: RotaryProcedure on the contract, plus each axis's sensitivity per step as it
-comes; the campaign report (repeatability, linearity, budget) at the end."""
+comes; the campaign report (per-step sensitivities, budget, linearity, groups) as tables at the end, saved as
+Markdown with s.  v ends the session early: the campaign of the steps recorded so far."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
-import yaml
+from rich.markup import escape
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Static
+from textual.widgets import DataTable, Footer, Header, Label, Static
 
+from accelrig.errors import AccelrigError
+from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.result import to_plain
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -21,7 +27,7 @@ AXIS_STYLES = {"x": "red", "y": "green", "z": "dodger_blue1"}
 
 class RotaryWizard(ProcedureWizard):
     procedure_class = RotaryProcedure
-    ACTION_KEYS = {"space": "capture"}
+    ACTION_KEYS = {"space": "capture", "v": "finish"}
     progress_label = "steps"
 
     def compose_body(self) -> ComposeResult:
@@ -38,25 +44,99 @@ class RotaryWizard(ProcedureWizard):
         return CampaignScreen(result)
 
 
-class CampaignScreen(Screen):
-    """The campaign statistics of the steps recorded (repeatability, linearity, budget), as given."""
+def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple[str, ...]]]]:
+    """The campaign's tables for people: (title, columns, rows), units and k in the titles."""
+    k = report["coverage_factor"]
+    steps = [(str(t["index"] + 1), t["label"], f"{t['sample_rate_hz']['value']:.3f}", axis, s["component"],
+              f"{s['value']:.3f}", f"{s['uncertainty']:.2g}")
+             for t in report["tests"] for axis, s in t["sensitivity"].items()]
+    budget, linearity = [], []
+    for sensor, axes in report["per_axis"].items():
+        for axis, e in axes.items():
+            parts = {c["symbol"]: c["uncertainty"] for c in e["budget"]["contributions"]}
 
-    BINDINGS = [Binding("escape", "close", "Close")]
+            def percent(symbol, parts=parts):
+                return f"{100 * parts[symbol]:.3f}" if symbol in parts else "left out"
+
+            budget.append((f"{sensor} {axis}", f"{e['mean_sensitivity']:.3f}", percent("u_r"), percent("u_l"),
+                           percent("u_ref"), f"{100 * e['overall_relative_uncertainty']:.3f}",
+                           f"{e['expanded_uncertainty']:.3f}"))
+            line = e["linearity"]
+            linearity.append((f"{sensor} {axis}", *((f"{line['slope']:.3f}", f"{line['slope_sd']:.2g}",
+                                                     f"{line['intercept']:.2f}", f"{line['r_squared']:.6f}",
+                                                     str(line["n"])) if line else
+                                                    ("not evaluated (see the warnings)", "", "", "", ""))))
+    groups = [("1", f"{sensor} axis {axis}", f"{e['mean_sensitivity']:.3f}",
+               f"{100 * e['overall_relative_uncertainty']:.3f}", f"{e['expanded_uncertainty']:.3f}")
+              for sensor, axes in report["per_axis"].items() for axis, e in axes.items()]
+    groups += [("2", sensor, f"{e['mean_sensitivity']:.3f}", f"{100 * e['overall_relative_uncertainty']:.3f}",
+                f"{e['expanded_uncertainty']:.3f}") for sensor, e in report["per_sensor"].items()]
+    return [
+        ("Sensitivity per step (counts per m/s², u at k = 1)",
+         ("step", "label", "rate Hz", "axis", "component", "S", "u"), steps),
+        (f"Budget per axis (relative u in %, k = 1; U at k = {k:g} in counts per m/s²)",
+         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_c %", f"U (k={k:g})"), budget),
+        ("Linearity q_o = S q_i + b (S in counts per m/s², b in counts)",
+         ("axis", "S", "u(S)", "b", "R²", "n"), linearity),
+        (f"Group results (Table 3; u in % at k = 1, U at k = {k:g} in counts per m/s²)",
+         ("case", "group", "S", "u %", f"U (k={k:g})"), groups),
+    ]
+
+
+class CampaignScreen(Screen):
+    """The campaign of the steps recorded: per-step sensitivities, budget, linearity, groups; s saves the
+    report (Markdown, or YAML by the suffix)."""
+
+    BINDINGS = [Binding("s", "save", "Save report"), Binding("escape", "close", "Close")]
 
     def __init__(self, result):
         super().__init__()
         self.report = result
+        self.saved_path: Path | None = None
 
     def compose(self) -> ComposeResult:
         yield Header()
         with VerticalScroll(id="results"):
-            yield Static("[b]rotary bench: campaign report[/b] (values k = 1 unless labelled)")
-            yield Static(yaml.safe_dump(to_plain(self.report.to_json_dict()), sort_keys=False, width=100),
-                         id="campaign-report", markup=False)
+            yield Static("[b]rotary bench: campaign report[/b]   s saves it (Markdown)", id="campaign-status")
+            if self.report.warnings:
+                yield Static("\n".join(f"[yellow]warning:[/] {escape(w)}" for w in self.report.warnings),
+                             id="campaign-warnings")
+            for i, (title, _, _) in enumerate(campaign_tables(self.report.details)):
+                yield Label(f"[b]{title}[/b]")
+                yield DataTable(id=f"campaign-{i}", show_cursor=False, zebra_stripes=True, classes="quality-table")
         yield Footer()
 
     def on_mount(self) -> None:
         self.sub_title = "campaign"
+        for i, (_, columns, rows) in enumerate(campaign_tables(self.report.details)):
+            table = self.query_one(f"#campaign-{i}", DataTable)
+            table.add_columns(*columns)
+            for row in rows:
+                table.add_row(*row)
+
+    def action_save(self) -> None:
+        self.save_flow()
+
+    @work(exclusive=True, group="save-report")
+    async def save_flow(self) -> None:
+        default = str(Path(self.app.output_dir) / "rotary-campaign.md")
+        path = await self.app.push_screen_wait(PathScreen("Save the campaign report to (.md, or .yaml):", default))
+        if path is None:
+            return
+        target = Path(path).expanduser()
+        status = self.query_one("#campaign-status", Static)
+        if target.exists() and not await self.app.push_screen_wait(
+                ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
+            status.update(f"not saved: {escape(str(target))} kept as it was")
+            return
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            write_report(self.report, target)
+        except (AccelrigError, OSError) as exc:
+            status.update(f"[red]not saved:[/] {escape(str(exc))}")
+            return
+        self.saved_path = target
+        status.update(f"[green]report saved to[/] {escape(str(target))}")
 
     def action_close(self) -> None:
         self.app.pop_screen()

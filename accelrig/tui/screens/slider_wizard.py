@@ -3,15 +3,25 @@ frequency response filling in as the steps are taken; the verification screen at
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import yaml
+from rich.markup import escape
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
 
+from accelrig.errors import AccelrigError
+from accelrig.files import atomic_write
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
 from accelrig.profiles import load_profile
+from accelrig.profiles.apply import check_compatible, correction_for
+from accelrig.result import to_plain
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -23,22 +33,34 @@ def response_series(frequency, measured, model) -> list[Series]:
 
 class SliderCrankWizard(ProcedureWizard):
     procedure_class = SliderCrankProcedure
-    ACTION_KEYS = {"space": "capture", "v": "verify"}
+    ACTION_KEYS = {"space": "capture", "x": "skip", "v": "verify"}
     progress_label = "steps"
 
+    profile_warnings: list[str] = []
+
     def create_arguments(self, values: dict) -> dict:
-        """The calibration under test: the profile's correction, applied to every step first."""
-        return {"correction": load_profile(values["profile"]).correction} if values["profile"] else {}
+        """The calibration under test: the profile's correction, applied to every step first, after the
+        same compatibility check as the command line (device, chip, range; the force field overrides)."""
+        if not values["profile"]:
+            self.profile_warnings = []
+            return {}
+        profile = load_profile(values["profile"])
+        self.profile_warnings = check_compatible(profile, self.device, profile.units, values["force"])
+        return {"correction": correction_for(profile, self.device)}
 
     def compose_body(self) -> ComposeResult:
         yield Static("", id="slider-steps")
         yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="fr-plot")
 
     def show_procedure(self, events: list) -> None:
-        steps = self.procedure.steps
-        cells = [f"[green]✓[/] {s.frequency_hz.value:.3g}" for s in steps]
-        cells += [("[b]▶[/] " if i == len(steps) else "· ") + f"{speed:g}"
-                  for i, speed in enumerate(self.procedure.schedule or []) if i >= len(steps)]
+        procedure = self.procedure
+        steps, position = procedure.steps, procedure.position
+        skipped = {n for n, _ in procedure.skipped}
+        kept = iter(steps)
+        cells = [f"[red]✗[/] {procedure.schedule[n]:g}" if n in skipped else f"[green]✓[/] {next(kept).frequency_hz.value:.3g}"
+                 for n in range(position)]   # (only a planned schedule has skipped steps)
+        cells += [("[b]▶[/] " if i == position else "· ") + f"{speed:g}"
+                  for i, speed in enumerate(procedure.schedule or []) if i >= position]
         self.query_one("#slider-steps", Static).update("steps (Hz): " + "  ".join(cells))
         if any(e.kind == "captured" for e in events):
             self.query_one("#fr-plot", LinePlot).set_series(response_series(
@@ -46,17 +68,44 @@ class SliderCrankWizard(ProcedureWizard):
                 np.array([s.model_amplitude for s in steps])))
 
     def result_screen(self, result, recording) -> Screen:
+        result.warnings = self.profile_warnings + [w for w in result.warnings if w not in self.profile_warnings]
         return VerificationScreen(result)
 
 
 class VerificationScreen(Screen):
     """A slider-crank verification: verdict, radius from the motion, steps, frequency response."""
 
-    BINDINGS = [Binding("escape", "close", "Close")]
+    BINDINGS = [Binding("s", "save", "Save verification"), Binding("escape", "close", "Close")]
 
     def __init__(self, verification):
         super().__init__()
         self.verification = verification
+        self.saved_path: Path | None = None
+
+    def action_save(self) -> None:
+        self.save_flow()
+
+    @work(exclusive=True, group="save-verification")
+    async def save_flow(self) -> None:
+        """The verification as YAML (the fields of --json), where the operator says."""
+        default = str(Path(self.app.output_dir) / "slider-crank-verification.yaml")
+        path = await self.app.push_screen_wait(PathScreen("Save the verification (YAML) to:", default))
+        if path is None:
+            return
+        target = Path(path).expanduser()
+        status = self.query_one("#verification-warnings", Static)
+        if target.exists() and not await self.app.push_screen_wait(
+                ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
+            return
+        text = yaml.safe_dump(to_plain(self.verification.to_json_dict()), sort_keys=False)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(target, lambda fh: fh.write(text), text=True)
+        except (AccelrigError, OSError) as exc:
+            status.update(f"[red]not saved:[/] {escape(str(exc))}")
+            return
+        self.saved_path = target
+        status.update(f"[green]verification saved to[/] {escape(str(target))}")
 
     def compose(self) -> ComposeResult:
         v, r = self.verification.details, self.verification.parameters["radius"]

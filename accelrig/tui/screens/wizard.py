@@ -105,8 +105,20 @@ class ProcedureWizard(Screen):
         self._timer = None
         self._stream_line = ""
         self._alarm_key = None
+        self.written_samples = 0   # samples written to a file so far (w)
+        self.results_screen: Screen | None = None   # the last results shown (its saved_path: saved)
         for key, action in self.ACTION_KEYS.items():
             self._bindings.bind(key, f"procedure_action({action!r})", self.procedure_class.actions[action])
+
+    @property
+    def unsaved(self) -> str | None:
+        """What leaving now would lose: captured samples neither written (w) nor turned into a saved result."""
+        if self.recorder is None or self.recorder.samples <= self.written_samples:
+            return None
+        if getattr(self.results_screen, "saved_path", None) is not None:
+            return None
+        return (f"The {self.recorder.samples} samples captured for the {self.procedure_class.title} are not written "
+                "(w writes them) and no result of them was saved.")
 
     @property
     def capture_name(self) -> str:
@@ -168,7 +180,73 @@ class ProcedureWizard(Screen):
             self.values = self.values if self.values is not None else {}
             self.start()
         else:
-            self.ask_settings()
+            self.find_rig()
+
+    def help_text(self) -> str:
+        """What ? shows in a wizard: what this procedure needs and does, then its keys (listed by the help)."""
+        from rich.markup import escape
+
+        from accelrig.tui.rigs import NEEDS
+
+        cls = self.procedure_class
+        needs = NEEDS.get(cls.name)
+        lines = [f"[b]{escape(cls.title)}[/b] on {escape(self.url)}"]
+        if needs is not None:
+            lines.append(f"Needs {escape(needs.motion)}; without such a device, the simulated rig "
+                         f"({escape(needs.demo_note)}) shows how it goes.")
+        if self.procedure is not None and hasattr(self.procedure, "instruction") and not self._pumping:
+            lines.append(f"Now: {escape(self.procedure.instruction())}")
+        lines.append("The headline says what to do; w writes the samples captured so far at any time; escape "
+                     "leaves (asking first when something is unsaved).")
+        return "\n".join(lines)
+
+    def use_device(self, session: Session) -> None:
+        """Run on ``session``'s device from now on (the operator picked another one)."""
+        self.url = session.url
+        self.device = device_facts(session.info)
+
+    @work(exclusive=True, group="wizard-rig")
+    async def find_rig(self) -> None:
+        """A device of the wrong kind is said, with the matching simulated rig or the connect list offered;
+        then the settings form (filled in for the simulated rig when that was taken)."""
+        import asyncio
+
+        from accelrig.tui.rigs import NEEDS, rig_problem
+        from accelrig.tui.screens.connect import ConnectScreen
+        from accelrig.tui.screens.dialogs import ChoiceScreen
+
+        cls = self.procedure_class
+        needs = NEEDS.get(cls.name)
+        filled: dict[str, str] = {}
+        while (problem := rig_problem(cls, self.url, self.device)) is not None:
+            self.set_instruction(problem, "bold red")
+            choices = [("connect", "Pick another device (the connect list shows what fits first)"),
+                       ("anyway", "Use this device anyway"), ("back", "Go back")]
+            if needs is not None:
+                choices.insert(0, ("demo", f"Use the simulated {needs.sim_rig} rig: {needs.demo_note}"))
+            choice = await self.app.push_screen_wait(ChoiceScreen(f"{problem}.", choices))
+            if choice == "demo":
+                self.set_instruction(f"opening {needs.demo_url} ...")
+                try:
+                    session = await asyncio.to_thread(Session.open_and_start, needs.demo_url,
+                                                      self.app.buffer_seconds, prepare=flash_url_profile)
+                except AccelrigError as exc:
+                    self.set_instruction(f"cannot open {needs.demo_url}: {exc}", "bold red")
+                    continue
+                self.app.use_session(session)
+                self.use_device(session)
+                filled = dict(needs.demo_texts)
+            elif choice == "connect":
+                await self.app.push_screen_wait(ConnectScreen(wizard=cls.name))
+                if self.app.session is not None and self.app.session.info is not None:
+                    self.use_device(self.app.session)
+            elif choice == "anyway":
+                break
+            else:
+                self.app.pop_screen()
+                return
+        self.set_instruction(f"{self.url}: fill in the settings")
+        self.ask_settings(filled)
 
     def set_instruction(self, text: str, style: str = "bold") -> None:
         self.query_one("#instruction", Static).update(f"[{style}]{text}[/]")
@@ -178,16 +256,17 @@ class ProcedureWizard(Screen):
 
     # ------------------------------------------------------------------ settings
     @work(exclusive=True, group="wizard-settings")
-    async def ask_settings(self) -> None:
+    async def ask_settings(self, filled: dict[str, str] | None = None) -> None:
+        """The settings form: what was typed last for this procedure, or ``filled`` (a simulated rig's)."""
         cls = self.procedure_class
-        remembered = self.app.setting_texts.get(cls.name, {})
-        answer = await self.app.push_screen_wait(
-            SettingsForm(f"{cls.title}: settings", cls.settings, remembered, check=self.make_procedure))
+        texts = {**self.app.setting_texts.get(cls.name, {}), **(filled or {})}
+        title = f"{cls.title}: settings" + (" (filled in for the simulated rig)" if filled else "")
+        answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, texts, check=self.make_procedure))
         if answer is None:
             self.app.pop_screen()
             return
         self.values, texts = answer
-        self.app.setting_texts[cls.name] = texts
+        self.app.remember_settings(cls.name, texts)
         self.start()
 
     def make_procedure(self, values: dict) -> Procedure:
@@ -195,7 +274,7 @@ class ProcedureWizard(Screen):
         missing = [c for c in self.procedure_class.channels_needed if c not in self.device.get("channels", ())]
         if missing:
             raise DeviceError(f"{self.url} delivers no {', '.join(missing)} channel, which the "
-                              f"{self.procedure_class.title} needs")
+                              f"{self.procedure_class.title} needs", "escape, then pick a device that has it")
         return self.procedure_class.create(values, self.device, **self.create_arguments(values))
 
     # ------------------------------------------------------------------ running
@@ -213,6 +292,8 @@ class ProcedureWizard(Screen):
         self.recorder = None
         self._actions = []
         self.finished = self.computing = self.result_shown = self.source_ended = False
+        self.written_samples = 0
+        self.results_screen = None
         self._alarm_key = None
         self.query_one("#progress", ProgressBar).update(progress=0)
         self.query_one("#events", RichLog).clear()
@@ -370,8 +451,27 @@ class ProcedureWizard(Screen):
         elif ended and not busy_or_done:
             alarm.update("the source ended before the procedure had enough data (w writes what was captured)")
             alarm.add_class("alarm")
+            self.set_instruction(self.ended_text(), "bold red")
         else:
             self.alarm_clear()
+
+    def stream_over(self) -> bool:
+        """No more samples will reach the procedure: the source ended (or, once the wizard stopped
+        reading, the device stopped streaming)."""
+        if self.source_ended:
+            return True
+        return (self.finished and self.session is not None
+                and self.session.stats().state in (State.ENDED, State.DISCONNECTED, State.FAILED, State.STOPPED))
+
+    def closing_keys(self) -> list[str]:
+        """'key: what it does' for the procedure's actions that finish with what was taken."""
+        return [f"{key}: {self.procedure_class.actions[action]}" for key, action in self.ACTION_KEYS.items()
+                if action in self.procedure_class.closing_actions]
+
+    def ended_text(self) -> str:
+        """The headline once the source ended short: what can still be done."""
+        return "; ".join(["the source ended: no more samples will come", *self.closing_keys(),
+                          "w writes what was captured", "escape, then c connects again"])
 
     def alarm_clear(self) -> None:
         alarm = self.query_one("#wizard-alarm", Static)
@@ -382,8 +482,11 @@ class ProcedureWizard(Screen):
     def action_procedure_action(self, action: str) -> None:
         if self.procedure is None or self.computing:
             return
-        if self.source_ended:
-            self.log_event("the source has ended: no more samples will come (escape, then connect again)", "yellow")
+        if self.stream_over() and action not in self.procedure_class.closing_actions:
+            # it would wait for samples that will never come (and might drop what was taken)
+            self.set_instruction(f"not done: '{self.procedure_class.actions[action]}' needs new samples and "
+                                 f"the source has ended. {self.ended_text()}", "bold red")
+            return
         self.act_flow(action)
 
     @work(exclusive=True, group="wizard-act")
@@ -433,7 +536,8 @@ class ProcedureWizard(Screen):
         self.result_shown = True
         self.alarm_clear()
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
-        self.app.push_screen(self.result_screen(result, recording))
+        self.results_screen = self.result_screen(result, recording)
+        self.app.push_screen(self.results_screen)
 
     def action_restart(self) -> None:
         """Start again from a fresh procedure and a reopened device (rig screens bind it to a key)."""
@@ -446,9 +550,9 @@ class ProcedureWizard(Screen):
 
     @work(exclusive=True, group="wizard-cancel")
     async def cancel_flow(self) -> None:
-        if not self.finished and self.recorder is not None and self.recorder.samples:
-            if not await self.app.push_screen_wait(ConfirmScreen("Leave this calibration? The data taken so far are "
-                                                                 "dropped unless written first (w).", "Leave", "Stay")):
+        if self.unsaved:
+            if not await self.app.push_screen_wait(ConfirmScreen(f"Leave this calibration? {self.unsaved}",
+                                                                 "Leave", "Stay")):
                 return
         self._generation += 1   # whatever is still running reports to nobody
         if self.recorder is not None:
@@ -463,13 +567,15 @@ class ProcedureWizard(Screen):
         if self.recorder is None or not self.recorder.samples:
             self.log_event("nothing captured yet", "yellow")
             return
-        default = str(Path(self.app.profile_dir) / f"{self.capture_name}-capture.csv")
+        default = str(Path(self.app.output_dir) / f"{self.capture_name}-capture.csv")
         path = await self.app.push_screen_wait(PathScreen("Write the captured samples to (.csv or .npz):", default))
         if path is None:
             return
         try:
-            save_recording(self.recorder.recording(), path)
+            Path(path).expanduser().parent.mkdir(parents=True, exist_ok=True)
+            save_recording(self.recorder.recording(), Path(path).expanduser())
         except (AccelrigError, OSError) as exc:
             self.log_event(f"not written: {exc}", "bold red")
             return
+        self.written_samples = self.recorder.samples
         self.log_event(f"{self.recorder.samples} samples written to {path}", "green")

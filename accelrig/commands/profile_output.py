@@ -1,0 +1,39 @@
+"""Where a calibration command puts the profile it makes: one policy for every command (and the TUI).
+
+By default the profile goes into the profile store (accelrig.profiles.store), filed under the device's
+identity, where ``accelrig profile``, the daemon and the TUI find it; ``-o FILE`` writes it to a file
+instead; ``--no-store`` writes none.  The path is said on stderr, so ``--json`` output stays one object.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def add_profile_arguments(parser, what: str = "the device profile (YAML)") -> None:
+    parser.add_argument("-o", "--output", metavar="FILE", help=f"write {what} to FILE instead of the profile store")
+    parser.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
+                        "~/.local/share/accelrig/profiles)")
+    parser.add_argument("--no-store", action="store_true", help="write no profile")
+
+
+def write_profile(result, rec, args) -> str | None:
+    """Save the profile of ``result`` as the arguments say; returns where (None: not written)."""
+    if args.no_store and not args.output:
+        return None
+    # Imported here: the profiles package is optional for computing a calibration.
+    from accelrig.errors import ProfileError
+    from accelrig.profiles import ProfileStore, profile_from_result, save_profile
+
+    profile = profile_from_result(result, rec)
+    if args.output:
+        save_profile(profile, args.output)   # validated and written atomically: nothing half-written
+        where = str(args.output)
+    else:
+        try:
+            where = str(ProfileStore(args.store).add(profile))
+        except ProfileError as exc:
+            print(f"accelrig: no profile stored: {exc.message} (give -o FILE to keep it as a file)", file=sys.stderr)
+            return None
+    print(f"profile written to {where}", file=sys.stderr)
+    return where
