@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from accelrig.errors import ProfileError
+from accelrig.errors import AccelrigError, ProfileError
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
@@ -184,6 +184,7 @@ def run_show(args) -> int:
 
 
 def run_validate(args) -> int:
+    """Every file is checked and reported, one line each, whatever the others hold."""
     if len(args.files) == 1:
         p = load_profile(args.files[0])
         print(f"{args.files[0]}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
@@ -192,7 +193,7 @@ def run_validate(args) -> int:
     for name in args.files:
         try:
             p = load_profile(name)
-        except ProfileError as exc:
+        except AccelrigError as exc:
             failed += 1
             print(f"accelrig: error: {exc}", file=sys.stderr)
             continue

@@ -60,6 +60,7 @@ from accelrig.procedures.rotary.bench import (
 )
 from accelrig.recording import load_recording
 from accelrig.result import CalibrationResult, Estimate, to_plain
+from accelrig.safe_yaml import load_yaml_file
 from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
 
 # Keys a test may take from the campaign's top level (per-test values override them).
@@ -143,12 +144,7 @@ def _setup_from(values: dict) -> RotarySetup:
 def load_campaign(path: str | os.PathLike) -> Campaign:
     """Read and validate a campaign YAML (``CAMPAIGN``); every error names the field."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
-    except yaml.YAMLError as exc:
-        raise DataError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    data = load_yaml_file(path, DataError, "a campaign YAML")
     check(CAMPAIGN, data, DataError, where=f"{path}: ")
     if not data["tests"] or not data.get("components", COMPONENTS):
         raise DataError(f"{path}: 'tests' and 'components' must not be empty")
