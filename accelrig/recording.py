@@ -239,8 +239,10 @@ def _check_header(path: Path, lineno: int, header: list[str], required: tuple[st
         raise DataError(f"{path}:{lineno}: column(s) {', '.join(dup)} appear twice in the header")
 
 
-def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None) -> None:
-    """Write an interchange CSV to ``path`` (atomically) or to an open text ``stream``."""
+def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None, overwrite: bool = True,
+              inputs=()) -> None:
+    """Write an interchange CSV to ``path`` (atomically; see files.atomic_write for ``overwrite`` and
+    ``inputs``) or to an open text ``stream``."""
     meta = dict(rec.meta)
     meta["units"] = rec.units
     names = ["t", *ACC_COLUMNS, *rec.channels]
@@ -257,20 +259,20 @@ def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None
     if stream is not None:
         _write(stream)
         return
-    atomic_write(path, _write, text=True)
+    atomic_write(path, _write, text=True, overwrite=overwrite, inputs=inputs)
 
 
 # ------------------------------------------------------------------- native (.npz)
 
 
-def save_native(rec: Recording, path: str | os.PathLike) -> None:
+def save_native(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
     arrays = {"t": rec.t, "acc": rec.acc}
     for name, values in rec.channels.items():
         arrays["ch_" + name] = values
     meta = dict(rec.meta)
     meta["units"] = rec.units
     arrays["meta_json"] = np.array(to_json(meta, indent=None, sort_keys=True))
-    atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False)
+    atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False, overwrite=overwrite, inputs=inputs)
 
 
 def load_native(path: str | os.PathLike) -> Recording:
@@ -297,11 +299,13 @@ def load_recording(path: str | os.PathLike, units: str | None = None, rate: floa
     return read_csv(path, units=units, rate=rate)
 
 
-def save_recording(rec: Recording, path: str | os.PathLike) -> None:
+def save_recording(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
+    """Write a CSV or native recording, chosen by the suffix; ``overwrite`` and ``inputs`` as in
+    files.atomic_write (an existing file only with overwrite, never an input, never a special file)."""
     if Path(path).suffix.lower() == NATIVE_SUFFIX:
-        save_native(rec, path)
+        save_native(rec, path, overwrite, inputs)
     else:
-        write_csv(rec, path)
+        write_csv(rec, path, overwrite=overwrite, inputs=inputs)
 
 
 def guess_units(acc: np.ndarray) -> str:

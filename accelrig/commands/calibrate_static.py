@@ -29,6 +29,7 @@ def register(sub, groups) -> None:
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
     p.add_argument("-o", "--output", help="write the device profile (YAML) here")
+    p.add_argument("--force", action="store_true", help="replace the -o file if it exists")
     p.set_defaults(func=run)
 
 
@@ -39,6 +40,10 @@ def run(args) -> int:
     from accelrig.units import scale_for_range
 
     values = values_from_args(SETTINGS, args)
+    if args.output:
+        from accelrig.files import writable_target
+
+        writable_target(args.output, args.force, inputs=[args.recording])   # refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     if args.range_g is not None:
         if args.range_g <= 0:
@@ -47,7 +52,7 @@ def run(args) -> int:
         rec.meta["scale"] = scale_for_range(args.range_g)
     result = calibrate_static(rec, **values)
     if args.output:
-        _write_profile(result, rec, args.output)
+        _write_profile(result, rec, args.output, args.force, args.recording)
     if args.json:
         print(to_json(result.to_json_dict()))
     else:
@@ -55,11 +60,11 @@ def run(args) -> int:
     return 0
 
 
-def _write_profile(result, rec, path) -> None:
+def _write_profile(result, rec, path, overwrite: bool, source: str) -> None:
     # Imported here: the profiles package is optional for computing a calibration.
     from accelrig.profiles import profile_from_result, save_profile
 
-    save_profile(profile_from_result(result, rec), path)
+    save_profile(profile_from_result(result, rec), path, overwrite=overwrite, inputs=[source])
 
 
 def text_report(result) -> str:

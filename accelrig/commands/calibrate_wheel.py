@@ -20,6 +20,7 @@ def register(sub, groups) -> None:
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", help="write a device profile (YAML) with the correction")
+    p.add_argument("--force", action="store_true", help="replace the -o file if it exists")
     p.set_defaults(func=run_calibrate)
 
     q = groups["plan"].add_parser(
@@ -40,6 +41,10 @@ def run_calibrate(args) -> int:
     from accelrig.result import to_json
 
     v = values_from_args(SETTINGS, args)
+    if args.output:
+        from accelrig.files import writable_target
+
+        writable_target(args.output, args.force, inputs=[args.recording])   # refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
                              bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
@@ -47,7 +52,7 @@ def run_calibrate(args) -> int:
         # profiles validate and write atomically: nothing half-written on error
         from accelrig.profiles import profile_from_result, save_profile
 
-        save_profile(profile_from_result(result, rec), args.output)
+        save_profile(profile_from_result(result, rec), args.output, overwrite=args.force, inputs=[args.recording])
     if args.json:
         print(to_json(result.to_json_dict()))
         return 0

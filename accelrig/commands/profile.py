@@ -60,7 +60,8 @@ def register(sub, groups) -> None:
                    "the recording names, the profile closest to when it was recorded)")
     p.add_argument("recording", help="raw recording (.csv or .npz)")
     p.add_argument("-o", "--output", required=True, help="calibrated recording (.csv or .npz)")
-    p.add_argument("--force", action="store_true", help="apply even to data from another device, range or unit")
+    p.add_argument("--force", action="store_true",
+                   help="apply even to data from another device, range or unit, and replace an existing -o file")
     p.add_argument("--uncertainty", action="store_true",
                    help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
@@ -271,6 +272,9 @@ def run_diff(args) -> int:
 
 
 def run_apply(args) -> int:
+    from accelrig.files import writable_target
+
+    writable_target(args.output, args.force, inputs=[args.recording])
     rec = load_recording(args.recording, units=args.units)
     if args.profile == "auto":
         identity = rec.meta.get("identity")
@@ -283,5 +287,6 @@ def run_apply(args) -> int:
     out, warnings = apply_profile(profile, rec, force=args.force, uncertainty=args.uncertainty)
     for w in warnings:
         warn(w)
-    save_recording(out, args.output)
+    inputs = [args.recording] + ([profile.path] if profile.path is not None else [])
+    save_recording(out, args.output, overwrite=args.force, inputs=inputs)
     return 0

@@ -20,6 +20,7 @@ def register(sub, groups) -> None:
     length.add_argument("--samples", type=int, help="number of samples to record")
     p.add_argument("-o", "--output", required=True, help="output file (.csv interchange or .npz native)")
     p.add_argument("--units", choices=("m/s2", "counts"), default="m/s2", help="units of ax, ay, az (default m/s2)")
+    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
     p.set_defaults(func=run)
 
 
@@ -33,6 +34,9 @@ def run(args) -> int:
         raise DataError(f"--seconds {args.seconds} must be positive")
     if args.samples is not None and args.samples <= 0:
         raise DataError(f"--samples {args.samples} must be positive")
+    from accelrig.files import writable_target
+
+    writable_target(args.output, args.force)   # refused before recording, not after
     show = sys.stderr.isatty()
 
     def progress(p: Recorder) -> None:
@@ -57,5 +61,5 @@ def run(args) -> int:
         session.stop()
     if show:
         sys.stderr.write("\n")
-    save_recording(rec, args.output)
+    save_recording(rec, args.output, overwrite=args.force)
     return 0

@@ -232,17 +232,19 @@ def dump_yaml(data: dict) -> str:
     return HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=4096, allow_unicode=False)
 
 
-def save_profile(profile: Profile, path: str | os.PathLike, overwrite: bool = True) -> None:
-    """Validate, then write atomically (temp file + rename): never half a profile on disk."""
+def save_profile(profile: Profile, path: str | os.PathLike, overwrite: bool = True, inputs=(),
+                 mode: int = 0o666) -> None:
+    """Validate, then write atomically (temp file + rename): never half a profile on disk.
+
+    ``overwrite``, ``inputs`` and ``mode`` as in files.atomic_write: without ``overwrite`` the file
+    is created exclusively (files.OutputExists if the name is taken)."""
     path = Path(path)
     try:
         validate(profile.data)
     except ProfileError as exc:
         raise ProfileError(f"not saving {path}: {exc}") from None
-    if not overwrite and path.exists():
-        raise ProfileError(f"{path} exists", "choose another name or allow overwriting")
     text = dump_yaml(profile.data)
-    atomic_write(path, lambda fh: fh.write(text), text=True)
+    atomic_write(path, lambda fh: fh.write(text), text=True, overwrite=overwrite, inputs=inputs, mode=mode)
     profile.path = path
 
 

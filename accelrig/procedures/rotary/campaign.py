@@ -442,8 +442,9 @@ def _anova_row(name: str, a: dict) -> str:
     return f"| {name} | {a['f_statistic']:.3g} | {a['p_value']:.3g} | {'yes' if a['means_differ'] else 'no'} |"
 
 
-def write_report(result: CalibrationResult, path: str | os.PathLike) -> None:
-    """Write the report as YAML (.yaml/.yml: the JSON convention's fields) or Markdown (.md), atomically."""
+def write_report(result: CalibrationResult, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
+    """Write the report as YAML (.yaml/.yml: the JSON convention's fields) or Markdown (.md), atomically
+    (``overwrite`` and ``inputs`` as in files.atomic_write)."""
     suffix = Path(path).suffix.lower()
     if suffix in (".yaml", ".yml"):
         text = yaml.safe_dump(to_plain(result.to_json_dict()), sort_keys=False)
@@ -451,4 +452,4 @@ def write_report(result: CalibrationResult, path: str | os.PathLike) -> None:
         text = report_markdown(result)
     else:
         raise DataError(f"{path}: the report format follows the suffix", "use .yaml, .yml or .md")
-    atomic_write(path, lambda fh: fh.write(text), text=True)
+    atomic_write(path, lambda fh: fh.write(text), text=True, overwrite=overwrite, inputs=inputs)
