@@ -136,7 +136,7 @@ def _check_events(text: str, source: str, error: type[AccelrigError]) -> None:
                     raise error(f"{source}:{line}: {where}: key given twice")
                 parent["keys"].add(event.value)
                 parent["last_key"] = event.value
-            if event.style is None and event.implicit[0]:
+            if not event.style and event.implicit[0]:   # plain (libyaml says "", PyYAML None)
                 _check_number(event.value, f"{source}:{line}", error)
         if expanded > MAX_NODES:
             raise error(f"{source}:{line}: more than {MAX_NODES} values once its aliases (*) are expanded",
