@@ -171,3 +171,38 @@ def read_text_file(path: str | os.PathLike, error: type[AccelrigError] = DataErr
         raise error(f"{path}: not a text file, so not {what}") from None
     except OSError as exc:
         raise error(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def text_lines(path: str | os.PathLike, error: type[AccelrigError] = DataError, what: str = "a CSV file",
+               max_line: int = 1 << 24):
+    """The lines of a text file, streamed (memory bounded by ``max_line``), a UTF-8 BOM dropped.
+
+    Yields (line number, line).  Every failure is ``error`` in one line: missing, a directory,
+    unreadable, binary (naming the line), a line longer than ``max_line`` characters.
+    """
+    path = Path(path)
+    try:
+        fh = open(path, encoding="utf-8-sig", newline="")   # -sig: what spreadsheet programs write first
+    except FileNotFoundError:
+        raise error(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a directory, not {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read ({exc.strerror})") from None
+    lineno = 0
+    with fh:
+        while True:
+            lineno += 1
+            try:
+                line = fh.readline(max_line + 1)
+            except UnicodeDecodeError:
+                raise error(f"{path}:{lineno}: not a text file, so not {what}") from None
+            except OSError as exc:
+                raise error(f"{path}: cannot read ({exc.strerror})") from None
+            if not line:
+                return
+            if len(line) > max_line:
+                raise error(f"{path}:{lineno}: line longer than {max_line} characters, so not {what}")
+            if "\x00" in line:
+                raise error(f"{path}:{lineno}: holds NUL bytes, so not {what}")
+            yield lineno, line
