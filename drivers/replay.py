@@ -41,9 +41,10 @@ class ReplayDriver(Driver):
         if not url.target:
             raise DeviceError("replay:// needs a file", "e.g. replay://run.csv")
         self.pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
-        self.block = url.get_int("block", 256)
-        self.loop = url.get_str("loop", "0") in ("1", "true", "yes")
-        rec = load_recording(url.target, units=url.get_str("units"), rate=url.get_float("rate"))
+        self.block = url.get_int("block", 256, low=1, high=65536)
+        self.loop = url.get_choice("loop", ("0", "1", "no", "yes", "false", "true"), "0") in ("1", "true", "yes")
+        rec = load_recording(url.target, units=url.get_str("units"),
+                             rate=url.get_float("rate", low=1.0, high=100000.0, unit="Hz"))
         if len(rec) < 2:
             raise DataError(f"{url.target}: a replay needs at least two samples")
         scale = rec.meta.get("scale")
@@ -86,6 +87,10 @@ class ReplayDriver(Driver):
     @property
     def at_end(self) -> bool:
         return self._counts is not None and not self.loop and self._pos >= len(self._counts)
+
+    @property
+    def endless(self) -> bool:
+        return self.loop
 
     def read(self, timeout: float = 0.1) -> list[Block]:
         if self._counts is None:

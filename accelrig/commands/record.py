@@ -29,11 +29,11 @@ def run(args) -> int:
     from accelrig.acquisition.session import Session, State
     from accelrig.profiles.flash import flash_url_profile
     from accelrig.recording import save_recording
+    from accelrig.settings import Setting
 
-    if args.seconds is not None and args.seconds <= 0:
-        raise DataError(f"--seconds {args.seconds} must be positive")
-    if args.samples is not None and args.samples <= 0:
-        raise DataError(f"--samples {args.samples} must be positive")
+    # nan, inf and a month are refused like any bad number (a NaN length would never be reached)
+    Setting("seconds", "", unit="s", low=0.0, low_open=True, high=30 * 86400.0).parse(args.seconds)
+    Setting("samples", "", kind="int", low=1, high=2 ** 40).parse(args.samples)
     from accelrig.files import writable_target
 
     writable_target(args.output, args.force)   # refused before recording, not after
@@ -55,6 +55,8 @@ def run(args) -> int:
         return session.state == State.ENDED
 
     try:
+        if args.seconds is None and args.samples is None and session.driver.endless:
+            raise DataError(f"{args.url} never ends by itself", "give --seconds or --samples")
         session.recorder.take_until(pull, args.seconds, args.samples, progress if show else None)
         rec = session.recorder.recording("counts" if args.units == "counts" else "m/s^2")
     finally:

@@ -121,9 +121,11 @@ class StaticRig(Rig):
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StaticRig:
         order = parse_faces(url.get_str("order")) if url.get_str("order") else DEFAULT_ORDER
-        return cls(rng, order=order, hold=url.get_float("hold", 4.0), tilt_deg=url.get_float("tilt", 0.0),
-                   shake=url.get_float("shake", 3.0), moved=url.get_int("moved"),
-                   moved_deg=url.get_float("moved_deg", 3.0))
+        return cls(rng, order=order, hold=url.get_float("hold", 4.0, low=0.0, low_open=True, high=3600.0, unit="s"),
+                   tilt_deg=url.get_float("tilt", 0.0, low=0.0, high=90.0, unit="deg"),
+                   shake=url.get_float("shake", 3.0, low=0.0, high=100.0, unit="m/s^2"),
+                   moved=url.get_int("moved"),   # the rig says which pose numbers exist
+                   moved_deg=url.get_float("moved_deg", 3.0, low=0.0, high=180.0, unit="deg"))
 
     def _pose_rotation(self, pose: dict, t: np.ndarray) -> Rotation:
         tip = pose.get("tip")
