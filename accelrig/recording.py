@@ -135,6 +135,27 @@ class Recording:
         return "sha256:" + h.hexdigest()
 
 
+# A recording whose link lost more than this share of its samples says so (stderr, and the result's
+# warnings): the gaps are kept and never interpolated, but estimates from it rest on fewer samples
+# than its length suggests, and heavy loss is usually a cable, a radio or a host that cannot keep up.
+LOSS_WARN_SHARE = 0.01
+
+
+def lost_samples(meta: dict) -> int:
+    """Samples the device or link reported lost (the gaps of known size in the metadata)."""
+    return sum(max(int(g.get("missing", 0)), 0) for g in meta.get("gaps") or [] if isinstance(g, dict))
+
+
+def loss_warning(rec: Recording) -> str | None:
+    """One line when the recording lost more than LOSS_WARN_SHARE of its samples, else None."""
+    missing = lost_samples(rec.meta)
+    total = len(rec) + missing
+    if not total or missing / total <= LOSS_WARN_SHARE:
+        return None
+    return (f"the link lost {missing} of {total} samples ({missing / total:.1%}, more than {LOSS_WARN_SHARE:.0%}) "
+            f"in {len(rec.meta.get('gaps') or [])} gaps: kept as gaps, never filled in; check the cable or radio link")
+
+
 def count_scale(meta: dict) -> float | None:
     """m/s^2 per count of the device a recording came from: its ``scale``, else its
     ``range_g``'s nominal scale; None when neither is known."""

@@ -51,6 +51,7 @@ def run(args) -> int:
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
     result = calibrate_static(rec, **values)
+    warn_loss(rec, result)
     if args.output:
         _write_profile(result, rec, args.output, args.force, args.recording)
     if args.json:
@@ -58,6 +59,17 @@ def run(args) -> int:
     else:
         print(text_report(result))
     return 0
+
+
+def warn_loss(rec, result) -> None:
+    """Heavy link loss in the input: on stderr now and in the result's (and the profile's) warnings."""
+    import sys
+
+    from accelrig.recording import loss_warning
+
+    if (loss := loss_warning(rec)) is not None:
+        result.warnings.append(loss)
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
 
 
 def _write_profile(result, rec, path, overwrite: bool, source: str) -> None:

@@ -48,6 +48,9 @@ def run_calibrate(args) -> int:
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
                              bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+    from accelrig.commands.calibrate_static import warn_loss
+
+    warn_loss(rec, result)
     if args.output:
         # profiles validate and write atomically: nothing half-written on error
         from accelrig.profiles import profile_from_result, save_profile

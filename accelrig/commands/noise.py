@@ -50,6 +50,10 @@ def run(args) -> int:
 
             raise ProfileError(f"{args.profile} already holds noise figures (from {profile.noise['date']})",
                                "use --force to replace them")
+    from accelrig.recording import loss_warning
+
+    if (loss := loss_warning(rec)) is not None:
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
     start, stop = still_stretch(rec.to_si())
     report = noise_figures(rec, (start, stop))
     seg = report.still_segment

@@ -63,5 +63,10 @@ def run(args) -> int:
         session.stop()
     if show:
         sys.stderr.write("\n")
+    from accelrig.recording import loss_warning
+
+    if (loss := loss_warning(rec)) is not None:
+        rec.meta.setdefault("warnings", []).append(loss)   # the file says so too
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
     save_recording(rec, args.output, overwrite=args.force)
     return 0
