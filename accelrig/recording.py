@@ -31,6 +31,7 @@ from accelrig import __version__
 from accelrig.errors import DataError
 from accelrig.files import atomic_write, text_lines
 from accelrig.result import to_json
+from accelrig.settings import Setting
 from accelrig.spec import (
     Array,
     Field,
@@ -180,6 +181,8 @@ def default_meta(**values) -> dict:
 # declare at most this many values in all.  Longer sessions are segments (or split files).
 MAX_VALUES = 1 << 26
 MAX_META_CHARS = 1 << 24     # the metadata comment (its gap list grows with link losses)
+# the sample rate a person gives for a file without t (--rate): finite, of an accelerometer
+RATE = Setting("rate", "sample rate of a file without a t column", unit="Hz", low=0.0, low_open=True, high=100000.0)
 LOWEST_RATE = 1.0            # Hz: no MEMS accelerometer samples slower; t advancing slower is t in ms
 
 # The metadata fields readers and procedures use, typed; other fields are kept as plain data.
@@ -225,7 +228,7 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
             raise DataError(f"{path}: t advances {step:g} per sample ({(t.size - 1) / (t[-1] - t[0]):.3g} Hz): "
                             "no accelerometer samples that slowly", "is t in milliseconds? give t in seconds")
     else:
-        rate = rate or meta.get("delivered_rate") or meta.get("nominal_rate")
+        rate = RATE.parse(rate) or meta.get("delivered_rate") or meta.get("nominal_rate")
         if not rate:
             raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
         t = np.arange(data.shape[0]) / float(rate)

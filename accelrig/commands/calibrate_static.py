@@ -7,7 +7,6 @@ the numerical machinery is imported only when the command runs, so --help stays 
 
 from __future__ import annotations
 
-from accelrig.errors import DataError
 from accelrig.procedures.static.settings import SETTINGS
 from accelrig.settings import add_arguments, values_from_args
 
@@ -46,8 +45,9 @@ def run(args) -> int:
         writable_target(args.output, args.force, inputs=[args.recording])   # refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate)
     if args.range_g is not None:
-        if args.range_g <= 0:
-            raise DataError(f"--range-g {args.range_g} must be positive")
+        from accelrig.settings import Setting
+
+        Setting("range_g", "sensor range", unit="g", low=0.0, low_open=True, high=64.0).parse(args.range_g)
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
     result = calibrate_static(rec, **values)

@@ -24,9 +24,10 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
-from accelrig.errors import ProfileError
+from accelrig.errors import DataError, ProfileError
 from accelrig.files import OutputExists, make_dirs
 from accelrig.profiles.io import Profile, load_profile, save_profile
+from accelrig.settings import Setting
 from accelrig.spec import parse_datetime
 
 DEFAULT_MAX_AGE_DAYS = 365.0
@@ -166,6 +167,15 @@ class ProfileStore:
         now: datetime | None = None,
     ) -> Choice:
         """The latest profile of a device, or the one closest in time to ``date``."""
+        try:
+            Setting("max_age_days", "", unit="days", low=0.0).parse(max_age_days)
+        except DataError as exc:
+            raise ProfileError(exc.message) from None
+        if isinstance(date, str):
+            try:
+                parse_datetime(date)
+            except ValueError:
+                raise ProfileError(f"{date!r} is not a date", "give an ISO date, e.g. 2026-11-01") from None
         entries = self.entries(identity)
         if not entries:
             known = self.identities()

@@ -29,7 +29,7 @@ URL_CASES = {
     "sim://still?pace=fast&seconds=-5": "option seconds",
     "sim://still?pace=fast&disconnect_after=0": "option disconnect_after",
     "sim://wheel?pace=fast&radius=280": "did you give millimetres",
-    "sim://wheel?pace=fast&tilt_deg=400": "option tilt_deg",
+    "sim://wheel?pace=fast&tilt_deg=400": "tilt_deg",
     "sim://rotary?pace=fast&frequency=0": "option frequency",
     "sim://slider-crank?pace=fast&radius=6.35": "did you give millimetres",
     "sim://static?pace=fast&hold=inf": "not a finite number",
@@ -156,4 +156,23 @@ def test_implausible_profile_contents_are_refused(case, guarded, tmp_path):
     path.write_text(_profile_with(change))
     before = snapshot(tmp_path)
     assert_refused(guarded("profile", "validate", path), cause)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("argv, cause", [
+    (("calibrate", "static", "{bare}", "--rate", "nan"), "--rate nan is not a finite number"),
+    (("calibrate", "static", "{bare}", "--rate", "-200"), "--rate -200 Hz is out of range"),
+    (("calibrate", "static", "{rec}", "--range-g", "nan"), "--range-g nan is not a finite number"),
+    (("calibrate", "static", "{rec}", "--range-g", "0"), "--range-g 0 g is out of range"),
+    (("profile", "show", "sim-random-11", "--max-age-days", "nan"), "--max-age-days nan is not a finite number"),
+    (("profile", "show", "sim-random-11", "--date", "yesterday"), "'yesterday' is not a date"),
+])
+def test_implausible_flags_elsewhere_are_refused(argv, cause, guarded, tmp_path, still_csv):
+    bare = tmp_path / "bare.csv"
+    bare.write_text("ax,ay,az\n" + "0,0,9.81\n" * 50)
+    store_args = ("--store", tmp_path / "store") if argv[0] == "profile" else ()
+    if store_args:
+        assert guarded("profile", "add", EXAMPLE_PROFILE, *store_args).returncode == 0
+    before = snapshot(tmp_path)
+    assert_refused(guarded(*(a.format(rec=still_csv, bare=bare) for a in argv), *store_args), cause)
     assert snapshot(tmp_path) == before

@@ -121,7 +121,7 @@ class WheelRig(Rig):
         misalignment = _floats(url, "misalignment", 3)
         return cls(
             radius=url.get_float("radius", 0.28, low=0.0, low_open=True, high=2.0, unit="m"),
-            tilt_deg=url.get_float("tilt_deg", TABLE_I_TILT_DEG, low=0.0, high=90.0, unit="deg"),
+            tilt_deg=url.get_float("tilt_deg", TABLE_I_TILT_DEG),   # the rig checks 0 .. 90 itself
             duration=url.get_float("seconds", 90.0, low=0.0, low_open=True, high=86400.0, unit="s"),
             omega=omega,
             friction=url.get_choice("friction", ("cubic", "coulomb-viscous"), "cubic"),
