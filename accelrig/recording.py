@@ -18,6 +18,7 @@ import csv
 import hashlib
 import json
 import os
+import struct
 import zipfile
 import zlib
 from array import array
@@ -391,7 +392,10 @@ def load_native(path: str | os.PathLike) -> Recording:
         raise DataError(f"{path}: is a directory, not an .npz recording") from None
     except MemoryError:
         raise DataError(f"{path}: too large to hold in memory") from None
-    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
+            NotImplementedError, RuntimeError) as exc:
+        # zipfile raises NotImplementedError (a compression method or zip version it lacks) and
+        # RuntimeError (an encrypted member): neither is a bug here, both are a file accelrig did not write
         raise DataError(f"{path}: not an accelrig .npz recording ({str(exc)[:120] or type(exc).__name__})") from None
     for name in ("t", "acc"):
         if name not in arrays:

@@ -13,7 +13,7 @@ from hostile.fuzz_targets import TARGETS
 def test_fuzz(name):
     target, strategy = TARGETS[name]
 
-    @settings(max_examples=150, deadline=None, database=None, derandomize=True,
+    @settings(max_examples=60 if name.startswith("YAML") else 120, deadline=None, database=None, derandomize=True,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
     @given(strategy)
     def run(data: bytes) -> None:

@@ -179,11 +179,11 @@ def _add_concurrently(store: ProfileStore, profile, n: int) -> tuple[list, list]
 
 def test_concurrent_adds_all_land(tmp_path):
     profile = load_profile(EXAMPLE_PROFILE)
-    for round_ in range(10):
+    for round_ in range(3):
         store = ProfileStore(tmp_path / f"store{round_}")
-        paths, errors = _add_concurrently(store, profile, 4)
+        paths, errors = _add_concurrently(store, profile, 5)
         assert not errors
-        assert len(set(paths)) == 4 and len(store.entries()) == 4
+        assert len(set(paths)) == 5 and len(store.entries()) == 5
 
 
 def test_store_modes_ignore_a_permissive_umask(cli, tmp_path):

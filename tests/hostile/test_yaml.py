@@ -61,17 +61,17 @@ def test_validate_reports_every_file(cli, tmp_path, profile_text):
     assert result.returncode != 0
     errors = result.stderr.splitlines()
     assert len(errors) == 4 and all(line.startswith("accelrig: error: ") for line in errors)
-    assert [str(p) in line for p, line in zip((bomb, deep, folder, tmp_path / "missing.yaml"), errors, strict=True)]
+    assert all(str(p) in line for p, line in zip((bomb, deep, folder, tmp_path / "missing.yaml"), errors, strict=True))
     assert result.stdout.startswith(f"{good}: ok")
 
 
-def test_an_alias_bomb_in_the_store_is_named_not_a_hang(limited, tmp_path):
+def test_an_alias_bomb_in_the_store_is_named_not_a_hang(limited, guarded, tmp_path):
     store = tmp_path / "store"
     (store / "dev-12345678").mkdir(parents=True)
     (store / "dev-12345678" / "20260101T000000Z-static.yaml").write_text(LAUGHS)
-    for command in (("profile", "list"), ("profile", "show", "dev"), ("profile", "diff", "dev", "dev")):
-        result = limited(*command, "--store", store, timeout=15)
-        assert_refused(result, "aliases")
+    assert_refused(limited("profile", "list", "--store", store, timeout=15), "aliases")   # a real process
+    for command in (("profile", "show", "dev"), ("profile", "diff", "dev", "dev")):
+        assert_refused(guarded(*command, "--store", store), "aliases")
 
 
 def test_yaml_dump_anchors_still_load(tmp_path):
