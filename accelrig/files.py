@@ -159,18 +159,9 @@ def _fsync_directory(directory: Path) -> None:
 
 
 def read_text_file(path: str | os.PathLike, error: type[AccelrigError] = DataError, what: str = "a CSV file") -> str:
-    """A whole text file, or ``error`` in one line saying why not (missing, a directory, binary)."""
-    path = Path(path)
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise error(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise error(f"{path}: is a directory, not {what}") from None
-    except UnicodeDecodeError:
-        raise error(f"{path}: not a text file, so not {what}") from None
-    except OSError as exc:
-        raise error(f"{path}: cannot read ({exc.strerror})") from None
+    """A whole text file (a UTF-8 BOM dropped), or ``error`` in one line saying why not (missing, a
+    directory, binary, unreadable); the same checks as ``text_lines``, whose lines it joins."""
+    return "".join(line for _, line in text_lines(path, error, what))
 
 
 def text_lines(path: str | os.PathLike, error: type[AccelrigError] = DataError, what: str = "a CSV file",
