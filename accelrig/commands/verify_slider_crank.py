@@ -49,7 +49,11 @@ def run(args) -> int:
     result = verify_slider_crank(recordings, values["crank_radius"], values["rod_length"], values["clearance"],
                                  correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
                                  profile=values["profile"])
+    from accelrig.commands.calibrate_static import warn_loss
+
     result.warnings = profile_warnings + result.warnings
+    for _, rec in recordings:
+        warn_loss(rec, result)
     if args.json:
         print(to_json(result.to_json_dict()))
     else:

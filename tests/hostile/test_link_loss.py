@@ -33,3 +33,13 @@ def test_a_calibration_from_a_lossy_recording_carries_the_warning(cli, tmp_path)
     assert result.returncode == 0, result.stderr
     assert result.stderr.startswith("accelrig: warning: the link lost")
     assert any("the link lost" in w for w in json.loads(result.stdout)["warnings"])
+
+
+def test_a_verification_from_a_lossy_recording_carries_the_warning(cli, tmp_path):
+    out = tmp_path / "crank.csv"
+    assert cli("record", "sim://slider-crank?seed=1&pace=fast&rate=2048&range=8&steps=3&drop=0.3&block=128",
+               "-o", out).returncode == 0
+    result = cli("verify", "slider-crank", out, "--crank-radius", "0.00635", "--rod-length", "0.0353", "--json")
+    assert result.returncode in (0, 1), result.stderr   # the verdict is not the point here
+    assert result.stderr.startswith("accelrig: warning: the link lost")
+    assert any("the link lost" in w for w in json.loads(result.stdout)["warnings"])
