@@ -74,6 +74,18 @@ class ProfileError(AccelrigError):
     exit_code = 6
 
 
+class StorageError(AccelrigError):
+    """Recorded data could not be written: an unwritable directory, an I/O error, a full disk."""
+
+    exit_code = 7
+
+
+class StorageFull(StorageError):
+    """The disk (or quota) is full.  The writer that raised it stays consistent: the block is
+    wholly in the open segment or not at all, so the caller counts it as a "disk full" gap and
+    writes again once space returns."""
+
+
 # Characters a terminal acts on rather than shows: C0 and C1 controls (ESC starts a sequence that can
 # move the cursor, retitle the window or rewrite the screen), DEL, and the bidirectional overrides that
 # reorder what is shown.

@@ -13,6 +13,10 @@ from pathlib import Path
 
 from accelrig.errors import AccelrigError, DataError
 
+# The one metadata comment line of accelrig's interchange CSV (recording.py reads and writes it;
+# segments.py writes it into the CSV copy of a segment).
+META_PREFIX = "# accelrig-meta:"
+
 
 def _umask() -> int:
     # os.umask can only be read by setting it; set it straight back.
@@ -104,7 +108,7 @@ def atomic_write(path: str | os.PathLike, writer, text: bool, overwrite: bool = 
         _remove(tmp)
         raise
     _remove(tmp)
-    _fsync_directory(directory)
+    fsync_directory(directory)
 
 
 def _link_exclusive(tmp: str, path: Path, shown: Path) -> None:
@@ -145,7 +149,8 @@ def make_dirs(path: Path, mode: int = 0o755) -> None:
         raise DataError(f"{path}: is not a folder")
 
 
-def _fsync_directory(directory: Path) -> None:
+def fsync_directory(directory: Path) -> None:
+    """Make a rename or a new file in ``directory`` survive a power cut (best effort)."""
     try:
         fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:

@@ -30,8 +30,9 @@ import numpy.lib.format as npy_format
 
 from accelrig import __version__
 from accelrig.errors import DataError
-from accelrig.files import atomic_write, text_lines
+from accelrig.files import META_PREFIX, atomic_write, text_lines
 from accelrig.result import to_json
+from accelrig.segments import SEGMENT_SUFFIXES, read_arrays, resolve_range
 from accelrig.settings import Setting
 from accelrig.spec import (
     Array,
@@ -50,7 +51,6 @@ from accelrig.spec import (
 )
 from accelrig.units import STANDARD_GRAVITY, normalise_unit, scale_for_range, to_si
 
-META_PREFIX = "# accelrig-meta:"
 ACC_COLUMNS = ("ax", "ay", "az")
 NATIVE_SUFFIX = ".npz"
 
@@ -150,12 +150,16 @@ def lost_samples(meta: dict) -> int:
 
 def loss_warning(rec: Recording) -> str | None:
     """One line when the recording lost more than LOSS_WARN_SHARE of its samples, else None."""
-    missing = lost_samples(rec.meta)
-    total = len(rec) + missing
+    return link_loss_warning(len(rec), lost_samples(rec.meta), len(rec.meta.get("gaps") or []))
+
+
+def link_loss_warning(delivered: int, missing: int, gaps: int) -> str | None:
+    """One line when ``missing`` samples (in ``gaps`` gaps) are more than LOSS_WARN_SHARE of all, else None."""
+    total = delivered + missing
     if not total or missing / total <= LOSS_WARN_SHARE:
         return None
     return (f"the link lost {missing} of {total} samples ({missing / total:.1%}, more than {LOSS_WARN_SHARE:.0%}) "
-            f"in {len(rec.meta.get('gaps') or [])} gaps: kept as gaps, never filled in; check the cable or radio link")
+            f"in {gaps} gaps: kept as gaps, never filled in; check the cable or radio link")
 
 
 def count_scale(meta: dict) -> float | None:
@@ -446,15 +450,51 @@ def _check_npz(path: Path) -> None:
             budget -= nbytes
 
 
-def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None) -> Recording:
-    """Load a CSV or native recording, chosen by the file suffix."""
+def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
+                   start: float | str | None = None, stop: float | str | None = None) -> Recording:
+    """Load a CSV or native recording, or segments (a directory of them, a .parquet or .seg file),
+    chosen by the file suffix.
+
+    ``start``/``stop`` keep a time range: seconds from the first sample, or (segments) an
+    ISO-8601 UTC time such as 2026-11-24T01:00:00Z.
+    """
     path = Path(path)
+    if path.is_dir() or path.suffix.lower() in SEGMENT_SUFFIXES:
+        return read_segments(path, *resolve_range(path, start, stop), units="counts" if units == "counts" else None)
+    if start is not None or stop is not None:
+        return time_range(load_recording(path, units, rate), start, stop)
     if path.suffix.lower() == NATIVE_SUFFIX:
         rec = load_native(path)
         if units:
             rec = Recording(rec.t, rec.acc, units, rec.channels, rec.meta)
         return rec
     return read_csv(path, units=units, rate=rate)
+
+
+def read_segments(path: str | os.PathLike, start: float | None = None, stop: float | None = None,
+                  units: str | None = None) -> Recording:
+    """The Recording of a segment file or a directory of one device's segments over [start, stop)
+    (seconds in the stored time base, UTC epoch for ``record`` and the daemon); in m/s^2
+    (counts x scale) unless ``units`` is "counts".  t counts from the first sample returned."""
+    t, acc, rec_units, channels, meta = read_arrays(path, start, stop, units=units or "m/s^2")
+    return Recording(t, acc, rec_units, channels, meta)
+
+
+def time_range(rec: Recording, start: float | str | None, stop: float | str | None) -> Recording:
+    """The samples from ``start`` to before ``stop``, seconds from the first sample."""
+    bounds = []
+    for name, value in (("start", start), ("stop", stop)):
+        try:
+            bounds.append(None if value is None else float(value))
+        except ValueError:
+            raise DataError(f"--{name} {value!r}: a time in seconds from the first sample was expected "
+                            "(UTC times apply to segments only)") from None
+    t0 = rec.t[0] if len(rec) else 0.0
+    lo = 0 if bounds[0] is None else int(np.searchsorted(rec.t, t0 + bounds[0], "left"))
+    hi = len(rec) if bounds[1] is None else int(np.searchsorted(rec.t, t0 + bounds[1], "left"))
+    if hi <= lo:
+        raise DataError(f"no samples between {start} and {stop} s (the recording spans {rec.duration:.3f} s)")
+    return rec.slice(lo, hi)
 
 
 def save_recording(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:

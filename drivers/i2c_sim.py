@@ -120,10 +120,6 @@ class I2CSimDriver(I2CDriver):
         return info
 
     @property
-    def endless(self) -> bool:
-        return self.rig is not None and self.rig.duration is None
-
-    @property
     def at_end(self) -> bool:
         duration = self.rig.duration if self.rig is not None else None
         return (duration is not None and self.emulator is not None

@@ -1,4 +1,4 @@
-"""replay://FILE: play a recording (CSV or .npz) back as a device.
+"""replay://FILE: play a recording (CSV, .npz, or segments: a .parquet file or a directory) back as a device.
 
 Options:
     pace=realtime|fast   at the recorded rate (default) or as fast as possible
@@ -6,6 +6,7 @@ Options:
     rate=HZ              sample rate for a file without a t column
     block=N              samples per block (default 256)
     loop=1               start again at the end (an endless device)
+    start=T, stop=T      play only that stretch: seconds from the first sample, or (segments) ISO-8601 UTC
 
 Samples become int16 counts again at the scale the file records, or at the
 finest standard range (2, 4, 8, 16 g) that holds the data.
@@ -37,14 +38,15 @@ class ReplayDriver(Driver):
 
     def open(self) -> DeviceInfo:
         url = self.url
-        url.check_known({"pace", "units", "rate", "block", "loop"})
+        url.check_known({"pace", "units", "rate", "block", "loop", "start", "stop"})
         if not url.target:
             raise DeviceError("replay:// needs a file", "e.g. replay://run.csv")
         self.pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
         self.block = url.get_int("block", 256, low=1, high=65536)
         self.loop = url.get_choice("loop", ("0", "1", "no", "yes", "false", "true"), "0") in ("1", "true", "yes")
         rec = load_recording(url.target, units=url.get_str("units"),
-                             rate=url.get_float("rate", low=1.0, high=100000.0, unit="Hz"))
+                             rate=url.get_float("rate", low=1.0, high=100000.0, unit="Hz"),
+                             start=url.get_str("start"), stop=url.get_str("stop"))
         if len(rec) < 2:
             raise DataError(f"{url.target}: a replay needs at least two samples")
         scale = rec.meta.get("scale")
@@ -87,10 +89,6 @@ class ReplayDriver(Driver):
     @property
     def at_end(self) -> bool:
         return self._counts is not None and not self.loop and self._pos >= len(self._counts)
-
-    @property
-    def endless(self) -> bool:
-        return self.loop
 
     def read(self, timeout: float = 0.1) -> list[Block]:
         if self._counts is None:

@@ -107,12 +107,6 @@ class Driver(abc.ABC):
     def at_end(self) -> bool:
         return False
 
-    @property
-    def endless(self) -> bool:
-        """A source that never ends by itself (a looping replay, a simulation without a length): recording it
-        needs a length.  Hardware is not marked: it ends when the person stops it."""
-        return False
-
     def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
         """Work out what storing ``correction`` on the device would write.
 

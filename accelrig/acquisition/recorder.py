@@ -8,8 +8,10 @@ and number missing) and never papered over.  Attached to a Session
 (``Recorder.attach``) the reader is lossless: the pump waits for it rather
 than overwrite samples it has not taken.
 
-Taken samples are kept in memory (``_keep``); that is the seam where a
-recorder streaming to disk segments will write instead.
+Taken samples are kept in memory (``_keep``), or, given a
+``segments.SegmentWriter``, streamed to disk segments instead: memory stays
+bounded whatever the duration, and the times are anchored to UTC (host clock
+at the first chunk, stated in the segments' ``time_anchor``).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from accelrig.recording import Recording, default_meta
 
 if TYPE_CHECKING:
     from accelrig.acquisition.session import Session
+    from accelrig.segments import SegmentWriter
 
 
 class Recorder:
@@ -40,10 +43,13 @@ class Recorder:
     the stream.
     """
 
-    def __init__(self, info: DeviceInfo, reader: Reader, session: Session | None = None):
+    def __init__(self, info: DeviceInfo, reader: Reader, session: Session | None = None,
+                 writer: SegmentWriter | None = None):
         self.info = info
         self.reader = reader
         self.session = session
+        self.writer = writer                # streams to disk instead of keeping in memory
+        self._utc_offset: int | None = None   # UTC epoch ns minus device time ns, set at the first chunk
         self._lock = threading.Lock()  # poll() on one thread, recording() on another (the TUI's fit worker)
         self._counts: list[np.ndarray] = []
         self._t: list[np.ndarray] = []
@@ -58,10 +64,10 @@ class Recorder:
         self.full = False
 
     @classmethod
-    def attach(cls, session: Session) -> Recorder:
+    def attach(cls, session: Session, writer: SegmentWriter | None = None) -> Recorder:
         """A recorder on a lossless reader of ``session`` from its oldest sample: attached
-        before ``session.start()`` it holds every sample the device delivers."""
-        return cls(session.info, session.reader(from_oldest=True, lossless=True), session)
+        before ``session.start()`` it holds (or, with ``writer``, streams) every sample the device delivers."""
+        return cls(session.info, session.reader(from_oldest=True, lossless=True), session, writer)
 
     def poll(self, seconds: float | None = None, samples: int | None = None) -> Chunk:
         """Take what arrived; returns it as one chunk.
@@ -96,17 +102,43 @@ class Recorder:
                 self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": "device/link"})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
+            if self.writer is not None:
+                self._stream(chunk)
             if not chunk.n:
                 return
             if self._t0 is None:
                 self._t0 = float(chunk.t[0])
-            self._counts.append(chunk.counts)
-            self._t.append(chunk.t)
-            for name in self._channels:
-                self._channels[name].append(chunk.channels[name])
+            if self.writer is None:
+                self._counts.append(chunk.counts)
+                self._t.append(chunk.t)
+                for name in self._channels:
+                    self._channels[name].append(chunk.channels[name])
             self.samples += chunk.n
             self.seconds = float(chunk.t[-1] - self._t0)
             self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
+
+    def _stream(self, chunk: Chunk) -> None:
+        """Write a chunk to the segment writer, each gap record at its place; times in UTC."""
+        from accelrig.segments import to_ns
+
+        w = self.writer
+        if self._utc_offset is None and chunk.n:
+            now = time.time_ns()
+            # in integer ns: float64 epoch seconds would round the device's times to 0.24 us
+            self._utc_offset = now - int(to_ns(chunk.t[-1:])[0])   # the chunk's last sample arrived just now
+            w.meta["time_anchor"] = {"method": "host UTC clock when the first chunk arrived",
+                                     "utc_ns": now, "device_time": float(chunk.t[-1])}
+        t = to_ns(chunk.t) + (self._utc_offset or 0)
+        if chunk.lost:
+            w.gap(t[0] if chunk.n else time.time_ns(), chunk.lost, "reader overrun")
+        start = 0
+        for pos, missing in [*chunk.gaps, (chunk.n, None)]:
+            if pos > start:
+                w.write(t[start:pos], chunk.counts[start:pos],
+                        {name: values[start:pos] for name, values in chunk.channels.items()})
+            if missing is not None:
+                w.gap(t[pos] if pos < chunk.n else time.time_ns(), missing, "device/link")
+            start = pos
 
     def close(self) -> None:
         """Stop holding the session's pump back (what was taken stays)."""
@@ -116,6 +148,9 @@ class Recorder:
     def recording(self, units: str = "m/s^2") -> Recording:
         """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts"."""
         with self._lock:
+            if self.writer is not None:
+                raise DeviceError(f"this recorder streamed {self.info.url} to {self.writer.directory}",
+                                  "read it back with accelrig.recording.load_recording")
             if not self.samples:
                 raise DeviceError(f"{self.info.url} delivered no samples")
             counts = np.concatenate(self._counts)

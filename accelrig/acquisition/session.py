@@ -25,6 +25,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.result import Correction
 from accelrig.units import saturated
+
+if TYPE_CHECKING:
+    from accelrig.segments import SegmentWriter
 
 
 class State(enum.StrEnum):
@@ -96,13 +100,15 @@ class Session:
     # ------------------------------------------------------------------ lifecycle
     @classmethod
     def open_and_start(cls, url: str, buffer_seconds: float = 30.0, record: bool = False,
-                       prepare: Callable[[Driver], None] | None = None) -> Session:
+                       prepare: Callable[[Driver], None] | None = None,
+                       writer: Callable[[DeviceInfo], SegmentWriter] | None = None) -> Session:
         """Open ``url`` and start pumping; with ``record`` a Recorder (``session.recorder``)
         is attached before the first sample, so it holds every sample.
 
         ``prepare`` gets the opened driver before the first sample is read
         (accelrig.profiles.flash.flash_url_profile writes the profile a URL
-        names).  On any failure the session is stopped (the device released)
+        names).  ``writer`` (with ``record``) makes the recorder's segment writer from the
+        opened device's info: the recorder then streams to disk.  On any failure the session is stopped (the device released)
         and the AccelrigError raised.
         """
         session = cls(url, buffer_seconds=buffer_seconds)
@@ -111,7 +117,7 @@ class Session:
             if prepare is not None:
                 prepare(session.driver)
             if record:
-                session.recorder = Recorder.attach(session)
+                session.recorder = Recorder.attach(session, writer(session.info) if writer else None)
             session.start()
         except AccelrigError:
             session.stop()

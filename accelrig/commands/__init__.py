@@ -1,1 +1,9 @@
 """CLI subcommands, one module each (see accelrig.cli)."""
+
+
+def add_time_range(parser) -> None:
+    """--start/--stop for a command that reads a recording (load_recording's start/stop)."""
+    for name, what in (("start", "keep samples from"), ("stop", "keep samples before")):
+        parser.add_argument(f"--{name}", metavar="T",
+                            help=f"{what} T: seconds from the first sample, or (segments) an ISO-8601 UTC time "
+                            "such as 2026-11-24T01:00:00Z")

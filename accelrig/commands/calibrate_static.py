@@ -7,6 +7,7 @@ the numerical machinery is imported only when the command runs, so --help stays 
 
 from __future__ import annotations
 
+from accelrig.commands import add_time_range
 from accelrig.procedures.static.settings import SETTINGS
 from accelrig.settings import add_arguments, values_from_args
 
@@ -20,12 +21,13 @@ def register(sub, groups) -> None:
         "between. Poses are found on the raw data; '+z down' means the +z axis points down (reads -g). "
         "A pose too far from a face for six-face mode is refused by name; no profile is written then.",
     )
-    p.add_argument("recording", help="recording (.csv interchange or .npz)")
+    p.add_argument("recording", help="recording (.csv interchange, .npz, or segments: a .parquet file or a directory)")
     add_arguments(p, SETTINGS)
     p.add_argument("--units", choices=("m/s2", "g", "counts"),
                    help="units of ax, ay, az (default: what the file declares, else m/s2)")
     p.add_argument("--range-g", type=float, help="sensor range +-g, for counts without a scale in the file")
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
+    add_time_range(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
     p.add_argument("-o", "--output", help="write the device profile (YAML) here")
     p.add_argument("--force", action="store_true", help="replace the -o file if it exists")
@@ -43,7 +45,7 @@ def run(args) -> int:
         from accelrig.files import writable_target
 
         writable_target(args.output, args.force, inputs=[args.recording])   # refused before the fit
-    rec = load_recording(args.recording, units=args.units, rate=args.rate)
+    rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     if args.range_g is not None:
         from accelrig.settings import Setting
 

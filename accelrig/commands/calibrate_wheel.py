@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from accelrig.commands import add_time_range
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -14,10 +15,11 @@ def register(sub, groups) -> None:
         description="Calibrate from a recording of the sensor on a tilted, freely rotating wheel "
         "(paper 002). Give the measured radius (sensor to axis) or the tilt.",
     )
-    p.add_argument("recording", help="recording (.csv interchange or .npz) of the coasting wheel")
+    p.add_argument("recording", help="recording (.csv interchange, .npz, or segments) of the coasting wheel")
     add_arguments(p, SETTINGS)
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
+    add_time_range(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", help="write a device profile (YAML) with the correction")
     p.add_argument("--force", action="store_true", help="replace the -o file if it exists")
@@ -45,7 +47,7 @@ def run_calibrate(args) -> int:
         from accelrig.files import writable_target
 
         writable_target(args.output, args.force, inputs=[args.recording])   # refused before the fit
-    rec = load_recording(args.recording, units=args.units, rate=args.rate)
+    rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
                              bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
     from accelrig.commands.calibrate_static import warn_loss

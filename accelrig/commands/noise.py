@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 
+from accelrig.commands import add_time_range
 from accelrig.geometry import AXES
 from accelrig.units import STANDARD_GRAVITY
 
@@ -23,12 +24,14 @@ def register(sub, groups) -> None:
         "bias instability (IEEE 952: minimum / 0.664) and rate random walk where the record is long enough. "
         "Uncertainties are standard (k = 1).",
     )
-    p.add_argument("recording", help="still recording (.csv or .npz), a few minutes or more")
+    p.add_argument("recording", help="still recording (.csv, .npz, or segments: a .parquet file or a directory), "
+                   "a few minutes or more")
     p.add_argument("--json", action="store_true", help="print figures and Allan curves as JSON")
     p.add_argument("--profile", metavar="P.yaml", help="store the figures in this profile (rewritten atomically)")
     p.add_argument("--force", action="store_true",
                    help="store into a profile of another device or range, or one that holds noise figures")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    add_time_range(p)
     p.set_defaults(func=run)
 
 
@@ -39,7 +42,7 @@ def run(args) -> int:
     from accelrig.recording import load_recording
     from accelrig.result import to_json
 
-    rec = load_recording(args.recording, units=args.units)
+    rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
     profile = None
     if args.profile:
         profile = load_profile(args.profile)   # refuse a bad profile before computing anything

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from accelrig.commands import add_time_range
 from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
@@ -58,13 +59,14 @@ def register(sub, groups) -> None:
                          "device, range or unit unless --force.")
     p.add_argument("profile", help="profile file, a device identity in the store, or 'auto' (the device "
                    "the recording names, the profile closest to when it was recorded)")
-    p.add_argument("recording", help="raw recording (.csv or .npz)")
+    p.add_argument("recording", help="raw recording (.csv, .npz, or segments: a .parquet file or a directory)")
     p.add_argument("-o", "--output", required=True, help="calibrated recording (.csv or .npz)")
     p.add_argument("--force", action="store_true",
                    help="apply even to data from another device, range or unit, and replace an existing -o file")
     p.add_argument("--uncertainty", action="store_true",
                    help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    add_time_range(p)
     _store_args(p)
     p.set_defaults(func=run_apply)
 
@@ -282,7 +284,7 @@ def run_apply(args) -> int:
     from accelrig.files import writable_target
 
     writable_target(args.output, args.force, inputs=[args.recording])
-    rec = load_recording(args.recording, units=args.units)
+    rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
     if args.profile == "auto":
         identity = rec.meta.get("identity")
         if not identity:

@@ -1,42 +1,83 @@
-"""accelrig record URL --seconds N -o FILE"""
+"""accelrig record URL [--seconds N] -o OUTPUT
+
+Samples stream to disk segments as they arrive (accelrig.segments), so memory
+stays bounded however long the recording runs, and Ctrl+C keeps everything
+taken so far.
+"""
 
 from __future__ import annotations
 
+import re
+import signal
 import sys
 import time
+from pathlib import Path
 
 from accelrig.errors import DataError, DeviceError
+
+SINGLE_FILE_SUFFIXES = (".csv", ".npz", ".parquet")
 
 
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "record",
-        description="Record a device to a file. A progress line is shown on a terminal; "
-        "nothing but the file is written otherwise.",
+        description="Record a device to disk. Samples stream to segment files as they arrive (memory stays "
+        "bounded however long it runs); Ctrl+C (or SIGTERM) stops and keeps everything recorded so far. "
+        "A progress line is shown on a terminal; nothing but the output is written otherwise.",
     )
     p.add_argument("url", help="device URL, e.g. 'sim://static?seed=1' or replay://run.csv")
     length = p.add_mutually_exclusive_group()
-    length.add_argument("--seconds", type=float, help="seconds of device time to record")
+    length.add_argument("--seconds", type=float, help="seconds of device time to record (default: until Ctrl+C "
+                        "or the end of a finite source)")
     length.add_argument("--samples", type=int, help="number of samples to record")
-    p.add_argument("-o", "--output", required=True, help="output file (.csv interchange or .npz native)")
-    p.add_argument("--units", choices=("m/s2", "counts"), default="m/s2", help="units of ax, ay, az (default m/s2)")
+    p.add_argument("-o", "--output", required=True,
+                   help="a directory (Parquet segments, rotated; any duration), or one file: .parquet, "
+                   ".csv interchange or .npz native (assembled at the end, so they must fit in memory)")
+    p.add_argument("--units", choices=("m/s2", "counts"), default="m/s2",
+                   help="units of ax, ay, az in a .csv or .npz output (default m/s2); segments always hold "
+                   "int16 counts and the scale")
+    p.add_argument("--segment-minutes", type=float, default=60.0,
+                   help="directory output: start a new segment after this many minutes (default 60)")
+    p.add_argument("--segment-mb", type=float, default=256.0,
+                   help="directory output: or once the open segment reaches this many MiB (default 256)")
+    p.add_argument("--csv-copies", action="store_true",
+                   help="directory output: also write an interchange CSV beside each finished segment")
     p.add_argument("--force", action="store_true", help="replace the output file if it exists")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from accelrig.acquisition.recorder import Recorder
+    import numpy as np
+
+    from accelrig.acquisition.recorder import Recorder, recording_meta
     from accelrig.acquisition.session import Session, State
+    from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
-    from accelrig.recording import save_recording
+    from accelrig.segments import SegmentWriter, recover
     from accelrig.settings import Setting
 
     # nan, inf and a month are refused like any bad number (a NaN length would never be reached)
     Setting("seconds", "", unit="s", low=0.0, low_open=True, high=30 * 86400.0).parse(args.seconds)
     Setting("samples", "", kind="int", low=1, high=2 ** 40).parse(args.samples)
-    from accelrig.files import writable_target
-
-    writable_target(args.output, args.force)   # refused before recording, not after
+    Setting("segment_minutes", "", unit="min", low=0.0, low_open=True, high=7 * 1440.0).parse(args.segment_minutes)
+    Setting("segment_mb", "", unit="MiB", low=0.0, low_open=True, high=2 ** 20).parse(args.segment_mb)
+    output = Path(args.output)
+    single = output.suffix.lower() in SINGLE_FILE_SUFFIXES
+    if single:   # refused before recording, not after; a symlink is written through to its target
+        output = writable_target(output, args.force)
+    elif output.exists() and not output.is_dir():
+        raise DataError(f"{output}: exists and is not a folder: refusing to record into it",
+                        "give a folder for segments, or a file name ending .csv, .npz or .parquet")
+    # one file: its segment goes to a hidden directory beside it, then becomes the file
+    directory = output.parent / f".{output.name}.parts" if single else output
+    if single and directory.is_dir() and not any(directory.iterdir()):
+        directory.rmdir()   # left empty by a record stopped before its first sample
+    if single and directory.exists():
+        raise DataError(f"{directory} holds the segments of an earlier record into {output} that did not finish",
+                        f"read them with e.g. 'accelrig noise {directory}', then remove the directory")
+    if directory.is_dir():
+        for report in recover(directory):   # a record into this directory that was killed
+            print(f"accelrig record: {report}", file=sys.stderr)
     show = sys.stderr.isatty()
 
     def progress(p: Recorder) -> None:
@@ -45,28 +86,82 @@ def run(args) -> int:
         )
         sys.stderr.flush()
 
-    session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile)
+    def make_writer(info) -> SegmentWriter:
+        meta = recording_meta(info, np.zeros(0), [], 0)
+        meta.update(time_base="utc", delivered_rate=None, device_rate=None)
+        stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
+        return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels,
+                             segment_seconds=float("inf") if single else args.segment_minutes * 60.0,
+                             segment_bytes=float("inf") if single else args.segment_mb * 2**20,
+                             csv=args.csv_copies and not single)
+
+    session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile, writer=make_writer)
+    recorder, writer = session.recorder, session.recorder.writer
 
     def pull() -> bool:
-        """Give the pump a moment; a device that went away ends the command as it would have ended a read."""
+        """Give the pump a moment; a device that went away ends the recording with what was taken."""
         time.sleep(0.02)
-        if session.interrupted:
-            raise DeviceError(session.interrupted)
-        return session.state == State.ENDED
+        return session.state in (State.ENDED, State.DISCONNECTED, State.FAILED)
 
+    previous_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+    stopped_by = None
     try:
-        if args.seconds is None and args.samples is None and session.driver.endless:
-            raise DataError(f"{args.url} never ends by itself", "give --seconds or --samples")
-        session.recorder.take_until(pull, args.seconds, args.samples, progress if show else None)
-        rec = session.recorder.recording("counts" if args.units == "counts" else "m/s^2")
+        try:
+            recorder.take_until(pull, args.seconds, args.samples, progress if show else None)
+        except KeyboardInterrupt:
+            stopped_by = "Ctrl+C"
     finally:
+        signal.signal(signal.SIGTERM, previous_term)
         session.stop()
-    if show:
-        sys.stderr.write("\n")
-    from accelrig.recording import loss_warning
+        recorder.close()
+        finished = writer.close()
+        if show:
+            sys.stderr.write("\n")
+    kept = f"{recorder.samples} samples ({recorder.seconds:.2f} s)"
+    from accelrig.recording import link_loss_warning
 
-    if (loss := loss_warning(rec)) is not None:
-        rec.meta.setdefault("warnings", []).append(loss)   # the file says so too
+    loss = link_loss_warning(recorder.samples, recorder.missing, recorder.gap_events)
+    if loss is not None:
         print(f"accelrig: warning: {loss}", file=sys.stderr)
-    save_recording(rec, args.output, overwrite=args.force)
+    if not recorder.samples:
+        if single:
+            directory.rmdir()
+        raise DeviceError(f"{args.url} delivered no samples", session.interrupted)
+    if single:
+        _assemble(finished, directory, output, args.units, session.info, recorder, loss)
+    if session.interrupted:
+        raise DeviceError(f"the device went away ({session.interrupted}); kept {kept} in {output}")
+    if stopped_by:
+        print(f"accelrig record: stopped by {stopped_by}; kept {kept} in {output}", file=sys.stderr)
+        # Ctrl+C is how an open-ended recording ends; cutting a requested length short is not success
+        return 0 if args.seconds is None and args.samples is None else 130
     return 0
+
+
+def _raise_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _assemble(finished: list[Path], directory: Path, output: Path, units: str, info, recorder,
+              loss: str | None = None) -> None:
+    """Turn the one segment of a single-file output into that file, then remove the hidden directory."""
+    import os
+
+    from accelrig.acquisition.recorder import recording_meta
+    from accelrig.recording import read_segments, save_recording
+
+    if output.suffix.lower() == ".parquet":
+        os.replace(finished[0], output)
+    else:
+        rec = read_segments(directory, units="counts" if units == "counts" else None)
+        rates = recording_meta(info, rec.t, rec.meta["gaps"], recorder.missing)
+        rec.meta.update(delivered_rate=rates["delivered_rate"], device_rate=rates["device_rate"],
+                        lost_samples=rates["lost_samples"], lost_share=rates["lost_share"])
+        if loss is not None:
+            rec.meta.setdefault("warnings", []).append(loss)   # the file says so too
+        for name in ("segments", "source"):
+            rec.meta.pop(name, None)
+        save_recording(rec, output)
+        for path in finished:
+            path.unlink()
+    directory.rmdir()

@@ -74,14 +74,6 @@ def test_implausible_replay_options_are_refused(option, guarded, tmp_path, still
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("url", ["replay://{still}?pace=fast&loop=1", "sim://still?pace=fast"])
-def test_an_endless_source_without_a_length_is_refused_not_a_hang(url, guarded, tmp_path, still_csv):
-    before = snapshot(tmp_path)
-    assert_refused(guarded("record", url.format(still=still_csv), "-o", tmp_path / "out.csv", seconds=10),
-                   "never ends by itself.*--seconds")
-    assert snapshot(tmp_path) == before
-
-
 @pytest.mark.parametrize("flag, value, cause", [
     ("--seconds", "nan", "not a finite number"), ("--seconds", "inf", "not a finite number"),
     ("--seconds", "-1", "must be > 0"), ("--seconds", "1e12", "out of range"), ("--samples", "0", "must be >= 1"),

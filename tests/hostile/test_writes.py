@@ -43,6 +43,10 @@ def _special(tmp_path, kind):
 @pytest.mark.parametrize("kind, cause", [("fifo", "is a fifo"), ("device", "is a device"), ("folder", "is a directory")])
 @pytest.mark.parametrize("command", ["record", "apply", "calibrate"])
 def test_output_onto_a_special_file_is_refused(command, kind, cause, guarded, tmp_path, raw):
+    if command == "record":
+        if kind == "folder":
+            pytest.skip("record -o FOLDER records segments into it")
+        cause = "exists and is not a folder"   # no suffix: record takes it for a segment folder
     target = _special(tmp_path, kind)
     argv = {"record": (*RECORD, "-o", target, "--force"),
             "apply": ("profile", "apply", EXAMPLE_PROFILE, raw, "-o", target, "--force"),

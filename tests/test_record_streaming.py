@@ -1,0 +1,127 @@
+"""`accelrig record` streams through the segment writer; Ctrl+C keeps what it has; every reader takes segments."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from accelrig.acquisition.driver import driver_for
+from accelrig.cli import main
+from accelrig.recording import load_recording
+
+
+def accelrig(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=120, **kw)
+
+
+def wait_for_samples(proc, path_glob, parent, timeout=30.0):
+    """Wait until the recording process has written at least one data frame."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        files = list(parent.glob(path_glob))
+        if files and files[0].stat().st_size > 4096:
+            return
+        assert proc.poll() is None, proc.stderr.read()
+        time.sleep(0.1)
+    raise AssertionError("no samples written")
+
+
+@pytest.mark.parametrize("output", ["segments", "run.parquet", "run.npz", "run.csv"])
+def test_ctrl_c_keeps_everything_recorded_so_far(tmp_path, output):
+    out = tmp_path / output
+    proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000", "-o",
+                             str(out)], stderr=subprocess.PIPE, text=True)
+    seg_dir = out if output == "segments" else tmp_path / f".{output}.parts"
+    wait_for_samples(proc, "*.seg", seg_dir)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    code = proc.wait(timeout=30)
+    err = proc.stderr.read()
+    assert code == 0, err
+    assert "stopped by Ctrl+C; kept" in err and "Traceback" not in err
+    kept = int(err.split("kept ")[1].split()[0])
+    rec = load_recording(out)
+    assert len(rec) == kept > 500
+    assert not (tmp_path / f".{output}.parts").exists()          # the hidden parts directory is gone
+    if output == "segments":
+        assert [p.suffix for p in out.iterdir()] == [".parquet"]  # finished, nothing left open
+
+
+def test_ctrl_c_cutting_a_requested_length_short_says_so_and_keeps_it(tmp_path):
+    out = tmp_path / "segs"
+    proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000",
+                             "--seconds", "600", "-o", str(out)], stderr=subprocess.PIPE, text=True)
+    wait_for_samples(proc, "*.seg", out)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 130
+    assert "kept" in proc.stderr.read()
+    assert len(load_recording(out)) > 0
+
+
+def test_record_to_a_directory_rotates_and_reads_back_exactly(tmp_path):
+    out = tmp_path / "segs"
+    assert main(["record", "sim://still?seed=1&pace=fast&rate=2048", "--seconds", "150",
+                 "--segment-minutes", "1", "-o", str(out)]) == 0
+    files = sorted(out.glob("*.parquet"))
+    assert len(files) == 3 and all(f.name.startswith("sim-random-1.") for f in files)
+    info = json.loads(pq.ParquetFile(files[0]).schema_arrow.metadata[b"accelrig"])
+    assert info["meta"]["device"].startswith("sim://still") and info["meta"]["time_base"] == "utc"
+    assert info["units"] == "counts" and info["scale"] > 0
+    rec = load_recording(out)
+    with driver_for("sim://still?seed=1&pace=fast&rate=2048") as d:   # the same device, deterministic
+        from accelrig.acquisition.recorder import record
+        direct = record(d, seconds=150, units="counts")
+    np.testing.assert_array_equal(load_recording(out, units="counts").acc, direct.acc)
+    np.testing.assert_allclose(rec.t, direct.t, atol=1e-9)
+    assert rec.meta["time_origin"] > 1.7e9                        # UTC epoch seconds of the first sample
+
+
+def test_every_reader_takes_a_directory_over_a_time_range(tmp_path):
+    out = tmp_path / "still"
+    assert main(["record", "sim://still?seed=2&pace=fast&rate=400", "--seconds", "400", "-o", str(out)]) == 0
+    r = accelrig("noise", str(out), "--start", "100", "--stop", "300", "--json")
+    assert r.returncode == 0, r.stderr
+    figures = json.loads(r.stdout)
+    assert abs(figures["still_segment"]["of_total"] - 200.0) < 0.1
+    r = accelrig("record", f"replay://{out}?pace=fast&start=10&stop=20", "-o", str(tmp_path / "part.npz"))
+    assert r.returncode == 0, r.stderr
+    part = load_recording(tmp_path / "part.npz")
+    assert abs(part.duration - 10.0) < 0.01
+    r = accelrig("noise", str(out), "--start", "tomorrow")
+    assert r.returncode != 0 and r.stderr.count("\n") == 1 and "neither seconds nor an ISO-8601 time" in r.stderr
+
+
+def test_record_into_a_directory_a_crash_left_open_recovers_it_first(tmp_path, capsys):
+    from accelrig.segments import SegmentWriter
+
+    out = tmp_path / "segs"
+    w = SegmentWriter(out, stem="sim-random-1", meta={}, scale=0.001)
+    w.write(np.arange(10) / 100.0 + 1.7e9, np.zeros((10, 3), np.int16))
+    os.close(w._fd)                                   # the recording process died here
+    assert main(["record", "sim://still?seed=1&pace=fast", "--seconds", "1", "-o", str(out)]) == 0
+    assert "closed after a crash: 10 samples in 1 complete blocks kept; nothing lost" in capsys.readouterr().err
+    assert sorted(p.suffix for p in out.iterdir()) == [".parquet", ".parquet"]
+
+
+def test_gaps_the_link_reported_are_recorded_where_they_happened(tmp_path):
+    out = tmp_path / "lossy"
+    assert main(["record", "sim://still?seed=4&pace=fast&rate=1000&block=50&drop=0.2", "--seconds", "20",
+                 "-o", str(out)]) == 0
+    rec = load_recording(out, units="counts")
+    gaps = rec.meta["gaps"]
+    assert len(gaps) > 20 and {g["cause"] for g in gaps} == {"device/link"}
+    # every jump in the sample times is a gap record at that index, of the size the jump says
+    step = np.median(np.diff(rec.t))
+    jumps = np.flatnonzero(np.diff(rec.t) > 1.5 * step) + 1
+    assert [g["index"] for g in gaps] == jumps.tolist()
+    sizes = np.rint(np.diff(rec.t)[jumps - 1] / step).astype(int) - 1
+    assert [g["missing"] for g in gaps] == sizes.tolist()
+    assert len(rec) + sum(g["missing"] for g in gaps) == pytest.approx(20 * 1000 * 1.004, abs=60)
