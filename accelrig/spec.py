@@ -189,6 +189,18 @@ class String(Spec):
 
 
 @dataclass
+class Boolean(Spec):
+    description: str = ""
+
+    def check(self, value, path: str) -> None:
+        if not isinstance(value, bool):
+            fail(path, f"expected true or false (yes or no), got {describe(value)}")
+
+    def json_schema(self) -> dict:
+        return self._with_description({"type": "boolean"})
+
+
+@dataclass
 class DateTime(Spec):
     """A UTC date-time string, 2026-11-22T03:25:00Z (kept a string so YAML never makes it a datetime)."""
 

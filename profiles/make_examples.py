@@ -1,7 +1,7 @@
-"""Regenerate profiles/schema-v1.json and the example profiles, from the simulator (never by hand).
+"""Regenerate profiles/schema-v1.json (and the daemon's daemon-config-v1.json) and the example profiles, from the simulator (never by hand).
 
     python profiles/make_examples.py                 schema + every example whose method is installed
-    python profiles/make_examples.py --schema-only   just the JSON Schema
+    python profiles/make_examples.py --schema-only   just the JSON Schemas
     python profiles/make_examples.py --strict        fail when a method is missing
 
 Each calibration method (procedure + estimator) is one function: record its simulated rig through the
@@ -20,6 +20,7 @@ from pathlib import Path
 
 from accelrig.acquisition.driver import driver_for
 from accelrig.acquisition.recorder import record
+from accelrig.daemon.config import json_schema_text as daemon_schema_text
 from accelrig.estimation.allan import noise_figures
 from accelrig.profiles import profile_from_result, save_profile
 from accelrig.profiles.io import utc_now
@@ -84,6 +85,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     (HERE / "schema-v1.json").write_text(json_schema_text())
     print(f"wrote {HERE / 'schema-v1.json'}")
+    (HERE / "daemon-config-v1.json").write_text(daemon_schema_text())
+    print(f"wrote {HERE / 'daemon-config-v1.json'}")
     if args.schema_only:
         return 0
     missing = []

@@ -182,3 +182,36 @@ def test_monte_carlo_small(scenario, models):
         assert exact["ratio_b"].min() > 10                     # the offsets are off by tens of their bound
         ferraris = bench.summarise(result["ferraris"])
         assert ferraris["cover_C"].min() < 0.9                 # noise-only u on the cross terms does not cover
+
+
+def test_classifier_does_not_count_the_sensors_misalignment_as_tilt():
+    """A sensor mounted 1.5 degrees off in its housing on level faces: the common rotation is the model's R,
+    so even a stated flatness of 0.1 degree (a 0.5-degree gate) lets every face through."""
+    rng = np.random.default_rng(3)
+    c_true = bench._rz(np.radians(1.5)) @ bench._ry(np.radians(-1.2)) @ bench._rx(np.radians(0.8))
+    poses, _ = bench.draw_poses(rng, c_true, np.array([0.3, -0.2, 0.4]), "faces", 0.0, 0.05)
+    tilts = check_faces(poses, 0.1)
+    assert max(t.angle_deg for t in tilts) < 0.3
+    assert [t.face for t in tilts] == bench.FACE_LIST
+
+
+@pytest.mark.parametrize("model, seen", [("affine", 6), ("paper", 9)])
+def test_tilt_test_counts_only_the_tilt_combinations_the_faces_see(model, seen):
+    rng = np.random.default_rng(8)
+    c_true, b_true, _ = bench.draw_truth(rng)
+    poses, _ = bench.draw_poses(rng, c_true, b_true, "faces", 0.0, 1.0)
+    fit = fit_six_face(poses, model, 1.0)
+    assert fit.extra["tilt_dof"] == pytest.approx(seen, abs=0.3)
+
+
+def test_a_table_tilted_more_than_stated_widens_the_flatness_and_says_so():
+    rng = np.random.default_rng(12)
+    warned = 0
+    for _ in range(10):
+        c_true, b_true, _ = bench.draw_truth(rng)
+        poses, _ = bench.draw_poses(rng, c_true, b_true, "faces", 3.0, 0.2)
+        for model in ("affine", "paper"):
+            fit = fit_six_face(poses, model, 1.0)
+            assert fit.pose_flatness_deg > 1.5 and "observed flatness" in fit.uncertainty_source
+            warned += bool(fit.extra["notes"])
+    assert warned >= 15

@@ -125,11 +125,16 @@ def test_wrong_units_are_named_with_the_flag(factor, declared, flag):
         calibrate_static(wrong)
 
 
-def test_tilted_poses_raise_a_lack_of_fit_warning():
-    rec, _, _ = _record("sim://static?tilt=3", seed=10)
+def test_tilted_poses_raise_a_lack_of_fit_warning_and_the_exact_face_u_grows():
+    rec, _, sensor = _record("sim://static?tilt=1.5", seed=10)   # each component sd 1.5 deg
+    level = calibrate_static(_record("sim://static", seed=10, sensor=sensor)[0], model="affine")
     result = calibrate_static(rec, model="affine")
     assert result.quality["p_value"] < 1e-3
-    assert any("table not level" in w for w in result.warnings)
+    assert any("table not level" in w and "Birge" in w for w in result.warnings)
+    assert "Birge ratio" in result.quality["uncertainty_source"]
+    u = result.correction.bias_uncertainty
+    assert np.all(u > 10 * level.correction.bias_uncertainty)   # the misfit, not the noise, sets the u now
+    assert np.all(np.abs(result.correction.bias - sensor.correction().bias) < 4 * u)
 
 
 def test_correlated_noise_is_detected_and_warned_about():
@@ -185,3 +190,32 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
     # forgetting the face held now takes it out until it qualifies again
     proc.act("redo", face=last["face"])
     assert not proc.done and last["face"] in proc.missing_faces
+
+
+@pytest.mark.parametrize("block", [37, 100_000])
+def test_any_orientation_flow_counts_distinct_orientations_capture_by_capture(block):
+    """model multi-position: progress counts orientations (not faces), one message per capture whatever the
+    block size, ready at 9 distinct ones; the fit is the multi-position one within 4 u of the truth."""
+    from accelrig.estimation.gravity_fit import MULTI_MIN_DISTINCT, upper_gauge
+
+    rec, rig, sensor = _record("sim://static?orientations=11&hold=4", seed=21)
+    proc = StaticProcedure(rec.rate, model="multi-position")
+    events = []
+    for k in range(0, len(rec), block):
+        events += proc.feed(rec.slice(k, k + block))
+        if proc.done:
+            break
+    counts = [e.message for e in events if e.data["kind"] == "progress"]
+    assert counts[0] == "1 distinct orientation, 8 more needed"
+    assert counts[MULTI_MIN_DISTINCT - 1].startswith(f"{MULTI_MIN_DISTINCT} distinct orientations")
+    assert [e.data["kind"] for e in events].count("complete") == 1
+    assert not any("of 6" in e.message or "faces" in e.message for e in events)
+    assert proc.done and proc.progress == 1.0 and proc.orientations["more"] == 0
+    with pytest.raises(DataError, match="no face to redo"):
+        proc.act("redo", face="+x")
+    result = proc.result()
+    assert result.model == "multi-position"
+    truth = sensor.correction()
+    free = np.triu_indices(3)
+    z = (result.correction.matrix - upper_gauge(truth.matrix))[free] / result.correction.matrix_uncertainty[free]
+    assert np.all(np.abs(z) < 4)

@@ -71,6 +71,14 @@ def test_imucal_through_the_cli_reports_every_pose_and_writes_the_profile(tmp_pa
         assert {"index", "start", "stop", "n", "face", "angle_deg", "fate", "reason"} <= set(p)
         assert p["fate"] in FATES
     assert sum(p["fate"] == "used" for p in poses) == 13
+    from accelrig.profiles import load_profile
+
+    profile = load_profile(out).data
+    calibration = profile["calibration"]   # the profile records the model, the flatness and what the u holds
+    assert profile["quality"]["pose_flatness_deg_used"] == 1.0
+    assert profile["quality"]["uncertainty_source"].startswith("noise + flatness prior 1 deg (Type B)")
+    assert calibration["model"] == "six-face" and calibration["settings"]["pose_flatness_deg"] == 1.0
+    assert calibration["settings"]["model_requested"] == "auto"
     assert main(["calibrate", "static", str(IMUCAL), "--g", "9.81"]) == 0
     text = capsys.readouterr().out
     assert "uncertainty: noise + flatness prior 1 deg" in text and "13 of" in text
@@ -89,7 +97,7 @@ def test_xsens_six_face_mode_refuses_in_one_line_naming_a_pose_and_its_angle(tmp
         err = capsys.readouterr().err.strip()
         assert code == CalibrationError.exit_code and not out.exists()
         assert len(err.splitlines()) == 1
-        assert "pose 27 is 45.7 degrees from -y" in err and "--model multi-position" in err
+        assert "pose 27 is 45.9 degrees from -y" in err and "--model multi-position" in err
 
 
 def test_xsens_multi_position_leaves_every_pose_on_g(tmp_path, capsys):

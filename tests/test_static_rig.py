@@ -83,3 +83,49 @@ def test_sensor_with_response_reproduces_any_plausible_matrix():
         sensor = sensor_with_response(k, np.array([0.1, -0.2, 0.3]))
         assert np.allclose(sensor.response_matrix, k, atol=1e-12)
         assert np.allclose(sensor.correction().bias, [0.1, -0.2, 0.3])
+
+
+def test_tilted_table_tilts_every_pose_by_its_angle_in_a_different_body_direction():
+    rig = _rig("sim://static?table=3&order=+z,+z,+z,-x,-x,-x", seed=5)
+    truth = rig.truth()
+    assert truth["table_deg"] == 3.0
+    ups = []
+    for pose in truth["poses"]:
+        assert pose["kind"] == "face" and pose["tilt_deg"] == pytest.approx(3.0, abs=1e-9)
+        force = rig.specific_force(np.array([pose["start"] + 0.5]))[0]
+        assert np.allclose(force / G, pose["up_body"])
+        ups.append(np.array(pose["up_body"]))
+    # the same face down three times: the table's tilt seen in the body frame turns with the random yaw
+    across = [u[:2] / np.linalg.norm(u[:2]) for u in ups[:3]]
+    assert min(abs(a @ b) for a, b in [(across[0], across[1]), (across[0], across[2]), (across[1], across[2])]) < 0.98
+
+
+def test_hand_tilt_has_the_stated_sd_per_component():
+    components = []
+    for seed in range(60):
+        for pose in _rig("sim://static?tilt=0.5", seed=seed).truth()["poses"]:
+            up = np.array(pose["up_body"])
+            k = "xyz".index(pose["face"][1])
+            components += [np.degrees(up[j]) for j in range(3) if j != k]
+    assert np.std(components) == pytest.approx(0.5, rel=0.1)   # 720 components: sd of the sd 2.6 %
+    assert abs(np.mean(components)) < 0.06
+
+
+def test_arbitrary_orientations_cover_the_sphere_and_say_so_in_the_truth():
+    rig = _rig("sim://static?orientations=200&hold=1", seed=2)
+    poses = rig.truth()["poses"]
+    assert len(poses) == 200 and {p["kind"] for p in poses} == {"arbitrary"} and poses[0]["face"] is None
+    ups = np.array([p["up_body"] for p in poses])
+    assert np.allclose(np.linalg.norm(ups, axis=1), 1.0)
+    assert np.all(np.abs(ups.mean(axis=0)) < 0.15)                       # uniform: mean near 0 ...
+    assert np.allclose(ups.T @ ups / len(ups), np.eye(3) / 3, atol=0.07)  # ... second moment I/3
+    for pose in poses[:5]:
+        t = np.linspace(pose["start"], pose["stop"] - 1e-6, 7)
+        assert np.allclose(rig.specific_force(t) / G, pose["up_body"], atol=1e-9)
+
+
+def test_orientations_refuse_face_options():
+    with pytest.raises(DeviceError, match="not both"):
+        _rig("sim://static?orientations=10&order=+z,-z")
+    with pytest.raises(DeviceError, match="apply to faces"):
+        _rig("sim://static?orientations=10&table=2")

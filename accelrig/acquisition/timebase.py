@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 
-class _Line:
+class RunningLine:
     """Running least-squares line y = a + b x (sums kept about the first point for precision)."""
 
     def __init__(self):
@@ -49,6 +49,13 @@ class _Line:
     def span(self) -> float:
         return self.hi - self.lo
 
+    def y_at(self, x: float, slope: float | None = None) -> float:
+        """The line's value at ``x`` (``slope``: one already computed, to save the work)."""
+        b = self.slope() if slope is None else slope
+        if b is None:
+            return self.y0 + (self.sy / self.n if self.n else 0.0)
+        return self.y0 + (self.sy - b * self.sx) / self.n + b * (x - self.x0)
+
 
 class StreamClock:
     def __init__(self, nominal_rate: float, max_drift: float = 500e-6, min_host_span: float = 5.0):
@@ -60,8 +67,8 @@ class StreamClock:
         self._reset()
 
     def _reset(self) -> None:
-        self._counter_line = _Line()   # device time vs counter
-        self._host_line = _Line()      # host time vs device time
+        self._counter_line = RunningLine()   # device time vs counter
+        self._host_line = RunningLine()      # host time vs device time
         self._anchor_counter: int | None = None
         self._anchor_host = 0.0
         self._last_t: float | None = None

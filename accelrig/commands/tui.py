@@ -15,6 +15,8 @@ def register(sub, groups) -> None:
                    help="device URL to open first (default: sim://static, a simulated device)")
     p.add_argument("--profile-dir", default=None,
                    help="directory the wizards offer for saving profiles (default: the current directory)")
+    p.add_argument("--daemon", metavar="SOCKET_OR_CONFIG", default=None,
+                   help="watch a running daemon's devices (read-only): its status socket or its configuration")
     p.set_defaults(func=run)
 
 
@@ -28,6 +30,11 @@ def run(args) -> int:
                           "run it in a terminal; from scripts use the other commands (record, calibrate, ...)")
     from accelrig.tui.app import DEFAULT_DEVICE, AccelrigApp
 
-    app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir)
+    socket = None
+    if args.daemon is not None:
+        from accelrig.daemon.config import load_config
+
+        socket = load_config(args.daemon).status_socket if args.daemon.endswith((".yaml", ".yml")) else args.daemon
+    app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir, daemon_socket=socket)
     app.run()
     return int(app.return_code or 0)

@@ -31,8 +31,10 @@ class AccelrigApp(App):
     ]
 
     def __init__(self, device: str = DEFAULT_DEVICE, refresh_interval: float = 0.1,
-                 profile_dir: str | Path | None = None, buffer_seconds: float = 30.0):
+                 profile_dir: str | Path | None = None, buffer_seconds: float = 30.0,
+                 daemon_socket: str | Path | None = None):
         super().__init__()
+        self.daemon_socket = daemon_socket  # set: watch a running daemon instead of opening a device
         self.device = device
         self.refresh_interval = refresh_interval
         self.profile_dir = Path(profile_dir) if profile_dir is not None else Path.cwd()
@@ -44,6 +46,11 @@ class AccelrigApp(App):
         self.setting_texts: dict[str, dict[str, str]] = {}
 
     def on_mount(self) -> None:
+        if self.daemon_socket is not None:
+            from accelrig.tui.screens.daemon import DaemonScreen
+
+            self.push_screen(DaemonScreen(self.daemon_socket))
+            return
         self.push_screen(LiveScreen())
         self.connect_to(self.device)
 

@@ -124,3 +124,19 @@ def test_hostile_campaign_is_refused(case, guarded, tmp_path):
     result = guarded("calibrate", "rotary", "--campaign", path, "-o", tmp_path / "report.md")
     assert_refused(result, cause)
     assert snapshot(tmp_path) == before
+
+
+# ------------------------------------------------------------------ the daemon's configuration
+
+@pytest.mark.parametrize("content, cause", [
+    (LAUGHS, "aliases"),
+    ("devices: " + "[" * 50000 + "]" * 50000, "nested more than"),
+    ("output: x\noutput: y\n", "output: key given twice"),
+    ("x: 1.0e+999\n", "too large for a 64-bit float"),
+])
+def test_hostile_daemon_config_is_refused(content, cause, guarded, tmp_path):
+    path = tmp_path / "daemon.yaml"
+    path.write_text(content)
+    before = snapshot(tmp_path)
+    assert_refused(guarded("daemon", "check", path), cause)
+    assert snapshot(tmp_path) == before

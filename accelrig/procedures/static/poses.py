@@ -177,6 +177,8 @@ class PoseDetector:
             "still": self._still,
             "hold_fraction": min(held / self.hold, 1.0),
             "held_seconds": held,
+            # raw mean of the pose held now (the any-orientation flow asks whether it is a new orientation)
+            "current_mean": np.concatenate(self._seg_x).mean(axis=0) if self._still and self._seg_n else None,
         }
 
     def accepted(self) -> list[Pose]:

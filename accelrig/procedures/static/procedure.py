@@ -26,6 +26,8 @@ import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gravity_fit import (
+    CHI2_ALPHA,
+    DISTINCT_DEG,
     FACE_REFUSE_SD,
     MULTI_MIN_DISTINCT,
     PoseStats,
@@ -41,7 +43,7 @@ from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
-from accelrig.result import CalibrationResult, Estimate
+from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.units import STANDARD_GRAVITY
 
 # Seconds a face is held before the live flow says "captured" (a pose still counts from min_hold on).
@@ -58,11 +60,17 @@ class StaticProcedure(Procedure):
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, model: str = "auto", method: str = "vp",
                  pose_flatness_deg: float = POSE_FLATNESS_DEG, **detection):
-        """``detection``: PoseDetector's settings (hold, min_hold, still_threshold, full_scale, ...)."""
+        """``detection``: PoseDetector's settings (hold, min_hold, still_threshold, full_scale, ...).
+
+        ``model="multi-position"`` is the any-orientation flow: progress and ``done`` count distinct
+        orientations (``MULTI_MIN_DISTINCT``, poses closer than DISTINCT_DEG count as one), not faces."""
         _check_model(model, method)
         self.model, self.method, self.pose_flatness_deg = model, method, float(pose_flatness_deg)
+        self.any_orientation = model == "multi-position"
         self.detector = PoseDetector(rate, g=g, **detection)
         self._started = False
+        self._n_distinct = 0
+        self._n_captured = 0
 
     @classmethod
     def create(cls, values: dict, device: dict) -> StaticProcedure:
@@ -78,13 +86,58 @@ class StaticProcedure(Procedure):
         events = []
         if not self._started and len(chunk.t):
             self._started = True
-            events.append(pose_event("start", "put the sensor down on any face and hold it still",
+            events.append(pose_event("start", "hold the sensor still in any orientation, then turn it to another"
+                                     if self.any_orientation else "put the sensor down on any face and hold it still",
                                      float(chunk.t[0])))
-        return events + self.detector.feed(chunk.t, chunk.acc)
+        found = self.detector.feed(chunk.t, chunk.acc)
+        return events + (self._orientation_events(found) if self.any_orientation else found)
+
+    def _orientation_events(self, events: list[Event]) -> list[Event]:
+        """The detector's face-flow events retold for the any-orientation flow: a pose is an orientation,
+        progress counts distinct orientations, and it is ready at MULTI_MIN_DISTINCT of them."""
+        out = []
+        for event in events:
+            kind = event.data.get("kind")
+            time = event.data.get("time", 0.0)
+            if kind in ("hold_still", "not_flat", "already_done"):
+                out.append(pose_event("hold_still", "hold still: " + self._novelty(), time))
+            elif kind == "captured":
+                out.append(pose_event("captured", event.message.replace(" down captured", " (near a face) captured"),
+                                      time))
+                # the k-th capture is the k-th usable pose (a chunk may hold several poses: count as of this one)
+                self._n_captured += 1
+                means = np.array([p.mean for p in self.detector.accepted()[:self._n_captured]])
+                n_before, n = self._n_distinct, distinct_orientations(means)
+                self._n_distinct = n
+                more = max(MULTI_MIN_DISTINCT - n, 0)
+                out.append(pose_event("progress", f"{n} distinct orientation{'s' if n != 1 else ''}"
+                                      + (f", {more} more needed" if more else ""), time,
+                                      progress=min(n / MULTI_MIN_DISTINCT, 1.0)))
+                if n >= MULTI_MIN_DISTINCT > n_before:
+                    out.append(pose_event("complete", f"{n} distinct orientations captured", time, progress=1.0))
+            elif kind in ("progress", "complete"):
+                continue   # face counts: not this flow's
+            else:
+                out.append(event)
+        return out
+
+    def _novelty(self) -> str:
+        """Whether the pose held now is a new orientation (for the instruction line)."""
+        state = self.detector.state
+        if not state["still"] or state.get("current_mean") is None:
+            return "a new orientation"
+        held = np.asarray(state["current_mean"])
+        taken = [p.mean for p in self.detector.poses]
+        if taken and distinct_orientations(np.array([*taken, held])) == distinct_orientations(np.array(taken)):
+            return f"close to one already captured (within {DISTINCT_DEG:g} degrees it counts once; turn further)"
+        return "a new orientation"
 
     def act(self, action: str, **arguments) -> list[Event]:
         if action != "redo":
             return super().act(action, **arguments)
+        if self.any_orientation:
+            raise DataError("any-orientation mode keeps every pose: there is no face to redo",
+                            "hold more orientations instead")
         if "face" not in arguments:
             raise DataError("redo needs the face to take again", "faces are +x, -x, +y, -y, +z, -z")
         return self.detector.forget(arguments["face"])
@@ -94,11 +147,28 @@ class StaticProcedure(Procedure):
 
     @property
     def progress(self) -> float:
+        if self.any_orientation:
+            return min(self.orientations["n_distinct"] / MULTI_MIN_DISTINCT, 1.0)
         return len(self.faces_done) / len(FACES)
 
     @property
     def done(self) -> bool:
+        if self.any_orientation:
+            return self.orientations["n_distinct"] >= MULTI_MIN_DISTINCT
         return not self.missing_faces
+
+    @property
+    def orientations(self) -> dict:
+        """For the any-orientation display: the unit directions of the usable poses' raw means (the one held
+        now included once captured), how many are distinct (closer than DISTINCT_DEG count once), how many
+        are needed, and the octants (sign patterns of x, y, z) they reach."""
+        means = np.array([p.mean for p in self.detector.accepted()]).reshape(-1, 3)
+        directions = means / np.linalg.norm(means, axis=1, keepdims=True) if len(means) else means
+        n = distinct_orientations(means) if len(means) else 0
+        octants = {tuple(int(v) for v in np.sign(d) >= 0) for d in directions}
+        return {"directions": directions, "n_distinct": n, "needed": MULTI_MIN_DISTINCT,
+                "more": max(MULTI_MIN_DISTINCT - n, 0), "octants": len(octants), "n_poses": len(means),
+                "distinct_deg": DISTINCT_DEG}
 
     @property
     def faces(self) -> dict:
@@ -132,6 +202,10 @@ class StaticProcedure(Procedure):
     def result(self) -> CalibrationResult:
         """The calibration, or a CalibrationError saying what cannot be calibrated and what to do."""
         rows, used = pose_table(self.detector.accepted(), self.rejected)
+        if not used and self.any_orientation:
+            raise CalibrationError("no usable still pose was found",
+                                   f"hold the sensor still for {self.detector.min_hold:g} s in each of at least "
+                                   f"{MULTI_MIN_DISTINCT} orientations")
         if not used:
             self._require_six_faces(set())   # says which faces were held and why they did not count
         stats = [PoseStats.from_samples(p.samples, p.face, f"pose {k}") for k, p in used]
@@ -250,10 +324,18 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
                            "residual": (corr.matrix @ lof).tolist(), "residual_norm": float(np.linalg.norm(corr.matrix @ lof))}
                           for p, f, lof in zip(poses, data.faces, fit.residuals, strict=True)]
         arrays = {"pose_references": data.references, "pose_residuals": fit.residuals}
-        if dof > 0 and p_value < 1e-3:
+        if dof > 0 and p_value < CHI2_ALPHA:
+            # The data disagree with exact faces: the stated u grows with the misfit (Birge ratio), the
+            # numbers stay the fit's.  Tilted poses are better served by the six-face model, which says so.
+            birge = float(np.sqrt(chi2 / dof))
+            cov, uncertainty = cov * birge**2, uncertainty * birge
+            corr = Correction(corr.matrix, corr.bias, corr.covariance * birge**2)
+            source = (f"noise of the pose means x Birge ratio {birge:.3g} (chi^2 {chi2:.1f} for {dof} dof: "
+                      "the poses are not exact faces)")
             warnings.append(f"the poses disagree with the {label} model beyond their noise (chi2 = "
                             f"{chi2:.1f} for {dof} dof): table not level, cube not square or a pose "
-                            "not flat? The uncertainties may be too small (the six-face model allows for tilted poses).")
+                            f"not flat? The uncertainties are scaled by the Birge ratio {birge:.3g}; the six-face "
+                            "model (--model six-face) allows for tilted poses.")
         if fit.extra.get("converged") is False:
             warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
     else:

@@ -15,7 +15,7 @@ SETTINGS = (
             "(flatness prior); multi-position = |C (raw - b)| = g from >= 9 orientations (imu_tk); "
             "paper / affine = exact faces (9 / 12 parameters, no tilt); auto = six-face when every pose is "
             "near a face, multi-position when not", kind="choice", choices=MODEL_CHOICES, default="auto",
-            label="model"),
+            label="model (multi-position: hold it still in any orientation)"),
     Setting("method", "vp = variable projection + Levenberg-Marquardt; paper = the paper's Nelder-Mead over "
             "the angles (9-parameter model only)", kind="choice", choices=METHODS, default="vp", label="method"),
     GRAVITY,

@@ -1,4 +1,4 @@
-"""Six-face static calibration: still poses on a level surface with handling between them.
+"""Static calibration: still poses (faces down, or any orientation) with handling between them.
 
 Convention ("face X down"): the cube rests on its X face, so the sensor's X
 axis points DOWN and, at rest, reads -g (specific force: the axis pointing
@@ -10,9 +10,19 @@ The script, drawn once from the seeded generator: pose k is held still for
 m/s^2 at 2-6 Hz) and puts it down, in 1-3 s.  The sensor sits at the centre
 the cube turns about; its trajectory (lift and shake as displacements, the
 orientation) goes through accelrig.sim.kinematics.  Each pose has a random yaw on
-the table (invisible to gravity) and an optional random tilt (``tilt``,
-degrees sd: table not level, cube not square), which a calibration that
-takes the faces as exact references cannot tell from a sensor error.
+the table (invisible to gravity) and two kinds of tilt a calibration that
+takes the faces as exact references cannot tell from a sensor error:
+
+  tilt=S    the hand: each pose tilted at random, each of the two horizontal
+            components N(0, S^2) degrees (the same definition as the six-face
+            fit's pose flatness);
+  table=D   the table: its top tilted by D degrees in a random direction,
+            drawn once; with the random yaw of each pose the same table tilt
+            appears in a different direction in each pose's body frame.
+
+``orientations=N`` replaces the faces by N orientations drawn uniformly over
+all rotations (the multi-position calibration: the sensor held still against
+a fixture in any orientation), with the same handling between them.
 ``moved=K`` makes pose K (1-based) slowly tip by ``moved_deg`` in the middle
 of its hold, for the 'moved during pose' check.
 """
@@ -21,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from scipy.special import ndtr
 
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
@@ -58,35 +69,58 @@ def parse_faces(text: str) -> tuple[str, ...]:
     return tuple(faces)
 
 
+def _down(face: str) -> np.ndarray:
+    """Unit vector of the body axis that points down with ``face`` down (the rig's own, from _FACE_DOWN)."""
+    return _FACE_DOWN[face].inv().apply([0.0, 0.0, -1.0])
+
+
 def _min_jerk(s: np.ndarray) -> np.ndarray:
     return s**3 * (10 - 15 * s + 6 * s**2)
 
 
 class StaticRig(Rig):
     name = "static"
-    description = "six-face static calibration: still poses (face down) with handling motion between them"
+    description = ("static calibration: still poses (faces down, or any orientation with orientations=N) "
+                   "with handling motion between them")
     options = {
         "order": "faces down in the operator's order, comma separated (default +z,-z,+x,-x,+y,-y); repeats allowed",
         "hold": "seconds each pose is held still (default 4)",
-        "tilt": "sd of each pose's random tilt from exactly face-down, degrees (default 0: levelled surface)",
+        "tilt": "hand placement: sd of each of the two components of a pose's random tilt from face-down, "
+                "degrees (default 0)",
+        "table": "table tilt, degrees, in a random direction drawn once; each pose's random yaw shows it in a "
+                 "different direction in the body frame (default 0: levelled)",
+        "orientations": "N still poses in orientations uniform over all rotations instead of the faces "
+                        "(multi-position calibration; not with order, tilt or table)",
         "shake": "peak handling acceleration between poses, m/s^2 (default 3)",
         "moved": "1-based pose that tips slowly in the middle of its hold (default: none)",
         "moved_deg": "how far that pose tips, degrees (default 3)",
     }
 
     def __init__(self, rng: np.random.Generator, order=DEFAULT_ORDER, hold: float = 4.0, tilt_deg: float = 0.0,
-                 shake: float = 3.0, moved: int | None = None, moved_deg: float = 3.0, g: float = STANDARD_GRAVITY):
+                 shake: float = 3.0, moved: int | None = None, moved_deg: float = 3.0, g: float = STANDARD_GRAVITY,
+                 table_deg: float = 0.0, orientations: int | None = None):
         if hold <= 0:
             raise DeviceError(f"hold={hold} must be positive")
-        if tilt_deg < 0 or shake < 0:
-            raise DeviceError("tilt and shake must not be negative")
+        if tilt_deg < 0 or shake < 0 or table_deg < 0:
+            raise DeviceError("tilt, table and shake must not be negative")
+        if orientations is not None:
+            if orientations < 1:
+                raise DeviceError(f"orientations={orientations} must be at least 1")
+            if tilt_deg or table_deg:
+                raise DeviceError("tilt and table apply to faces, not to orientations=N (already any orientation)")
+            order = (None,) * orientations
         order = tuple(order)
         if moved is not None and not 1 <= moved <= len(order):
             raise DeviceError(f"moved={moved} is not a pose number (1..{len(order)})")
         self.order, self.hold, self.tilt_deg, self.shake, self.g = order, float(hold), float(tilt_deg), float(shake), g
         self.moved, self.moved_deg = moved, float(moved_deg)
+        self.table_deg, self.orientations = float(table_deg), orientations
+        # The table's tilt (world frame), drawn only when asked so a seed's script without it is unchanged.
+        table_heading = rng.uniform(0, 2 * np.pi) if table_deg > 0 else 0.0
+        self._table = Rotation.from_rotvec(np.deg2rad(table_deg) * np.array([np.cos(table_heading),
+                                                                            np.sin(table_heading), 0.0]))
 
-        # Still orientations: face down, random yaw, small random tilt about a horizontal axis.
+        # Still orientations: face down, random yaw, small random hand tilt about a horizontal axis, the table.
         self._poses: list[dict] = []
         self._transitions: list[dict] = []
         t = 0.0
@@ -94,9 +128,15 @@ class StaticRig(Rig):
         for k, face in enumerate(order):
             yaw = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi))
             heading = rng.uniform(0, 2 * np.pi)
-            tilt = Rotation.from_rotvec(np.deg2rad(rng.normal() * tilt_deg)
-                                        * np.array([np.cos(heading), np.sin(heading), 0.0]))
-            orientation = tilt * yaw * _FACE_DOWN[face]
+            # Hand tilt: isotropic 2-D Gaussian of sd tilt_deg per component = a uniform heading and a Rayleigh
+            # radius, the radius from the normal draw through its CDF (the same three draws per pose as
+            # always, so a seed's script does not depend on the tilt asked for).
+            radius = tilt_deg * np.sqrt(-2.0 * np.log(max(float(ndtr(rng.normal())), 1e-300)))
+            tilt = Rotation.from_rotvec(np.deg2rad(radius) * np.array([np.cos(heading), np.sin(heading), 0.0]))
+            if face is None:
+                orientation = Rotation.random(random_state=rng)
+            else:
+                orientation = self._table * tilt * yaw * _FACE_DOWN[face]
             if previous is not None:
                 duration = rng.uniform(1.0, 3.0)
                 freqs = rng.uniform(2.0, 6.0, (3, 3))
@@ -106,8 +146,10 @@ class StaticRig(Rig):
                 self._transitions.append(dict(start=t, stop=t + duration, a=previous, b=orientation,
                                               lift=rng.uniform(0.03, 0.08), freqs=freqs, phases=phases, amps=amps))
                 t += duration
-            pose = dict(face=face, start=t, stop=t + self.hold, rotation=orientation, tilt_deg=float(
-                np.rad2deg(tilt.magnitude())))
+            up_body = orientation.inv().apply([0.0, 0.0, 1.0])
+            pose = dict(face=face, start=t, stop=t + self.hold, rotation=orientation,
+                        tilt_deg=float(np.degrees(np.arccos(np.clip(-up_body @ _down(face), -1, 1))))
+                        if face else None)
             if moved == k + 1:
                 axis = np.array([np.cos(heading + 1.0), np.sin(heading + 1.0), 0.0])
                 pose["tip"] = dict(start=t + 0.4 * self.hold, stop=t + 0.6 * self.hold,
@@ -121,11 +163,16 @@ class StaticRig(Rig):
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StaticRig:
         order = parse_faces(url.get_str("order")) if url.get_str("order") else DEFAULT_ORDER
+        orientations = url.get_int("orientations", low=1, high=1000)
+        if orientations is not None and url.get_str("order"):
+            raise DeviceError("give either order= (faces) or orientations=N (any orientation), not both")
         return cls(rng, order=order, hold=url.get_float("hold", 4.0, low=0.0, low_open=True, high=3600.0, unit="s"),
                    tilt_deg=url.get_float("tilt", 0.0, low=0.0, high=90.0, unit="deg"),
                    shake=url.get_float("shake", 3.0, low=0.0, high=100.0, unit="m/s^2"),
                    moved=url.get_int("moved"),   # the rig says which pose numbers exist
-                   moved_deg=url.get_float("moved_deg", 3.0, low=0.0, high=180.0, unit="deg"))
+                   moved_deg=url.get_float("moved_deg", 3.0, low=0.0, high=180.0, unit="deg"),
+                   table_deg=url.get_float("table", 0.0, low=-90.0, high=90.0, unit="deg"),
+                   orientations=orientations)
 
     def _pose_rotation(self, pose: dict, t: np.ndarray) -> Rotation:
         tip = pose.get("tip")
@@ -179,9 +226,11 @@ class StaticRig(Rig):
         up = np.array([0.0, 0.0, 1.0])
         for pose in self._poses:
             entry = {
+                "kind": "face" if pose["face"] else "arbitrary",
                 "face": pose["face"],
                 "start": pose["start"],
                 "stop": pose["stop"],
+                # angle of the true down direction from the face's (hand and table together); None if arbitrary
                 "tilt_deg": pose["tilt_deg"],
                 "rotation": pose["rotation"].as_matrix().tolist(),
                 # unit 'up' direction in the body frame: the still specific force is g times this
@@ -197,6 +246,9 @@ class StaticRig(Rig):
             "order": list(self.order),
             "hold": self.hold,
             "tilt_deg": self.tilt_deg,
+            "table_deg": self.table_deg,
+            "table_rotation": self._table.as_matrix().tolist(),
+            "orientations": self.orientations,
             "poses": poses,
             "transitions": [{"start": tr["start"], "stop": tr["stop"]} for tr in self._transitions],
         }

@@ -6,6 +6,11 @@ held pose's own progress bar, r for the procedure's 'redo' (asking which
 face), and 'still missing: ...' when c is pressed early.  Settings, events
 ('hold still', 'motion detected', 'captured'), the fit in a worker and the
 results come from the generic wizard.
+
+With the model setting ``multi-position`` ("hold it still in any orientation") the face grid gives
+way to the sphere map (``widgets.sphere``): where the captured poses point, how many distinct
+orientations there are (closer than 10 degrees counts once) and how many more are needed; the
+procedure computes once it has enough.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from textual.widgets.option_list import Option
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
+from accelrig.tui.widgets.sphere import SphereMap
 
 
 class RedoScreen(ModalScreen[str | None]):
@@ -52,15 +58,32 @@ class StaticWizard(ProcedureWizard):
 
     def compose_body(self) -> ComposeResult:
         yield FaceGrid(id="faces")
+        sphere = SphereMap("", id="sphere")
+        sphere.display = False    # until the settings choose the any-orientation flow
+        yield sphere
         yield Static("", id="pose-state")
         with Horizontal(classes="bar-row"):
             yield Label("this pose", classes="bar-label")
             yield ProgressBar(total=1.0, show_eta=False, id="pose-progress")
 
+    def reset_body(self) -> None:
+        """Faces or the sphere, as the settings chose."""
+        any_orientation = self.procedure.any_orientation
+        self.query_one("#faces", FaceGrid).display = not any_orientation
+        self.query_one("#sphere", SphereMap).display = any_orientation
+        self.query(".bar-label").last().update("orientations" if any_orientation else self.progress_label)
+
     def show_procedure(self, events: list) -> None:
         faces = self.procedure.faces
-        self.query_one("#faces", FaceGrid).show(faces)
         self.query_one("#pose-progress", ProgressBar).update(progress=faces["hold_fraction"])
+        if self.procedure.any_orientation:
+            orientations = self.procedure.orientations
+            self.query_one("#sphere", SphereMap).show(orientations)
+            state = (f"[green]● still[/]: held {faces['held_seconds']:.1f} of {self.procedure.hold:g} s"
+                     if faces["still"] else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
+            self.query_one("#pose-state", Static).update(state)
+            return
+        self.query_one("#faces", FaceGrid).show(faces)
         if faces["still"]:
             state = (f"[green]● still[/]: {faces['current_face'] or 'not flat'} down, held "
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
@@ -72,6 +95,9 @@ class StaticWizard(ProcedureWizard):
             f"{state}   faces {faces['n_done']}/6   poses {faces['n_poses']}")
 
     async def action_arguments(self, action: str) -> dict | None:
+        if self.procedure.any_orientation:
+            self.set_instruction("any orientation: every pose is kept, nothing to redo (hold more orientations)")
+            return None
         done = self.procedure.faces_done   # the only action is redo: which face?
         if not done:
             self.set_instruction("no face is done yet: nothing to redo")
@@ -80,4 +106,8 @@ class StaticWizard(ProcedureWizard):
         return None if face is None else {"face": face}
 
     def not_ready_text(self) -> str:
+        if self.procedure.any_orientation:
+            o = self.procedure.orientations
+            return (f"{o['n_distinct']} distinct orientations: {o['more']} more needed (turn the sensor at least "
+                    f"{o['distinct_deg']:g} degrees from every pose held, between the faces too)")
         return f"still missing: {', '.join(self.procedure.missing_faces)} (any order)"

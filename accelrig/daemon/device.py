@@ -1,0 +1,660 @@
+"""One device under the daemon's care: connect, flash, stream to segments, reconnect, account for every sample.
+
+A DeviceRunner owns one thread that keeps its device recorded:
+
+* connect: open the driver (through ``UtcDriver``, which puts every sample on
+  absolute UTC time), write a profile a URL names (``profile=PATH``) or the
+  configured profile's offsets (``flash: true``) on **every** connect (offset
+  registers are volatile), choose the profile (store, path or none), start the
+  Session's pump with one lossless reader;
+* stream: every ``POLL`` seconds write what arrived to the connection's
+  SegmentWriter (raw counts, and calibrated channels when asked);
+* faults: a device error, a stall (no data for ``stall_seconds``) or a failed
+  connect closes the connection's writer and reconnects after an exponential
+  backoff; the time without data becomes a gap record with its cause and
+  duration at the start of the next connection's segments.  Gaps the driver
+  reports (FIFO overflow, corrupt or lost frames) become gap records where
+  they happened.  A full disk drops samples, counted, until a write succeeds
+  again, and then a "disk full" gap record says how many and how long.  A
+  problem no retry can fix (a profile for another device, a missing stored
+  profile the configuration requires) stops this device only, with the field
+  named.
+
+Accounting, kept in ``counts`` and written to the device's journal when it
+stops: delivered = written + dropped (each dropped sample in a "disk full"
+gap record); missing = the samples the device reported lost (in gap records
+of known size).
+
+The journal (``OUTPUT/NAME/journal.jsonl``) has one JSON line per event:
+connect (device, profile, flash, time base), gap, disconnect, stop.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from accelrig.acquisition.block import Block
+from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
+from accelrig.acquisition.session import Session, State
+from accelrig.daemon.clock import UtcClock
+from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
+from accelrig.errors import AccelrigError, ProfileError, StorageError, StorageFull
+
+POLL = 0.2                 # s between writes of what arrived
+DISK_RETRY = 2.0           # s between write attempts while the disk is full
+CALIBRATED_CHANNELS = ("cal_x", "cal_y", "cal_z")
+UNCERTAINTY_CHANNELS = ("u_x", "u_y", "u_z")
+
+
+def utc_text(seconds: float | None) -> str | None:
+    if seconds is None:
+        return None
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(seconds)) + f".{int((seconds % 1) * 1e6):06d}Z"
+
+
+class UtcDriver(Driver):
+    """The device's driver with every block's times mapped to UTC seconds (``clock.UtcClock``).
+
+    A new UtcClock per open: each connection is anchored afresh.
+    """
+
+    def __init__(self, inner: Driver):
+        super().__init__(inner.url)
+        self.inner = inner
+        self.scheme = inner.scheme
+        self.clock: UtcClock | None = None
+
+    def open(self) -> DeviceInfo:
+        info = self.inner.open()
+        self.clock = UtcClock(info.nominal_rate)
+        return info
+
+    def read(self, timeout: float = 0.1) -> list[Block]:
+        blocks = self.inner.read(timeout)
+        if not blocks:
+            return blocks
+        arrival = time.monotonic()   # every block of this read had arrived by now
+        return [Block(b.seq, b.counter, b.host_time, b.counts, b.scale,
+                      self.clock.map(b.t, arrival, int(b.gap_before)), b.gap_before, b.channels)
+                for b in blocks]
+
+    def close(self) -> None:
+        self.inner.close()
+
+    @property
+    def at_end(self) -> bool:
+        return self.inner.at_end
+
+    @property
+    def info(self) -> DeviceInfo | None:
+        return self.inner.info
+
+    @info.setter
+    def info(self, value) -> None:
+        if hasattr(self, "inner"):
+            self.inner.info = value
+
+    def plan_flash(self, correction, profile_id):
+        return self.inner.plan_flash(correction, profile_id)
+
+    def flash(self, plan):
+        return self.inner.flash(plan)
+
+
+@dataclass
+class Counts:
+    """What happened to the samples of one device, over the daemon's life (all connections)."""
+
+    delivered: int = 0        # samples the driver delivered
+    written: int = 0          # samples in segments
+    dropped: int = 0          # delivered but not written (disk full), each in a gap record
+    missing: int = 0          # samples the device reported lost (known sizes), in gap records
+    gaps: int = 0             # gap records written
+    connects: int = 0
+    failed_connects: int = 0
+
+
+@dataclass
+class PendingGap:
+    """A stretch without samples, written as a record before the next sample."""
+
+    cause: str
+    since_utc: float | None       # UTC of the last sample before it (None: no sample yet)
+    samples: int = -1             # -1: unknown (the device was not there to count)
+    extra: dict = field(default_factory=dict)
+
+
+class DeviceRunner:
+    def __init__(self, device: DeviceConfig, config: DaemonConfig, log):
+        self.device = device
+        self.config = config
+        self.log = log                       # log(line): one status/event line for the operator
+        self.directory = Path(config.output) / device.name
+        self.counts = Counts()
+        self.state = "starting"
+        self.last_error: str | None = None
+        self.profile_note = "none"
+        self.info: DeviceInfo | None = None
+        self.session: Session | None = None
+        self.writer = None
+        self.measured_rate: float | None = None
+        self.delivered_rate = 0.0
+        self.last_sample_utc: float | None = None
+        self.last_data = time.monotonic()    # monotonic time of the last sample received
+        self.heartbeat = time.monotonic()    # the loop's last turn (the watchdog checks it)
+        self._stop = threading.Event()
+        self.stop_reason = "the daemon was stopped"
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._pending: PendingGap | None = None
+        self._disk_full: dict | None = None  # {"since": utc, "samples": n, "next_try": monotonic}
+        self._profile = None
+        self._bytes_closed = 0
+        self._segments_closed = 0
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self) -> None:
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._pending = self._since_last_run()
+        self._thread = threading.Thread(target=self._run, name=f"accelrig daemon {self.device.name}", daemon=True)
+        self._thread.start()
+
+    def _since_last_run(self) -> PendingGap | None:
+        """Finish what a crash left open, and the gap between the last run's last sample and this run.
+
+        A run that stopped says when and why in its journal's last "stop" event;
+        one that was killed left an open segment whose last complete block says when.
+        """
+        from accelrig.errors import DataError
+        from accelrig.segments import OPEN_SUFFIX, recover, scan
+
+        last_ns = None
+        for path in sorted(self.directory.glob("*" + OPEN_SUFFIX)):
+            try:
+                scanned = scan(path)
+            except DataError:
+                continue    # recover() says what is wrong with it
+            if scanned.last_ns is not None:
+                last_ns = max(last_ns or scanned.last_ns, scanned.last_ns)
+        reports = recover(self.directory)   # segments a crash (kill -9, power cut) left open
+        for report in reports:
+            self.log(f"{self.device.name}: {report}")
+            self._journal("recovered", report=str(report), samples=report.samples,
+                          lost_samples=report.lost_samples, lost_bytes=report.lost_bytes)
+        if reports:
+            since = last_ns / 1e9 if last_ns is not None else None
+            return PendingGap("not recording: the previous run ended without stopping (killed or crashed)", since)
+        last = self._last_journal_event()
+        if last is not None and last.get("event") == "stop" and last.get("last_sample_utc") is not None:
+            return PendingGap(f"not recording: {last.get('reason', 'stopped')}", float(last["last_sample_utc"]))
+        if last is not None:
+            return PendingGap("not recording: the previous run ended without stopping (killed or crashed)", None)
+        return None
+
+    def _last_journal_event(self) -> dict | None:
+        path = self.directory / "journal.jsonl"
+        try:
+            with open(path, "rb") as fh:
+                fh.seek(max(fh.seek(0, 2) - 65536, 0))
+                lines = fh.read().splitlines()
+        except FileNotFoundError:
+            return None
+        for line in reversed(lines):
+            try:
+                return json.loads(line)
+            except ValueError:
+                continue   # a line torn by a crash
+        return None
+    def stop(self, reason: str = "the daemon was stopped") -> None:
+        """Ask the thread to flush and stop (returns at once; ``join`` waits); ``reason`` goes to the journal."""
+        self.stop_reason = reason
+        self._stop.set()
+
+    def join(self, timeout: float | None = None) -> bool:
+        if self._thread is not None:
+            self._thread.join(timeout)
+            return not self._thread.is_alive()
+        return True
+
+    @property
+    def healthy(self) -> bool:
+        """The loop turned recently (a hung write or driver call makes it false)."""
+        return self.state in ("failed", "ended", "stopped") or time.monotonic() - self.heartbeat < 10 * POLL + 5.0
+
+    # ------------------------------------------------------------------ the loop
+    def _run(self) -> None:
+        backoff = self.config.reconnect_initial
+        try:
+            while not self._stop.is_set():
+                self.heartbeat = time.monotonic()
+                streamed = False
+                try:
+                    self._connect()
+                except ConfigError as exc:
+                    self._fail(str(exc))
+                    return
+                except AccelrigError as exc:
+                    self.counts.failed_connects += 1
+                    self._set("waiting", str(exc))
+                    if self._pending is None:
+                        self._pending = PendingGap(f"connect failed: {exc}", self.last_sample_utc)
+                    self.log(f"{self.device.name}: cannot connect ({exc}); next try in {backoff:g} s")
+                    self._journal("connect_failed", error=str(exc), retry_in=backoff)
+                    self._wait(backoff)
+                    backoff = min(backoff * 2, self.config.reconnect_max)
+                    continue
+                except Exception as exc:
+                    reason = self._internal_error(exc)
+                else:
+                    try:
+                        streamed, reason = self._stream()
+                    except Exception as exc:
+                        reason = self._internal_error(exc)
+                if streamed:
+                    backoff = self.config.reconnect_initial
+                if reason is None:          # stopped by the daemon, or a finite source ended
+                    return
+                self._set("waiting", reason)
+                self.log(f"{self.device.name}: {reason}; reconnecting in {backoff:g} s")
+                self._wait(backoff)
+                if not streamed:
+                    backoff = min(backoff * 2, self.config.reconnect_max)
+        finally:
+            self._finish()
+
+    def _internal_error(self, exc: Exception) -> str:
+        """A bug met while connecting or streaming: shown in full, recorded, and the device reconnected
+        (a daemon that runs for weeks must not lose a device to one bad block)."""
+        import traceback
+
+        traceback.print_exc()
+        reason = f"internal error: {type(exc).__name__}: {exc}"
+        self._journal("internal_error", error=reason, traceback=traceback.format_exc())
+        if self._pending is None:
+            self._pending = PendingGap(reason, self.last_sample_utc)
+        return reason
+
+    def _wait(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while not self._stop.is_set() and time.monotonic() < end:
+            self.heartbeat = time.monotonic()
+            self._stop.wait(min(0.5, max(end - time.monotonic(), 0.0)))
+
+    def _set(self, state: str, error: str | None = None) -> None:
+        with self._lock:
+            self.state = state
+            self.last_error = error
+
+    def _fail(self, message: str) -> None:
+        self._set("failed", message)
+        self.log(f"{self.device.name}: stopped: {message}")
+        self._journal("failed", error=message)
+
+    # ------------------------------------------------------------------ connecting
+    def _connect(self) -> None:
+        from accelrig.profiles.flash import flash_url_profile
+
+        self._set("connecting", self.last_error)
+        try:
+            driver = UtcDriver(driver_for(self.device.url))
+        except AccelrigError as exc:
+            raise ConfigError(f"{self.device.field('url')}: {exc}") from None
+        session = Session(driver=driver, buffer_seconds=30.0)
+        try:
+            info = session.open()
+            flash_url_profile(driver)            # a URL's profile=PATH, as everywhere else
+            self._profile = self._choose_profile(info)
+            flashed = self._flash(driver) if self.device.flash else None
+            self._open_writer(info, driver.clock, flashed)
+            reader = session.reader(from_oldest=True, lossless=True)
+            session.start()
+        except ProfileError as exc:
+            session.stop()
+            self._close_writer()
+            raise ConfigError(f"{self.device.field('profile')}: {exc}") from None
+        except BaseException:
+            session.stop()
+            self._close_writer()
+            raise
+        self.session, self.info, self._reader = session, info, reader
+        self.counts.connects += 1
+        self._journal("connect", connection=self.counts.connects, url=info.url, identity=info.identity,
+                      nominal_rate=info.nominal_rate, profile=self._profile_reference(), flashed=flashed,
+                      hardware_bias_removed=info.hardware_bias_removed)
+        self.last_data = time.monotonic()
+        self._set("streaming", None)
+        self.log(f"{self.device.name}: connected to {info.url} ({info.chip} {info.identity}, "
+                 f"{info.nominal_rate:g} Hz), profile {self.profile_note}")
+
+    def _choose_profile(self, info: DeviceInfo):
+        """The profile this connection uses (or None), checked against the device."""
+        from accelrig.profiles.apply import check_compatible
+        from accelrig.profiles.io import load_profile
+        from accelrig.profiles.store import ProfileStore
+
+        device = self.device
+        if device.profile == "none":
+            self.profile_note = "none"
+            return None
+        if device.profile == "store":
+            store = ProfileStore(self.config.profile_store)
+            try:
+                choice = store.choose(info.identity)
+            except ProfileError as exc:
+                if device.output == "raw" and not device.flash:
+                    self.profile_note = f"none (no stored profile for {info.identity!r})"
+                    return None
+                raise ProfileError(f"{exc.message}; output {device.output}"
+                                   + (" and flash" if device.flash else "") + " need one", exc.hint) from None
+            for warning in choice.warnings:
+                self.log(f"{device.name}: {warning}")
+            profile = choice.stored.profile
+        else:
+            profile = load_profile(device.profile_path)
+        for warning in check_compatible(profile, info.to_dict(), "counts"):
+            self.log(f"{device.name}: profile: {warning}")
+        self.profile_note = str(profile.path)
+        return profile
+
+    def _flash(self, driver) -> dict:
+        """Write the profile's offsets to the chip (every connect: the registers are volatile)."""
+        from accelrig.profiles.flash import plan_flash
+
+        if self._profile is None:
+            raise ProfileError("flash needs a profile and none was found")
+        report = driver.flash(plan_flash(driver, self._profile))
+        if not report.verified:
+            raise AccelrigError(f"flashing the offsets was not verified: {'; '.join(report.notes)}")
+        driver.info.offsets_applied = report.residual
+        return {"verified": report.verified, "residual": report.residual}
+
+    def _profile_reference(self) -> dict | None:
+        p = self._profile
+        if p is None:
+            return None
+        return {"path": str(p.path) if p.path else None, "identity": p.identity,
+                "created": p.data["provenance"]["created"], "procedure": p.procedure, "method": p.method}
+
+    # ------------------------------------------------------------------ writing
+    def _channel_names(self, info: DeviceInfo) -> tuple[str, ...]:
+        names = tuple(info.channels)
+        if self.device.output == "calibrated":
+            names += CALIBRATED_CHANNELS + (UNCERTAINTY_CHANNELS if self.device.uncertainty else ())
+        return names
+
+    def _open_writer(self, info: DeviceInfo, clock: UtcClock, flashed: dict | None) -> None:
+        from accelrig.segments import SegmentWriter
+
+        device = info.to_dict()
+        if info.link_stats is not None:   # what the link got wrong so far, as plain numbers
+            device["extra"]["link_stats"] = info.link_stats.as_dict()
+        meta = {
+            "device": device,
+            "name": self.device.name,
+            "connection": self.counts.connects + 1,
+            "time_base": "utc",
+            "clock": clock.describe(),
+            "profile": self._profile_reference(),
+            "output": self.device.output,
+            "flashed": flashed,
+        }
+        if self.device.output == "calibrated":
+            meta["calibrated_channels"] = {
+                "cal_x, cal_y, cal_z": "calibrated acceleration, m/s^2: C @ (counts x scale - b) of the profile",
+                **({"u_x, u_y, u_z": "standard uncertainty of each calibrated axis, m/s^2"}
+                   if self.device.uncertainty else {}),
+            }
+        self.writer = SegmentWriter(
+            self.directory, stem=self.device.name, meta=meta, scale=info.scale, channels=self._channel_names(info),
+            segment_seconds=self.config.segment_seconds,
+            segment_bytes=int(self.config.segment_megabytes * 1e6), csv=self.device.csv,
+        )
+
+    def _close_writer(self) -> None:
+        writer, self.writer = self.writer, None
+        if writer is None:
+            return
+        try:
+            writer.close()
+        except StorageError as exc:  # a disk that filled up at the very end: what was written is consistent
+            self.log(f"{self.device.name}: closing the segment: {exc}")
+        self._bytes_closed += writer.bytes_written
+        self._segments_closed += writer.segments_finished
+
+    def _stream(self) -> tuple[bool, str | None]:
+        """Write what arrives until the connection ends; (samples arrived?, why it ended or None)."""
+        session, stall = self.session, self.config.stall_seconds
+        streamed = False
+        reason: str | None = None
+        finished = 0
+        try:
+            while True:
+                self.heartbeat = time.monotonic()
+                if self._stop.wait(POLL):
+                    break
+                n = self._drain()
+                now = time.monotonic()
+                if n:
+                    streamed = True
+                    self.last_data = now
+                if self.writer.segments_finished != finished:
+                    # a segment was finished: the rate measured so far, beside it in the journal
+                    finished = self.writer.segments_finished
+                    self._journal("clock", segments_finished=finished, clock=session.driver.clock.describe())
+                stats = session.stats()
+                self.delivered_rate = stats.delivered_rate
+                if session.interrupted:
+                    reason = f"disconnected: {session.interrupted}"
+                    break
+                if session.state == State.ENDED:
+                    self._set("ended", "the source delivered everything it had")
+                    self.log(f"{self.device.name}: the source ended")
+                    break
+                if now - self.last_data > stall:
+                    reason = f"stalled: no data for {stall:g} s while connected"
+                    break
+        finally:
+            session.stop()
+            try:
+                self._drain()             # what the pump took before it stopped
+            except Exception as exc:
+                reason = self._internal_error(exc)
+            session.release(self._reader)
+            clock = session.driver.clock
+            self.measured_rate = clock.measured_rate or self.measured_rate
+            self._journal("disconnect", reason=reason or (self.stop_reason if self._stop.is_set() else self.state), clock=clock.describe(),
+                          last_sample=utc_text(self.last_sample_utc))
+            if reason is not None:
+                self._pending = PendingGap(reason, self.last_sample_utc)
+            self._record_drops()
+            self._close_writer()
+            self.session = None
+        return streamed, reason
+
+    def _drain(self) -> int:
+        """Write everything the reader holds; returns the samples taken."""
+        chunk = self._reader.read()
+        self.session.notify_read()
+        if chunk.lost:  # impossible on a lossless reader; never hidden
+            self._write_gap(float(chunk.t[0]) if chunk.n else time.time(), chunk.lost, "reader overrun", None)
+        if not chunk.n:
+            return 0
+        self.counts.delivered += chunk.n
+        cuts = [pos for pos, _ in chunk.gaps]
+        bounds = [0] + [c for c in cuts if c > 0] + [chunk.n]
+        gaps = dict(chunk.gaps)
+        for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
+            if start in gaps:
+                self._device_gap(chunk.t, start, gaps[start])
+            if stop > start:
+                self._write(chunk, start, stop)
+        self.last_sample_utc = float(chunk.t[-1])
+        return chunk.n
+
+    def _device_gap(self, t: np.ndarray, pos: int, missing: int) -> None:
+        """A gap the driver reported before sample ``pos`` of a chunk."""
+        if missing > 0:
+            self.counts.missing += missing
+        before = float(t[pos - 1]) if pos > 0 else self.last_sample_utc
+        seconds = float(t[pos]) - before - 1.0 / self.info.nominal_rate if before is not None else None
+        self._write_gap(float(t[pos]), missing, self._link_gap_cause(), seconds)
+
+    def _link_gap_cause(self) -> str:
+        info = self.info
+        if info.driver in ("i2c", "i2c-sim"):
+            return "FIFO overflow (samples lost in the chip before they were read)"
+        if info.link_stats is not None:
+            return "frames lost on the link (corrupt or dropped)"
+        return "samples lost by the device or link"
+
+    def _write(self, chunk, start: int, stop: int) -> None:
+        t = chunk.t[start:stop]
+        n = stop - start
+        if self._pending is not None:
+            p = self._pending
+            self._pending = None
+            seconds = float(t[0]) - p.since_utc if p.since_utc is not None else None
+            self._write_gap(float(t[0]), p.samples, p.cause, seconds)
+        full = self._disk_full
+        if full is not None and time.monotonic() < full["next_try"]:
+            self._drop(t, n)    # not yet time to try again
+            return
+        try:
+            if full is not None:
+                seconds = float(t[0]) - full["since"]
+                self.writer.gap(full["since"], full["samples"], full["cause"], seconds)
+                self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
+                              seconds=seconds)
+                self.counts.gaps += 1
+                self._disk_full = None
+                self._set("streaming", None)
+                self.log(f"{self.device.name}: writing again after {full['cause']} "
+                         f"({full['samples']} samples dropped over {seconds:.1f} s)")
+            self.writer.write(t, chunk.counts[start:stop], self._channels(chunk, start, stop))
+            self.counts.written += n
+        except StorageFull as exc:
+            self._drop(t, n, "disk full", str(exc), tried=True)
+        except StorageError as exc:   # an I/O error: the same care, its own cause
+            self._drop(t, n, "write failed", str(exc), tried=True)
+
+    def _drop(self, t: np.ndarray, n: int, cause: str = "", error: str | None = None, tried: bool = False) -> None:
+        """Samples delivered that cannot be written: counted, and one gap record once writing resumes."""
+        self.counts.dropped += n
+        if self._disk_full is None:
+            self._disk_full = {"since": float(t[0]), "samples": 0, "cause": cause}
+            self._set(cause, error)
+            self.log(f"{self.device.name}: {cause} ({error}); samples are counted and dropped until writing "
+                     "succeeds again")
+        self._disk_full["samples"] += n
+        if tried:
+            self._disk_full["next_try"] = time.monotonic() + DISK_RETRY
+
+    def _channels(self, chunk, start: int, stop: int) -> dict[str, np.ndarray] | None:
+        from accelrig.acquisition.ringbuffer import Chunk
+        from accelrig.profiles.apply import calibrated
+
+        out = {name: values[start:stop] for name, values in chunk.channels.items()}
+        if self.device.output == "calibrated":
+            part = Chunk(chunk.first_index + start, chunk.counts[start:stop], chunk.t[start:stop], chunk.scale)
+            device = {"hardware_bias_removed": self.info.hardware_bias_removed}
+            cal = calibrated(part, self._profile, self.device.uncertainty, device=device)
+            out.update({name: cal.acc[:, i] for i, name in enumerate(CALIBRATED_CHANNELS)})
+            if self.device.uncertainty:
+                out.update({name: cal.uncertainty[:, i] for i, name in enumerate(UNCERTAINTY_CHANNELS)})
+        return out or None
+
+    def _write_gap(self, at: float, samples: int, cause: str, seconds: float | None) -> None:
+        self._journal("gap", cause=cause, samples=samples, at=utc_text(at), seconds=seconds)
+        try:
+            self.writer.gap(at, samples, cause, seconds)
+            self.counts.gaps += 1
+        except StorageError as exc:
+            # the record could not be written; the journal has it, the disk-full gap will follow
+            self.log(f"{self.device.name}: gap record not written ({exc})")
+
+    # ------------------------------------------------------------------ ending
+    def _record_drops(self) -> None:
+        """Before a writer closes: the gap record of samples dropped and not yet recorded."""
+        full = self._disk_full
+        if full is None or self.writer is None:
+            return
+        try:
+            self.writer.gap(full["since"], full["samples"], full["cause"], None)
+        except StorageError:
+            self.log(f"{self.device.name}: the {full['cause']} gap record ({full['samples']} samples) could not be "
+                     "written to the segment; the journal has it")
+            self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
+                          seconds=None, in_segment=False)
+        else:
+            self.counts.gaps += 1
+            self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
+                          seconds=None)
+        self._disk_full = None
+
+    def _finish(self) -> None:
+        self._record_drops()
+        self._close_writer()
+        if self.state not in ("failed", "ended"):
+            self._set("stopped", self.last_error)
+        status = self.status()
+        self._journal("stop", counts={**self.counts.__dict__, "bytes_written": status["bytes_written"],
+                                      "segments": status["segments"]}, state=self.state,
+                      reason=self.stop_reason, last_sample=utc_text(self.last_sample_utc),
+                      last_sample_utc=self.last_sample_utc)
+        self.log(f"{self.device.name}: stopped: delivered {self.counts.delivered}, written {self.counts.written}, "
+                 f"dropped {self.counts.dropped}, missing {self.counts.missing}, gaps {self.counts.gaps}")
+
+    def _journal(self, event: str, **fields) -> None:
+        line = json.dumps({"event": event, "utc": utc_text(time.time()), **fields}, default=str)
+        try:
+            with open(self.directory / "journal.jsonl", "a", encoding="utf-8") as fh:
+                fh.write(line + "\n")
+        except OSError as exc:
+            self.log(f"{self.device.name}: journal not written ({exc.strerror}): {line}")
+
+    # ------------------------------------------------------------------ status
+    def status(self) -> dict:
+        with self._lock:
+            state, error = self.state, self.last_error
+        writer = self.writer
+        c = self.counts
+        bytes_written = self._bytes_closed + (writer.bytes_written if writer is not None else 0)
+        segments = self._segments_closed + (writer.segments_finished if writer is not None else 0)
+        info = self.info
+        return {
+            "name": self.device.name,
+            "url": self.device.url,
+            "state": state,
+            "error": error,
+            "identity": info.identity if info else None,
+            "nominal_rate": info.nominal_rate if info else None,
+            "delivered_rate": self.delivered_rate,
+            "measured_rate": self._clock_rate(),
+            "delivered": c.delivered,
+            "written": c.written,
+            "dropped": c.dropped,
+            "missing": c.missing,
+            "gaps": c.gaps,
+            "connects": c.connects,
+            "failed_connects": c.failed_connects,
+            "bytes_written": bytes_written,
+            "segments": segments,
+            "profile": self.profile_note,
+            "output": self.device.output,
+            "last_sample": utc_text(self.last_sample_utc),
+            "seconds_since_data": round(time.monotonic() - self.last_data, 3) if state == "streaming" else None,
+        }
+
+    def _clock_rate(self) -> float | None:
+        session = self.session
+        if session is not None and isinstance(session.driver, UtcDriver) and session.driver.clock is not None:
+            rate = session.driver.clock.measured_rate
+            if rate is not None:
+                return rate
+        return self.measured_rate

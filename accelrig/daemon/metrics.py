@@ -1,0 +1,56 @@
+"""Prometheus metrics on localhost (``metrics_port``), the convention for headless services.
+
+Optional: needs prometheus-client (``pip install 'accelrig[metrics]'``).  The
+collector reads the same snapshot as the status socket at every scrape, so the
+figures are never stale and nothing is counted twice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from accelrig.errors import require_extra
+
+COUNTERS = (
+    ("accelrig_samples_delivered", "delivered", "samples the driver delivered"),
+    ("accelrig_samples_written", "written", "samples written to segments"),
+    ("accelrig_samples_dropped", "dropped", "samples delivered but not written (disk full), each in a gap record"),
+    ("accelrig_samples_missing", "missing", "samples the device reported lost (FIFO overflow, lost frames)"),
+    ("accelrig_gaps", "gaps", "gap records written"),
+    ("accelrig_bytes_written", "bytes_written", "bytes of segments written"),
+    ("accelrig_connects", "connects", "successful connections"),
+)
+
+
+def serve_metrics(port: int, snapshot: Callable[[], dict]):
+    """Serve the metrics on 127.0.0.1:``port``; returns the server (``shutdown()`` stops it)."""
+    from accelrig.daemon.config import ConfigError
+
+    prometheus_client = require_extra("prometheus_client", "metrics_port", "prometheus-client", "metrics")
+    from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
+
+    class Collector:
+        def collect(self):
+            devices = snapshot()["devices"]
+            for name, key, text in COUNTERS:
+                family = CounterMetricFamily(name, text, labels=["device"])
+                for d in devices:
+                    family.add_metric([d["name"]], d[key])
+                yield family
+            rate = GaugeMetricFamily("accelrig_delivered_rate_hz", "samples delivered per second, recent",
+                                     labels=["device"])
+            up = GaugeMetricFamily("accelrig_device_up", "1 while the device is streaming", labels=["device", "state"])
+            for d in devices:
+                rate.add_metric([d["name"]], d["delivered_rate"] or 0.0)
+                up.add_metric([d["name"], d["state"]], 1.0 if d["state"] == "streaming" else 0.0)
+            yield rate
+            yield up
+
+    registry = prometheus_client.CollectorRegistry()
+    registry.register(Collector())
+    try:
+        server, _thread = prometheus_client.start_http_server(port, addr="127.0.0.1", registry=registry)
+    except OSError as exc:
+        raise ConfigError(f"metrics_port: cannot listen on 127.0.0.1:{port} ({exc.strerror})",
+                          "choose a free port, or remove metrics_port") from None
+    return server

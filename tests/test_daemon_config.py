@@ -1,0 +1,211 @@
+"""The daemon's configuration, status socket and systemd notifications, without running a daemon."""
+
+import json
+import os
+import socket
+import stat
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import jsonschema
+import pytest
+import yaml
+
+from accelrig.daemon.config import ConfigError, check_config, json_schema, load_config, parse_config
+from accelrig.daemon.notify import notify, watchdog_interval
+from accelrig.daemon.status import StatusError, StatusServer, format_table, query
+
+REPO = Path(__file__).resolve().parents[1]
+MINIMAL = {"output": "/var/lib/accelrig", "devices": [{"url": "sim://still?seed=1", "name": "bench-a"}]}
+
+
+def cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=60,
+                          cwd=cwd)
+
+
+def test_the_minimal_config_works_with_every_default():
+    config = parse_config(json.loads(json.dumps(MINIMAL)))
+    (device,) = config.devices
+    assert (device.name, device.url, device.profile, device.output, device.flash) == (
+        "bench-a", "sim://still?seed=1", "store", "raw", False)
+    assert config.output == Path("/var/lib/accelrig")
+    assert config.status_socket == Path("/var/lib/accelrig/daemon.sock")
+    assert config.segment_seconds == 3600 and config.stall_seconds == 10
+    assert config.reconnect_initial == 1 and config.reconnect_max == 60
+
+
+@pytest.mark.parametrize(("change", "words"), [
+    (lambda c: c.pop("output"), "output: missing (required field)"),
+    (lambda c: c["devices"][0].pop("name"), "devices[0].name: missing"),
+    (lambda c: c["devices"][0].update(flash="maybe"), "devices[0].flash: expected true or false"),
+    (lambda c: c["devices"][0].update(output="both"), "devices[0].output: expected one of 'raw', 'calibrated'"),
+    (lambda c: c["devices"][0].update(colour="red"), "devices[0].colour: unknown key"),
+    (lambda c: c.update(stall_seconds=0), "stall_seconds: expected a number > 0"),
+    (lambda c: c.update(devices=[]), "devices: the list is empty"),
+    (lambda c: c["devices"].append({"url": "sim://still", "name": "bench-a"}),
+     "devices[1].name: 'bench-a' is already the name of devices[0]"),
+    (lambda c: c["devices"][0].update(name="a b"), "devices[0].name: 'a b' does not match"),
+    (lambda c: c["devices"][0].update(output="calibrated", profile="none"),
+     "devices[0].output: calibrated output needs a profile"),
+    (lambda c: c["devices"][0].update(flash=True, profile="none"), "devices[0].flash: flashing needs a profile"),
+    (lambda c: c["devices"][0].update(uncertainty=True), "devices[0].uncertainty: uncertainties come with"),
+    (lambda c: c.update(reconnect_initial=100), "reconnect_initial: 100 s is longer than reconnect_max"),
+])
+def test_a_bad_config_is_refused_naming_the_field(change, words):
+    config = json.loads(json.dumps(MINIMAL))
+    change(config)
+    with pytest.raises(ConfigError) as err:
+        parse_config(config, "d.yaml")
+    assert str(err.value).startswith("d.yaml: ")
+    assert words in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_check_names_the_field_of_an_unknown_scheme_a_bad_profile_and_an_unwritable_output(tmp_path):
+    bad_scheme = {**MINIMAL, "output": str(tmp_path / "out"),
+                  "devices": [{"url": "nosuch://x", "name": "a"}]}
+    with pytest.raises(ConfigError, match=r"devices\[0\]\.url: unknown device URL scheme 'nosuch'"):
+        check_config(parse_config(bad_scheme))
+    (tmp_path / "p.yaml").write_text("schema_version: 1\n")
+    bad_profile = {**MINIMAL, "output": str(tmp_path / "out"),
+                   "devices": [{"url": "sim://still", "name": "a", "profile": str(tmp_path / "p.yaml")}]}
+    with pytest.raises(ConfigError, match=r"devices\[0\]\.profile: .*p\.yaml"):
+        check_config(parse_config(bad_profile))
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(ConfigError, match=r"^output: cannot create .*file/out"):
+        check_config(parse_config({**MINIMAL, "output": str(blocker / "out")}))
+
+
+def test_daemon_check_cli_says_valid_or_one_line(tmp_path):
+    good = tmp_path / "d.yaml"
+    good.write_text(yaml.safe_dump({**MINIMAL, "output": "out"}))
+    result = cli("daemon", "check", str(good))
+    assert result.returncode == 0, result.stderr
+    assert "valid: 1 device(s) (bench-a)" in result.stdout
+    assert (tmp_path / "out").is_dir()   # relative to the file, not the working directory
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("output: out\ndevices:\n  - url: sim://still\n    name: a\n    flash: maybe\n")
+    result = cli("daemon", "check", str(bad))
+    assert result.returncode == 9
+    assert result.stderr.strip().count("\n") == 0
+    assert "devices[0].flash" in result.stderr
+    result = cli("daemon", "check", str(tmp_path / "none.yaml"))
+    assert result.returncode == 9 and "no such file" in result.stderr
+
+
+def test_committed_schema_is_the_generated_one_and_agrees_with_the_validator():
+    committed = json.loads((REPO / "profiles" / "daemon-config-v1.json").read_text())
+    assert committed == json_schema(), "regenerate with: python profiles/make_examples.py --schema-only"
+    validator = jsonschema.Draft202012Validator(committed)
+    validator.validate(MINIMAL)
+    full = {**MINIMAL, "status_interval": 5, "segment_seconds": 60, "segment_megabytes": 10, "stall_seconds": 3,
+            "reconnect_initial": 0.5, "reconnect_max": 30, "profile_store": "/p", "metrics_port": 9108,
+            "status_socket": "/run/accelrig/status.sock",
+            "devices": [{"url": "sim://still", "name": "a", "profile": "store", "output": "calibrated",
+                         "uncertainty": True, "flash": True, "csv": False}]}
+    validator.validate(full)
+    parse_config(full)
+    for broken in ({"devices": MINIMAL["devices"]}, {**MINIMAL, "devices": []}, {**MINIMAL, "extra": 1},
+                   {**MINIMAL, "devices": [{"url": "sim://still", "name": "a", "flash": "yes"}]}):
+        assert list(validator.iter_errors(broken)), broken
+        with pytest.raises(ConfigError):
+            parse_config(json.loads(json.dumps(broken)))
+
+
+def test_status_socket_is_owner_only_and_answers_json(tmp_path):
+    path = tmp_path / "s.sock"
+    server = StatusServer(path, lambda: {"daemon": {"pid": 1, "uptime": 2.0, "config": "c", "output": "o"},
+                                         "devices": [{"name": "a", "state": "streaming", "delivered_rate": 200.0,
+                                                      "delivered": 10, "written": 10, "dropped": 0, "missing": 0,
+                                                      "gaps": 0, "connects": 1, "bytes_written": 1e6,
+                                                      "profile": "none", "error": None}]})
+    server.start()
+    try:
+        assert stat.S_IMODE(os.stat(path).st_mode) == 0o600
+        status = query(path)
+        assert status["devices"][0]["delivered"] == 10
+        table = format_table(status)
+        assert table.splitlines()[2].split()[:3] == ["a", "streaming", "200.0"]
+        with pytest.raises(ConfigError, match="another daemon answers"):
+            StatusServer(path, dict).start()
+    finally:
+        server.stop()
+    assert not path.exists()
+    with pytest.raises(StatusError, match="is the daemon running"):
+        query(path)
+
+
+def test_notify_sends_datagrams_to_notify_socket_and_reads_the_watchdog(tmp_path, monkeypatch):
+    assert notify("READY=1") is False or "NOTIFY_SOCKET" in os.environ
+    path = tmp_path / "notify"
+    receiver = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    receiver.bind(str(path))
+    receiver.settimeout(2)
+    got = []
+    thread = threading.Thread(target=lambda: got.append(receiver.recv(4096)))
+    thread.start()
+    monkeypatch.setenv("NOTIFY_SOCKET", str(path))
+    assert notify("READY=1\nSTATUS=ok")
+    thread.join(3)
+    receiver.close()
+    assert got == [b"READY=1\nSTATUS=ok"]
+    monkeypatch.setenv("WATCHDOG_USEC", "4000000")
+    monkeypatch.setenv("WATCHDOG_PID", str(os.getpid()))
+    assert watchdog_interval() == 2.0
+    monkeypatch.setenv("WATCHDOG_PID", "1")   # meant for another process
+    assert watchdog_interval() is None
+
+
+def test_load_config_reads_yaml_booleans_and_relative_paths(tmp_path):
+    path = tmp_path / "d.yaml"
+    path.write_text("output: data\nstatus_socket: run/s.sock\ndevices:\n"
+                    "  - {url: 'sim://still', name: a, profile: p.yaml, output: calibrated, flash: yes}\n")
+    config = load_config(path)
+    assert config.output == tmp_path / "data"
+    assert config.status_socket == tmp_path / "run" / "s.sock"
+    assert config.devices[0].profile == str(tmp_path / "p.yaml") and config.devices[0].flash is True
+
+
+def test_utc_clock_keeps_time_increasing_measures_the_rate_and_slews_to_the_host(monkeypatch):
+    import numpy as np
+
+    from accelrig.daemon import clock as clock_module
+
+    host = {"mono": 100.0}
+    monkeypatch.setattr(clock_module.time, "time", lambda: 1.7e9 + host["mono"] - 100.0)
+    monkeypatch.setattr(clock_module.time, "monotonic", lambda: host["mono"])
+    rate, true_rate = 1000.0, 1000.0 * (1 + 300e-6)   # the device runs 300 ppm fast of the host
+    clock = clock_module.UtcClock(rate)
+    out = []
+    k = 0
+    for block in range(400):   # 40 s of 100-sample blocks
+        t = (k + np.arange(100)) / rate                 # the driver's device time (nominal rate)
+        if block >= 200:
+            t = t - 0.004                               # its time base steps 4 ms back once
+        k += 100
+        host["mono"] = 100.0 + k / true_rate + 0.002    # arrival: after the block's last sample
+        out.append(clock.map(t, host["mono"]))
+    utc = np.concatenate(out)
+    steps = np.diff(utc)
+    assert np.all(steps > 0)
+    assert clock.steps_back == 1 and abs(clock.largest_step_back - 0.0035) < 1e-9   # -3 ms step vs half a period
+    assert abs(clock.measured_rate - true_rate) < 0.05
+    assert abs(clock.ratio - 1 / (1 + 300e-6)) < 20e-6
+    # host-anchored: the last sample within a few ms of its arrival time, despite 12 ms of drift and the step
+    assert abs(utc[-1] - (1.7e9 + host["mono"] - 100.0)) < 0.005
+
+
+def test_a_reload_with_a_broken_config_keeps_the_running_one(tmp_path, capsys):
+    from accelrig.daemon.service import Daemon
+
+    path = tmp_path / "d.yaml"
+    path.write_text(yaml.safe_dump({"output": "out", "devices": [{"url": "sim://still", "name": "a"}]}))
+    daemon = Daemon(path)
+    path.write_text("output: out\ndevices:\n  - {url: 'sim://still', name: a, output: both}\n")
+    daemon.reload()
+    assert "reload refused, the running configuration is kept" in capsys.readouterr().err
+    assert daemon.config.devices[0].output == "raw" and daemon.reloads == 0
