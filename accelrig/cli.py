@@ -16,7 +16,7 @@ import os
 import sys
 
 from accelrig import __version__
-from accelrig.errors import AccelrigError
+from accelrig.errors import AccelrigError, printable
 
 # Every command: one-line help, and the modules that register it (``register(subparsers,
 # groups)``).  A module is imported only when its command is run, so ``accelrig --help``
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     except AccelrigError as exc:
         if args.debug:
             raise
-        print(f"accelrig: error: {exc}", file=sys.stderr)
+        print(f"accelrig: error: {printable(exc)}", file=sys.stderr)   # a file's text never drives the terminal
         return exc.exit_code
     except KeyboardInterrupt:
         print("accelrig: interrupted", file=sys.stderr)

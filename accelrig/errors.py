@@ -84,3 +84,29 @@ class StorageFull(StorageError):
     """The disk (or quota) is full.  The writer that raised it stays consistent: the block is
     wholly in the open segment or not at all, so the caller counts it as a "disk full" gap and
     writes again once space returns."""
+
+
+# Characters a terminal acts on rather than shows: C0 and C1 controls (ESC starts a sequence that can
+# move the cursor, retitle the window or rewrite the screen), DEL, and the bidirectional overrides that
+# reorder what is shown.
+_UNSAFE = {*range(0x00, 0x20), 0x7F, *range(0x80, 0xA0), 0x061C, 0x200E, 0x200F, *range(0x202A, 0x202F),
+           *range(0x2066, 0x206A)}
+
+
+def printable(text) -> str:
+    """``text`` safe to write to a terminal: every control character shown escaped (\\x1b, \\n, \\u202e).
+
+    Strings from files (a profile's identity, a recording's metadata, a file name) pass through this
+    before they reach a terminal, so a file can never rewrite the operator's screen.
+    """
+    text = str(text)
+    if not any(ord(c) in _UNSAFE for c in text):
+        return text
+    out = []
+    for c in text:
+        code = ord(c)
+        if code in _UNSAFE:
+            out.append(f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
+        else:
+            out.append(c)
+    return "".join(out)

@@ -16,20 +16,39 @@ from __future__ import annotations
 
 import csv
 import hashlib
-import io
 import json
 import os
+import struct
 import zipfile
+import zlib
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import numpy.lib.format as npy_format
 
 from accelrig import __version__
 from accelrig.errors import DataError
-from accelrig.files import META_PREFIX, atomic_write, read_text_file
+from accelrig.files import META_PREFIX, atomic_write, text_lines
 from accelrig.result import to_json
 from accelrig.segments import SEGMENT_SUFFIXES, read_arrays, resolve_range
+from accelrig.settings import Setting
+from accelrig.spec import (
+    Array,
+    Field,
+    Integer,
+    ListOf,
+    Nullable,
+    Number,
+    Object,
+    OneOf,
+    Plain,
+    String,
+    check,
+    describe,
+    optional,
+)
 from accelrig.units import STANDARD_GRAVITY, normalise_unit, scale_for_range, to_si
 
 ACC_COLUMNS = ("ax", "ay", "az")
@@ -118,6 +137,31 @@ class Recording:
         return "sha256:" + h.hexdigest()
 
 
+# A recording whose link lost more than this share of its samples says so (stderr, and the result's
+# warnings): the gaps are kept and never interpolated, but estimates from it rest on fewer samples
+# than its length suggests, and heavy loss is usually a cable, a radio or a host that cannot keep up.
+LOSS_WARN_SHARE = 0.01
+
+
+def lost_samples(meta: dict) -> int:
+    """Samples the device or link reported lost (the gaps of known size in the metadata)."""
+    return sum(max(int(g.get("missing", 0)), 0) for g in meta.get("gaps") or [] if isinstance(g, dict))
+
+
+def loss_warning(rec: Recording) -> str | None:
+    """One line when the recording lost more than LOSS_WARN_SHARE of its samples, else None."""
+    return link_loss_warning(len(rec), lost_samples(rec.meta), len(rec.meta.get("gaps") or []))
+
+
+def link_loss_warning(delivered: int, missing: int, gaps: int) -> str | None:
+    """One line when ``missing`` samples (in ``gaps`` gaps) are more than LOSS_WARN_SHARE of all, else None."""
+    total = delivered + missing
+    if not total or missing / total <= LOSS_WARN_SHARE:
+        return None
+    return (f"the link lost {missing} of {total} samples ({missing / total:.1%}, more than {LOSS_WARN_SHARE:.0%}) "
+            f"in {gaps} gaps: kept as gaps, never filled in; check the cable or radio link")
+
+
 def count_scale(meta: dict) -> float | None:
     """m/s^2 per count of the device a recording came from: its ``scale``, else its
     ``range_g``'s nominal scale; None when neither is known."""
@@ -137,6 +181,41 @@ def default_meta(**values) -> dict:
 # --------------------------------------------------------------------------- CSV
 
 
+# Bounds on what a reader holds in memory: a CSV is streamed into float64 rows and refused once it
+# holds more values than this (512 MiB; 4.5 h of t,ax,ay,az at 2048 Hz, 46 h at 200 Hz); an .npz may
+# declare at most this many values in all.  Longer sessions are segments (or split files).
+MAX_VALUES = 1 << 26
+MAX_META_CHARS = 1 << 24     # the metadata comment (its gap list grows with link losses)
+# the sample rate a person gives for a file without t (--rate): finite, of an accelerometer
+RATE = Setting("rate", "sample rate of a file without a t column", unit="Hz", low=0.0, low_open=True, high=100000.0)
+LOWEST_RATE = 1.0            # Hz: no MEMS accelerometer samples slower; t advancing slower is t in ms
+
+# The metadata fields readers and procedures use, typed; other fields are kept as plain data.
+_TEXT = Nullable(OneOf((String(), Number()), expected="a string"))
+_RATE = Nullable(Number(exclusive_minimum=0.0))
+META = Object({
+    "units": optional(String(enum=("m/s^2", "m/s2", "g", "counts"))),
+    "identity": optional(_TEXT), "device": optional(_TEXT), "driver": optional(_TEXT), "chip": optional(_TEXT),
+    "source": optional(_TEXT), "start_time": optional(_TEXT), "software_version": optional(_TEXT),
+    "who_am_i": optional(Nullable(Integer(minimum=0, maximum=255))),
+    "range_g": optional(_RATE), "scale": optional(_RATE),
+    "requested_rate": optional(_RATE), "nominal_rate": optional(_RATE), "delivered_rate": optional(_RATE),
+    "device_rate": optional(_RATE),
+    "gaps": optional(Nullable(ListOf(Object({"index": Field(Integer(minimum=0)), "missing": Field(Integer())},
+                                            additional=Plain())))),
+    "hardware_bias_removed": optional(Nullable(Array((3,)))),
+    "temperature_c": optional(Nullable(Number())),
+}, additional=Plain())
+
+
+def check_meta(meta, where: str) -> dict:
+    """A recording's metadata, its fields' types checked (DataError naming the field)."""
+    if not isinstance(meta, dict):
+        raise DataError(f"{where}: the metadata must be a JSON object, got {describe(meta)}")
+    check(META, meta, DataError, where=f"{where}: metadata ")
+    return meta
+
+
 def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | None = None) -> Recording:
     """Read an interchange CSV.
 
@@ -149,8 +228,12 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
     acc = data[:, [col[c] for c in ACC_COLUMNS]]
     if "t" in col:
         t = data[:, col["t"]]
+        if t.size > 1 and (t.size - 1) / (t[-1] - t[0]) < LOWEST_RATE:
+            step = float(np.median(np.diff(t)))
+            raise DataError(f"{path}: t advances {step:g} per sample ({(t.size - 1) / (t[-1] - t[0]):.3g} Hz): "
+                            "no accelerometer samples that slowly", "is t in milliseconds? give t in seconds")
     else:
-        rate = rate or meta.get("delivered_rate") or meta.get("nominal_rate")
+        rate = RATE.parse(rate) or meta.get("delivered_rate") or meta.get("nominal_rate")
         if not rate:
             raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
         t = np.arange(data.shape[0]) / float(rate)
@@ -165,55 +248,78 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
 def read_table(path: Path, required: tuple[str, ...], what: str, example: str) -> tuple[list[str], np.ndarray, dict]:
     """Parse an interchange table: (header, float data (n, columns), metadata).
 
-    ``#`` comments are skipped, accelrig's ``# accelrig-meta:`` line is read;
+    Streamed line by line into a float64 buffer, so memory is the numbers' own
+    size (bounded by MAX_VALUES), never the text's.  ``#`` comments are skipped,
+    accelrig's ``# accelrig-meta:`` line is read and its fields' types checked;
     every malformed line is an error naming the file and line.  A ``t``
     column, when present, must increase.
     """
-    text = read_text_file(path, DataError, what)
     meta: dict = {}
     header: list[str] | None = None
     header_line = 0
-    rows: list[list[float]] = []
-    for lineno, line in enumerate(io.StringIO(text), start=1):
+    values = array("d")
+    width = 0
+    for lineno, line in text_lines(path, DataError, what, MAX_META_CHARS):
         stripped = line.strip()
         if not stripped:
             continue
         if stripped.startswith("#"):
             if stripped.startswith(META_PREFIX):
-                try:
-                    meta = json.loads(stripped[len(META_PREFIX):])
-                except json.JSONDecodeError as exc:
-                    raise DataError(f"{path}:{lineno}: metadata comment is not valid JSON ({exc.msg})") from None
+                meta = _parse_meta(stripped[len(META_PREFIX):], f"{path}:{lineno}")
             continue
-        fields = next(csv.reader([stripped]))
+        fields = _fields(stripped, path, lineno)
         if header is None:
             header = [f.strip() for f in fields]
             header_line = lineno
             _check_header(path, lineno, header, required, what, example)
+            width = len(header)
             continue
-        if len(fields) != len(header):
-            raise DataError(
-                f"{path}:{lineno}: expected {len(header)} values ({','.join(header)}), got {len(fields)}"
-            )
+        if len(fields) != width:
+            raise DataError(f"{path}:{lineno}: expected {width} values ({','.join(header)}), got {len(fields)}")
         try:
-            rows.append([float(f) for f in fields])
+            values.extend([float(f) for f in fields])
         except ValueError:
             bad = next(f for f in fields if not _is_float(f))
-            raise DataError(f"{path}:{lineno}: {bad.strip()!r} is not a number") from None
+            shown = bad.strip() if len(bad) <= 40 else bad.strip()[:37] + "..."
+            raise DataError(f"{path}:{lineno}: {shown!r} is not a number") from None
+        if len(values) > MAX_VALUES:
+            raise DataError(f"{path}:{lineno}: more than {MAX_VALUES} values, more than accelrig holds in memory",
+                            "split the recording into shorter files")
     if header is None:
         raise DataError(f"{path}: empty file", f"{what} needs a header row {example} and data rows")
-    if not rows:
+    if not values:
         raise DataError(f"{path}: header on line {header_line} but no data rows")
-    data = np.asarray(rows, dtype=float)
-    if not np.all(np.isfinite(data)):
-        bad_row = int(np.argmax(~np.all(np.isfinite(data), axis=1)))
-        raise DataError(f"{path}: row {bad_row + 1} of the data holds a NaN or infinite value")
+    data = np.frombuffer(values, dtype=float).reshape(-1, width)
+    finite = np.isfinite(data)
+    if not finite.all():
+        row, column = (int(i) for i in np.argwhere(~finite)[0])
+        raise DataError(f"{path}: row {row + 1} of the data holds a NaN or infinite value "
+                        f"({data[row, column]} in column {header[column]})", "every value must be a finite number")
     if "t" in header:
         t = data[:, header.index("t")]
         if t.size > 1 and not np.all(np.diff(t) > 0):
             k = int(np.argmax(np.diff(t) <= 0))
             raise DataError(f"{path}: time t does not increase at data row {k + 2}", "sort the file or fix the timestamps")
     return header, data, meta
+
+
+def _fields(line: str, path: Path, lineno: int) -> list[str]:
+    if '"' not in line:
+        return line.split(",")   # the common case, without the csv module's per-line cost
+    try:
+        return next(csv.reader([line]))
+    except csv.Error as exc:
+        raise DataError(f"{path}:{lineno}: not a CSV row ({exc})") from None
+
+
+def _parse_meta(text: str, where: str) -> dict:
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{where}: metadata comment is not valid JSON ({exc.msg})") from None
+    except (ValueError, RecursionError) as exc:   # a 5000-digit integer, nesting beyond the parser
+        raise DataError(f"{where}: metadata comment cannot be read ({str(exc).splitlines()[0][:80]})") from None
+    return check_meta(meta, where)
 
 
 def _is_float(text: str) -> bool:
@@ -239,8 +345,10 @@ def _check_header(path: Path, lineno: int, header: list[str], required: tuple[st
         raise DataError(f"{path}:{lineno}: column(s) {', '.join(dup)} appear twice in the header")
 
 
-def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None) -> None:
-    """Write an interchange CSV to ``path`` (atomically) or to an open text ``stream``."""
+def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None, overwrite: bool = True,
+              inputs=()) -> None:
+    """Write an interchange CSV to ``path`` (atomically; see files.atomic_write for ``overwrite`` and
+    ``inputs``) or to an open text ``stream``."""
     meta = dict(rec.meta)
     meta["units"] = rec.units
     names = ["t", *ACC_COLUMNS, *rec.channels]
@@ -257,33 +365,89 @@ def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None
     if stream is not None:
         _write(stream)
         return
-    atomic_write(path, _write, text=True)
+    atomic_write(path, _write, text=True, overwrite=overwrite, inputs=inputs)
 
 
 # ------------------------------------------------------------------- native (.npz)
 
 
-def save_native(rec: Recording, path: str | os.PathLike) -> None:
+def save_native(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
     arrays = {"t": rec.t, "acc": rec.acc}
     for name, values in rec.channels.items():
         arrays["ch_" + name] = values
     meta = dict(rec.meta)
     meta["units"] = rec.units
     arrays["meta_json"] = np.array(to_json(meta, indent=None, sort_keys=True))
-    atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False)
+    atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False, overwrite=overwrite, inputs=inputs)
 
 
 def load_native(path: str | os.PathLike) -> Recording:
+    """Read a native .npz recording: sizes checked from the headers before anything is inflated,
+    float or integer arrays only (no objects, no complex), every value finite, metadata typed."""
     path = Path(path)
     try:
+        _check_npz(path)
         with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta_json"]))
-            channels = {k[3:]: z[k] for k in z.files if k.startswith("ch_")}
-            return Recording(z["t"], z["acc"], meta.get("units", "m/s^2"), channels, meta)
+            meta = _parse_meta(str(z["meta_json"]), str(path))
+            arrays = {k: z[k] for k in z.files if k in ("t", "acc") or k.startswith("ch_")}
     except FileNotFoundError:
         raise DataError(f"{path}: no such file") from None
-    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise DataError(f"{path}: not an accelrig .npz recording ({exc or type(exc).__name__})") from None
+    except IsADirectoryError:
+        raise DataError(f"{path}: is a directory, not an .npz recording") from None
+    except MemoryError:
+        raise DataError(f"{path}: too large to hold in memory") from None
+    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
+            NotImplementedError, RuntimeError) as exc:
+        # zipfile raises NotImplementedError (a compression method or zip version it lacks) and
+        # RuntimeError (an encrypted member): neither is a bug here, both are a file accelrig did not write
+        raise DataError(f"{path}: not an accelrig .npz recording ({str(exc)[:120] or type(exc).__name__})") from None
+    for name in ("t", "acc"):
+        if name not in arrays:
+            raise DataError(f"{path}: not an accelrig .npz recording (no array {name!r})")
+    for name, values in arrays.items():
+        finite = np.isfinite(values)
+        if not finite.all():
+            row = int(np.argwhere(~finite)[0][0])
+            raise DataError(f"{path}: array {name} holds a NaN or infinite value at row {row} "
+                            f"({values.reshape(len(values), -1)[row].tolist()})", "every value must be a finite number")
+    channels = {k[3:]: v for k, v in arrays.items() if k.startswith("ch_")}
+    return Recording(arrays["t"], arrays["acc"], meta.get("units", "m/s^2"), channels, meta)
+
+
+def _check_npz(path: Path) -> None:
+    """Refuse an .npz before np.load inflates it: not a zip, a zip bomb, an array too large, of a wrong type."""
+    with open(path, "rb") as fh:
+        magic = fh.read(6)
+    if magic == b"\x93NUMPY":
+        raise DataError(f"{path}: not an accelrig .npz recording (a single .npy array)",
+                        "save recordings with accelrig record")
+    if not zipfile.is_zipfile(path):
+        raise DataError(f"{path}: not an accelrig .npz recording (not a zip archive)")
+    budget = 8 * MAX_VALUES
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            limit = MAX_META_CHARS * 4 if name == "meta_json" else budget
+            if info.file_size > limit + 4096:
+                raise DataError(f"{path}: array {name} declares {info.file_size} bytes uncompressed, more than "
+                                f"accelrig holds ({limit} bytes)", "is it a zip bomb? split long recordings")
+            with archive.open(info) as member:
+                version = npy_format.read_magic(member)
+                read_header = npy_format.read_array_header_1_0 if version == (1, 0) else npy_format.read_array_header_2_0
+                shape, _, dtype = read_header(member)
+            if name == "meta_json":
+                if dtype.kind != "U" or shape != ():
+                    raise DataError(f"{path}: meta_json is not a string")
+                continue
+            if dtype.kind == "c":
+                raise DataError(f"{path}: array {name} is complex", "a recording holds real numbers")
+            if dtype.kind not in "fiu":
+                raise DataError(f"{path}: array {name} holds {dtype}, not numbers")
+            nbytes = int(np.prod(shape, dtype=object)) * 8   # held as float64 once loaded
+            if nbytes > budget:
+                raise DataError(f"{path}: array {name} declares shape {shape}, more than accelrig holds in memory",
+                                "split long recordings")
+            budget -= nbytes
 
 
 def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
@@ -333,11 +497,13 @@ def time_range(rec: Recording, start: float | str | None, stop: float | str | No
     return rec.slice(lo, hi)
 
 
-def save_recording(rec: Recording, path: str | os.PathLike) -> None:
+def save_recording(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
+    """Write a CSV or native recording, chosen by the suffix; ``overwrite`` and ``inputs`` as in
+    files.atomic_write (an existing file only with overwrite, never an input, never a special file)."""
     if Path(path).suffix.lower() == NATIVE_SUFFIX:
-        save_native(rec, path)
+        save_native(rec, path, overwrite, inputs)
     else:
-        write_csv(rec, path)
+        write_csv(rec, path, overwrite=overwrite, inputs=inputs)
 
 
 def guess_units(acc: np.ndarray) -> str:

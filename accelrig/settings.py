@@ -147,6 +147,10 @@ class Setting:
         unit = f" {self.unit}" if self.unit else ""
         too_low = self.low is not None and (number <= self.low if self.low_open else number < self.low)
         too_high = self.high is not None and number > self.high
+        if too_high and self.unit == "m" and number / 1000 <= self.high and (self.low is None or number / 1000 > self.low):
+            # in range once read as millimetres: say so, the likeliest slip with a caliper in hand
+            raise DataError(f"{where} {number:g} m is not a plausible {self.help} (at most {self.high:g} m): "
+                            "did you give millimetres?", self.hint)
         if too_low or too_high:
             low = "" if self.low is None else f"{'>' if self.low_open else '>='} {self.low:g}"
             high = "" if self.high is None else f"<= {self.high:g}"
@@ -193,5 +197,7 @@ def values_from_texts(settings, texts: dict[str, str]) -> dict:
 
 # The default is standard gravity, accelrig.units.STANDARD_GRAVITY, written out because units loads numpy
 # and a command's --help must not (tests/test_settings.py checks the two agree).
-GRAVITY = Setting("g", "local gravity", unit="m/s^2", default=9.80665, low=9.7, high=9.9,
-                  label="local gravity", hint="give it in m/s^2, e.g. 9.81")
+# Earth's gravity runs from 9.780 (equator) to 9.832 m/s^2 (poles), a few mm/s^2 less on a mountain:
+# outside 9.76 .. 9.84 the number is a slip (another unit, a typo), not a place.
+GRAVITY = Setting("g", "local gravity", unit="m/s^2", default=9.80665, low=9.76, high=9.84,
+                  label="local gravity", hint="Earth's gravity lies within 9.76-9.84 m/s^2; give it in m/s^2, e.g. 9.81")

@@ -118,8 +118,8 @@ class BleDriver(FirmwareDriver):
         address = self.url.target
         if not address:
             raise DeviceError("ble:// needs a device address", "e.g. ble://AA:BB:CC:DD:EE:FF; 'accelrig devices' scans")
-        self.reconnect_limit = self.url.get_float("reconnect", 30.0)
-        self.backoff = self.url.get_float("backoff", 0.5)
+        self.reconnect_limit = self.url.get_float("reconnect", 30.0, low=0.0, high=86400.0, unit="s")
+        self.backoff = self.url.get_float("backoff", 0.5, low=0.0, low_open=True, high=600.0, unit="s")
         if self.backoff <= 0:
             raise DeviceError(f"backoff={self.backoff} in {self.url.raw!r} must be positive")
         self._loop = asyncio.new_event_loop()
@@ -278,14 +278,14 @@ class BleSimDriver(BleDriver):
             self.url, P.SAMPLES_PER_BLE_FRAME, {"reorder", "disconnect_at", "outage", "refuse_connects"})
         self._sim_options = own
         faults = self.firmware.faults
-        faults.reorder = self.url.get_float("reorder", 0.0)
+        faults.reorder = self.url.get_float("reorder", 0.0, low=0.0, high=1.0)
         text = self.url.get_str("disconnect_at", "")
         try:
             faults.disconnect_at = tuple(sorted(float(v) for v in text.split(",") if v.strip()))
         except ValueError:
             raise DeviceError(f"disconnect_at={text!r} in {self.url.raw!r} is not a list of seconds") from None
-        faults.outage = self.url.get_float("outage", 1.0)
-        faults.refuse_connects = self.url.get_int("refuse_connects", 0)
+        faults.outage = self.url.get_float("outage", 1.0, low=0.0, high=3600.0, unit="s")
+        faults.refuse_connects = self.url.get_int("refuse_connects", 0, low=0, high=1000)
         pace = self.url.get_choice("pace", ("realtime", "fast"), "realtime")
         shared = None  # one simulated device behind every client object the driver creates
 

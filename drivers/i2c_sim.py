@@ -82,26 +82,26 @@ class I2CSimDriver(I2CDriver):
         url = self.url
         name = self.chip_name()
         _, address = self.target()
-        seed = url.get_int("seed", 0)
+        seed = url.get_int("seed", 0, low=0)
         pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
         rig_seed, sensor_seed, chip_seed, clock_seed = np.random.SeedSequence(seed).spawn(4)
         self.rig = self._rig_class().from_url(url, np.random.default_rng(rig_seed))
         truth = url.get_choice("truth", ("random", "ideal"), "random")
         sensor = (SensorModel.random(np.random.default_rng(sensor_seed)) if truth == "random" else SensorModel())
-        noise = url.get_float("noise")
+        noise = url.get_float("noise", low=0.0, high=100.0, unit="m/s^2")
         if noise is not None:
-            chip_rate = plan_rate(CHIPS[name].spec, url.get_float("rate", DEFAULT_RATE)).chip_rate
+            chip_rate = plan_rate(CHIPS[name].spec, url.get_rate(DEFAULT_RATE)).chip_rate
             sensor.noise_density = SensorModel.noise_density_for_sd(noise, chip_rate)
         if pace == "fast":
-            self.clock = EmulatedClock(wake_jitter=url.get_float("jitter", 0.0005),
+            self.clock = EmulatedClock(wake_jitter=url.get_float("jitter", 0.0005, low=0.0, high=0.01, unit="s"),
                                        rng=np.random.default_rng(clock_seed))
         else:
             self.clock = HostClock()
         self.emulator = EMULATORS[name](
             self.rig, sensor, self.clock,
             seed=int(chip_seed.generate_state(1)[0]),
-            rate_error=url.get_float("rate_error", 0.004),
-            bypass_fifo_rate=url.get_float("bypass_fifo_rate"),
+            rate_error=url.get_float("rate_error", 0.004, low=-0.5, high=0.5),
+            bypass_fifo_rate=url.get_float("bypass_fifo_rate", low=1.0, high=100000.0, unit="Hz"),
         )
         bus = EmulatedBus(self.clock)
         bus.attach(address, self.emulator)

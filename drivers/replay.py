@@ -42,9 +42,10 @@ class ReplayDriver(Driver):
         if not url.target:
             raise DeviceError("replay:// needs a file", "e.g. replay://run.csv")
         self.pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
-        self.block = url.get_int("block", 256)
-        self.loop = url.get_str("loop", "0") in ("1", "true", "yes")
-        rec = load_recording(url.target, units=url.get_str("units"), rate=url.get_float("rate"),
+        self.block = url.get_int("block", 256, low=1, high=65536)
+        self.loop = url.get_choice("loop", ("0", "1", "no", "yes", "false", "true"), "0") in ("1", "true", "yes")
+        rec = load_recording(url.target, units=url.get_str("units"),
+                             rate=url.get_float("rate", low=1.0, high=100000.0, unit="Hz"),
                              start=url.get_str("start"), stop=url.get_str("stop"))
         if len(rec) < 2:
             raise DataError(f"{url.target}: a replay needs at least two samples")

@@ -22,6 +22,8 @@ rate_error, jitter, noise, truth, and the rig's), and:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from accelrig.acquisition import protocol as P
@@ -139,16 +141,14 @@ def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: 
     sim_url = DeviceURL(url.raw, "sim", url.target, {k: v for k, v in url.params.items() if k in shared})
     device, _ = build_device(sim_url)
     faults = LinkFaults(
-        drop=url.get_float("drop", 0.0), corrupt=url.get_float("corrupt", 0.0),
-        garbage=url.get_float("garbage", 0.0), stall_at=url.get_float("stall_at"),
-        stall_for=url.get_float("stall_for", 0.0),
+        drop=url.get_float("drop", 0.0, low=0.0, high=0.99), corrupt=url.get_float("corrupt", 0.0, low=0.0, high=0.99),
+        garbage=url.get_float("garbage", 0.0, low=0.0, high=0.99), stall_at=url.get_float("stall_at", low=0.0, unit="s"),
+        # stall_for=inf: the device never speaks again (the one option where infinity means something)
+        stall_for=math.inf if url.get_str("stall_for") == "inf" else url.get_float("stall_for", 0.0, low=0.0, unit="s"),
         cal_fault=url.get_choice("cal_fault", ("none", "corrupt", "refuse"), "none"),
     )
     if faults.cal_fault == "none":
         faults.cal_fault = None
-    for name in ("drop", "corrupt", "garbage"):
-        if not 0.0 <= getattr(faults, name) <= 1.0:
-            raise DeviceError(f"{name}={getattr(faults, name)} in {url.raw!r} is not a probability")
     firmware = SimFirmware(
         device.rig, device.sensor, rate_error=device.clock.rate_error, jitter=device.clock.jitter,
         seed=int(np.random.SeedSequence(device.seed).generate_state(1)[0]),

@@ -47,24 +47,25 @@ def build_device(url) -> tuple[SimDevice, str]:
             f"available: {', '.join('sim://' + r for r in sorted(RIGS))}",
         )
     url.check_known(SENSOR_OPTIONS | set(rig_cls.options))
-    seed = url.get_int("seed", 0)
+    seed = url.get_int("seed", 0, low=0)
     pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
     rate = url.get_rate(200.0)
     range_g = url.get_range_g(2.0)
-    block = url.get_int("block", 256)
-    if not 1 <= block <= 65536:
-        raise DeviceError(f"block={block} in {url.raw!r} is outside 1 .. 65536")
+    block = url.get_int("block", 256, low=1, high=65536)
     seq = np.random.SeedSequence(seed)
     rig_seed, sensor_seed, device_seed = seq.spawn(3)
     rig = rig_cls.from_url(url, np.random.default_rng(rig_seed))
     truth_kind = url.get_choice("truth", ("random", "ideal"), "random")
     sensor_rng = np.random.default_rng(sensor_seed)
     sensor = SensorModel.random(sensor_rng, range_g=range_g) if truth_kind == "random" else SensorModel(range_g=range_g)
-    noise = url.get_float("noise")
+    noise = url.get_float("noise", low=0.0, high=100.0, unit="m/s^2")
     if noise is not None:
         sensor.noise_density = SensorModel.noise_density_for_sd(noise, rate)
-    clock = SimClock(rate, url.get_float("rate_error", 0.004), url.get_float("jitter", 20e-6))
-    faults = Faults(url.get_float("drop", 0.0), url.get_float("disconnect_after"))
+    # a clock 50 % off is no clock; jitter beyond 10 ms is not timestamping; drop=1 would deliver nothing, ever
+    clock = SimClock(rate, url.get_float("rate_error", 0.004, low=-0.5, high=0.5),
+                     url.get_float("jitter", 20e-6, low=0.0, high=0.01, unit="s"))
+    faults = Faults(url.get_float("drop", 0.0, low=0.0, high=0.99),
+                    url.get_float("disconnect_after", low=0.0, low_open=True, unit="s"))
     device = SimDevice(rig, sensor, clock, seed=int(device_seed.generate_state(1)[0]), block_size=block, faults=faults)
     device.seed = seed
     return device, pace

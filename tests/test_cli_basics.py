@@ -49,8 +49,8 @@ def test_broken_csv_row_names_line(tmp_path):
     assert not (tmp_path / "o.csv").exists()
 
 
-def test_main_returns_exit_code_for_expected_error(capsys):
-    code = main(["record", "sim://nosuchrig", "--seconds", "1", "-o", "/tmp/x.csv"])
+def test_main_returns_exit_code_for_expected_error(capsys, tmp_path):
+    code = main(["record", "sim://nosuchrig", "--seconds", "1", "-o", str(tmp_path / "x.csv")])
     assert code != 0
     assert "unknown simulated rig 'nosuchrig'" in capsys.readouterr().err
 

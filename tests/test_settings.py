@@ -24,9 +24,11 @@ def test_flags_and_form_parse_alike():
 
 
 def test_refusals_name_the_field_the_unit_and_what_to_do():
-    with pytest.raises(DataError, match=r"--crank-radius 6.35 m is out of range: it must be >= 0.0001 and <= 1 m"
-                       r" \(give it in metres\)"):
+    with pytest.raises(DataError, match=r"--crank-radius 6.35 m is not a plausible caliper crank radius \(at most 1 m\): "
+                       r"did you give millimetres\? \(give it in metres\)"):
         RADIUS.parse("6.35")
+    with pytest.raises(DataError, match=r"--crank-radius 6000 m is out of range: it must be >= 0.0001 and <= 1 m"):
+        RADIUS.parse("6000")   # not millimetres either
     with pytest.raises(DataError, match="caliper crank radius 'abc' is not a number"):
         values_from_texts(SETTINGS, {"crank_radius": "abc"})
     with pytest.raises(DataError, match="--crank-radius is needed"):
@@ -50,8 +52,8 @@ def test_shared_gravity_setting_defaults_to_standard_gravity_and_refuses_implaus
     from accelrig.units import STANDARD_GRAVITY
 
     assert GRAVITY.default == STANDARD_GRAVITY and GRAVITY.parse("") == STANDARD_GRAVITY
-    with pytest.raises(DataError, match=r"--g 98.1 m/s\^2 is out of range: it must be >= 9.7 and <= 9.9 m/s\^2 "
-                       r"\(give it in m/s\^2, e.g. 9.81\)"):
+    with pytest.raises(DataError, match=r"--g 98.1 m/s\^2 is out of range: it must be >= 9.76 and <= 9.84 m/s\^2 "
+                       r"\(Earth's gravity lies within 9.76-9.84 m/s\^2; give it in m/s\^2, e.g. 9.81\)"):
         GRAVITY.parse("98.1")
 
 

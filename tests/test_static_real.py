@@ -103,7 +103,7 @@ def test_xsens_six_face_mode_refuses_in_one_line_naming_a_pose_and_its_angle(tmp
 def test_xsens_multi_position_leaves_every_pose_on_g(tmp_path, capsys):
     out = tmp_path / "xsens.yaml"
     for model in ("multi-position", "auto"):
-        assert main(["calibrate", "static", str(XSENS), "--g", str(IMUTK_G), "--model", model, "--json",
+        assert main(["calibrate", "static", str(XSENS), "--g", str(IMUTK_G), "--model", model, "--json", "--force",
                      "-o", str(out)]) == 0
         d = json.loads(capsys.readouterr().out)
         assert d["model"] == "multi-position" and out.exists()

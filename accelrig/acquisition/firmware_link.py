@@ -77,8 +77,8 @@ class FirmwareDriver(Driver):
         url.check_known(self._link_options())
         rate = url.get_rate(2048.0)
         range_g = int(url.get_range_g(4.0))  # the wire carries it as a byte
-        self.stall_timeout = url.get_float("stall", 2.0)
-        self.command_timeout = url.get_float("command_timeout", 0.5)
+        self.stall_timeout = url.get_float("stall", 2.0, low=0.0, low_open=True, high=3600.0, unit="s")
+        self.command_timeout = url.get_float("command_timeout", 0.5, low=0.0, low_open=True, high=60.0, unit="s")
         link = self._transport_open()
         self._opened = True
         try:

@@ -236,6 +236,8 @@ def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: i
         device_rate=(n - 1 + missing) / span if span > 0 else None,
         start_time=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         gaps=gaps,
+        lost_samples=missing,
+        lost_share=missing / (n + missing) if n + missing else 0.0,
     )
     if info.hardware_bias_removed is not None:  # flashed chip offsets (profiles.correction_for)
         meta["hardware_bias_removed"] = list(info.hardware_bias_removed)

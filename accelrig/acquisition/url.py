@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl, unquote
 
-from accelrig.errors import DeviceError
+from accelrig.errors import DataError, DeviceError
+from accelrig.settings import Setting
 
 
 @dataclass(frozen=True)
@@ -46,21 +47,34 @@ class DeviceURL:
     def get_str(self, key: str, default: str | None = None) -> str | None:
         return self.params.get(key, default)
 
-    def get_float(self, key: str, default: float | None = None) -> float | None:
-        if key not in self.params:
-            return default
-        try:
-            return float(self.params[key])
-        except ValueError:
-            raise DeviceError(f"option {key}={self.params[key]!r} in {self.raw!r} is not a number") from None
+    def get_float(self, key: str, default: float | None = None, low: float | None = None,
+                  high: float | None = None, low_open: bool = False, unit: str = "") -> float | None:
+        """``key=X`` as a finite number within [low, high] (low exclusive with ``low_open``), or ``default``."""
+        return self._number(key, default, "float", low, high, low_open, unit)
 
-    def get_int(self, key: str, default: int | None = None) -> int | None:
+    def get_int(self, key: str, default: int | None = None, low: int | None = None,
+                high: int | None = None) -> int | None:
+        """``key=N`` as a whole number (decimal or 0x..) within [low, high], or ``default``."""
+        if key in self.params:
+            try:
+                value = int(self.params[key], 0)
+            except ValueError:
+                raise DeviceError(f"option {key}={self.params[key]!r} in {self.raw!r} is not an integer") from None
+            if abs(value) > 2 ** 63:
+                raise DeviceError(f"option {key}={self.params[key][:20]}... in {self.raw!r} is too large")
+            return self._number(key, default, "int", low, high, False, "", value)
+        return default
+
+    def _number(self, key, default, kind, low, high, low_open, unit, value=None):
+        """One check for every numeric option: the declared Setting bounds (accelrig.settings) say what
+        is refused, in the words a flag or a form field would use."""
         if key not in self.params:
             return default
+        setting = Setting(key, key, unit=unit, kind=kind, low=low, high=high, low_open=low_open)
         try:
-            return int(self.params[key], 0)
-        except ValueError:
-            raise DeviceError(f"option {key}={self.params[key]!r} in {self.raw!r} is not an integer") from None
+            return setting.parse(self.params[key] if value is None else value, where=f"option {key} in {self.raw!r}:")
+        except DataError as exc:
+            raise DeviceError(exc.message, exc.hint) from None
 
     def get_choice(self, key: str, choices: tuple[str, ...], default: str) -> str:
         value = self.params.get(key, default)
@@ -73,10 +87,7 @@ class DeviceURL:
     # The two options every driver takes, checked the same way everywhere.
     def get_rate(self, default: float) -> float:
         """``rate=HZ``: requested sample rate, 1 .. 10000 Hz."""
-        rate = self.get_float("rate", default)
-        if not 1.0 <= rate <= 10000.0:
-            raise DeviceError(f"rate={rate:g} Hz in {self.raw!r} is outside 1 .. 10000 Hz")
-        return rate
+        return self.get_float("rate", default, low=1.0, high=10000.0, unit="Hz")
 
     def get_range_g(self, default: float) -> float:
         """``range=G``: full scale +-G, one of the MEMS ranges 2, 4, 8, 16."""

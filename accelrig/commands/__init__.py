@@ -7,3 +7,14 @@ def add_time_range(parser) -> None:
         parser.add_argument(f"--{name}", metavar="T",
                             help=f"{what} T: seconds from the first sample, or (segments) an ISO-8601 UTC time "
                             "such as 2026-11-24T01:00:00Z")
+
+
+def warn_loss(rec, result) -> None:
+    """Heavy link loss in the input: on stderr now and in the result's (and the profile's) warnings."""
+    import sys
+
+    from accelrig.recording import loss_warning
+
+    if (loss := loss_warning(rec)) is not None:
+        result.warnings.append(loss)
+        print(f"accelrig: warning: {loss}", file=sys.stderr)

@@ -24,6 +24,7 @@ def register(sub, groups) -> None:
     p.add_argument("--units", default="counts", help="units of the MEMS file's ax,ay,az (default counts)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", metavar="REPORT", help="campaign report file (.yaml or .md), written atomically")
+    p.add_argument("--force", action="store_true", help="replace the report file if it exists")
     p.set_defaults(func=run)
 
 
@@ -33,6 +34,10 @@ def run(args) -> int:
                                                       "nominal_rate", "frequency") if getattr(args, n) is not None]
         if given:
             raise DataError(f"--campaign takes its tests from the YAML; drop {', '.join(given)}")
+        if args.output:
+            from accelrig.files import writable_target
+
+            writable_target(args.output, args.force, inputs=[args.campaign])   # refused before the tests run
         return _run_campaign(args)
     if args.output:
         raise DataError("-o/--output writes a campaign report", "use it with --campaign, or --json for one test")
@@ -79,7 +84,7 @@ def _run_campaign(args) -> int:
         report = run_campaign(args.campaign, on_test=lambda test, _: progress.step(
             f"test {test.index + 1} done: {test.label}"))
     if args.output:
-        write_report(report, args.output)
+        write_report(report, args.output, overwrite=args.force, inputs=[args.campaign])
     if args.json:
         print(to_json(report.to_json_dict()))
     elif not args.output:

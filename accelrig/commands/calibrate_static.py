@@ -7,9 +7,8 @@ the numerical machinery is imported only when the command runs, so --help stays 
 
 from __future__ import annotations
 
-from accelrig.commands import add_time_range
-from accelrig.commands.profile_output import add_profile_arguments, write_profile
-from accelrig.errors import DataError
+from accelrig.commands import add_time_range, warn_loss
+from accelrig.commands.profile_output import add_profile_arguments, check_profile_target, write_profile
 from accelrig.procedures.static.settings import SETTINGS
 from accelrig.settings import add_arguments, values_from_args
 
@@ -42,16 +41,19 @@ def run(args) -> int:
     from accelrig.units import scale_for_range
 
     values = values_from_args(SETTINGS, args)
+    check_profile_target(args)   # an -o that would be refused is refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     if args.range_g is not None:
-        if args.range_g <= 0:
-            raise DataError(f"--range-g {args.range_g} must be positive")
+        from accelrig.settings import Setting
+
+        Setting("range_g", "sensor range", unit="g", low=0.0, low_open=True, high=64.0).parse(args.range_g)
         rec.meta["range_g"] = args.range_g
         rec.meta["scale"] = scale_for_range(args.range_g)
     from accelrig.commands.progress import Progress
 
     with Progress(f"calibrating from {args.recording}"):
         result = calibrate_static(rec, **values)
+    warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))

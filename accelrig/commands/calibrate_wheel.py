@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from accelrig.commands import add_time_range
-from accelrig.commands.profile_output import add_profile_arguments, write_profile
+from accelrig.commands import add_time_range, warn_loss
+from accelrig.commands.profile_output import add_profile_arguments, check_profile_target, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -43,12 +43,14 @@ def run_calibrate(args) -> int:
     from accelrig.result import to_json
 
     v = values_from_args(SETTINGS, args)
+    check_profile_target(args)   # an -o that would be refused is refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     from accelrig.commands.progress import Progress
 
     with Progress(f"fitting the wheel ({v['method']} method)"):
         result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
                                  bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+    warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:
         print(to_json(result.to_json_dict()))

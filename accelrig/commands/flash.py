@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 
-from accelrig.errors import DeviceError
+from accelrig.errors import DeviceError, printable
 
 
 def register(sub, groups) -> None:
@@ -46,7 +46,8 @@ def run(args) -> int:
     profile = load_profile(args.profile)
     with driver_for(args.device) as driver:
         plan = plan_flash(driver, profile, args.force)
-        print(format_plan(plan))
+        # the plan quotes the profile (its identity, warnings): each line escaped before the terminal sees it
+        print("\n".join(printable(line) for line in format_plan(plan).splitlines()))
         if args.dry_run:
             print("dry run: nothing written")
             return 0

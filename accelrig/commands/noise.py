@@ -28,7 +28,8 @@ def register(sub, groups) -> None:
                    "a few minutes or more")
     p.add_argument("--json", action="store_true", help="print figures and Allan curves as JSON")
     p.add_argument("--profile", metavar="P.yaml", help="store the figures in this profile (rewritten atomically)")
-    p.add_argument("--force", action="store_true", help="store into a profile of another device or range")
+    p.add_argument("--force", action="store_true",
+                   help="store into a profile of another device or range, or one that holds noise figures")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
     add_time_range(p)
     p.set_defaults(func=run)
@@ -47,6 +48,15 @@ def run(args) -> int:
         profile = load_profile(args.profile)   # refuse a bad profile before computing anything
         for w in check_compatible(profile, rec.meta, "m/s^2", args.force):
             print(f"accelrig: warning: {w}", file=sys.stderr)
+        if profile.noise is not None and not args.force:
+            from accelrig.errors import ProfileError
+
+            raise ProfileError(f"{args.profile} already holds noise figures (from {profile.noise['date']})",
+                               "use --force to replace them")
+    from accelrig.recording import loss_warning
+
+    if (loss := loss_warning(rec)) is not None:
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
     start, stop = still_stretch(rec.to_si())
     report = noise_figures(rec, (start, stop))
     seg = report.still_segment
@@ -55,7 +65,7 @@ def run(args) -> int:
               f"t = {start:.1f}-{stop:.1f} s ({seg['seconds']:.1f} s of {seg['of_total']:.1f} s)", file=sys.stderr)
     if profile is not None:
         profile.data["noise"] = report.to_profile_dict(utc_now())
-        save_profile(profile, args.profile)
+        save_profile(profile, args.profile, inputs=[args.recording])   # a link: its target is updated
     if args.json:
         section = report.to_json_dict(utc_now())
         section["arrays"] = {k: v.tolist() for k, v in report.arrays().items()}

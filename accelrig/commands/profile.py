@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from accelrig.commands import add_time_range
-from accelrig.errors import ProfileError
+from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
@@ -61,7 +61,8 @@ def register(sub, groups) -> None:
                    "the recording names, the profile closest to when it was recorded)")
     p.add_argument("recording", help="raw recording (.csv, .npz, or segments: a .parquet file or a directory)")
     p.add_argument("-o", "--output", required=True, help="calibrated recording (.csv or .npz)")
-    p.add_argument("--force", action="store_true", help="apply even to data from another device, range or unit")
+    p.add_argument("--force", action="store_true",
+                   help="apply even to data from another device, range or unit, and replace an existing -o file")
     p.add_argument("--uncertainty", action="store_true",
                    help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
@@ -85,8 +86,14 @@ def _store_args(p, choose: bool = True) -> None:
                        help=f"warn when the chosen profile is older than this (default {DEFAULT_MAX_AGE_DAYS:g})")
 
 
+def say(text: str = "") -> None:
+    """Print one line of what a profile says: its strings come from a file, so control characters are
+    shown escaped (errors.printable), never sent to the terminal."""
+    print(printable(text))
+
+
 def warn(message: str) -> None:
-    print(f"accelrig: warning: {message}", file=sys.stderr)
+    print(f"accelrig: warning: {printable(message)}", file=sys.stderr)
 
 
 def resolve(spec: str, args, date: str | None = None) -> Profile:
@@ -107,7 +114,7 @@ def run_list(args) -> int:
     store = ProfileStore(args.store)
     entries = store.entries(args.device)
     if not entries:
-        print(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
+        say(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
         return 0
     rows = [("device", "created", "procedure", "method", "residual rms", "file")]
     for e in entries:
@@ -119,9 +126,10 @@ def run_list(args) -> int:
 
 
 def _print_table(rows) -> None:
+    rows = [[printable(c) for c in r] for r in rows]   # escaped first, so the columns line up
     widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
-        print("  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
+        say("  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
 
 
 def _fmt(value, unc=None, digits: int = 6) -> str:
@@ -136,7 +144,7 @@ def _fmt(value, unc=None, digits: int = 6) -> str:
 def run_show(args) -> int:
     profile = resolve(args.profile, args)
     if args.json:
-        print(to_json(profile.data))
+        print(to_json(profile.data))   # JSON escapes control characters itself
         return 0
     if args.yaml:
         from accelrig.profiles.io import dump_yaml
@@ -145,60 +153,61 @@ def run_show(args) -> int:
         return 0
     d = profile.data
     dev, cal, prov = d["device"], d["calibration"], d["provenance"]
-    print(f"profile      {profile.path}")
-    print(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
+    say(f"profile      {profile.path}")
+    say(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
           + (f"  WHO_AM_I 0x{dev['who_am_i']:02X}" if dev["who_am_i"] is not None else ""))
     rng = f"+-{dev['range_g']:g} g" if dev["range_g"] is not None else "range ?"
     rate = f"{dev['rate']:g} Hz" if dev["rate"] is not None else "rate ?"
-    print(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
-    print(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
-    print(f"created      {prov['created']} by accelrig {prov['software_version']}"
+    say(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
+    say(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
+    say(f"created      {prov['created']} by accelrig {prov['software_version']}"
           + (f" from {prov['recording_samples']} samples" if prov["recording_samples"] else ""))
     corr = cal["correction"]
-    print("correction   calibrated = C @ (raw - b), uncertainties k = 1")
+    say("correction   calibrated = C @ (raw - b), uncertainties k = 1")
     for i in range(3):
-        print(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
-    print(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
+        say(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
+    say(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
     if cal["parameters"]:
-        print("parameters")
+        say("parameters")
         width = max(len(n) for n in cal["parameters"])
         for name, est in cal["parameters"].items():
-            print(f"  {name.ljust(width)}  {_fmt(est['value'], est['uncertainty'])} {est['unit']}")
+            say(f"  {name.ljust(width)}  {_fmt(est['value'], est['uncertainty'])} {est['unit']}")
     q = d["quality"]
     for key, value in q.items():
         if value is None:
             continue
         shown = f"{value:.4g}" if isinstance(value, float) else _short(value)
         unit = " m/s^2" if key == "residual_rms" else ""
-        print(f"quality      {key} {shown}{unit}")
+        say(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
         n = d["noise"]
-        print(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
+        say(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
         for axis, f in n["axes"].items():
             dens = f["density"]
             ug = 1e6 / STANDARD_GRAVITY
             bi = f["bias_instability"]
-            print(f"  {axis}: {dens['value'] * ug:.1f} +- {dens['uncertainty'] * ug:.1f} ug/sqrt(Hz)"
+            say(f"  {axis}: {dens['value'] * ug:.1f} +- {dens['uncertainty'] * ug:.1f} ug/sqrt(Hz)"
                   + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
     for w in d["warnings"]:
-        print(f"warning      {w}")
+        say(f"warning      {w}")
     return 0
 
 
 def run_validate(args) -> int:
+    """Every file is checked and reported, one line each, whatever the others hold."""
     if len(args.files) == 1:
         p = load_profile(args.files[0])
-        print(f"{args.files[0]}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
+        say(f"{args.files[0]}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
         return 0
     failed = 0
     for name in args.files:
         try:
             p = load_profile(name)
-        except ProfileError as exc:
+        except AccelrigError as exc:
             failed += 1
-            print(f"accelrig: error: {exc}", file=sys.stderr)
+            print(f"accelrig: error: {printable(exc)}", file=sys.stderr)
             continue
-        print(f"{name}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
+        say(f"{name}: ok (schema v1, device {p.identity or '(unknown)'}, {p.procedure}/{p.method})")
     return ProfileError.exit_code if failed else 0
 
 
@@ -206,7 +215,7 @@ def run_add(args) -> int:
     store = ProfileStore(args.store)
     profiles = [load_profile(name) for name in args.files]   # all valid before any is stored
     for p in profiles:
-        print(store.add(p))
+        say(store.add(p))
     return 0
 
 
@@ -264,7 +273,7 @@ def run_diff(args) -> int:
     a, b = resolve(args.a, args), resolve(args.b, args)
     lines = diff_profiles(a, b)
     for line in lines:
-        print(line)
+        say(line)
     return 1 if lines else 0
 
 
@@ -272,6 +281,9 @@ def run_diff(args) -> int:
 
 
 def run_apply(args) -> int:
+    from accelrig.files import writable_target
+
+    writable_target(args.output, args.force, inputs=[args.recording])
     rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
     if args.profile == "auto":
         identity = rec.meta.get("identity")
@@ -284,5 +296,6 @@ def run_apply(args) -> int:
     out, warnings = apply_profile(profile, rec, force=args.force, uncertainty=args.uncertainty)
     for w in warnings:
         warn(w)
-    save_recording(out, args.output)
+    inputs = [args.recording] + ([profile.path] if profile.path is not None else [])
+    save_recording(out, args.output, overwrite=args.force, inputs=inputs)
     return 0

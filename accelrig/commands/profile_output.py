@@ -15,6 +15,16 @@ def add_profile_arguments(parser, what: str = "the device profile (YAML)") -> No
     parser.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
                         "~/.local/share/accelrig/profiles)")
     parser.add_argument("--no-store", action="store_true", help="write no profile")
+    parser.add_argument("--force", action="store_true", help="replace the -o file if it exists")
+
+
+def check_profile_target(args) -> None:
+    """Refuse an -o the write would refuse (special file, the input itself, an existing file without
+    --force) before any work is done."""
+    if args.output:
+        from accelrig.files import writable_target
+
+        writable_target(args.output, args.force, inputs=[args.recording])
 
 
 def write_profile(result, rec, args) -> str | None:
@@ -27,7 +37,8 @@ def write_profile(result, rec, args) -> str | None:
 
     profile = profile_from_result(result, rec)
     if args.output:
-        save_profile(profile, args.output)   # validated and written atomically: nothing half-written
+        # validated and written atomically: nothing half-written
+        save_profile(profile, args.output, overwrite=args.force, inputs=[args.recording])
         where = str(args.output)
     else:
         try:

@@ -42,6 +42,7 @@ def register(sub, groups) -> None:
                    help="directory output: or once the open segment reaches this many MiB (default 256)")
     p.add_argument("--csv-copies", action="store_true",
                    help="directory output: also write an interchange CSV beside each finished segment")
+    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
     p.set_defaults(func=run)
 
 
@@ -50,17 +51,23 @@ def run(args) -> int:
 
     from accelrig.acquisition.recorder import Recorder, recording_meta
     from accelrig.acquisition.session import Session, State
+    from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
     from accelrig.segments import SegmentWriter, recover
+    from accelrig.settings import Setting
 
-    if args.seconds is not None and args.seconds <= 0:
-        raise DataError(f"--seconds {args.seconds} must be positive")
-    if args.samples is not None and args.samples <= 0:
-        raise DataError(f"--samples {args.samples} must be positive")
-    if args.segment_minutes <= 0 or args.segment_mb <= 0:
-        raise DataError("--segment-minutes and --segment-mb must be positive")
+    # nan, inf and a month are refused like any bad number (a NaN length would never be reached)
+    Setting("seconds", "", unit="s", low=0.0, low_open=True, high=30 * 86400.0).parse(args.seconds)
+    Setting("samples", "", kind="int", low=1, high=2 ** 40).parse(args.samples)
+    Setting("segment_minutes", "", unit="min", low=0.0, low_open=True, high=7 * 1440.0).parse(args.segment_minutes)
+    Setting("segment_mb", "", unit="MiB", low=0.0, low_open=True, high=2 ** 20).parse(args.segment_mb)
     output = Path(args.output)
     single = output.suffix.lower() in SINGLE_FILE_SUFFIXES
+    if single:   # refused before recording, not after; a symlink is written through to its target
+        output = writable_target(output, args.force)
+    elif output.exists() and not output.is_dir():
+        raise DataError(f"{output}: exists and is not a folder: refusing to record into it",
+                        "give a folder for segments, or a file name ending .csv, .npz or .parquet")
     # one file: its segment goes to a hidden directory beside it, then becomes the file
     directory = output.parent / f".{output.name}.parts" if single else output
     if single and directory.is_dir() and not any(directory.iterdir()):
@@ -111,12 +118,17 @@ def run(args) -> int:
         if show:
             sys.stderr.write("\n")
     kept = f"{recorder.samples} samples ({recorder.seconds:.2f} s)"
+    from accelrig.recording import link_loss_warning
+
+    loss = link_loss_warning(recorder.samples, recorder.missing, recorder.gap_events)
+    if loss is not None:
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
     if not recorder.samples:
         if single:
             directory.rmdir()
         raise DeviceError(f"{args.url} delivered no samples", session.interrupted)
     if single:
-        _assemble(finished, directory, output, args.units, session.info, recorder)
+        _assemble(finished, directory, output, args.units, session.info, recorder, loss)
     if session.interrupted:
         raise DeviceError(f"the device went away ({session.interrupted}); kept {kept} in {output}")
     if stopped_by:
@@ -130,7 +142,8 @@ def _raise_interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
-def _assemble(finished: list[Path], directory: Path, output: Path, units: str, info, recorder) -> None:
+def _assemble(finished: list[Path], directory: Path, output: Path, units: str, info, recorder,
+              loss: str | None = None) -> None:
     """Turn the one segment of a single-file output into that file, then remove the hidden directory."""
     import os
 
@@ -142,7 +155,10 @@ def _assemble(finished: list[Path], directory: Path, output: Path, units: str, i
     else:
         rec = read_segments(directory, units="counts" if units == "counts" else None)
         rates = recording_meta(info, rec.t, rec.meta["gaps"], recorder.missing)
-        rec.meta.update(delivered_rate=rates["delivered_rate"], device_rate=rates["device_rate"])
+        rec.meta.update(delivered_rate=rates["delivered_rate"], device_rate=rates["device_rate"],
+                        lost_samples=rates["lost_samples"], lost_share=rates["lost_share"])
+        if loss is not None:
+            rec.meta.setdefault("warnings", []).append(loss)   # the file says so too
         for name in ("segments", "source"):
             rec.meta.pop(name, None)
         save_recording(rec, output)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.errors import require_extra
+from accelrig.errors import DeviceError, require_extra
 
 
 def register(sub, groups) -> None:
@@ -22,7 +22,13 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
+    import sys
+
     require_extra("textual", "the TUI", "textual", "tui")  # says which extra is missing
+    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+        # drawn into a pipe, the app would never see a key and never exit
+        raise DeviceError("accelrig tui needs a terminal: standard input or output is not one",
+                          "run it in a terminal; from scripts use the other commands (record, calibrate, ...)")
     from accelrig.tui.app import DEFAULT_DEVICE, AccelrigApp
 
     socket = None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from accelrig.commands import warn_loss
 from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank.settings import CRANK_RADIUS, FILE_SETTINGS, ROD_LENGTH
 from accelrig.settings import add_arguments, values_from_args
@@ -51,6 +52,8 @@ def run(args) -> int:
                                      correction=correction, speeds=values["speeds"], harmonics=values["harmonics"],
                                      profile=values["profile"])
     result.warnings = profile_warnings + result.warnings
+    for _, rec in recordings:
+        warn_loss(rec, result)
     if args.json:
         print(to_json(result.to_json_dict()))
     else:

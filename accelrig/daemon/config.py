@@ -23,9 +23,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
 from accelrig.errors import AccelrigError
+from accelrig.safe_yaml import load_yaml_file
 from accelrig.spec import Boolean, Field, Integer, ListOf, Nullable, Number, Object, String, check, optional
 
 SCHEMA_ID = "https://accelrig.invalid/profiles/daemon-config-v1.json"
@@ -189,18 +188,8 @@ def parse_config(data, source: str = "<config>", base: Path | None = None) -> Da
 def load_config(path: str | os.PathLike) -> DaemonConfig:
     """Read and validate a daemon.yaml; relative paths in it are relative to the file."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such file", "give the path of the daemon's YAML configuration") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a directory, not a daemon configuration") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    # the one safe loader: aliases bounded, depth, number sizes and duplicate keys refused, one line each
+    data = load_yaml_file(path, ConfigError, "a daemon configuration")
     config = parse_config(data, str(path), path.resolve().parent)
     return DaemonConfig(**{**config.__dict__, "source": path})
 

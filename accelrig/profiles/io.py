@@ -1,8 +1,8 @@
 """Profiles in memory and on disk: build from a calibration result, save atomically, load safely.
 
-Only ``yaml.safe_load`` / ``yaml.safe_dump``: a profile is plain data, and a
-YAML tag that would construct a Python object is refused with the line it is
-on.  Every load and every save validates against schema v1
+Read only through ``accelrig.safe_yaml`` (plain data; a tag, an alias, deep
+nesting or a huge number is refused with the line it is on); written with
+``yaml.safe_dump``.  Every load and every save validates against schema v1
 (accelrig/profiles/schema.py); a problem is one ProfileError naming the file
 and the field.
 """
@@ -21,10 +21,11 @@ import yaml
 
 from accelrig import __version__
 from accelrig.errors import ProfileError
-from accelrig.files import atomic_write, read_text_file
+from accelrig.files import atomic_write
 from accelrig.profiles.schema import SCHEMA_VERSION, validate
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, to_plain
+from accelrig.safe_yaml import load_yaml, load_yaml_file
 from accelrig.spec import format_datetime, parse_datetime
 from accelrig.units import STANDARD_GRAVITY, scale_for_range
 
@@ -231,37 +232,29 @@ def dump_yaml(data: dict) -> str:
     return HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=4096, allow_unicode=False)
 
 
-def save_profile(profile: Profile, path: str | os.PathLike, overwrite: bool = True) -> None:
-    """Validate, then write atomically (temp file + rename): never half a profile on disk."""
+def save_profile(profile: Profile, path: str | os.PathLike, overwrite: bool = True, inputs=(),
+                 mode: int = 0o666) -> None:
+    """Validate, then write atomically (temp file + rename): never half a profile on disk.
+
+    ``overwrite``, ``inputs`` and ``mode`` as in files.atomic_write: without ``overwrite`` the file
+    is created exclusively (files.OutputExists if the name is taken)."""
     path = Path(path)
     try:
         validate(profile.data)
     except ProfileError as exc:
         raise ProfileError(f"not saving {path}: {exc}") from None
-    if not overwrite and path.exists():
-        raise ProfileError(f"{path} exists", "choose another name or allow overwriting")
     text = dump_yaml(profile.data)
-    atomic_write(path, lambda fh: fh.write(text), text=True)
+    atomic_write(path, lambda fh: fh.write(text), text=True, overwrite=overwrite, inputs=inputs, mode=mode)
     profile.path = path
 
 
 def parse_profile_text(text: str, source: str = "<profile>") -> dict:
-    """YAML text -> validated v1 data.  Refuses object tags, other versions, bad fields."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.constructor.ConstructorError as exc:
-        mark = exc.problem_mark
-        where = f":{mark.line + 1}" if mark is not None else ""
-        raise ProfileError(
-            f"{source}{where}: {exc.problem}",
-            "a profile holds plain data only; remove the tag",
-        ) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ProfileError(f"{source}{where}: not valid YAML ({problem})") from None
-    _refuse_duplicate_keys(text, source)
+    """YAML text -> validated v1 data.  Refuses aliases, deep nesting, huge numbers, duplicate keys,
+    object tags (accelrig.safe_yaml), other versions, bad fields."""
+    return _checked(load_yaml(text, source, ProfileError, "a profile"), source)
+
+
+def _checked(data, source: str) -> dict:
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: not a profile (expected a mapping at the top level, got {type(data).__name__})")
     _check_version(data, source)
@@ -270,27 +263,6 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
     except ProfileError as exc:
         raise ProfileError(f"{source}: {exc.message}", exc.hint) from None
     return data
-
-
-def _refuse_duplicate_keys(text: str, source: str) -> None:
-    """A key given twice would silently keep the last value: refuse it, naming the line.
-
-    Walks the composed node tree (yaml.compose with the SafeLoader builds nodes, never objects).
-    """
-    stack = [(yaml.compose(text, Loader=yaml.SafeLoader), "")]
-    while stack:
-        node, path = stack.pop()
-        if isinstance(node, yaml.MappingNode):
-            seen = set()
-            for key, value in node.value:
-                name = key.value if isinstance(key, yaml.ScalarNode) else str(key.value)
-                child = f"{path}.{name}" if path else name
-                if name in seen:
-                    raise ProfileError(f"{source}:{key.start_mark.line + 1}: {child}: key given twice")
-                seen.add(name)
-                stack.append((value, child))
-        elif isinstance(node, yaml.SequenceNode):
-            stack.extend((v, f"{path}[{i}]") for i, v in enumerate(node.value))
 
 
 def _check_version(data: dict, source: str) -> None:
@@ -314,5 +286,4 @@ def _check_version(data: dict, source: str) -> None:
 def load_profile(path: str | os.PathLike) -> Profile:
     """Read and validate a profile; one ProfileError naming the file and the field on any problem."""
     path = Path(path)
-    text = read_text_file(path, ProfileError, "a YAML profile")
-    return Profile(parse_profile_text(text, str(path)), path)
+    return Profile(_checked(load_yaml_file(path, ProfileError, "a YAML profile"), str(path)), path)

@@ -18,6 +18,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 from accelrig.errors import ProfileError
 from accelrig.spec import (
     Array,
@@ -40,6 +42,12 @@ from accelrig.spec import (
 )
 
 SCHEMA_VERSION = 1
+
+# Plausibility of what a profile says (checked after the structure): a MEMS part's sensitivity is within a
+# few percent of nominal and its axes within a degree or two of square, so C = inverse gains is near the
+# identity; a factor of 2 either way is another unit or another device, not a calibration.  g: on Earth.
+GAIN_BAND = (0.5, 2.0)
+G_BAND = (9.76, 9.84)
 SCHEMA_ID = "https://accelrig.invalid/profiles/schema-v1.json"
 
 
@@ -182,6 +190,13 @@ def _check_square_symmetric(matrix: list, path: str) -> None:
                 fail(path, f"not symmetric: [{i}][{j}] = {matrix[i][j]!r} but [{j}][{i}] = {matrix[j][i]!r}")
 
 
+def _check_positive_semidefinite(matrix: list, path: str) -> None:
+    """A covariance has no negative variance along any direction (eigenvalues >= 0 up to rounding)."""
+    eig = np.linalg.eigvalsh(np.asarray(matrix, dtype=float))
+    if eig.min() < -1e-9 * max(eig.max(), 1e-300):
+        fail(path, f"not positive semi-definite (an eigenvalue is {eig.min():.3g}): not a covariance")
+
+
 def _check_uncertainty_matches(uncertainty: list[float], variances: list[float], path: str) -> None:
     for i, (u, var) in enumerate(zip(uncertainty, variances, strict=True)):
         expected = math.sqrt(max(var, 0.0))
@@ -208,6 +223,15 @@ def cross_checks(data: dict) -> None:
     det = _det3(corr["matrix"])
     if abs(det) < 1e-6:
         fail("calibration.correction.matrix", f"singular (determinant {det:.3g}): no sensor has this correction")
+    gains = np.linalg.svd(np.asarray(corr["matrix"], dtype=float), compute_uv=False)
+    if not (GAIN_BAND[0] <= gains.min() and gains.max() <= GAIN_BAND[1]):
+        fail("calibration.correction.matrix",
+             f"gains (singular values) {gains.min():.3g} .. {gains.max():.3g} lie outside the plausible "
+             f"{GAIN_BAND[0]:g} .. {GAIN_BAND[1]:g}: raw is in m/s^2 at the nominal scale, so C is near the identity")
+    _check_positive_semidefinite(cov, "calibration.correction.covariance")
+    g = data["calibration"]["g"]
+    if not G_BAND[0] <= g <= G_BAND[1]:
+        fail("calibration.g", f"{g!r} m/s^2 is not gravity on Earth ({G_BAND[0]:g} .. {G_BAND[1]:g} m/s^2)")
 
     cal = data["calibration"]
     for name, est in cal["parameters"].items():

@@ -24,8 +24,10 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
-from accelrig.errors import ProfileError
+from accelrig.errors import DataError, ProfileError
+from accelrig.files import OutputExists, make_dirs
 from accelrig.profiles.io import Profile, load_profile, save_profile
+from accelrig.settings import Setting
 from accelrig.spec import parse_datetime
 
 DEFAULT_MAX_AGE_DAYS = 365.0
@@ -80,7 +82,14 @@ class ProfileStore:
         return self.root / device_key(identity)
 
     def path_for(self, profile: Profile) -> Path:
-        """Where ``add`` would keep ``profile`` (a name not taken yet)."""
+        """Where ``add`` would keep ``profile`` now (the first name not taken yet), to show before saving."""
+        for path in self._free_names(profile):
+            return path
+        raise ProfileError(f"{self.device_dir(profile.identity)}: 9999 profiles of the same second and procedure",
+                           "is a script looping?")
+
+    def _free_names(self, profile: Profile):
+        """The names ``add`` tries for ``profile``, free ones only, in order (at most 9999 of one second)."""
         identity = profile.identity
         if identity is None:
             raise ProfileError(
@@ -88,36 +97,69 @@ class ProfileStore:
                 "set device.identity in the profile, or keep it as a file",
             )
         directory = self.device_dir(identity)
+        self._check_inside(directory)
         stamp = profile.created.strftime("%Y%m%dT%H%M%SZ")
         base = f"{stamp}-{re.sub(r'[^A-Za-z0-9_-]+', '_', profile.procedure)}"
-        path = directory / f"{base}.yaml"
-        k = 1
-        while path.exists():
-            k += 1
-            path = directory / f"{base}-{k}.yaml"
-        return path
+        for k in range(1, 10000):
+            path = directory / (f"{base}.yaml" if k == 1 else f"{base}-{k}.yaml")
+            if not (path.exists() or path.is_symlink()):
+                yield path
 
     def add(self, profile: Profile) -> Path:
-        """Keep a profile for its device; returns where.  Never overwrites an existing file."""
-        path = self.path_for(profile)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        save_profile(profile, path, overwrite=False)
-        return path
+        """Keep a profile for its device; returns where.  Never overwrites an existing file.
+
+        The name is claimed exclusively (files.atomic_write without overwrite), so two
+        ``profile add`` of the same second both land, as -2, -3...  Folders are created 0755 and
+        files 0644 less the umask: others read the store, nobody but its owner writes it.
+        """
+        first = self.path_for(profile)   # refuses a profile without identity or a link out of the store
+        make_dirs(first.parent, 0o755)
+        for path in self._free_names(profile):
+            try:
+                save_profile(profile, path, overwrite=False, mode=0o644)
+            except OutputExists:
+                continue   # taken by a concurrent add since we looked: try the next name
+            return path
+        raise ProfileError(f"{first.parent}: 9999 profiles of the same second and procedure", "is a script looping?")
+
+    def _check_inside(self, path: Path) -> None:
+        """Refuse a store entry that is a link leading out of the store (it would write or read elsewhere)."""
+        root = Path(os.path.realpath(self.root))
+        real = Path(os.path.realpath(path))
+        if real != root and root not in real.parents:
+            raise ProfileError(f"{path}: links outside the store (to {real}): refusing to follow it",
+                               "replace the link by the folder or file itself")
+
+    def _listing(self, folder: Path) -> list[Path]:
+        """The entries of a store folder, sorted; an unreadable folder is an error naming it."""
+        try:
+            with os.scandir(folder) as it:
+                return sorted(Path(e.path) for e in it)
+        except OSError as exc:
+            raise ProfileError(f"{folder}: cannot read the store folder ({exc.strerror})",
+                               "fix its permissions: the store is repaired, never skipped") from None
 
     def entries(self, identity: str | None = None) -> list[StoredProfile]:
         """Every valid stored profile (of one device if given), oldest first.
 
-        A file that does not load is an error naming it: a store with a broken
-        file must be repaired, not silently skipped.
+        A file that does not load, a folder that cannot be read or a link out of the store is
+        an error naming it: a store with a broken entry must be repaired, not silently skipped.
         """
         if not self.root.is_dir():
             return []
-        dirs = [self.device_dir(identity)] if identity is not None else sorted(p for p in self.root.iterdir() if p.is_dir())
+        if identity is not None:
+            dirs = [self.device_dir(identity)]
+        else:
+            dirs = [p for p in self._listing(self.root) if p.is_dir()]
         out = []
         for d in dirs:
             if not d.is_dir():
                 continue
-            for path in sorted(d.glob("*.yaml")):
+            self._check_inside(d)
+            for path in self._listing(d):
+                if path.suffix != ".yaml":
+                    continue
+                self._check_inside(path)
                 profile = load_profile(path)
                 if identity is not None and profile.identity != identity:
                     raise ProfileError(f"{path}: device.identity {profile.identity!r} does not belong in the "
@@ -137,6 +179,15 @@ class ProfileStore:
         now: datetime | None = None,
     ) -> Choice:
         """The latest profile of a device, or the one closest in time to ``date``."""
+        try:
+            Setting("max_age_days", "", unit="days", low=0.0).parse(max_age_days)
+        except DataError as exc:
+            raise ProfileError(exc.message) from None
+        if isinstance(date, str):
+            try:
+                parse_datetime(date)
+            except ValueError:
+                raise ProfileError(f"{date!r} is not a date", "give an ISO date, e.g. 2026-11-01") from None
         entries = self.entries(identity)
         if not entries:
             known = self.identities()

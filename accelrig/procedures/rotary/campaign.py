@@ -60,6 +60,7 @@ from accelrig.procedures.rotary.bench import (
 )
 from accelrig.recording import load_recording
 from accelrig.result import CalibrationResult, Estimate, to_plain
+from accelrig.safe_yaml import load_yaml_file
 from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
 
 # A linearity line q_o = S q_i + b through reference amplitudes that barely differ is an extrapolation:
@@ -149,12 +150,7 @@ def _setup_from(values: dict) -> RotarySetup:
 def load_campaign(path: str | os.PathLike) -> Campaign:
     """Read and validate a campaign YAML (``CAMPAIGN``); every error names the field."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
-    except yaml.YAMLError as exc:
-        raise DataError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    data = load_yaml_file(path, DataError, "a campaign YAML")
     check(CAMPAIGN, data, DataError, where=f"{path}: ")
     if not data["tests"] or not data.get("components", COMPONENTS):
         raise DataError(f"{path}: 'tests' and 'components' must not be empty")
@@ -457,8 +453,9 @@ def _anova_row(name: str, a: dict) -> str:
     return f"| {name} | {a['f_statistic']:.3g} | {a['p_value']:.3g} | {'yes' if a['means_differ'] else 'no'} |"
 
 
-def write_report(result: CalibrationResult, path: str | os.PathLike) -> None:
-    """Write the report as YAML (.yaml/.yml: the JSON convention's fields) or Markdown (.md), atomically."""
+def write_report(result: CalibrationResult, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
+    """Write the report as YAML (.yaml/.yml: the JSON convention's fields) or Markdown (.md), atomically
+    (``overwrite`` and ``inputs`` as in files.atomic_write)."""
     suffix = Path(path).suffix.lower()
     if suffix in (".yaml", ".yml"):
         text = yaml.safe_dump(to_plain(result.to_json_dict()), sort_keys=False)
@@ -466,4 +463,4 @@ def write_report(result: CalibrationResult, path: str | os.PathLike) -> None:
         text = report_markdown(result)
     else:
         raise DataError(f"{path}: the report format follows the suffix", "use .yaml, .yml or .md")
-    atomic_write(path, lambda fh: fh.write(text), text=True)
+    atomic_write(path, lambda fh: fh.write(text), text=True, overwrite=overwrite, inputs=inputs)

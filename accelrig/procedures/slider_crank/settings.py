@@ -6,10 +6,11 @@ from accelrig.settings import REQUIRED, Setting
 
 DEFAULT_HARMONICS = 4  # the exact law has harmonics 1, 2, 4, 6, ...; the 4th is ~lambda^3/4 of the 1st
 
+# A bench slider-crank: a crank of at most half a metre, a rod of at most two.
 CRANK_RADIUS = Setting("crank_radius", "caliper crank radius", unit="m", default=REQUIRED, low=0.0, low_open=True,
-                       high=1.0, example="0.00635", hint="give it in metres, e.g. 0.00635")
+                       high=0.5, example="0.00635", hint="give it in metres, e.g. 0.00635")
 ROD_LENGTH = Setting("rod_length", "connecting rod length", unit="m", default=REQUIRED, low=0.0, low_open=True,
-                     high=10.0, example="0.0353", hint="give it in metres, e.g. 0.0353")
+                     high=2.0, example="0.0353", hint="give it in metres, e.g. 0.0353")
 CLEARANCE = Setting("clearance", "mechanical clearance +- on the radius", unit="m", default=0.0, low=0.0, high=0.1,
                     example="0.0001")
 SPEEDS = Setting("speeds", "commanded motor speed of each step, judges the roll-off (blank: you set each speed)",

@@ -17,14 +17,15 @@ DEFAULT_CROSS_AXIS_SD = 0.02 / math.sqrt(3)
 
 # The null space of the paper's section II-C: of the radius and the tilt, one must be known.
 RADIUS = Setting("radius", "distance from the sensor to the wheel axis (give it, the tilt, or both: the one not "
-                 "given is estimated)", unit="m", low=0.0, low_open=True, label="radius", example="0.28",
+                 "given is estimated)", unit="m", low=0.0, low_open=True, high=2.0, label="radius", example="0.28",
                  hint="give it in metres, e.g. 0.28")
 TILT_DEG = Setting("tilt_deg", "tilt of the wheel axis from the vertical (give it, the radius, or both: the one not "
                    "given is estimated)", unit="deg", low=0.0, low_open=True, high=90.0, label="tilt", example="45")
 METHOD = Setting("method", "joint maximum likelihood or the paper's four steps", kind="choice", choices=METHODS,
                  default="joint")
+# Each run is one fit (about 0.1 s): 1000 runs pin a standard uncertainty to 2 %; more only waits.
 BOOTSTRAP = Setting("bootstrap", "runs of the parametric bootstrap giving the paper method's uncertainties",
-                    kind="int", default=DEFAULT_BOOTSTRAP, low=5)
+                    kind="int", default=DEFAULT_BOOTSTRAP, low=5, high=1000)
 CROSS_AXIS_SD = Setting("cross_axis_sd", "prior sd of the correction's off-diagonal (cross-axis) terms, which the "
                         "wheel does not observe; the default reads the datasheet +-2 percent as a uniform bound",
                         default=DEFAULT_CROSS_AXIS_SD, low=0.0, low_open=True)

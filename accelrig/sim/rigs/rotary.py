@@ -134,15 +134,15 @@ class RotaryRig(Rig):
         if ref not in (0, 1):
             raise DeviceError(f"ref={ref} in {url.raw!r} must be 0 or 1")
         return cls(
-            radius=url.get_float("radius", 0.170),
-            frequency=url.get_float("frequency", 5.0),
-            amplitude_deg=url.get_float("amplitude_deg", 34.0),
+            radius=url.get_float("radius", 0.170, low=0.0, low_open=True, high=2.0, unit="m"),
+            frequency=url.get_float("frequency", 5.0, low=0.0, low_open=True, high=100.0, unit="Hz"),
+            amplitude_deg=url.get_float("amplitude_deg", 34.0, low=0.0, low_open=True, high=360.0, unit="deg"),
             tangential=url.get_str("tangential", "x"),
             radial=url.get_str("radial", "y"),
-            duration=url.get_float("seconds", 40.0),
+            duration=url.get_float("seconds", 40.0, low=0.0, low_open=True, high=86400.0, unit="s"),
             ref=bool(ref),
-            ref_radius=url.get_float("ref_radius", 0.145),
-            encoder_deg=url.get_float("encoder_deg", 0.01),
+            ref_radius=url.get_float("ref_radius", 0.145, low=0.0, high=2.0, unit="m"),
+            encoder_deg=url.get_float("encoder_deg", 0.01, low=0.0, low_open=True, high=10.0, unit="deg"),
             # the motor starts anywhere in its cycle; the reference sensor is good to ~0.1 %
             phase=float(rng.uniform(-np.pi, np.pi)),
             ref_gain_error=float(rng.normal(0.0, 1e-3)),

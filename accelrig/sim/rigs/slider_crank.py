@@ -255,16 +255,16 @@ class SliderCrankRig(Rig):
                 steps = tuple(float(v) for v in steps_text.split(","))
             except ValueError:
                 raise DeviceError(f"steps={steps_text!r} is not a list of speeds in Hz", "e.g. steps=2.5,4,6,8") from None
-        clearance = url.get_float("clearance", 0.0)
+        clearance = url.get_float("clearance", 0.0, low=0.0, high=0.1, unit="m")
         return cls(
             steps=steps,
-            step_seconds=url.get_float("step_seconds", 1.0),
-            settle=url.get_float("settle", 0.5),
-            radius=url.get_float("radius", 0.00635),
-            rod=url.get_float("rod", 0.0353),
+            step_seconds=url.get_float("step_seconds", 1.0, low=0.0, low_open=True, high=3600.0, unit="s"),
+            settle=url.get_float("settle", 0.5, low=0.0, high=3600.0, unit="s"),
+            radius=url.get_float("radius", 0.00635, low=0.0, low_open=True, high=0.5, unit="m"),
+            rod=url.get_float("rod", 0.0353, low=0.0, low_open=True, high=2.0, unit="m"),
             clearance=clearance,
-            backlash=url.get_float("backlash", 0.0),
-            max_speed=url.get_float("max_speed", 11.5),
+            backlash=url.get_float("backlash", 0.0, low=0.0, high=0.1, unit="m"),
+            max_speed=url.get_float("max_speed", 11.5, low=0.0, low_open=True, high=100.0, unit="Hz"),
             axis=url.get_str("axis", "+x"),
             radius_offset=float(rng.uniform(-clearance, clearance)) if clearance > 0 else 0.0,
         )

@@ -163,12 +163,15 @@ class StaticRig(Rig):
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StaticRig:
         order = parse_faces(url.get_str("order")) if url.get_str("order") else DEFAULT_ORDER
-        orientations = url.get_int("orientations")
+        orientations = url.get_int("orientations", low=1, high=1000)
         if orientations is not None and url.get_str("order"):
             raise DeviceError("give either order= (faces) or orientations=N (any orientation), not both")
-        return cls(rng, order=order, hold=url.get_float("hold", 4.0), tilt_deg=url.get_float("tilt", 0.0),
-                   shake=url.get_float("shake", 3.0), moved=url.get_int("moved"),
-                   moved_deg=url.get_float("moved_deg", 3.0), table_deg=url.get_float("table", 0.0),
+        return cls(rng, order=order, hold=url.get_float("hold", 4.0, low=0.0, low_open=True, high=3600.0, unit="s"),
+                   tilt_deg=url.get_float("tilt", 0.0, low=0.0, high=90.0, unit="deg"),
+                   shake=url.get_float("shake", 3.0, low=0.0, high=100.0, unit="m/s^2"),
+                   moved=url.get_int("moved"),   # the rig says which pose numbers exist
+                   moved_deg=url.get_float("moved_deg", 3.0, low=0.0, high=180.0, unit="deg"),
+                   table_deg=url.get_float("table", 0.0, low=-90.0, high=90.0, unit="deg"),
                    orientations=orientations)
 
     def _pose_rotation(self, pose: dict, t: np.ndarray) -> Rotation:

@@ -32,7 +32,8 @@ class StillRig(Rig):
 
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> StillRig:
-        return cls(up=url.get_str("up", "+z").replace(" ", "+"), duration=url.get_float("seconds"))
+        return cls(up=url.get_str("up", "+z").replace(" ", "+"), duration=url.get_float("seconds", low=0.0, low_open=True,
+                                                                                        high=86400.0, unit="s"))
 
     def orientation(self, t: np.ndarray) -> np.ndarray:
         return np.broadcast_to(self._mounting, (np.size(t), 3, 3))

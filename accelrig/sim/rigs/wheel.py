@@ -113,19 +113,20 @@ class WheelRig(Rig):
     @classmethod
     def from_url(cls, url: DeviceURL, rng: np.random.Generator) -> WheelRig:
         spin = url.get_choice("spin", ("normal", "barely"), "normal")
-        speed = url.get_float("speed", BARELY_SPEED if spin == "barely" else DEFAULT_SPEED)
+        speed = url.get_float("speed", BARELY_SPEED if spin == "barely" else DEFAULT_SPEED, low=0.0, low_open=True,
+                              high=200.0, unit="rad/s")
         omega = _floats(url, "omega", 4)
         if omega is None:
             omega = TABLE_I_OMEGA * speed / 9.0
         misalignment = _floats(url, "misalignment", 3)
         return cls(
-            radius=url.get_float("radius", 0.28),
-            tilt_deg=url.get_float("tilt_deg", TABLE_I_TILT_DEG),
-            duration=url.get_float("seconds", 90.0),
+            radius=url.get_float("radius", 0.28, low=0.0, low_open=True, high=2.0, unit="m"),
+            tilt_deg=url.get_float("tilt_deg", TABLE_I_TILT_DEG),   # the rig checks 0 .. 90 itself
+            duration=url.get_float("seconds", 90.0, low=0.0, low_open=True, high=86400.0, unit="s"),
             omega=omega,
             friction=url.get_choice("friction", ("cubic", "coulomb-viscous"), "cubic"),
-            coulomb=url.get_float("coulomb", DEFAULT_COULOMB),
-            viscous=url.get_float("viscous", DEFAULT_VISCOUS),
+            coulomb=url.get_float("coulomb", DEFAULT_COULOMB, low=0.0),
+            viscous=url.get_float("viscous", DEFAULT_VISCOUS, low=0.0),
             misalignment_deg=TABLE_I_MISALIGNMENT_DEG if misalignment is None else misalignment,
             theta0_deg=url.get_float("theta0_deg", TABLE_I_THETA0_DEG),
         )
