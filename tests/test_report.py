@@ -1,0 +1,221 @@
+"""Certificates (accelrig report): every parameter with its U, figures that plot the result's own arrays,
+sources read from disk, errors in one line.  The browser checks are in test_report_browser.py."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from accelrig.cli import main
+from accelrig.report import certificate_html, from_result, load_source
+from accelrig.report.figures import residual_asd, rotary_figures, slider_crank_figure, static_figure, wheel_figure
+from accelrig.report.html import format_value, parameter_rows
+from accelrig.result import to_json
+from report_support import (
+    DEVICE,
+    rotary_campaign_result,
+    slider_crank_result,
+    static_result,
+    wheel_result,
+)
+
+pytest.importorskip("matplotlib")
+
+
+@pytest.fixture(scope="module")
+def static_run():
+    return static_result()
+
+
+@pytest.fixture(scope="module")
+def wheel_run():
+    return wheel_result()
+
+
+@pytest.fixture(scope="module")
+def slider_run():
+    return slider_crank_result()
+
+
+@pytest.fixture(scope="module")
+def campaign_run(tmp_path_factory):
+    return rotary_campaign_result(tmp_path_factory.mktemp("campaign"))
+
+
+def text_of(html: str) -> str:
+    return re.sub(r"<[^>]+>", " ", html)
+
+
+def assert_every_parameter_with_its_u_and_U(result, html: str, k: float = 2.0) -> None:
+    text = text_of(html)
+    n = 0
+    for name, est in result.parameters.items():
+        values = est.value if isinstance(est.value, list) else [est.value]
+        uncs = est.uncertainty if isinstance(est.uncertainty, list) else [est.uncertainty]
+        for v, u in zip(values, uncs, strict=True):
+            if est.unit == "rad":
+                v, u = math.degrees(v), math.degrees(u)
+            value_text, u_text = format_value(v, u)
+            expanded = format_value(v, k * u)[1]
+            row = re.search(rf"{re.escape(name)}(\[[xyz0-9]\])?\s+{re.escape(value_text)}\s+{re.escape(u_text)}"
+                            rf"\s+{re.escape(expanded)}\s", text)
+            assert row, f"{name} = {value_text} +- {u_text} (U {expanded}) not in the certificate"
+            n += 1
+    assert n >= len(result.parameters)
+    if result.correction is not None:
+        c = result.correction
+        for i in range(3):
+            value_text, u_text = format_value(c.bias[i], c.bias_uncertainty[i])
+            expanded = format_value(c.bias[i], k * c.bias_uncertainty[i])[1]
+            assert re.search(rf"b\[{'xyz'[i]}\]\s+{re.escape(value_text)}\s+{re.escape(u_text)}\s+"
+                             rf"{re.escape(expanded)}", text)
+
+
+def test_u_is_rounded_to_two_significant_digits_and_the_value_with_it():
+    assert format_value(0.985581, 0.000112) == ("0.98558", "0.00011")
+    assert format_value(45.0337, 0.0371) == ("45.034", "0.037")
+    assert format_value(1234.5, 23.0) == ("1234", "23")
+
+
+def test_static_certificate_holds_device_method_hash_every_parameter_and_warnings(static_run):
+    result, rec = static_run
+    src = from_result(result, rec, device=DEVICE)
+    html = certificate_html(src, {"operator": "A. Tester", "temperature": "23.0 ± 1.0 °C", "certificate_number": "C-17"})
+    assert_every_parameter_with_its_u_and_U(result, html)
+    text = text_of(html)
+    for needle in ("sim-0042", "mpu9250", "±4 g", "paper 000", "A. Tester", "23.0 ± 1.0 °C", "C-17",
+                   rec.content_hash(), "k = 2", "95 %", "Lack of fit"):
+        assert needle in text, needle
+    for w in result.warnings:
+        assert w in text
+
+
+def test_static_figure_plots_the_pose_magnitudes_before_and_after_the_correction(static_run):
+    result, _ = static_run
+    fig = static_figure(from_result(result))
+    means, c, g = result.arrays["pose_means"], result.correction, result.settings["g"]
+    np.testing.assert_allclose(fig.series["before"], np.linalg.norm(means, axis=1) - g)
+    np.testing.assert_allclose(fig.series["after"], np.linalg.norm(c.apply(means), axis=1) - g, atol=1e-12)
+    used = [r["magnitude_residual"] for r in result.details["poses"] if "magnitude_residual" in r]
+    np.testing.assert_allclose(fig.series["after"], used, atol=1e-12)
+    assert fig.svg.startswith("<svg") and "|a| - g" in fig.svg
+
+
+def test_wheel_certificate_and_figure(wheel_run):
+    result, rec = wheel_run
+    src = from_result(result, rec)
+    html = certificate_html(src)
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "Pedersini" in html and "cross-axis" in text_of(html)
+    fig = wheel_figure(src)
+    for key in ("speed_time", "speed_samples", "speed_fit", "speed_residuals", "t", "residuals"):
+        np.testing.assert_allclose(fig.series[key], result.arrays[key])
+    # the spectrum of white residuals is flat near the noise density sigma * sqrt(2 / fs)
+    sd = np.std(result.arrays["residuals"], axis=0)
+    level = np.median(fig.series["spectrum"][1:], axis=0)
+    np.testing.assert_allclose(level, sd * np.sqrt(2 / 200.0), rtol=0.25)
+
+
+def test_residual_spectrum_finds_a_line_at_its_frequency():
+    t = np.arange(20000) / 200.0
+    res = np.random.default_rng(0).normal(0, 0.05, (t.size, 1)) + 0.05 * np.sin(2 * np.pi * 7.0 * t)[:, None]
+    freq, asd = residual_asd(t, res)
+    assert abs(freq[np.argmax(asd[1:, 0]) + 1] - 7.0) < 2 * (freq[1] - freq[0])
+
+
+def test_slider_crank_certificate_has_the_verdict_and_the_figure_the_steps(slider_run):
+    result, rec = slider_run
+    src = from_result(result, rec)
+    html = certificate_html(src)
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "Verification certificate" in html
+    assert "Slider-crank verification: " in text_of(html) and str(result.details["verdict"]) in text_of(html)
+    fig = slider_crank_figure(src)
+    for key in ("frequency_hz", "amplitude", "model_amplitude", "model_lower", "model_upper", "radius_m",
+                "radius_uncertainty_m"):
+        np.testing.assert_allclose(fig.series[key], result.arrays[key])
+
+
+def test_campaign_certificate_has_budgets_groups_en_and_figures(campaign_run):
+    result, _ = campaign_run
+    html = certificate_html(from_result(result))
+    assert_every_parameter_with_its_u_and_U(result, html, k=result.details["coverage_factor"])
+    text = text_of(html)
+    assert "Uncertainty budget" in text and "repeatability" in text and "E_n" in text and "ANOVA" in text
+    for sensor, axes in result.details["per_axis"].items():
+        for axis, e in axes.items():
+            assert f"{sensor} axis {axis}" in text
+            assert f"{e['expanded_uncertainty']:.3f}" in text
+    figs = {f.key: f for f in rotary_figures(from_result(result))}
+    assert set(figs) == {"rotary-sensitivity", "rotary-linearity", "rotary-bland-altman"}
+    tests = result.details["tests"]
+    np.testing.assert_allclose(figs["rotary-sensitivity"].series["sensitivity"],
+                               [s["value"] for t in tests for s in t["sensitivity"].values()])
+    for sensor, axes in result.details["per_axis"].items():
+        for axis, e in axes.items():
+            np.testing.assert_allclose(figs["rotary-linearity"].series[f"{sensor}_{axis}_output"],
+                                       e["linearity"]["output"])
+    np.testing.assert_allclose(figs["rotary-bland-altman"].series["bias"],
+                               [b["bias"] for b in result.details["bland_altman"]])
+
+
+def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_run, tmp_path, capsys):
+    from accelrig.profiles import profile_from_result, save_profile
+
+    result, rec = static_run
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+    out = tmp_path / "from-profile.html"
+    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab"]) == 0
+    html = out.read_text()
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "B. Lab" in html and rec.content_hash() in html
+    # a profile keeps no arrays: the figure it cannot draw is named, not faked
+    assert "Figure not shown" in html
+
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.html"), "--no-figures"]) == 0
+    assert "9. Figures" not in (tmp_path / "r.html").read_text()
+    assert main(["report", str(saved), "-o", str(tmp_path / "r2.html")]) == 0
+    assert "<svg" in (tmp_path / "r2.html").read_text()   # the per-pose table is enough for the |g| figure
+
+    campaign, truth = campaign_run
+    assert main(["calibrate", "rotary", "--campaign", str(truth["yaml"]), "-o", str(tmp_path / "c.yaml")]) == 0
+    capsys.readouterr()
+    src = load_source(tmp_path / "c.yaml")
+    assert src.is_campaign and set(src.result["parameters"]) == set(campaign.parameters)
+
+
+def test_cli_bad_sources_and_outputs_are_one_line(tmp_path, capsys):
+    missing = tmp_path / "none.yaml"
+    assert main(["report", str(missing), "-o", str(tmp_path / "x.html")]) != 0
+    assert "no such file" in capsys.readouterr().err
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps({"hello": 1}))
+    assert main(["report", str(odd), "-o", str(tmp_path / "x.html")]) != 0
+    assert "neither a profile" in capsys.readouterr().err
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    assert main(["report", str(broken), "-o", str(tmp_path / "x.html")]) != 0
+    assert "not valid JSON" in capsys.readouterr().err
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_wrong_output_suffix_is_refused(static_run, tmp_path, capsys):
+    result, _ = static_run
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    assert main(["report", str(saved), "-o", str(tmp_path / "x.docx")]) != 0
+    assert "use .html or .pdf" in capsys.readouterr().err
+
+
+def test_parameter_rows_show_angles_in_degrees(static_run):
+    result, _ = static_run
+    rows = {r[0]: r for r in parameter_rows(from_result(result), 2.0)}
+    angle = next(n for n in result.parameters if result.parameters[n].unit == "rad")
+    assert rows[angle][4] == "deg"
