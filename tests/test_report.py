@@ -12,7 +12,14 @@ import pytest
 
 from accelrig.cli import main
 from accelrig.report import certificate_html, from_result, load_source
-from accelrig.report.figures import residual_asd, rotary_figures, slider_crank_figure, static_figure, wheel_figure
+from accelrig.report.figures import (
+    noise_figure,
+    residual_asd,
+    rotary_figures,
+    slider_crank_figure,
+    static_figure,
+    wheel_figure,
+)
 from accelrig.report.html import format_value, parameter_rows
 from accelrig.result import to_json
 from report_support import (
@@ -219,3 +226,51 @@ def test_parameter_rows_show_angles_in_degrees(static_run):
     rows = {r[0]: r for r in parameter_rows(from_result(result), 2.0)}
     angle = next(n for n in result.parameters if result.parameters[n].unit == "rad")
     assert rows[angle][4] == "deg"
+
+
+def test_noise_figure_plots_the_measured_allan_curve_and_the_certified_terms(static_run, tmp_path, capsys):
+    from accelrig.profiles import load_profile, profile_from_result, save_profile
+    from accelrig.recording import write_csv
+    from accelrig.sim.device import simulate
+    from accelrig.sim.rigs.still import StillRig
+    from accelrig.sim.sensor import SensorModel, SimClock
+
+    rec = simulate(StillRig(), SensorModel(noise_density=300e-6 * 9.80665), SimClock(200.0), seconds=60, seed=5)
+    rec.meta["chip"] = "mpu9250"
+    still = tmp_path / "still.csv"
+    write_csv(rec, still)
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(static_run[0], rec), profile)
+    assert main(["noise", str(still), "--profile", str(profile)]) == 0
+    capsys.readouterr()
+    assert main(["noise", str(still), "--json"]) == 0
+    noise_json = tmp_path / "noise.json"
+    noise_json.write_text(capsys.readouterr().out)
+    measured = json.loads(noise_json.read_text())
+
+    # from the profile alone: the terms its figures imply, and the datasheet line of the chip
+    src = load_source(profile)
+    fig = noise_figure(src)
+    stored = load_profile(profile).noise
+    tau = fig.series["tau_s"]
+    for axis in "xyz":
+        np.testing.assert_allclose(fig.series[f"white_{axis}"],
+                                   stored["axes"][axis]["density"]["value"] / np.sqrt(2 * tau))
+    np.testing.assert_allclose(fig.series["datasheet"], 300e-6 * 9.80665 / np.sqrt(2 * tau))
+    assert "adev_x" not in fig.series and "not kept in the profile" in fig.caption
+
+    # with the curves: the measured Allan deviation is what is plotted
+    out = tmp_path / "n.html"
+    assert main(["report", str(profile), "--noise", str(noise_json), "-o", str(out)]) == 0
+    assert "Noise (Allan deviation)" in out.read_text()
+    src.noise = measured
+    fig = noise_figure(src)
+    np.testing.assert_allclose(fig.series["tau_s"], measured["arrays"]["tau"])
+    for axis in "xyz":
+        np.testing.assert_allclose(fig.series[f"adev_{axis}"], measured["arrays"][f"adev_{axis}"])
+
+    # curves of another recording are refused: they would contradict the certified figures
+    other = dict(measured, recording_hash="sha256:" + "0" * 64)
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    assert main(["report", str(profile), "--noise", str(tmp_path / "other.json"), "-o", str(tmp_path / "o.html")]) != 0
+    assert "is not the one of the noise figures" in capsys.readouterr().err

@@ -19,6 +19,8 @@ def register(sub, groups) -> None:
     )
     p.add_argument("source", help="profile, saved result (.json/.yaml) or rotary campaign")
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="certificate to write: .html or .pdf")
+    p.add_argument("--noise", metavar="NOISE.json", help="Allan curves from 'accelrig noise REC --json' (the "
+                   "same recording as the profile's noise figures) to plot the measured curve")
     p.add_argument("--no-figures", action="store_true", help="leave the figures out (no matplotlib needed)")
     p.add_argument("--number", help="certificate number")
     p.add_argument("--customer", help="customer (name and address)")
@@ -31,8 +33,11 @@ def register(sub, groups) -> None:
 
 def run(args) -> int:
     from accelrig.report import load_source, write_certificate
+    from accelrig.report.source import load_noise
 
     src = load_source(args.source)
+    if args.noise:
+        src.noise = load_noise(args.noise, src.noise)
     conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
                   "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
     write_certificate(src, args.output, conditions, figures=not args.no_figures)

@@ -295,37 +295,63 @@ def rotary_figures(src: Source) -> list[Figure]:
 # ------------------------------------------------------------------ noise
 
 
-def noise_figure(src: Source) -> Figure:
-    """The Allan-deviation noise model each axis's figures imply: N/sqrt(tau), the B floor and K sqrt(tau/3).
+# One-sided white-noise densities from the datasheets (REFERENCES.md), ug/sqrt(Hz).
+DATASHEET_DENSITY_UG = {"mpu9250": 300.0, "icm20948": 230.0}
+G0 = 9.80665
 
-    The profile keeps the figures, not the measured curve; the figure says so in its caption."""
+
+def noise_figure(src: Source) -> Figure:
+    """Allan deviation per axis: the measured curve when the source carries it (``accelrig noise --json``),
+    the noise terms the certified figures imply (N/sqrt(2 tau), the bias-instability floor, K sqrt(tau/3)),
+    and the datasheet's white-noise line for a known chip."""
     plt = require_matplotlib()
     noise = src.noise
     if not noise:
-        raise LookupError("the source holds no noise figures (accelrig noise REC -o PROFILE adds them)")
-    tau = np.logspace(np.log10(2.0 / noise["rate"]), np.log10(max(noise["duration"] / 3, 10.0 / noise["rate"])), 60)
+        raise LookupError("the source holds no noise figures (accelrig noise REC --profile P adds them)")
+    measured = noise.get("arrays") or {}
+    if "tau" in measured:
+        tau = np.asarray(measured["tau"], dtype=float)
+    else:
+        tau = np.logspace(np.log10(2.0 / noise["rate"]), np.log10(max(noise["duration"] / 3, 10.0 / noise["rate"])),
+                          60)
     series = {"tau_s": tau}
-    fig, ax = plt.subplots(figsize=(6.5, 3.4))
+    fig, ax = plt.subplots(figsize=(6.5, 3.6))
     for k, axis in enumerate(AXES):
-        fig_axis = noise["axes"][axis]
-        parts = {"white": fig_axis["density"]["value"] / np.sqrt(2 * tau)}
-        if fig_axis.get("bias_instability"):
-            parts["flicker"] = np.full_like(tau, 0.664 * fig_axis["bias_instability"]["value"])
-        if fig_axis.get("random_walk"):
-            parts["random walk"] = fig_axis["random_walk"]["value"] * np.sqrt(tau / 3)
-        total = np.sqrt(sum(p**2 for p in parts.values()))
-        series[f"{axis}_model"] = total
-        ax.loglog(tau, total, color=f"C{k}", label=f"{axis}: model from the figures")
-        for name, p in parts.items():
-            ax.loglog(tau, p, color=f"C{k}", lw=0.6, ls=":" if name == "white" else "--")
+        figures = noise["axes"][axis]
+        color = f"C{k}"
+        if f"adev_{axis}" in measured:
+            adev = np.asarray(measured[f"adev_{axis}"], dtype=float)
+            err = np.asarray(measured.get(f"adev_{axis}_uncertainty", np.zeros_like(adev)), dtype=float)
+            series[f"adev_{axis}"] = adev
+            ax.errorbar(tau, adev, yerr=err, fmt="o", ms=3, color=color, label=f"{axis}: measured")
+        white = figures["density"]["value"] / np.sqrt(2 * tau)
+        series[f"white_{axis}"] = white
+        ax.loglog(tau, white, ":", color=color, lw=1, label=f"{axis}: white noise (slope −½)")
+        if figures.get("bias_instability"):
+            floor = 0.664 * figures["bias_instability"]["value"]
+            series[f"bias_instability_{axis}"] = np.full_like(tau, floor)
+            ax.axhline(floor, color=color, ls="--", lw=0.8)
+        if figures.get("random_walk"):
+            walk = figures["random_walk"]["value"] * np.sqrt(tau / 3)
+            series[f"random_walk_{axis}"] = walk
+            ax.loglog(tau, walk, "-.", color=color, lw=0.8)
+    chip = str(src.device.get("chip") or "").lower().replace("-", "")
+    if chip in DATASHEET_DENSITY_UG:
+        line = DATASHEET_DENSITY_UG[chip] * 1e-6 * G0 / np.sqrt(2 * tau)
+        series["datasheet"] = line
+        ax.loglog(tau, line, "k-", lw=1.2, label=f"{chip} datasheet, {DATASHEET_DENSITY_UG[chip]:g} µg/√Hz")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("averaging time τ (s)")
     ax.set_ylabel("Allan deviation (m/s²)")
-    ax.set_title("Allan deviation: slope −½ white noise, flat bias instability, +½ random walk", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.set_title("Allan deviation: −½ white noise, flat bias instability (dashed), +½ random walk", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    return Figure("noise", "Noise (Allan deviation)", "The Allan deviation implied by the certified noise figures "
-                  "(white noise density, bias instability, rate random walk); dotted and dashed: the single "
-                  "terms. The measured curve is not kept in the profile.", _svg(fig), series)
+    caption = ("Overlapping Allan deviation of the still recording with the noise terms of the certified figures."
+               if "tau" in measured else
+               "The Allan deviation terms the certified noise figures imply; the measured curve is not kept in "
+               "the profile (give the certificate the curves with --noise NOISE.json from accelrig noise --json).")
+    return Figure("noise", "Noise (Allan deviation)", caption, _svg(fig), series)
 
 
 FIGURES = {"static": [static_figure], "wheel": [wheel_figure], "slider-crank": [slider_crank_figure]}

@@ -142,3 +142,19 @@ def _from_profile(data: dict, path: str) -> Source:
         "warnings": data["warnings"],
     }
     return Source("profile", to_plain(result), dict(data["device"]), dict(data["provenance"]), data["noise"], path)
+
+
+def load_noise(path: str | os.PathLike, stored: dict | None) -> dict:
+    """The output of ``accelrig noise REC --json`` (figures and Allan curves), checked against the noise
+    figures the source already holds: a curve of another recording would contradict the certified figures."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: no such file", "write it with: accelrig noise REC --json > NOISE.json")
+    data = _parse(path)
+    if not isinstance(data, dict) or "axes" not in data or "tau" not in (data.get("arrays") or {}):
+        raise DataError(f"{path}: not the JSON of 'accelrig noise --json' (axes and arrays.tau)",
+                        "write it with: accelrig noise REC --json > NOISE.json")
+    if stored and stored.get("recording_hash") and data.get("recording_hash") != stored["recording_hash"]:
+        raise DataError(f"{path}: its recording ({data.get('recording_hash')}) is not the one of the noise figures "
+                        f"in the source ({stored['recording_hash']})", "give the curves of the same still recording")
+    return data

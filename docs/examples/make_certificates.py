@@ -15,10 +15,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
-from report_support import DEVICE, rotary_campaign_result, static_result, wheel_result  # noqa: E402
-
 from accelrig.files import atomic_write  # noqa: E402
 from accelrig.report import certificate_html, from_result  # noqa: E402
+from report_support import DEVICE, rotary_campaign_result, static_result, wheel_result  # noqa: E402
 
 ISSUED = datetime(2026, 1, 15, 9, 0, tzinfo=UTC)
 CONDITIONS = {"customer": "Example Structural Monitoring Ltd.", "operator": "A. Tester", "location": "Lab 2",
