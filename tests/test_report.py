@@ -274,3 +274,35 @@ def test_noise_figure_plots_the_measured_allan_curve_and_the_certified_terms(sta
     (tmp_path / "other.json").write_text(json.dumps(other))
     assert main(["report", str(profile), "--noise", str(tmp_path / "other.json"), "-o", str(tmp_path / "o.html")]) != 0
     assert "is not the one of the noise figures" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("procedure", ["static", "wheel"])
+def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_one(procedure, static_run, wheel_run,
+                                                                                tmp_path):
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    rec = (static_run if procedure == "static" else wheel_run)[1]
+    path = tmp_path / "rec.csv"
+    write_csv(rec, path)
+    rec = load_recording(path)
+    result = calibrate_static(rec) if procedure == "static" else calibrate_wheel(rec, radius=0.28)
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+
+    figures, missing = figures_for(load_source(profile))
+    assert missing == [] and len(figures) == 1
+    key = "after" if procedure == "static" else "speed_residuals"
+    expected = (np.linalg.norm(result.correction.apply(result.arrays["pose_means"]), axis=1) - 9.80665
+                if procedure == "static" else result.arrays["speed_residuals"])
+    np.testing.assert_allclose(figures[0].series[key], expected, atol=1e-9)
+
+    # another recording under the same name: no figure, and the reason
+    text = path.read_text().splitlines()
+    text[-1] = ",".join(text[-1].split(",")[:-1] + ["9.0"])
+    path.write_text("\n".join(text) + "\n")
+    figures, missing = figures_for(load_source(profile))
+    assert figures == [] and "hash differs" in missing[0]

@@ -359,7 +359,12 @@ FIGURES = {"static": [static_figure], "wheel": [wheel_figure], "slider-crank": [
 
 def figures_for(src: Source) -> tuple[list[Figure], list[str]]:
     """The figures this source can show, and the reasons for those it cannot."""
+    from accelrig.report.recompute import add_arrays_from_recording
+
     figures, missing = [], []
+    why_not = add_arrays_from_recording(src)
+    if why_not:
+        missing.append(why_not)
     makers = FIGURES.get(src.procedure, [])
     for make in makers:
         try:
