@@ -157,6 +157,11 @@ def test_campaign_certificate_has_budgets_groups_en_and_figures(campaign_run):
         for axis, e in axes.items():
             assert f"{sensor} axis {axis}" in text
             assert f"{e['expanded_uncertainty']:.3f}" in text
+    for t in result.details["tests"]:   # every test's sensitivity with its U
+        for e in t["sensitivity"].values():
+            value_text, u_text = format_value(e["value"], e["uncertainty"])
+            assert re.search(rf"{re.escape(value_text)}\s+{re.escape(u_text)}\s+"
+                             rf"{re.escape(format_value(e['value'], 2 * e['uncertainty'])[1])}", text)
     figs = {f.key: f for f in rotary_figures(from_result(result))}
     assert set(figs) == {"rotary-sensitivity", "rotary-linearity", "rotary-bland-altman"}
     tests = result.details["tests"]
@@ -306,3 +311,17 @@ def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_on
     path.write_text("\n".join(text) + "\n")
     figures, missing = figures_for(load_source(profile))
     assert figures == [] and "hash differs" in missing[0]
+
+
+def test_pdf_without_a_browser_says_so_and_writes_nothing(static_run, tmp_path, monkeypatch, capsys):
+    result, _ = static_run
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    monkeypatch.setattr("accelrig.report.certificate.find_browser", lambda: None)
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.pdf"), "--no-figures"]) != 0
+    assert "needs Chromium" in capsys.readouterr().err
+    monkeypatch.undo()
+    monkeypatch.setenv("ACCELRIG_CHROMIUM", str(tmp_path / "no-such-browser"))
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.pdf"), "--no-figures"]) != 0
+    assert "could not start the browser" in capsys.readouterr().err
+    assert not (tmp_path / "r.pdf").exists()

@@ -56,6 +56,9 @@ def html_to_pdf(html_path: Path, pdf_path: Path) -> None:
             done = subprocess.run(cmd, capture_output=True, text=True, timeout=PRINT_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             raise AccelrigError(f"Chromium did not print the PDF within {PRINT_TIMEOUT_S} s") from None
+        except OSError as exc:
+            raise AccelrigError(f"could not start the browser {browser}: {exc.strerror}",
+                                "install chromium, or point ACCELRIG_CHROMIUM at a Chromium or Chrome") from None
     if done.returncode != 0 or not pdf_path.exists() or pdf_path.stat().st_size == 0:
         tail = (done.stderr or "").strip().splitlines()[-3:]
         raise AccelrigError(f"Chromium failed to print the PDF (exit {done.returncode}): {' | '.join(tail)}")

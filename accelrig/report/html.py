@@ -208,7 +208,18 @@ def groups_html(src: Source, k: float) -> str:
     b = d["batch"]
     rows.append(["3", f"batch ({len(b['sensors'])} sensors)", f"{b['mean_sensitivity']:.3f}",
                  f"{b['overall_uncertainty']:.3f}", f"{b['expanded_uncertainty']:.3f}"])
-    return ("<h3>Group results (paper 001, Table 3), counts per m/s²</h3>"
+    tests = []
+    for t in d.get("tests", []):
+        rate = t["sample_rate_hz"]
+        for axis, e in t["sensitivity"].items():
+            value_text, u_text = format_value(e["value"], e["uncertainty"])
+            rate_text, rate_u = format_value(rate["value"], rate["uncertainty"])
+            tests.append([str(t["index"]), t["sensor"], t["label"], f"{rate_text} ± {rate_u}", axis,
+                          e["component"], value_text, u_text, format_value(e["value"], k * e["uncertainty"])[1]])
+    per_test = ("<h3>Sensitivity per test, counts per m/s²</h3>"
+                + _table(["test", "sensor", "label", "sample rate (Hz)", "axis", "reference", "S", "u (k = 1)",
+                          f"U (k = {k:g})"], tests, numeric_from=6)) if tests else ""
+    return per_test + ("<h3>Group results (paper 001, Table 3), counts per m/s²</h3>"
             + _table(["case", "group", "S", "u (k = 1)", f"U (k = {k:g})"], rows, numeric_from=2))
 
 
@@ -219,7 +230,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     r, dev, prov = src.result, src.device, src.provenance
     k = coverage_factor(src)
     issued = issued or datetime.now(UTC)
-    title = "Calibration certificate" if r.get("correction") or src.is_campaign else "Verification certificate"
+    # the slider-crank judges a calibration made elsewhere; every other procedure determines one
+    title = "Verification certificate" if r["procedure"] == "slider-crank" else "Calibration certificate"
     html = [f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{escape(title)}</title>"
             f"<style>{CSS}</style></head><body>"]
     html.append(f"<h1>{escape(title)}</h1>")
