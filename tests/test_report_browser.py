@@ -1,5 +1,5 @@
 """Certificates in a real browser: headless Chromium renders the HTML to a PNG with no console message and
-no request outside the page, and prints the PDF whose pages pdftoppm counts.  One module, few browser
+no request outside the page, and prints the PDF whose pages pdftoppm counts.  One module, three browser
 starts (each costs a second or two)."""
 
 from __future__ import annotations
@@ -79,8 +79,5 @@ def test_pdf_prints_and_pdftoppm_counts_its_pages(tmp_path):
     pages = sorted(tmp_path.glob("page*.png"))
     # A4 at 12 mm margins: the static certificate's tables fill two pages, the figure a third at most
     assert 2 <= len(pages) <= 3, len(pages)
-    html_only = tmp_path / "static-nofig.pdf"
-    write_certificate(from_result(result, rec, device=DEVICE), html_only, figures=False)
-    subprocess.run(["pdftoppm", "-r", "30", "-png", str(html_only), str(tmp_path / "nofig")], check=True,
-                   timeout=120)
-    assert len(list(tmp_path.glob("nofig*.png"))) <= len(pages)
+    # each page is a page of the certificate, not a blank sheet
+    assert all(p.stat().st_size > 1000 for p in pages)
