@@ -171,6 +171,11 @@ def test_campaign_certificate_has_budgets_groups_en_and_figures(campaign_run):
         for axis, e in axes.items():
             np.testing.assert_allclose(figs["rotary-linearity"].series[f"{sensor}_{axis}_output"],
                                        e["linearity"]["output"])
+            np.testing.assert_allclose(figs["rotary-linearity"].series[f"{sensor}_{axis}_residuals"],
+                                       e["linearity"]["residuals"], atol=1e-9)
+            # the band is the line's own slope and intercept sd: at x = 0 it is the intercept's
+            band = figs["rotary-linearity"].series[f"{sensor}_{axis}_band"]
+            assert band[0] == pytest.approx(2 * e["linearity"]["intercept_sd"], rel=1e-9)
     np.testing.assert_allclose(figs["rotary-bland-altman"].series["bias"],
                                [b["bias"] for b in result.details["bland_altman"]])
 

@@ -256,20 +256,35 @@ def rotary_figures(src: Source) -> list[Figure]:
     lines = [(sensor, axis, e["linearity"]) for sensor, axes in d.get("per_axis", {}).items()
              for axis, e in axes.items() if e.get("linearity")]
     if lines:
-        fig, axs = plt.subplots(1, len(lines), figsize=(min(3.0 * len(lines), 12), 3.0), squeeze=False)
+        fig, axs = plt.subplots(2, len(lines), figsize=(min(3.0 * len(lines), 12), 4.8), squeeze=False,
+                                sharex="col", gridspec_kw={"height_ratios": [2, 1]})
         series = {}
-        for ax, (sensor, axis, lin) in zip(axs[0], lines, strict=True):
+        for col, (sensor, axis, lin) in enumerate(lines):
             q_i, q_o = np.asarray(lin["reference"]), np.asarray(lin["output"])
-            series[f"{sensor}_{axis}_reference"], series[f"{sensor}_{axis}_output"] = q_i, q_o
             x = np.linspace(0, q_i.max() * 1.05, 50)
+            band = 2 * regression_band_sd(lin, x)
+            key = f"{sensor}_{axis}"
+            series[f"{key}_reference"], series[f"{key}_output"] = q_i, q_o
+            series[f"{key}_residuals"] = q_o - (lin["intercept"] + lin["slope"] * q_i)
+            series[f"{key}_band_x"], series[f"{key}_band"] = x, band
+            ax = axs[0, col]
             ax.plot(q_i, q_o, "o", ms=4)
             ax.plot(x, lin["intercept"] + lin["slope"] * x, "-", lw=1)
-            ax.set_xlabel("reference amplitude (m/s²)")
             ax.set_ylabel("output (counts)")
             ax.set_title(f"{sensor} {axis}: on the line, R² = {lin['r_squared']:.5f}", fontsize=8)
+            ax = axs[1, col]
+            ax.fill_between(x, -band, band, color="C1", alpha=0.3, label="line, U (k = 2)")
+            ax.plot(q_i, series[f"{key}_residuals"], "o", ms=4)
+            ax.axhline(0, color="k", lw=0.8)
+            ax.set_xlabel("reference amplitude (m/s²)")
+            ax.set_ylabel("residual (counts)")
+            if col == 0:
+                ax.legend(fontsize=6)
         fig.tight_layout()
         figures.append(Figure("rotary-linearity", "Linearity", "Output amplitude against the reference "
-                              "amplitude per sensor axis, with the regression line.", _svg(fig), series))
+                              "amplitude per sensor axis with the regression line; below, the residuals from "
+                              "the line and the line's expanded uncertainty band (k = 2). Points scattered "
+                              "around 0 without a curve mean a linear sensor.", _svg(fig), series))
     bland = d.get("bland_altman") or []
     if isinstance(bland, dict):
         bland = [{"test": 0, "label": "test", **bland}]
@@ -290,6 +305,15 @@ def rotary_figures(src: Source) -> list[Figure]:
         figures.append(Figure("rotary-bland-altman", "Bland-Altman", "Agreement of the reference accelerometer "
                               "with the encoder's acceleration in each test.", _svg(fig), series))
     return figures
+
+
+def regression_band_sd(line: dict, x: np.ndarray) -> np.ndarray:
+    """Standard deviation of the fitted line at ``x``: s^2 (1/n + (x - mean)^2 / Sxx), from the points the
+    regression was made of (the campaign keeps them) and its residual sd."""
+    q_i = np.asarray(line["reference"], dtype=float)
+    n = q_i.size
+    sxx = float(np.sum((q_i - q_i.mean()) ** 2))
+    return line["residual_sd"] * np.sqrt(1.0 / n + (np.asarray(x) - q_i.mean()) ** 2 / sxx)
 
 
 # ------------------------------------------------------------------ noise
