@@ -141,6 +141,7 @@ def test_slider_crank_certificate_has_the_verdict_and_the_figure_the_steps(slide
     assert_every_parameter_with_its_u_and_U(result, html)
     assert "Verification certificate" in html
     assert "Slider-crank verification: " in text_of(html) and str(result.details["verdict"]) in text_of(html)
+    assert result.details["verdict"] == "holds" and 'class="verdict-pass">holds' in html
     fig = slider_crank_figure(src)
     for key in ("frequency_hz", "amplitude", "model_amplitude", "model_lower", "model_upper", "radius_m",
                 "radius_uncertainty_m"):

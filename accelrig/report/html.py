@@ -28,7 +28,7 @@ break-after:avoid}h3{font-size:10.5pt;margin:4mm 0 1mm}
 table{border-collapse:collapse;margin:1mm 0 3mm;break-inside:avoid}td,th{border:1px solid #bbb;padding:1px 5px;
 text-align:left;vertical-align:top}th{background:#eee}td.n{text-align:right;font-variant-numeric:tabular-nums;
 white-space:nowrap}.kv th{width:48mm}.warn{color:#8a3b00}.verdict-fail{color:#a00;font-weight:bold}
-.verdict-pass{color:#060;font-weight:bold}figure{margin:2mm 0;break-inside:avoid}figure svg{max-width:100%;height:auto}
+.verdict-pass{color:#060;font-weight:bold}.verdict-open{color:#8a3b00;font-weight:bold}figure{margin:2mm 0;break-inside:avoid}figure svg{max-width:100%;height:auto}
 figcaption{font-size:9pt;color:#333}.note{font-size:9pt;color:#333}
 @page{size:A4;margin:12mm}
 """
@@ -156,8 +156,9 @@ def verdicts_html(src: Source) -> str:
     q, d = src.result.get("quality") or {}, src.details
     parts = []
     if "verdict" in d:
-        ok = str(d["verdict"]).lower() in ("pass", "passed", "ok", "consistent")
-        parts.append(f'<p>Slider-crank verification: <span class="verdict-{"pass" if ok else "fail"}">'
+        # the verdicts of procedures/slider_crank/analysis.verdict_for: holds, does not hold, inconclusive
+        style = {"holds": "pass", "does not hold": "fail"}.get(str(d["verdict"]), "open")
+        parts.append(f'<p>Slider-crank verification: <span class="verdict-{style}">'
                      f'{escape(str(d["verdict"]))}</span> — {escape(str(d.get("verdict_reason", "")))}</p>')
     if "chi2" in q and "dof" in q:
         p = q.get("p_value")
