@@ -34,13 +34,15 @@ COMMANDS = {
     "record": ("record a device to a CSV or .npz file", ("accelrig.commands.record",)),
     "tui": ("guided calibration in the terminal (connect, live view, wizards)", ("accelrig.commands.tui",)),
     "noise": ("noise figures (Allan deviation) of a still recording", ("accelrig.commands.noise",)),
+    "report": ("calibration certificate (HTML or PDF) from a profile, a result or a campaign",
+               ("accelrig.commands.report",)),
     "daemon": ("record several devices to disk for weeks (check, status)", ("accelrig.commands.daemon",)),
 }
 
 # Commands with kinds (``accelrig calibrate static``): their modules register into these.
 GROUPS = ("calibrate", "verify", "plan", "profile")
 
-HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash", "daemon")
+HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "report", "flash", "daemon")
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:

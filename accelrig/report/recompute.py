@@ -1,0 +1,83 @@
+"""Figures for a profile: re-run its calibration on the recording it names, when that file is still there.
+
+A profile keeps the numbers, not the per-pose tables or per-sample arrays.  When
+``provenance.recording_source`` names a file whose hash is the profile's
+``recording_hash``, the calibration is run again with the profile's settings;
+its arrays are used for the figures only if it reproduces the certified
+correction.  Otherwise the certificate says why the figures are missing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from accelrig.errors import AccelrigError
+from accelrig.report.source import Source
+
+RECOMPUTABLE = ("static", "wheel")
+# The re-run must give the certified correction back to rounding (same code, same data, same settings).
+REPRODUCE_RTOL = 1e-6
+
+
+def _recording_path(src: Source) -> Path | None:
+    name = src.provenance.get("recording_source")
+    if not name:
+        return None
+    for candidate in (Path(name), Path(src.path or ".").parent / name):
+        if candidate.is_file() or candidate.is_dir():
+            return candidate
+    return None
+
+
+def _rerun(src: Source, rec):
+    settings = src.result["settings"]
+    if src.procedure == "static":
+        from accelrig.procedures.static.procedure import calibrate_static
+        from accelrig.procedures.static.settings import SETTINGS
+
+        values = {s.name: settings[s.name] for s in SETTINGS if settings.get(s.name) is not None}
+        values["model"] = settings.get("model_requested", values.get("model", "auto"))
+        return calibrate_static(rec, **values)
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
+
+    rig = src.provenance.get("rig") or {}
+    return calibrate_wheel(rec, radius=rig.get("radius") if rig.get("radius_given") else None,
+                           tilt_deg=rig.get("tilt_deg") if rig.get("tilt_given") else None,
+                           method=src.result["method"], g=settings.get("g", 9.80665),
+                           cross_axis_sd=settings.get("cross_axis_sd", 0.0115))
+
+
+def add_arrays_from_recording(src: Source) -> str | None:
+    """Fill ``src.result['arrays']`` (and the per-pose table) by re-running the calibration; return why not,
+    or None when done or not needed."""
+    if src.kind != "profile" or src.arrays or src.procedure not in RECOMPUTABLE:
+        return None
+    if not src.provenance.get("recording_source"):
+        return "the profile names no recording file to recompute the figures from"
+    path = _recording_path(src)
+    if path is None:
+        return (f"the recording the profile names ({src.provenance.get('recording_source')}) is not here, so "
+                "the figures that need it were not recomputed")
+    from accelrig.recording import load_recording
+
+    try:
+        rec = load_recording(path)
+    except AccelrigError as exc:
+        return f"the recording {path} could not be read again ({exc})"
+    if rec.content_hash() != src.provenance.get("recording_hash"):
+        return f"the recording {path} is not the one calibrated (its hash differs from the profile's)"
+    try:
+        again = _rerun(src, rec)
+    except AccelrigError as exc:
+        return f"re-running the calibration on {path} failed ({exc})"
+    corr = src.result["correction"]
+    if not (np.allclose(again.correction.matrix, corr["matrix"], rtol=REPRODUCE_RTOL, atol=1e-12)
+            and np.allclose(again.correction.bias, corr["bias"], rtol=REPRODUCE_RTOL, atol=1e-9)):
+        return (f"re-running the calibration on {path} did not reproduce the certified correction (another "
+                "accelrig version or other settings?), so its figures are not shown")
+    plain = again.to_json_dict(include_arrays=True)
+    src.result["arrays"] = plain.get("arrays", {})
+    src.result["details"] = plain.get("details", {})
+    return None

@@ -1,0 +1,333 @@
+"""Certificates (accelrig report): every parameter with its U, figures that plot the result's own arrays,
+sources read from disk, errors in one line.  The browser checks are in test_report_browser.py."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from accelrig.cli import main
+from accelrig.report import certificate_html, from_result, load_source
+from accelrig.report.figures import (
+    noise_figure,
+    residual_asd,
+    rotary_figures,
+    slider_crank_figure,
+    static_figure,
+    wheel_figure,
+)
+from accelrig.report.html import format_value, parameter_rows
+from accelrig.result import to_json
+from report_support import (
+    DEVICE,
+    rotary_campaign_result,
+    slider_crank_result,
+    static_result,
+    wheel_result,
+)
+
+pytest.importorskip("matplotlib")
+
+
+@pytest.fixture(scope="module")
+def static_run():
+    return static_result()
+
+
+@pytest.fixture(scope="module")
+def wheel_run():
+    return wheel_result()
+
+
+@pytest.fixture(scope="module")
+def slider_run():
+    return slider_crank_result()
+
+
+@pytest.fixture(scope="module")
+def campaign_run(tmp_path_factory):
+    return rotary_campaign_result(tmp_path_factory.mktemp("campaign"))
+
+
+def text_of(html: str) -> str:
+    return re.sub(r"<[^>]+>", " ", html)
+
+
+def assert_every_parameter_with_its_u_and_U(result, html: str, k: float = 2.0) -> None:
+    text = text_of(html)
+    n = 0
+    for name, est in result.parameters.items():
+        values = est.value if isinstance(est.value, list) else [est.value]
+        uncs = est.uncertainty if isinstance(est.uncertainty, list) else [est.uncertainty]
+        for v, u in zip(values, uncs, strict=True):
+            if est.unit == "rad":
+                v, u = math.degrees(v), math.degrees(u)
+            value_text, u_text = format_value(v, u)
+            expanded = format_value(v, k * u)[1]
+            row = re.search(rf"{re.escape(name)}(\[[xyz0-9]\])?\s+{re.escape(value_text)}\s+{re.escape(u_text)}"
+                            rf"\s+{re.escape(expanded)}\s", text)
+            assert row, f"{name} = {value_text} +- {u_text} (U {expanded}) not in the certificate"
+            n += 1
+    assert n >= len(result.parameters)
+    if result.correction is not None:
+        c = result.correction
+        for i in range(3):
+            value_text, u_text = format_value(c.bias[i], c.bias_uncertainty[i])
+            expanded = format_value(c.bias[i], k * c.bias_uncertainty[i])[1]
+            assert re.search(rf"b\[{'xyz'[i]}\]\s+{re.escape(value_text)}\s+{re.escape(u_text)}\s+"
+                             rf"{re.escape(expanded)}", text)
+
+
+def test_u_is_rounded_to_two_significant_digits_and_the_value_with_it():
+    assert format_value(0.985581, 0.000112) == ("0.98558", "0.00011")
+    assert format_value(45.0337, 0.0371) == ("45.034", "0.037")
+    assert format_value(1234.5, 23.0) == ("1234", "23")
+
+
+def test_static_certificate_holds_device_method_hash_every_parameter_and_warnings(static_run):
+    result, rec = static_run
+    src = from_result(result, rec, device=DEVICE)
+    html = certificate_html(src, {"operator": "A. Tester", "temperature": "23.0 ± 1.0 °C", "certificate_number": "C-17"})
+    assert_every_parameter_with_its_u_and_U(result, html)
+    text = text_of(html)
+    for needle in ("sim-0042", "mpu9250", "±4 g", "paper 000", "A. Tester", "23.0 ± 1.0 °C", "C-17",
+                   rec.content_hash(), "k = 2", "95 %", "Lack of fit"):
+        assert needle in text, needle
+    for w in result.warnings:
+        assert w in text
+
+
+def test_static_figure_plots_the_pose_magnitudes_before_and_after_the_correction(static_run):
+    result, _ = static_run
+    fig = static_figure(from_result(result))
+    means, c, g = result.arrays["pose_means"], result.correction, result.settings["g"]
+    np.testing.assert_allclose(fig.series["before"], np.linalg.norm(means, axis=1) - g)
+    np.testing.assert_allclose(fig.series["after"], np.linalg.norm(c.apply(means), axis=1) - g, atol=1e-12)
+    used = [r["magnitude_residual"] for r in result.details["poses"] if "magnitude_residual" in r]
+    np.testing.assert_allclose(fig.series["after"], used, atol=1e-12)
+    assert fig.svg.startswith("<svg") and "|a| - g" in fig.svg
+
+
+def test_wheel_certificate_and_figure(wheel_run):
+    result, rec = wheel_run
+    src = from_result(result, rec)
+    html = certificate_html(src)
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "Pedersini" in html and "cross-axis" in text_of(html)
+    fig = wheel_figure(src)
+    for key in ("speed_time", "speed_samples", "speed_fit", "speed_residuals", "t", "residuals"):
+        np.testing.assert_allclose(fig.series[key], result.arrays[key])
+    # the spectrum of white residuals is flat near the noise density sigma * sqrt(2 / fs)
+    sd = np.std(result.arrays["residuals"], axis=0)
+    level = np.median(fig.series["spectrum"][1:], axis=0)
+    np.testing.assert_allclose(level, sd * np.sqrt(2 / 200.0), rtol=0.25)
+
+
+def test_residual_spectrum_finds_a_line_at_its_frequency():
+    t = np.arange(20000) / 200.0
+    res = np.random.default_rng(0).normal(0, 0.05, (t.size, 1)) + 0.05 * np.sin(2 * np.pi * 7.0 * t)[:, None]
+    freq, asd = residual_asd(t, res)
+    assert abs(freq[np.argmax(asd[1:, 0]) + 1] - 7.0) < 2 * (freq[1] - freq[0])
+
+
+def test_slider_crank_certificate_has_the_verdict_and_the_figure_the_steps(slider_run):
+    result, rec = slider_run
+    src = from_result(result, rec)
+    html = certificate_html(src)
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "Verification certificate" in html
+    assert "Slider-crank verification: " in text_of(html) and str(result.details["verdict"]) in text_of(html)
+    assert result.details["verdict"] == "holds" and 'class="verdict-pass">holds' in html
+    fig = slider_crank_figure(src)
+    for key in ("frequency_hz", "amplitude", "model_amplitude", "model_lower", "model_upper", "radius_m",
+                "radius_uncertainty_m"):
+        np.testing.assert_allclose(fig.series[key], result.arrays[key])
+
+
+def test_campaign_certificate_has_budgets_groups_en_and_figures(campaign_run):
+    result, _ = campaign_run
+    html = certificate_html(from_result(result))
+    assert_every_parameter_with_its_u_and_U(result, html, k=result.details["coverage_factor"])
+    text = text_of(html)
+    assert "Uncertainty budget" in text and "repeatability" in text and "E_n" in text and "ANOVA" in text
+    for sensor, axes in result.details["per_axis"].items():
+        for axis, e in axes.items():
+            assert f"{sensor} axis {axis}" in text
+            assert f"{e['expanded_uncertainty']:.3f}" in text
+    for t in result.details["tests"]:   # every test's sensitivity with its U
+        for e in t["sensitivity"].values():
+            value_text, u_text = format_value(e["value"], e["uncertainty"])
+            assert re.search(rf"{re.escape(value_text)}\s+{re.escape(u_text)}\s+"
+                             rf"{re.escape(format_value(e['value'], 2 * e['uncertainty'])[1])}", text)
+    figs = {f.key: f for f in rotary_figures(from_result(result))}
+    assert set(figs) == {"rotary-sensitivity", "rotary-linearity", "rotary-bland-altman"}
+    tests = result.details["tests"]
+    np.testing.assert_allclose(figs["rotary-sensitivity"].series["sensitivity"],
+                               [s["value"] for t in tests for s in t["sensitivity"].values()])
+    for sensor, axes in result.details["per_axis"].items():
+        for axis, e in axes.items():
+            np.testing.assert_allclose(figs["rotary-linearity"].series[f"{sensor}_{axis}_output"],
+                                       e["linearity"]["output"])
+            np.testing.assert_allclose(figs["rotary-linearity"].series[f"{sensor}_{axis}_residuals"],
+                                       e["linearity"]["residuals"], atol=1e-9)
+            # the band is the line's own slope and intercept sd: at x = 0 it is the intercept's
+            band = figs["rotary-linearity"].series[f"{sensor}_{axis}_band"]
+            assert band[0] == pytest.approx(2 * e["linearity"]["intercept_sd"], rel=1e-9)
+    np.testing.assert_allclose(figs["rotary-bland-altman"].series["bias"],
+                               [b["bias"] for b in result.details["bland_altman"]])
+
+
+def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_run, tmp_path, capsys):
+    from accelrig.profiles import profile_from_result, save_profile
+
+    result, rec = static_run
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+    out = tmp_path / "from-profile.html"
+    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab"]) == 0
+    html = out.read_text()
+    assert_every_parameter_with_its_u_and_U(result, html)
+    assert "B. Lab" in html and rec.content_hash() in html
+    # a profile keeps no arrays: the figure it cannot draw is named, not faked
+    assert "Figure not shown" in html
+
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.html"), "--no-figures"]) == 0
+    assert "9. Figures" not in (tmp_path / "r.html").read_text()
+    assert main(["report", str(saved), "-o", str(tmp_path / "r2.html")]) == 0
+    assert "<svg" in (tmp_path / "r2.html").read_text()   # the per-pose table is enough for the |g| figure
+
+    campaign, truth = campaign_run
+    assert main(["calibrate", "rotary", "--campaign", str(truth["yaml"]), "-o", str(tmp_path / "c.yaml")]) == 0
+    capsys.readouterr()
+    src = load_source(tmp_path / "c.yaml")
+    assert src.is_campaign and set(src.result["parameters"]) == set(campaign.parameters)
+
+
+def test_cli_bad_sources_and_outputs_are_one_line(tmp_path, capsys):
+    missing = tmp_path / "none.yaml"
+    assert main(["report", str(missing), "-o", str(tmp_path / "x.html")]) != 0
+    assert "no such file" in capsys.readouterr().err
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps({"hello": 1}))
+    assert main(["report", str(odd), "-o", str(tmp_path / "x.html")]) != 0
+    assert "neither a profile" in capsys.readouterr().err
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    assert main(["report", str(broken), "-o", str(tmp_path / "x.html")]) != 0
+    assert "not valid JSON" in capsys.readouterr().err
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_wrong_output_suffix_is_refused(static_run, tmp_path, capsys):
+    result, _ = static_run
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    assert main(["report", str(saved), "-o", str(tmp_path / "x.docx")]) != 0
+    assert "use .html or .pdf" in capsys.readouterr().err
+
+
+def test_parameter_rows_show_angles_in_degrees(static_run):
+    result, _ = static_run
+    rows = {r[0]: r for r in parameter_rows(from_result(result), 2.0)}
+    angle = next(n for n in result.parameters if result.parameters[n].unit == "rad")
+    assert rows[angle][4] == "deg"
+
+
+def test_noise_figure_plots_the_measured_allan_curve_and_the_certified_terms(static_run, tmp_path, capsys):
+    from accelrig.profiles import load_profile, profile_from_result, save_profile
+    from accelrig.recording import write_csv
+    from accelrig.sim.device import simulate
+    from accelrig.sim.rigs.still import StillRig
+    from accelrig.sim.sensor import SensorModel, SimClock
+
+    rec = simulate(StillRig(), SensorModel(noise_density=300e-6 * 9.80665), SimClock(200.0), seconds=60, seed=5)
+    rec.meta["chip"] = "mpu9250"
+    still = tmp_path / "still.csv"
+    write_csv(rec, still)
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(static_run[0], rec), profile)
+    assert main(["noise", str(still), "--profile", str(profile)]) == 0
+    capsys.readouterr()
+    assert main(["noise", str(still), "--json"]) == 0
+    noise_json = tmp_path / "noise.json"
+    noise_json.write_text(capsys.readouterr().out)
+    measured = json.loads(noise_json.read_text())
+
+    # from the profile alone: the terms its figures imply, and the datasheet line of the chip
+    src = load_source(profile)
+    fig = noise_figure(src)
+    stored = load_profile(profile).noise
+    tau = fig.series["tau_s"]
+    for axis in "xyz":
+        np.testing.assert_allclose(fig.series[f"white_{axis}"],
+                                   stored["axes"][axis]["density"]["value"] / np.sqrt(2 * tau))
+    np.testing.assert_allclose(fig.series["datasheet"], 300e-6 * 9.80665 / np.sqrt(2 * tau))
+    assert "adev_x" not in fig.series and "not kept in the profile" in fig.caption
+
+    # with the curves: the measured Allan deviation is what is plotted
+    out = tmp_path / "n.html"
+    assert main(["report", str(profile), "--noise", str(noise_json), "-o", str(out)]) == 0
+    assert "Noise (Allan deviation)" in out.read_text()
+    src.noise = measured
+    fig = noise_figure(src)
+    np.testing.assert_allclose(fig.series["tau_s"], measured["arrays"]["tau"])
+    for axis in "xyz":
+        np.testing.assert_allclose(fig.series[f"adev_{axis}"], measured["arrays"][f"adev_{axis}"])
+
+    # curves of another recording are refused: they would contradict the certified figures
+    other = dict(measured, recording_hash="sha256:" + "0" * 64)
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    assert main(["report", str(profile), "--noise", str(tmp_path / "other.json"), "-o", str(tmp_path / "o.html")]) != 0
+    assert "is not the one of the noise figures" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("procedure", ["static", "wheel"])
+def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_one(procedure, static_run, wheel_run,
+                                                                                tmp_path):
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.procedures.wheel.procedure import calibrate_wheel
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    rec = (static_run if procedure == "static" else wheel_run)[1]
+    path = tmp_path / "rec.csv"
+    write_csv(rec, path)
+    rec = load_recording(path)
+    result = calibrate_static(rec) if procedure == "static" else calibrate_wheel(rec, radius=0.28)
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+
+    figures, missing = figures_for(load_source(profile))
+    assert missing == [] and len(figures) == 1
+    key = "after" if procedure == "static" else "speed_residuals"
+    expected = (np.linalg.norm(result.correction.apply(result.arrays["pose_means"]), axis=1) - 9.80665
+                if procedure == "static" else result.arrays["speed_residuals"])
+    np.testing.assert_allclose(figures[0].series[key], expected, atol=1e-9)
+
+    # another recording under the same name: no figure, and the reason
+    text = path.read_text().splitlines()
+    text[-1] = ",".join(text[-1].split(",")[:-1] + ["9.0"])
+    path.write_text("\n".join(text) + "\n")
+    figures, missing = figures_for(load_source(profile))
+    assert figures == [] and "hash differs" in missing[0]
+
+
+def test_pdf_without_a_browser_says_so_and_writes_nothing(static_run, tmp_path, monkeypatch, capsys):
+    result, _ = static_run
+    saved = tmp_path / "r.json"
+    saved.write_text(to_json(result.to_json_dict()))
+    monkeypatch.setattr("accelrig.report.certificate.find_browser", lambda: None)
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.pdf"), "--no-figures"]) != 0
+    assert "needs Chromium" in capsys.readouterr().err
+    monkeypatch.undo()
+    monkeypatch.setenv("ACCELRIG_CHROMIUM", str(tmp_path / "no-such-browser"))
+    assert main(["report", str(saved), "-o", str(tmp_path / "r.pdf"), "--no-figures"]) != 0
+    assert "could not start the browser" in capsys.readouterr().err
+    assert not (tmp_path / "r.pdf").exists()
