@@ -35,12 +35,15 @@ COMMANDS = {
     "tui": ("guided calibration in the terminal (connect, live view, wizards)", ("accelrig.commands.tui",)),
     "noise": ("noise figures (Allan deviation) of a still recording", ("accelrig.commands.noise",)),
     "daemon": ("record several devices to disk for weeks (check, status)", ("accelrig.commands.daemon",)),
+    "collect": ("store the fleet's data from an MQTT broker as segment files", ("accelrig.commands.collect",)),
+    "fleet": ("the devices publishing to an MQTT broker, as a table", ("accelrig.commands.fleet",)),
 }
 
 # Commands with kinds (``accelrig calibrate static``): their modules register into these.
 GROUPS = ("calibrate", "verify", "plan", "profile")
 
-HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash", "daemon")
+HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "flash", "daemon", "collect",
+              "fleet")
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
