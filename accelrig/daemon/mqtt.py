@@ -30,7 +30,7 @@ from accelrig.daemon import wire
 from accelrig.errors import AccelrigError
 
 WINDOW = 32                  # messages handed to paho and not yet acknowledged
-CLOSE_SECONDS = 1.5          # at stop: how long to wait for the backlog to go out (the rest stays spooled)
+CLOSE_SECONDS = 1.0          # at stop: the most it may add to the daemon's 5 s (the rest stays spooled)
 SPOOL_SUFFIX = ".msg"
 
 
@@ -131,7 +131,7 @@ class Publisher:
         self._stop.set()
         self._wake.set()
         if self._thread is not None:
-            self._thread.join(1.0)
+            self._thread.join(max(deadline - time.monotonic(), 0.1))
         client = self._client
         if client is None:
             return
@@ -139,7 +139,7 @@ class Publisher:
             info = client.publish(self.topics["status"], json.dumps({**self._status(), "state": "stopped"}),
                                   qos=1, retain=True)
             try:
-                info.wait_for_publish(max(deadline - time.monotonic(), 0.3))
+                info.wait_for_publish(max(deadline - time.monotonic(), 0.1))
             except (RuntimeError, ValueError):
                 pass
         client.disconnect()
