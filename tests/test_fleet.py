@@ -307,3 +307,72 @@ def test_mqtt_config_refused_naming_the_field(mqtt, message):
     with pytest.raises(ConfigError, match=message) as info:
         parse_config({"output": "/tmp/x", "devices": [{"url": "sim://still", "name": "a"}], "mqtt": mqtt})
     assert "pw" not in str(info.value)
+
+
+def fleet_state(broker) -> str | None:
+    out = subprocess.run([sys.executable, "-m", "accelrig", "fleet", "--broker", broker.url, "--username",
+                          COLLECTOR_USER, "--password-env", "PW", "--json", "--timeout", "5"], capture_output=True,
+                         text=True, timeout=30, env={**os.environ, "PW": COLLECTOR_PASSWORD})
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)
+    return rows[0]["state"] if rows else None
+
+
+def test_a_daemon_killed_while_the_broker_is_away_sends_its_spool_at_the_next_start(broker, tmp_path):
+    """kill -9 with a spool on disk, the broker back, the daemon started again: the old run's blocks
+    go out first, then the new run's (with its "not recording" gap); the collector, restarted too,
+    keeps its place (collector.json) and holds every sample of the local files.  The retained
+    status says offline (last will) after a kill, stopped after SIGTERM."""
+    (tmp_path / "daemon.pass").write_text(DAEMON_PASSWORD + "\n")
+    config = tmp_path / "a.yaml"
+    config.write_text(yaml.safe_dump({
+        "output": str(tmp_path / "out"), "status_interval": 0,
+        "devices": [{"url": "sim://still?seed=3&pace=realtime&rate=500", "name": "a"}],
+        "mqtt": {"broker": broker.url, "site": "north", "username": DAEMON_USER,
+                 "password_file": str(tmp_path / "daemon.pass"), "status_seconds": 1}}))
+    env = {"COLLECT_PW": COLLECTOR_PASSWORD}
+    collect_args = ("collect", "--broker", broker.url, "--output", str(tmp_path / "fleet"), "--username",
+                    COLLECTOR_USER, "--password-env", "COLLECT_PW")
+    collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
+    daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+    try:
+        wait_for(lambda: (tmp_path / "fleet" / "north" / "a").is_dir(), 20, "the device at the collector")
+        time.sleep(1.0)
+        collector.send_signal(signal.SIGTERM)        # the collector restarts while all this happens
+        assert collector.wait(15) == 0
+        broker.stop()
+        time.sleep(2.0)
+        daemon.kill()                                # kill -9 with the outage's blocks in the spool
+        daemon.wait(10)
+        spooled = list((tmp_path / "out" / "a" / "spool").glob("*.msg"))
+        assert spooled, "nothing was spooled while the broker was away"
+        broker.start()
+        collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
+        daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+        wait_for(lambda: "spooled message(s) to send" in (tmp_path / "a.log").read_text(), 20,
+                 "the restarted daemon to find its spool")
+        time.sleep(3.0)
+        daemon.kill()                                # the broker sees it vanish: the last will says offline
+        daemon.wait(10)
+        assert fleet_state(broker) == "offline"
+        daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+        wait_for(lambda: fleet_state(broker) == "streaming", 20, "the daemon streaming again")
+        daemon.send_signal(signal.SIGTERM)
+        assert daemon.wait(15) == 0
+        assert fleet_state(broker) == "stopped"
+        time.sleep(1.0)
+        collector.send_signal(signal.SIGTERM)
+        assert collector.wait(15) == 0
+    finally:
+        for proc in (daemon, collector):
+            if proc.poll() is None:
+                proc.kill()
+    assert not list((tmp_path / "out" / "a" / "spool").glob("*.msg"))
+    local_t, local_c, local_gaps = samples(tmp_path / "out" / "a")
+    got_t, got_c, got_gaps = samples(tmp_path / "fleet" / "north" / "a")
+    at = np.searchsorted(got_t, local_t)
+    assert np.all(at < got_t.size) and np.array_equal(got_t[at], local_t), "samples missing at the collector"
+    assert np.array_equal(got_c[at], local_c)
+    assert not [g for g in got_gaps if "not received" in g["cause"]], got_gaps
+    assert any("not recording" in g["cause"] for g in got_gaps)
+    assert json.loads((tmp_path / "fleet" / "north" / "a" / "collector.json").read_text())["next_seq"] > 0
