@@ -26,7 +26,7 @@ from pathlib import Path
 from accelrig.daemon.config import DaemonConfig, check_mqtt, check_output_writable, load_config
 from accelrig.daemon.device import DeviceRunner
 from accelrig.daemon.notify import notify, watchdog_interval
-from accelrig.daemon.status import StatusServer
+from accelrig.daemon.status import StatusServer, mqtt_summary
 from accelrig.errors import AccelrigError
 
 STOP_SECONDS = 4.0   # every device joined within this; the daemon must be gone within 5 s of SIGTERM
@@ -204,6 +204,8 @@ class Daemon:
                     f"{d['bytes_written'] / 1e6:.1f} MB, profile {d['profile']}")
             if d["error"]:
                 line += f" ({d['error']})"
+            if d.get("mqtt"):
+                line += f"; mqtt: {mqtt_summary(d['mqtt'])}"
             log(line)
 
     def _start_metrics(self) -> None:
