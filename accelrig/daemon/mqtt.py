@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import threading
 import time
 from collections import deque
@@ -49,7 +50,7 @@ class Spool:
         self.bytes = sum(size for _, size in self.waiting)
 
     def __len__(self) -> int:
-        return len(self.waiting) + len(self.inflight)
+        return len(self.waiting) + len(self.inflight)   # (plus at most one being handed to paho)
 
     def add(self, name: str, payload: bytes) -> None:
         path = self.directory / name
@@ -101,7 +102,8 @@ class Publisher:
         self._thread: threading.Thread | None = None
         self._client = None
         self._meta: dict | None = None
-        self._acked_early: set[int] = set()
+        self._acks: queue.SimpleQueue[int] = queue.SimpleQueue()   # PUBACKs, from paho's thread
+        self._handing: tuple[str, int] | None = None
         self._drop_logged = -1e9
 
     # ------------------------------------------------------------------ lifecycle
@@ -144,6 +146,7 @@ class Publisher:
                 pass
         client.disconnect()
         client.loop_stop()
+        self._retire_acknowledged()
         if len(self.spool):
             self.log(f"{self.device}: mqtt: {len(self.spool)} message(s) left in the spool; "
                      "they are sent at the next start")
@@ -270,9 +273,15 @@ class Publisher:
                 self._publish_status()
 
     def _send_waiting(self) -> None:
-        # paho calls on_publish holding its own lock: never call into paho while holding ours
+        """Hand the oldest waiting messages to paho, and retire the acknowledged ones.
+
+        Only this thread touches ``inflight``: paho's callback merely queues the acknowledged
+        ids (it runs holding paho's lock, and taking ours there could deadlock against a
+        publish), and an id is looked up only after this thread has recorded it.
+        """
         client = self._client
         while True:
+            self._retire_acknowledged()
             with self._lock:
                 if not self.connected or len(self.spool.inflight) >= WINDOW or not self.spool.waiting:
                     return
@@ -284,18 +293,24 @@ class Publisher:
                              "the collector records its sequence number as missing")
                     self.spool.done(name, size)
                     continue
-                self.spool.inflight[-1 - len(self.spool.inflight)] = (name, size)   # counted while handed over
+                self._handing = (name, size)    # counted as spooled while paho has it
             info = client.publish(self.topics["data"], payload, qos=1)
             with self._lock:
-                placeholder = next(k for k, v in self.spool.inflight.items() if k < 0 and v[0] == name)
-                del self.spool.inflight[placeholder]
-                if info.mid in self._acked_early:     # the PUBACK beat us here
-                    self._acked_early.discard(info.mid)
-                    self.spool.done(name, size)
-                    self.counts["acknowledged"] += 1
-                else:
-                    self.spool.inflight[info.mid] = (name, size)
+                self._handing = None
+                self.spool.inflight[info.mid] = (name, size)
                 self.counts["published"] += 1
+
+    def _retire_acknowledged(self) -> None:
+        while True:
+            try:
+                mid = self._acks.get_nowait()
+            except queue.Empty:
+                return
+            with self._lock:
+                entry = self.spool.inflight.pop(mid, None)   # None: a status or meta message
+                if entry is not None:
+                    self.spool.done(*entry)
+                    self.counts["acknowledged"] += 1
 
     def _publish_status(self) -> None:
         try:
@@ -311,7 +326,7 @@ class Publisher:
 
     def stats(self) -> dict:
         with self._lock:
-            spooled, spool_bytes = len(self.spool), self.spool.bytes
+            spooled, spool_bytes = len(self.spool) + (self._handing is not None), self.spool.bytes
         return {"broker": str(self.broker), "connected": self.connected, "error": self.error,
                 "spooled": spooled, "spool_bytes": spool_bytes, **self.counts}
 
@@ -348,14 +363,5 @@ class Publisher:
             self.error = f"disconnected: {reason}"
 
     def _on_publish(self, client, userdata, mid, reason=None, properties=None) -> None:
-        with self._lock:
-            entry = self.spool.inflight.pop(mid, None)
-            if entry is not None:
-                self.spool.done(*entry)
-                self.counts["acknowledged"] += 1
-            else:       # acknowledged before _send_waiting recorded it (or a status/meta message)
-                self._acked_early.add(mid)
-                if len(self._acked_early) > 10_000:
-                    self._acked_early.clear()
-        if entry is not None:
-            self._wake.set()
+        self._acks.put(mid)
+        self._wake.set()
