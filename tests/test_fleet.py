@@ -376,3 +376,56 @@ def test_a_daemon_killed_while_the_broker_is_away_sends_its_spool_at_the_next_st
     assert not [g for g in got_gaps if "not received" in g["cause"]], got_gaps
     assert any("not recording" in g["cause"] for g in got_gaps)
     assert json.loads((tmp_path / "fleet" / "north" / "a" / "collector.json").read_text())["next_seq"] > 0
+
+
+def test_a_full_spool_drops_the_oldest_blocks_as_one_exact_gap(tmp_path):
+    """No broker: the spool's bound folds the oldest blocks, and the earlier fold, into one gap message."""
+    from accelrig.daemon import wire
+    from accelrig.daemon.config import MqttConfig
+    from accelrig.daemon.mqtt import Publisher
+
+    settings = MqttConfig(broker="mqtt://127.0.0.1:1", site="north", spool_megabytes=0.003)
+    logs: list[str] = []
+    publisher = Publisher(settings, "a", tmp_path / "spool", dict, logs.append)
+    publisher.announce({}, 0.0006, "")
+    counts = np.zeros((100, 3), np.int16)
+    for k in range(10):    # 10 blocks of 100 samples, 1052 bytes each, against a 3000-byte bound
+        publisher.block(1.795e9 + k * 0.1 + np.arange(100) * 1e-3, counts)
+    messages = [wire.decode(p.read_bytes()) for p in sorted((tmp_path / "spool").glob("*.msg"))]
+    gap, rest = messages[0], messages[1:]
+    assert gap.kind == wire.GAP and gap.gap["spool"] and gap.gap["first_seq"] == 0 and gap.gap["from_sample"] == 0
+    assert gap.gap["samples"] == publisher.counts["dropped_samples"] == gap.first_sample
+    assert all(m.kind == wire.DATA for m in rest) and rest[0].first_sample == gap.first_sample
+    assert [m.seq for m in rest] == list(range(gap.seq + 1, 10))
+    assert gap.gap["samples"] + sum(m.samples for m in rest) == 1000
+    assert len(logs) == 1 and "spool over" in logs[0]
+
+
+def test_meta_and_profile_are_retained(broker, tmp_path):
+    import paho.mqtt.client as mqtt
+
+    from accelrig.daemon.config import MqttConfig
+    from accelrig.daemon.mqtt import Publisher
+
+    (tmp_path / "pw").write_text(DAEMON_PASSWORD)
+    settings = MqttConfig(broker=broker.url, site="north", username=DAEMON_USER, password_file=str(tmp_path / "pw"))
+    publisher = Publisher(settings, "a", tmp_path / "spool", dict, lambda line: None)
+    publisher.announce({"device": {"identity": "sim-1"}}, 0.0006, "sim-1@2026", {"format": "accelrig-profile"})
+    publisher.start()
+    wait_for(lambda: publisher.connected, 10, "the publisher to connect")
+    publisher.close()
+    got: dict[str, bytes] = {}
+    reader = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="t-retained")
+    reader.username_pw_set(COLLECTOR_USER, COLLECTOR_PASSWORD)
+    reader.on_message = lambda c, u, m: got.__setitem__(m.topic.rsplit("/", 1)[1], m.payload)
+    reader.connect("127.0.0.1", broker.port)
+    reader.subscribe("accelrig/north/a/+", 1)
+    reader.loop_start()
+    try:
+        wait_for(lambda: {"meta", "profile", "status"} <= set(got), 10, "the retained messages")
+    finally:
+        reader.disconnect()
+        reader.loop_stop()
+    assert json.loads(got["profile"]) == {"format": "accelrig-profile"}
+    assert json.loads(got["meta"])["device"] == {"identity": "sim-1"}
+    assert json.loads(got["status"])["state"] == "stopped"

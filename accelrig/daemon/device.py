@@ -433,7 +433,8 @@ class DeviceRunner:
         )
         if self.publisher is not None:
             ref = meta["profile"]
-            self.publisher.announce(meta, info.scale, f"{ref['identity']}@{ref['created']}" if ref else "")
+            self.publisher.announce(meta, info.scale, f"{ref['identity']}@{ref['created']}" if ref else "",
+                                    self._profile.data if self._profile is not None else None)
 
     def _close_writer(self) -> None:
         writer, self.writer = self.writer, None

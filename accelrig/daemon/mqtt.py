@@ -83,7 +83,7 @@ class Publisher:
         self.status_fn = status_fn              # () -> dict: the runner's status
         self.broker = wire.parse_broker(settings.broker)
         self.topics = {kind: wire.topic(settings.prefix, settings.site, site_device, kind)
-                       for kind in ("data", "status", "meta")}
+                       for kind in ("data", "status", "meta", "profile")}
         self.host = wire.host_name()
         self.client_id = f"accelrig-{self.host}-{site_device}"[:128]
         self.spool = Spool(spool_directory, int(settings.spool_megabytes * 1e6))
@@ -102,6 +102,7 @@ class Publisher:
         self._thread: threading.Thread | None = None
         self._client = None
         self._meta: dict | None = None
+        self._profile_json = ""
         self._acks: queue.SimpleQueue[int] = queue.SimpleQueue()   # PUBACKs, from paho's thread
         self._handing: tuple[str, int] | None = None
         self._drop_logged = -1e9
@@ -152,13 +153,19 @@ class Publisher:
                      "they are sent at the next start")
 
     # ------------------------------------------------------------------ what the runner hands over
-    def announce(self, meta: dict, scale: float, profile: str) -> None:
-        """A connection of the device began: its description, retained on the meta topic."""
+    def announce(self, meta: dict, scale: float, profile: str, profile_data: dict | None = None) -> None:
+        """A connection of the device began: its description on the meta topic, the profile in use
+        (the whole profile, JSON; empty without one) on the profile topic, both retained."""
         self.scale, self.profile = float(scale), profile
         self._meta = {**meta, "host": self.host, "site": self.settings.site,
                       "payload_version": wire.VERSION, "epoch": self.epoch}
+        self._profile_json = json.dumps(profile_data, default=str) if profile_data is not None else ""
         if self._client is not None:
-            self._client.publish(self.topics["meta"], json.dumps(self._meta, default=str), qos=1, retain=True)
+            self._publish_description(self._client)
+
+    def _publish_description(self, client) -> None:
+        client.publish(self.topics["meta"], json.dumps(self._meta, default=str), qos=1, retain=True)
+        client.publish(self.topics["profile"], self._profile_json, qos=1, retain=True)
 
     def block(self, t_utc: np.ndarray, counts: np.ndarray) -> None:
         from accelrig.segments import to_ns
@@ -346,7 +353,7 @@ class Publisher:
         self.log(f"{self.device}: mqtt: connected to {self.broker} as {self.client_id}"
                  f"{f', {len(self.spool)} spooled message(s) to send' if len(self.spool) else ''}")
         if self._meta is not None:
-            client.publish(self.topics["meta"], json.dumps(self._meta, default=str), qos=1, retain=True)
+            self._publish_description(client)
         self._wake.set()
 
     def _on_connect_fail(self, client, userdata) -> None:

@@ -8,6 +8,7 @@ Topics, under a prefix (default ``accelrig``)::
     PREFIX/SITE/DEVICE/data     blocks of samples and gap records (binary, below), QoS 1
     PREFIX/SITE/DEVICE/status   JSON, retained; the last will replaces it with {"state": "offline", ...}
     PREFIX/SITE/DEVICE/meta     JSON, retained: device, profile, rate, payload version
+    PREFIX/SITE/DEVICE/profile  JSON, retained: the whole profile in use (empty: none)
 
 Payload of ``data`` (little-endian; ``HEADER`` below, 52 bytes, then the profile id, then the body)::
 
