@@ -37,12 +37,15 @@ COMMANDS = {
     "report": ("calibration certificate (HTML or PDF) from a profile, a result or a campaign",
                ("accelrig.commands.report",)),
     "daemon": ("record several devices to disk for weeks (check, status)", ("accelrig.commands.daemon",)),
+    "collect": ("store the fleet's data from an MQTT broker as segment files", ("accelrig.commands.collect",)),
+    "fleet": ("the devices publishing to an MQTT broker, as a table", ("accelrig.commands.fleet",)),
 }
 
 # Commands with kinds (``accelrig calibrate static``): their modules register into these.
 GROUPS = ("calibrate", "verify", "plan", "profile")
 
-HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "report", "flash", "daemon")
+HELP_ORDER = ("tui", "devices", "record", "calibrate", "verify", "plan", "noise", "profile", "report", "flash", "daemon",
+              "collect", "fleet")
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:

@@ -63,6 +63,32 @@ DEVICE = Object(
     description="one device the daemon records",
 )
 
+MQTT = Object(
+    {
+        "broker": Field(String(pattern=r"mqtts?://.+", description=(
+            "broker URL: mqtt://HOST[:PORT] (1883) or mqtts://HOST[:PORT] (TLS, 8883); no credentials in it"))),
+        "site": Field(String(pattern=NAME_PATTERN, description=(
+            "the site this daemon belongs to (letters, digits, - and _): topics are PREFIX/SITE/DEVICE/..."))),
+        "prefix": optional(String(pattern=r"[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*", description=(
+            "first part of every topic; default accelrig"))),
+        "username": optional(String(min_length=1, description="user name at the broker; default none")),
+        "password_file": optional(String(min_length=1, description=(
+            "file whose first line is the password (keep it owner-only); never logged"))),
+        "password_env": optional(String(pattern=r"[A-Za-z_][A-Za-z0-9_]*", description=(
+            "environment variable holding the password, instead of password_file"))),
+        "ca_file": optional(String(min_length=1, description=(
+            "with mqtts://: the CA certificate(s) that signed the broker's (PEM); default the system's"))),
+        "spool_megabytes": optional(Number(exclusive_minimum=0, description=(
+            "per device, the most data kept on disk while the broker is unreachable; past it the oldest "
+            "are dropped as a counted gap; default 512"))),
+        "status_seconds": optional(Number(exclusive_minimum=0, description=(
+            "seconds between retained status messages; default 10"))),
+        "keepalive": optional(Integer(minimum=5, maximum=3600, description=(
+            "MQTT keepalive, s: a dead link is noticed within 1.5 times this; default 30"))),
+    },
+    description="publish every device's samples to an MQTT broker (needs the 'mqtt' extra); see docs/fleet.md",
+)
+
 DAEMON_CONFIG = Object(
     {
         "output": Field(String(min_length=1, description=(
@@ -86,6 +112,7 @@ DAEMON_CONFIG = Object(
             "profile store directory; default the user's store ($ACCELRIG_HOME/profiles, ...)"))),
         "metrics_port": optional(Nullable(Integer(minimum=1, maximum=65535, description=(
             "serve Prometheus metrics on 127.0.0.1:PORT (needs the 'metrics' extra); default none")))),
+        "mqtt": optional(MQTT),
     },
     description="accelrig daemon configuration, version 1",
 )
@@ -114,6 +141,20 @@ class DeviceConfig:
 
 
 @dataclass(frozen=True)
+class MqttConfig:
+    broker: str
+    site: str
+    prefix: str = "accelrig"
+    username: str | None = None
+    password_file: str | None = None
+    password_env: str | None = None
+    ca_file: str | None = None
+    spool_megabytes: float = 512.0
+    status_seconds: float = 10.0
+    keepalive: int = 30
+
+
+@dataclass(frozen=True)
 class DaemonConfig:
     output: Path
     devices: tuple[DeviceConfig, ...]
@@ -126,6 +167,7 @@ class DaemonConfig:
     reconnect_max: float = 60.0
     profile_store: Path | None = None
     metrics_port: int | None = None
+    mqtt: MqttConfig | None = None
     source: Path | None = field(default=None, compare=False)
 
 
@@ -182,6 +224,33 @@ def parse_config(data, source: str = "<config>", base: Path | None = None) -> Da
         reconnect_max=float(data.get("reconnect_max", 60.0)),
         profile_store=path(data["profile_store"]) if "profile_store" in data else None,
         metrics_port=data.get("metrics_port"),
+        mqtt=_mqtt(data["mqtt"], source, path) if "mqtt" in data else None,
+    )
+
+
+def _mqtt(data: dict, source: str, path) -> MqttConfig:
+    if "password_file" in data and "password_env" in data:
+        raise ConfigError(f"{source}: mqtt.password_env: give the password in a file or in the environment, not both")
+    if ("password_file" in data or "password_env" in data) and "username" not in data:
+        raise ConfigError(f"{source}: mqtt.username: a password needs a user name")
+    if "ca_file" in data and not data["broker"].startswith("mqtts://"):
+        raise ConfigError(f"{source}: mqtt.ca_file: a CA file is for TLS, but the broker URL is mqtt://",
+                          "use mqtts://HOST:PORT, or remove ca_file")
+    from accelrig.daemon.wire import parse_broker
+
+    try:
+        parse_broker(data["broker"])
+    except AccelrigError as exc:
+        raise ConfigError(f"{source}: mqtt.broker: {exc}") from None
+    return MqttConfig(
+        broker=data["broker"], site=data["site"], prefix=data.get("prefix", "accelrig"),
+        username=data.get("username"),
+        password_file=str(path(data["password_file"])) if "password_file" in data else None,
+        password_env=data.get("password_env"),
+        ca_file=str(path(data["ca_file"])) if "ca_file" in data else None,
+        spool_megabytes=float(data.get("spool_megabytes", 512.0)),
+        status_seconds=float(data.get("status_seconds", 10.0)),
+        keepalive=int(data.get("keepalive", 30)),
     )
 
 
@@ -240,8 +309,28 @@ def check_config(config: DaemonConfig) -> list[str]:
             store = ProfileStore(config.profile_store)
             notes.append(f"{device.name}: profile from the store {store.root} by the device's identity "
                          "(looked up when it connects)")
+    if config.mqtt is not None:
+        notes.append(check_mqtt(config.mqtt))
     check_output_writable(config.output)
     return notes
+
+
+def check_mqtt(mqtt: MqttConfig) -> str:
+    """What publishing needs before it connects: paho, the password, the CA file; a note for the operator."""
+    import importlib.util
+
+    from accelrig.daemon.wire import read_password
+
+    if importlib.util.find_spec("paho") is None:
+        raise ConfigError("mqtt: publishing needs paho-mqtt, which is not installed", "pip install 'accelrig[mqtt]'")
+    try:
+        read_password(mqtt.password_file, mqtt.password_env)
+    except AccelrigError as exc:
+        raise ConfigError(f"mqtt.{exc}") from None
+    if mqtt.ca_file is not None and not Path(mqtt.ca_file).is_file():
+        raise ConfigError(f"mqtt.ca_file: {mqtt.ca_file}: no such file")
+    return (f"mqtt: publishing to {mqtt.broker} under {mqtt.prefix}/{mqtt.site}/DEVICE/"
+            f"{f' as {mqtt.username}' if mqtt.username else ''}")
 
 
 def json_schema() -> dict:

@@ -157,11 +157,14 @@ class DeviceRunner:
         self._profile = None
         self._bytes_closed = 0
         self._segments_closed = 0
+        self.publisher = None                # daemon.mqtt.Publisher when the config has an mqtt section
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         self._pending = self._since_last_run()
+        if self.config.mqtt is not None:
+            self._start_publisher()
         self._thread = threading.Thread(target=self._run, name=f"accelrig daemon {self.device.name}", daemon=True)
         self._thread.start()
 
@@ -196,6 +199,19 @@ class DeviceRunner:
         if last is not None:
             return PendingGap("not recording: the previous run ended without stopping (killed or crashed)", None)
         return None
+
+    def _start_publisher(self) -> None:
+        """The device's MQTT publisher: a copy of every block and gap for the fleet (the files stay the record)."""
+        from accelrig.daemon.mqtt import Publisher
+
+        try:
+            publisher = Publisher(self.config.mqtt, self.device.name, self.directory / "spool", self.status, self.log)
+            publisher.start()
+        except AccelrigError as exc:   # checked at start; a password file removed since, on reload
+            self.log(f"{self.device.name}: mqtt: not publishing: {exc}")
+            self._journal("mqtt_failed", error=str(exc))
+            return
+        self.publisher = publisher
 
     def _last_journal_event(self) -> dict | None:
         path = self.directory / "journal.jsonl"
@@ -415,6 +431,10 @@ class DeviceRunner:
             segment_seconds=self.config.segment_seconds,
             segment_bytes=int(self.config.segment_megabytes * 1e6), csv=self.device.csv,
         )
+        if self.publisher is not None:
+            ref = meta["profile"]
+            self.publisher.announce(meta, info.scale, f"{ref['identity']}@{ref['created']}" if ref else "",
+                                    self._profile.data if self._profile is not None else None)
 
     def _close_writer(self) -> None:
         writer, self.writer = self.writer, None
@@ -525,6 +545,8 @@ class DeviceRunner:
         if full is not None and time.monotonic() < full["next_try"]:
             self._drop(t, n)    # not yet time to try again
             return
+        if self.publisher is not None:
+            self.publisher.block(t, chunk.counts[start:stop])
         try:
             if full is not None:
                 seconds = float(t[0]) - full["since"]
@@ -571,6 +593,8 @@ class DeviceRunner:
 
     def _write_gap(self, at: float, samples: int, cause: str, seconds: float | None) -> None:
         self._journal("gap", cause=cause, samples=samples, at=utc_text(at), seconds=seconds)
+        if self.publisher is not None:
+            self.publisher.gap(at, samples, cause, seconds)
         try:
             self.writer.gap(at, samples, cause, seconds)
             self.counts.gaps += 1
@@ -600,6 +624,8 @@ class DeviceRunner:
     def _finish(self) -> None:
         self._record_drops()
         self._close_writer()
+        if self.publisher is not None:
+            self.publisher.close()
         if self.state not in ("failed", "ended"):
             self._set("stopped", self.last_error)
         status = self.status()
@@ -649,6 +675,7 @@ class DeviceRunner:
             "output": self.device.output,
             "last_sample": utc_text(self.last_sample_utc),
             "seconds_since_data": round(time.monotonic() - self.last_data, 3) if state == "streaming" else None,
+            **({"mqtt": self.publisher.stats()} if self.publisher is not None else {}),
         }
 
     def _clock_rate(self) -> float | None:

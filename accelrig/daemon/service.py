@@ -23,10 +23,10 @@ import threading
 import time
 from pathlib import Path
 
-from accelrig.daemon.config import DaemonConfig, check_output_writable, load_config
+from accelrig.daemon.config import DaemonConfig, check_mqtt, check_output_writable, load_config
 from accelrig.daemon.device import DeviceRunner
 from accelrig.daemon.notify import notify, watchdog_interval
-from accelrig.daemon.status import StatusServer
+from accelrig.daemon.status import StatusServer, mqtt_summary
 from accelrig.errors import AccelrigError
 
 STOP_SECONDS = 4.0   # every device joined within this; the daemon must be gone within 5 s of SIGTERM
@@ -42,7 +42,7 @@ def log(line: str) -> None:
 def _device_settings(config: DaemonConfig) -> tuple:
     """The daemon-wide settings a device runner uses: a change restarts every device."""
     return (config.output, config.segment_seconds, config.segment_megabytes, config.stall_seconds,
-            config.reconnect_initial, config.reconnect_max, config.profile_store)
+            config.reconnect_initial, config.reconnect_max, config.profile_store, config.mqtt)
 
 
 class Daemon:
@@ -50,6 +50,8 @@ class Daemon:
         self.config_path = Path(config_path)
         self.config = load_config(self.config_path)
         check_output_writable(self.config.output)
+        if self.config.mqtt is not None:
+            check_mqtt(self.config.mqtt)
         self.runners: dict[str, DeviceRunner] = {}
         self.started = time.time()
         self.reloads = 0
@@ -133,6 +135,8 @@ class Daemon:
         try:
             new = load_config(self.config_path)
             check_output_writable(new.output)
+            if new.mqtt is not None:
+                check_mqtt(new.mqtt)
         except AccelrigError as exc:
             log(f"reload refused, the running configuration is kept: {exc}")
             return
@@ -200,6 +204,8 @@ class Daemon:
                     f"{d['bytes_written'] / 1e6:.1f} MB, profile {d['profile']}")
             if d["error"]:
                 line += f" ({d['error']})"
+            if d.get("mqtt"):
+                line += f"; mqtt: {mqtt_summary(d['mqtt'])}"
             log(line)
 
     def _start_metrics(self) -> None:

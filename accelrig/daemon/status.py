@@ -162,4 +162,16 @@ def format_table(status: dict) -> str:
              f"output {daemon['output']}"]
     lines += ["  ".join(r[key].ljust(widths[key]) for key, _ in COLUMNS).rstrip() for r in rows]
     lines += [f"{d['name']}: {d['error']}" for d in status["devices"] if d.get("error")]
+    lines += [f"{d['name']}: mqtt: {mqtt_summary(d['mqtt'])}" for d in status["devices"] if d.get("mqtt")]
     return "\n".join(lines)
+
+
+def mqtt_summary(m: dict) -> str:
+    """One device's publishing, in words (daemon status, status lines)."""
+    text = (f"{'connected to' if m['connected'] else 'not connected to'} {m['broker']}, {m['spooled']} spooled "
+            f"({m['spool_bytes'] / 1e6:.1f} MB), {m['acknowledged']} acknowledged")
+    if m["dropped_samples"]:
+        text += f", {m['dropped_samples']} samples dropped from a full spool (sent as gaps)"
+    if m.get("error"):
+        text += f" ({m['error']})"
+    return text

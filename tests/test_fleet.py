@@ -1,0 +1,431 @@
+"""Fleets against a real Mosquitto: daemon -> broker -> collector, a broker away mid-run, TLS, passwords, ACL.
+
+The broker runs as ``mosquitto -c <tmpconf>`` on free loopback ports (never the system service),
+with a password file, an ACL, persistence (so the collector's persistent session survives the
+broker's restart) and, when openssl is there, a TLS listener with a CA made here.
+
+The checks: every sample of the daemon's local files is in the collector's files, or an explicit
+gap record there stands where it is missing, with the exact count.
+"""
+
+import getpass
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from accelrig.segments import read_arrays
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("mosquitto") is None and not os.environ.get("CI"),
+    reason="mosquitto is not installed (apt-get install mosquitto); CI installs it and runs these tests")
+
+DAEMON_USER, DAEMON_PASSWORD = "gw-north", "north-secret"
+COLLECTOR_USER, COLLECTOR_PASSWORD = "collector", "collector-secret"
+ACL = f"""user {COLLECTOR_USER}
+topic read accelrig/#
+
+user {DAEMON_USER}
+topic write accelrig/north/a/#
+topic write accelrig/north/b/#
+"""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def make_ca(directory: Path) -> dict | None:
+    """A CA and a broker certificate for 127.0.0.1, made now with openssl (None without openssl)."""
+    if shutil.which("openssl") is None:
+        return None
+    d = directory
+
+    def ssl(*args):
+        subprocess.run(["openssl", *args], cwd=d, check=True, capture_output=True, timeout=30)
+
+    ssl("req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout", "ca.key",
+        "-out", "ca.crt", "-days", "2", "-subj", "/CN=accelrig test CA")
+    ssl("req", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
+        "server.key", "-out", "server.csr", "-subj", "/CN=127.0.0.1")
+    (d / "san.ext").write_text("subjectAltName=IP:127.0.0.1\n")
+    ssl("x509", "-req", "-in", "server.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial", "-out",
+        "server.crt", "-days", "2", "-extfile", "san.ext")
+    return {"ca": d / "ca.crt", "cert": d / "server.crt", "key": d / "server.key"}
+
+
+class Broker:
+    def __init__(self, directory: Path):
+        self.directory = directory
+        self.port = free_port()
+        self.tls = make_ca(directory)
+        self.tls_port = free_port() if self.tls else None
+        passwd = directory / "passwd"
+        passwd.touch()
+        for user, password in ((DAEMON_USER, DAEMON_PASSWORD), (COLLECTOR_USER, COLLECTOR_PASSWORD)):
+            subprocess.run(["mosquitto_passwd", "-b", str(passwd), user, password], check=True, timeout=30)
+        (directory / "acl").write_text(ACL)
+        # as root, mosquitto would switch to the user "mosquitto", who cannot read pytest's private tmp
+        lines = [f"user {getpass.getuser()}", "per_listener_settings false", "allow_anonymous false", f"password_file {passwd}",
+                 f"acl_file {directory / 'acl'}", "persistence true", f"persistence_location {directory}/",
+                 "max_queued_messages 100000", "log_dest stderr", f"listener {self.port} 127.0.0.1"]
+        if self.tls:
+            lines += [f"listener {self.tls_port} 127.0.0.1", f"cafile {self.tls['ca']}",
+                      f"certfile {self.tls['cert']}", f"keyfile {self.tls['key']}"]
+        self.conf = directory / "mosquitto.conf"
+        self.conf.write_text("\n".join(lines) + "\n")
+        self.proc = None
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+    def start(self) -> None:
+        log = open(self.directory / "mosquitto.log", "ab")
+        self.proc = subprocess.Popen(["mosquitto", "-c", str(self.conf)], stdout=log, stderr=log)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            assert self.proc.poll() is None, (self.directory / "mosquitto.log").read_text()
+            try:
+                socket.create_connection(("127.0.0.1", self.port), 0.2).close()
+                return
+            except OSError:
+                time.sleep(0.05)
+        raise AssertionError("mosquitto did not listen within 10 s")
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)   # saves its persistence file (the sessions) on the way out
+            self.proc.wait(10)
+
+
+@pytest.fixture
+def broker(tmp_path):
+    (tmp_path / "broker").mkdir()
+    b = Broker(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+def accelrig(*args, env=None, log: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "accelrig", *args], stdout=open(log, "ab"),
+                            stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
+
+
+def samples(directory: Path):
+    """(times in ns, counts, gap records) of one device's segments."""
+    t, acc, _, _, meta = read_arrays(directory, units="counts")
+    t_ns = meta["time_origin_ns"] + np.rint(t * 1e9).astype(np.int64)
+    return t_ns, acc.astype(np.int16), meta["gaps"]
+
+
+def wait_for(condition, timeout: float, what: str):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def daemon_status(config: Path) -> dict:
+    out = subprocess.run([sys.executable, "-m", "accelrig", "daemon", "status", "--config", str(config), "--json"],
+                         capture_output=True, text=True, timeout=20)
+    return {d["name"]: d for d in json.loads(out.stdout)["devices"]} if out.returncode == 0 else {}
+
+
+def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
+    (tmp_path / "daemon.pass").write_text(DAEMON_PASSWORD + "\n")
+    common = {"site": "north", "username": DAEMON_USER, "password_file": str(tmp_path / "daemon.pass"),
+              "status_seconds": 1}
+    mqtt_a = {**common, "broker": broker.url}
+    if broker.tls:   # device a's daemon goes through the TLS listener
+        mqtt_a.update(broker=f"mqtts://127.0.0.1:{broker.tls_port}", ca_file=str(broker.tls["ca"]))
+    # two daemons: a with room to spool the whole outage, b with a spool too small for it
+    configs = {
+        "a": {"output": str(tmp_path / "out-a"), "status_interval": 0,
+              "devices": [{"url": "sim://still?seed=1&pace=realtime&rate=500", "name": "a"}], "mqtt": mqtt_a},
+        "b": {"output": str(tmp_path / "out-b"), "status_interval": 0,
+              "devices": [{"url": "sim://still?seed=2&pace=realtime&rate=500", "name": "b"}],
+              "mqtt": {**common, "broker": broker.url, "spool_megabytes": 0.01}},
+    }
+    collector = accelrig("collect", "--broker", broker.url, "--output", str(tmp_path / "fleet"),
+                         "--username", COLLECTOR_USER, "--password-env", "COLLECT_PW",
+                         env={"COLLECT_PW": COLLECTOR_PASSWORD}, log=tmp_path / "collect.log")
+    wait_for(lambda: "connected to" in (tmp_path / "collect.log").read_text() or collector.poll() is not None,
+             15, "the collector to connect")
+    assert collector.poll() is None, (tmp_path / "collect.log").read_text()
+    daemons = {}
+    for name, config in configs.items():
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(config))
+        daemons[name] = (accelrig("daemon", "--config", str(path), log=tmp_path / f"{name}.log"), path)
+    try:
+        wait_for(lambda: all((tmp_path / "fleet" / "north" / n).is_dir() for n in "ab"), 20,
+                 "both devices at the collector")
+        time.sleep(1.5)
+        broker.stop()                      # the network cut: nothing reaches the broker for 4 s
+        time.sleep(4.0)
+        for name, (_proc, path) in daemons.items():
+            st = daemon_status(path)[name]
+            assert st["mqtt"]["connected"] is False
+            assert st["mqtt"]["spooled"] > 0, st
+        broker.start()
+        # the backlog goes out in order; b's spool overflowed and says so
+        wait_for(lambda: all((s := daemon_status(p).get(n)) and s["mqtt"]["connected"] and s["mqtt"]["spooled"] <= 3
+                             for n, (_, p) in daemons.items()), 20, "the spools to drain")
+        status_b = daemon_status(daemons["b"][1])["b"]["mqtt"]
+        assert status_b["dropped_samples"] > 0 and status_b["spool_gaps"] >= 1
+        time.sleep(1.0)
+        # the fleet table from the retained messages, while they run
+        fleet = subprocess.run([sys.executable, "-m", "accelrig", "fleet", "--broker", broker.url, "--username",
+                                COLLECTOR_USER, "--password-env", "COLLECT_PW", "--json"], capture_output=True,
+                               text=True, timeout=30, env={**os.environ, "COLLECT_PW": COLLECTOR_PASSWORD})
+        assert fleet.returncode == 0, fleet.stderr
+        rows = {r["device"]: r for r in json.loads(fleet.stdout)}
+        assert set(rows) == {"a", "b"} and rows["a"]["state"] == "streaming" and rows["a"]["rate"] > 400
+        for proc, _ in daemons.values():
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(15) == 0
+    finally:
+        for proc, _ in daemons.values():
+            if proc.poll() is None:
+                proc.kill()
+    for name in "ab":
+        log = (tmp_path / f"{name}.log").read_text()
+        assert "left in the spool" not in log, log
+        assert DAEMON_PASSWORD not in log and DAEMON_PASSWORD not in (tmp_path / f"out-{name}" / name /
+                                                                       "journal.jsonl").read_text()
+    time.sleep(1.0)
+    collector.send_signal(signal.SIGTERM)
+    assert collector.wait(15) == 0
+    collect_log = (tmp_path / "collect.log").read_text()
+    assert COLLECTOR_PASSWORD not in collect_log
+
+    # a: every local sample at the collector, the same counts, nothing "not received"
+    local_t, local_c, local_gaps = samples(tmp_path / "out-a" / "a")
+    got_t, got_c, got_gaps = samples(tmp_path / "fleet" / "north" / "a")
+    assert local_t.size > 2500
+    at = np.searchsorted(got_t, local_t)
+    assert np.all(at < got_t.size) and np.array_equal(got_t[at], local_t), "samples missing at the collector"
+    assert np.array_equal(got_c[at], local_c)
+    assert not [g for g in got_gaps if "not received" in g["cause"] or "spool" in g["cause"]], got_gaps
+    assert [g["cause"] for g in got_gaps] == [g["cause"] for g in local_gaps]
+
+    # b: each local sample the collector lacks stands where a spool-overflow gap record says so, exactly
+    local_t, local_c, _ = samples(tmp_path / "out-b" / "b")
+    got_t, got_c, got_gaps = samples(tmp_path / "fleet" / "north" / "b")
+    missing = np.setdiff1d(local_t, got_t)
+    spool_gaps = [g for g in got_gaps if "spool full" in g["cause"]]
+    assert missing.size > 0 and spool_gaps
+    assert sum(g["missing"] for g in spool_gaps) == missing.size
+    assert set(np.searchsorted(got_t, missing).tolist()) <= {g["index"] for g in spool_gaps}
+    kept = np.isin(local_t, got_t)
+    assert np.array_equal(got_c[np.searchsorted(got_t, local_t[kept])], local_c[kept])
+    assert not [g for g in got_gaps if "not received" in g["cause"]], got_gaps
+
+
+def test_wrong_password_is_refused_in_one_line(broker, tmp_path):
+    result = subprocess.run([sys.executable, "-m", "accelrig", "collect", "--broker", broker.url, "--output",
+                             str(tmp_path / "fleet"), "--username", COLLECTOR_USER, "--password-env", "PW"],
+                            capture_output=True, text=True, timeout=30, env={**os.environ, "PW": "wrong"})
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "refused" in lines[0] and "password" in lines[0].lower(), result.stderr
+    assert "wrong" not in result.stderr
+
+
+def test_acl_keeps_a_daemon_to_its_own_topics(broker):
+    import paho.mqtt.client as mqtt
+
+    def client(user, password, received=None):
+        c = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"t-{user}-{time.time_ns()}")
+        c.username_pw_set(user, password)
+        if received is not None:
+            c.on_message = lambda cl, ud, m: received.append(m.topic)
+        c.connect("127.0.0.1", broker.port)
+        c.loop_start()
+        return c
+
+    received: list[str] = []
+    reader = client(COLLECTOR_USER, COLLECTOR_PASSWORD, received)
+    reader.subscribe("accelrig/#", 1)
+    time.sleep(0.5)
+    daemon = client(DAEMON_USER, DAEMON_PASSWORD)
+    daemon.publish("accelrig/south/c/data", b"not mine", qos=1).wait_for_publish(5)
+    daemon.publish("accelrig/north/a/data", b"mine", qos=1).wait_for_publish(5)
+    wait_for(lambda: "accelrig/north/a/data" in received, 5, "the allowed message")
+    time.sleep(0.3)
+    assert "accelrig/south/c/data" not in received
+    for c in (reader, daemon):
+        c.disconnect()
+        c.loop_stop()
+
+
+def test_payload_round_trip_and_refusals():
+    from accelrig.daemon import wire
+    from accelrig.errors import DataError
+
+    t = 1_795_000_000_000_000_000 + np.arange(5, dtype=np.int64) * 488_281
+    counts = np.arange(15, dtype=np.int16).reshape(5, 3) - 7
+    m = wire.decode(wire.encode_data(7, 3, 100, t, counts, 0.000598, "id@2026"))
+    assert (m.kind, m.epoch, m.seq, m.first_sample, m.profile, m.scale) == (wire.DATA, 7, 3, 100, "id@2026", 0.000598)
+    assert np.array_equal(m.t_ns, t) and np.array_equal(m.counts, counts)
+    g = wire.decode(wire.encode_gap(7, 4, 105, int(t[-1]), 0.000598, "", 12, "FIFO overflow", 0.01))
+    assert g.gap == {"samples": 12, "cause": "FIFO overflow", "seconds": 0.01}
+    assert wire.split_block(np.array([0, 2**31, 2**32, 2**32 + 1], dtype=np.int64)) == [(0, 2), (2, 4)]
+    with pytest.raises(DataError, match="version"):
+        wire.decode(b"ACCB\x02" + bytes(60))
+    with pytest.raises(DataError, match="credentials"):
+        wire.parse_broker("mqtt://user:pw@host")
+
+
+@pytest.mark.parametrize("mqtt, message", [
+    ({"broker": "http://x", "site": "n"}, "mqtt.broker"),
+    ({"broker": "mqtt://x", "site": "n", "password_file": "p"}, "a password needs a user name"),
+    ({"broker": "mqtt://x", "site": "n", "username": "u", "password_file": "p", "password_env": "E"}, "not both"),
+    ({"broker": "mqtt://x", "site": "n", "ca_file": "ca.crt"}, "CA file is for TLS"),
+    ({"broker": "mqtt://u:pw@x", "site": "n"}, "credentials do not belong"),
+    ({"broker": "mqtt://x", "site": "a/b"}, "mqtt.site"),
+])
+def test_mqtt_config_refused_naming_the_field(mqtt, message):
+    from accelrig.daemon.config import ConfigError, parse_config
+
+    with pytest.raises(ConfigError, match=message) as info:
+        parse_config({"output": "/tmp/x", "devices": [{"url": "sim://still", "name": "a"}], "mqtt": mqtt})
+    assert "pw" not in str(info.value)
+
+
+def fleet_state(broker) -> str | None:
+    out = subprocess.run([sys.executable, "-m", "accelrig", "fleet", "--broker", broker.url, "--username",
+                          COLLECTOR_USER, "--password-env", "PW", "--json", "--timeout", "5"], capture_output=True,
+                         text=True, timeout=30, env={**os.environ, "PW": COLLECTOR_PASSWORD})
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)
+    return rows[0]["state"] if rows else None
+
+
+def test_a_daemon_killed_while_the_broker_is_away_sends_its_spool_at_the_next_start(broker, tmp_path):
+    """kill -9 with a spool on disk, the broker back, the daemon started again: the old run's blocks
+    go out first, then the new run's (with its "not recording" gap); the collector, restarted too,
+    keeps its place (collector.json) and holds every sample of the local files.  The retained
+    status says offline (last will) after a kill, stopped after SIGTERM."""
+    (tmp_path / "daemon.pass").write_text(DAEMON_PASSWORD + "\n")
+    config = tmp_path / "a.yaml"
+    config.write_text(yaml.safe_dump({
+        "output": str(tmp_path / "out"), "status_interval": 0,
+        "devices": [{"url": "sim://still?seed=3&pace=realtime&rate=500", "name": "a"}],
+        "mqtt": {"broker": broker.url, "site": "north", "username": DAEMON_USER,
+                 "password_file": str(tmp_path / "daemon.pass"), "status_seconds": 1}}))
+    env = {"COLLECT_PW": COLLECTOR_PASSWORD}
+    collect_args = ("collect", "--broker", broker.url, "--output", str(tmp_path / "fleet"), "--username",
+                    COLLECTOR_USER, "--password-env", "COLLECT_PW")
+    collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
+    daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+    try:
+        wait_for(lambda: (tmp_path / "fleet" / "north" / "a").is_dir(), 20, "the device at the collector")
+        time.sleep(1.0)
+        collector.send_signal(signal.SIGTERM)        # the collector restarts while all this happens
+        assert collector.wait(15) == 0
+        broker.stop()
+        time.sleep(2.0)
+        daemon.kill()                                # kill -9 with the outage's blocks in the spool
+        daemon.wait(10)
+        spooled = list((tmp_path / "out" / "a" / "spool").glob("*.msg"))
+        assert spooled, "nothing was spooled while the broker was away"
+        broker.start()
+        collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
+        daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+        wait_for(lambda: "spooled message(s) to send" in (tmp_path / "a.log").read_text(), 20,
+                 "the restarted daemon to find its spool")
+        time.sleep(3.0)
+        daemon.kill()                                # the broker sees it vanish: the last will says offline
+        daemon.wait(10)
+        assert fleet_state(broker) == "offline"
+        daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
+        wait_for(lambda: fleet_state(broker) == "streaming", 20, "the daemon streaming again")
+        daemon.send_signal(signal.SIGTERM)
+        assert daemon.wait(15) == 0
+        assert fleet_state(broker) == "stopped"
+        time.sleep(1.0)
+        collector.send_signal(signal.SIGTERM)
+        assert collector.wait(15) == 0
+    finally:
+        for proc in (daemon, collector):
+            if proc.poll() is None:
+                proc.kill()
+    assert not list((tmp_path / "out" / "a" / "spool").glob("*.msg"))
+    local_t, local_c, local_gaps = samples(tmp_path / "out" / "a")
+    got_t, got_c, got_gaps = samples(tmp_path / "fleet" / "north" / "a")
+    at = np.searchsorted(got_t, local_t)
+    assert np.all(at < got_t.size) and np.array_equal(got_t[at], local_t), "samples missing at the collector"
+    assert np.array_equal(got_c[at], local_c)
+    assert not [g for g in got_gaps if "not received" in g["cause"]], got_gaps
+    assert any("not recording" in g["cause"] for g in got_gaps)
+    assert json.loads((tmp_path / "fleet" / "north" / "a" / "collector.json").read_text())["next_seq"] > 0
+
+
+def test_a_full_spool_drops_the_oldest_blocks_as_one_exact_gap(tmp_path):
+    """No broker: the spool's bound folds the oldest blocks, and the earlier fold, into one gap message."""
+    from accelrig.daemon import wire
+    from accelrig.daemon.config import MqttConfig
+    from accelrig.daemon.mqtt import Publisher
+
+    settings = MqttConfig(broker="mqtt://127.0.0.1:1", site="north", spool_megabytes=0.003)
+    logs: list[str] = []
+    publisher = Publisher(settings, "a", tmp_path / "spool", dict, logs.append)
+    publisher.announce({}, 0.0006, "")
+    counts = np.zeros((100, 3), np.int16)
+    for k in range(10):    # 10 blocks of 100 samples, 1052 bytes each, against a 3000-byte bound
+        publisher.block(1.795e9 + k * 0.1 + np.arange(100) * 1e-3, counts)
+    messages = [wire.decode(p.read_bytes()) for p in sorted((tmp_path / "spool").glob("*.msg"))]
+    gap, rest = messages[0], messages[1:]
+    assert gap.kind == wire.GAP and gap.gap["spool"] and gap.gap["first_seq"] == 0 and gap.gap["from_sample"] == 0
+    assert gap.gap["samples"] == publisher.counts["dropped_samples"] == gap.first_sample
+    assert all(m.kind == wire.DATA for m in rest) and rest[0].first_sample == gap.first_sample
+    assert [m.seq for m in rest] == list(range(gap.seq + 1, 10))
+    assert gap.gap["samples"] + sum(m.samples for m in rest) == 1000
+    assert len(logs) == 1 and "spool over" in logs[0]
+
+
+def test_meta_and_profile_are_retained(broker, tmp_path):
+    import paho.mqtt.client as mqtt
+
+    from accelrig.daemon.config import MqttConfig
+    from accelrig.daemon.mqtt import Publisher
+
+    (tmp_path / "pw").write_text(DAEMON_PASSWORD)
+    settings = MqttConfig(broker=broker.url, site="north", username=DAEMON_USER, password_file=str(tmp_path / "pw"))
+    publisher = Publisher(settings, "a", tmp_path / "spool", dict, lambda line: None)
+    publisher.announce({"device": {"identity": "sim-1"}}, 0.0006, "sim-1@2026", {"format": "accelrig-profile"})
+    publisher.start()
+    wait_for(lambda: publisher.connected, 10, "the publisher to connect")
+    publisher.close()
+    got: dict[str, bytes] = {}
+    reader = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="t-retained")
+    reader.username_pw_set(COLLECTOR_USER, COLLECTOR_PASSWORD)
+    reader.on_message = lambda c, u, m: got.__setitem__(m.topic.rsplit("/", 1)[1], m.payload)
+    reader.connect("127.0.0.1", broker.port)
+    reader.subscribe("accelrig/north/a/+", 1)
+    reader.loop_start()
+    try:
+        wait_for(lambda: {"meta", "profile", "status"} <= set(got), 10, "the retained messages")
+    finally:
+        reader.disconnect()
+        reader.loop_stop()
+    assert json.loads(got["profile"]) == {"format": "accelrig-profile"}
+    assert json.loads(got["meta"])["device"] == {"identity": "sim-1"}
+    assert json.loads(got["status"])["state"] == "stopped"
