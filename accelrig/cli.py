@@ -31,7 +31,7 @@ COMMANDS = {
     "profile": ("device profiles: list, show, validate, diff, apply, add", ("accelrig.commands.profile",)),
     "devices": ("list installed drivers and the devices they find", ("accelrig.commands.devices",)),
     "flash": ("write a profile's calibration to the device, read it back and verify", ("accelrig.commands.flash",)),
-    "record": ("record a device to a CSV or .npz file", ("accelrig.commands.record",)),
+    "record": ("record a device to disk: segment directory, .parquet, .csv or .npz", ("accelrig.commands.record",)),
     "tui": ("guided calibration in the terminal (connect, live view, wizards)", ("accelrig.commands.tui",)),
     "noise": ("noise figures (Allan deviation) of a still recording", ("accelrig.commands.noise",)),
     "report": ("calibration certificate (HTML or PDF) from a profile, a result or a campaign",
