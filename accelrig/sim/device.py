@@ -84,7 +84,7 @@ class SimDevice:
         first = self.counter
         true_t, reported_t = self.clock.times(first, n, self._clock_rng)
         force = self.rig.specific_force(true_t)
-        counts = self.sensor.sense(force, self._noise_rng, self.clock.true_rate)
+        counts = self.sensor.sense(force, self._noise_rng, self.clock.true_rate, true_t)
         channels = self.rig.channels(true_t)
         self.counter += n
         seq = self.seq

@@ -9,6 +9,19 @@ R is a small rotation (the sensing frame misaligned with the body), T has unit
 rows whose off-diagonal terms tilt the y axis in the x-y plane and the z axis
 (the axes are not quite orthogonal), and gain scales each axis.  The
 canonical correction (DESIGN.md) of such a sensor is C = K^-1, b = o.
+
+The noise is white with one density for all axes unless told otherwise.  The
+conditions real parts show and the papers' estimators assume away can be
+switched on one by one (each independent of the others, all streamed block by
+block with their state kept, so a long record is one continuous process):
+
+    axis_noise    per-axis factors on the white sd (real parts: z often 2x x)
+    ar1           the white part becomes AR(1) with this coefficient, same sd per sample
+    flicker       1/f noise added, one-sided density h / f with h = flicker^2, (m/s^2)^2
+                  at 1 Hz; made as a sum of first-order Gauss-Markov processes with
+                  corners spaced three per decade (S(f) = sum 2 v / (pi fc (1 + (f/fc)^2)),
+                  v = h ln 10 / 3 each), from 1e-4 Hz to the Nyquist frequency
+    drift_rate    the offset moves linearly, m/s^2 per second of device time (3,)
 """
 
 from __future__ import annotations
@@ -40,6 +53,10 @@ class SensorModel:
     nonorthogonality  axis tilts, rad (3,)
     noise_density     white noise, one-sided, (m/s^2)/sqrt(Hz)
     range_g           full scale +-g; sets the count scale and the clipping
+    axis_noise        per-axis factors on the white noise sd (3,)
+    ar1               AR(1) coefficient of the white part (0: white), marginal sd unchanged
+    flicker           sqrt of the 1/f density at 1 Hz, (m/s^2)/sqrt(Hz) (0: none)
+    drift_rate        offset drift, m/s^2 per s (3,); needs the sample times in ``sense``
     """
 
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -48,10 +65,20 @@ class SensorModel:
     nonorthogonality: np.ndarray = field(default_factory=lambda: np.zeros(3))
     noise_density: float = 300e-6 * STANDARD_GRAVITY  # MPU-9250 datasheet, 300 ug/sqrt(Hz)
     range_g: float = 2.0
+    axis_noise: np.ndarray = field(default_factory=lambda: np.ones(3))
+    ar1: float = 0.0
+    flicker: float = 0.0
+    drift_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    # filter states carried from one block to the next (None until the first block)
+    _noise_state: dict | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for name in ("offset", "gain", "misalignment", "nonorthogonality"):
+        for name in ("offset", "gain", "misalignment", "nonorthogonality", "axis_noise", "drift_rate"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(3))
+        if not -1.0 < self.ar1 < 1.0:
+            raise ValueError(f"ar1 must lie in (-1, 1), got {self.ar1}")
+        if self.flicker < 0 or np.any(self.axis_noise < 0):
+            raise ValueError("flicker and axis_noise must not be negative")
 
     @classmethod
     def random(cls, rng: np.random.Generator, **overrides) -> SensorModel:
@@ -87,14 +114,68 @@ class SensorModel:
         """The exact canonical correction of this sensor (zero covariance: it is truth)."""
         return Correction(np.linalg.inv(self.response_matrix), self.offset.copy(), np.zeros((12, 12)))
 
-    def sense(self, force: np.ndarray, rng: np.random.Generator, rate: float) -> np.ndarray:
-        """True specific force (n, 3) in m/s^2 -> int16 counts, with noise, quantisation, clipping."""
+    def sense(self, force: np.ndarray, rng: np.random.Generator, rate: float,
+              t: np.ndarray | None = None) -> np.ndarray:
+        """True specific force (n, 3) in m/s^2 -> int16 counts, with noise, quantisation, clipping.
+
+        Successive calls continue one noise process (the coloured parts keep their state);
+        ``t`` (true sample times, s) is needed only when ``drift_rate`` is set.
+        """
         raw = force @ self.response_matrix.T + self.offset
-        if self.noise_density > 0:
-            raw = raw + rng.standard_normal(raw.shape) * self.noise_sd(rate)
+        if np.any(self.drift_rate != 0):
+            if t is None:
+                raise ValueError("a drifting offset needs the sample times")
+            raw = raw + np.asarray(t, dtype=float)[:, None] * self.drift_rate
+        raw = raw + self.noise(raw.shape[0], rng, rate)
         counts = np.rint(raw / self.scale)
         np.clip(counts, -32768, 32767, out=counts)
         return counts.astype(np.int16)
+
+    def noise(self, n: int, rng: np.random.Generator, rate: float) -> np.ndarray:
+        """The next n samples of the noise process (n, 3), m/s^2; continues the previous call."""
+        noise = np.zeros((n, 3))
+        white_sd = self.noise_sd(rate) * self.axis_noise
+        if self.noise_density > 0:
+            e = rng.standard_normal((n, 3))
+            if self.ar1 == 0.0:
+                noise += e * white_sd
+            else:
+                from scipy.signal import lfilter  # only coloured noise loads scipy (start-up cost)
+
+                state = self._state(rng, rate)
+                rho = self.ar1
+                # x_k = rho x_(k-1) + sqrt(1 - rho^2) e_k keeps a unit marginal sd
+                x, _ = lfilter([np.sqrt(1.0 - rho * rho)], [1.0, -rho], e, axis=0,
+                                zi=state["ar1"][None, :] * rho)
+                state["ar1"] = x[-1].copy()
+                noise += x * white_sd
+        if self.flicker > 0:
+            from scipy.signal import lfilter
+
+            state = self._state(rng, rate)
+            for k, fc in enumerate(self._flicker_corners(rate)):
+                a = np.exp(-2.0 * np.pi * fc / rate)
+                sd = np.sqrt(self.flicker**2 * np.log(10.0) / 3.0)
+                e = rng.standard_normal((n, 3))
+                x, _ = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], e, axis=0,
+                               zi=state["flicker"][k][None, :] * a)
+                state["flicker"][k] = x[-1].copy()
+                noise += x * sd
+        return noise
+
+    @staticmethod
+    def _flicker_corners(rate: float) -> np.ndarray:
+        decades = np.log10(rate / 2.0 / 1e-4)
+        return 1e-4 * 10.0 ** (np.arange(int(np.floor(decades * 3)) + 1) / 3.0)
+
+    def _state(self, rng: np.random.Generator, rate: float) -> dict:
+        """The coloured processes start stationary: each state a draw from its unit marginal."""
+        if self._noise_state is None:
+            self._noise_state = {
+                "ar1": rng.standard_normal(3),
+                "flicker": [rng.standard_normal(3) for _ in self._flicker_corners(rate)],
+            }
+        return self._noise_state
 
     def truth(self) -> dict:
         corr = self.correction()
@@ -106,6 +187,10 @@ class SensorModel:
             "noise_density": self.noise_density,
             "range_g": self.range_g,
             "scale": self.scale,
+            "axis_noise": self.axis_noise.tolist(),
+            "ar1": self.ar1,
+            "flicker": self.flicker,
+            "drift_rate": self.drift_rate.tolist(),
             "correction": {"matrix": corr.matrix.tolist(), "bias": corr.bias.tolist()},
         }
 

@@ -215,8 +215,9 @@ class ChipEmulator:
         held = np.array([offset_value(self._offset_word(axis)) for axis in range(3)])
         raw = force @ self._response_t + s.offset + (held - self._trim) * OFFSET_STEP
         rate = 1.0 / self._period
-        if s.noise_density > 0:
-            raw = raw + self._noise_rng.standard_normal(raw.shape) * s.noise_sd(rate)
+        if np.any(s.drift_rate != 0):
+            raw = raw + (times - self.t_origin)[:, None] * s.drift_rate
+        raw = raw + s.noise(raw.shape[0], self._noise_rng, rate)
         counts = np.rint(raw / scale_for_range(self.range_g()))
         np.clip(counts, -32768, 32767, out=counts)
         return counts.astype(np.int16)

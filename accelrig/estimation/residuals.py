@@ -1,0 +1,255 @@
+"""Does the model fit, and is the noise white?  The one residual check every estimator uses.
+
+Every fit in accelrig states u from a covariance that assumes the residuals are
+white noise around a model that is true.  Two things break that on real rigs:
+
+* **Correlated noise** (AR-like, 1/f, a slow wander).  The estimates stay
+  unbiased but their sd grows: for a mean of n samples with integrated
+  autocorrelation time tau (in samples) the variance is tau times the white
+  value.  ``whiteness`` measures tau from the residuals (Sokal's automatic
+  window) and tests the autocorrelations against white (Ljung-Box).
+
+* **Lack of fit** (a wheel that stops, an imbalance, a wandering motor,
+  drift).  The residual variance then exceeds what the sensor's noise alone
+  gives.  ``lack_of_fit`` compares the two with an F test, the noise measured
+  without the model (``difference_noise_variance``, or a procedure's own
+  model-free estimate such as the scatter within a still pose).
+
+When the residuals are correlated, ``sandwich_covariance`` gives the
+covariance of a least-squares estimate that stays honest: the sandwich
+(J'J)^-1 M (J'J)^-1 whose middle M is estimated by batch means of the
+score J_t' r_t over blocks much longer than the correlation time (a
+non-overlapping-blocks HAC estimator).  It was chosen over scaling u by
+sqrt(tau) because it is right for every parameter, not only for means: a
+sine fit's amplitude sees the noise near its frequency, which tau (the noise
+at frequency 0) does not describe.  ``block_scores`` makes the block sums
+from an in-memory Jacobian; a chunked fit can sum its own blocks.
+
+The policy (the same for every procedure):
+
+* residuals pass as white unless the Ljung-Box test rejects at ``ALPHA`` and
+  the correlation would grow u by more than ``MATERIAL_INFLATION``;
+* correlated residuals: u from the sandwich, and the result says so;
+* lack of fit: warn with the ratio and what it means; refuse beyond the
+  procedure's own stated limit (each procedure states it, since what a
+  5 % excess means differs between a still pose and a spinning wheel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as _sps
+
+ALPHA = 0.01                 # false alarm rate of each test
+MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
+SOKAL_WINDOW = 5.0           # window M >= c tau (Sokal 1997): bias of tau below e^-c
+MIN_BLOCKS = 20              # batch means need this many blocks for a usable middle matrix
+BLOCK_PER_TAU = 20           # block length in units of tau: the batch-means bias ~ tau / block
+
+
+def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
+    """Sample autocorrelation rho_0..rho_max_lag of a 1-D series, mean removed (FFT, O(n log n))."""
+    x = np.asarray(x, dtype=float).ravel()
+    x = x - x.mean()
+    n = x.size
+    max_lag = int(min(max_lag, n - 1))
+    size = 1 << int(np.ceil(np.log2(2 * n - 1)))
+    spectrum = np.fft.rfft(x, size)
+    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1]
+    if acov[0] <= 0:
+        return np.concatenate([[1.0], np.zeros(max_lag)])
+    return acov / acov[0]
+
+
+def integrated_time(rho: np.ndarray) -> tuple[float, int]:
+    """Integrated autocorrelation time tau = 1 + 2 sum rho_k over Sokal's window, and the window.
+
+    The window is the smallest M with M >= SOKAL_WINDOW * tau(M); when no lag
+    qualifies, the last one available.  White noise gives tau ~ 1; tau < 1
+    (anti-correlated residuals) is returned as measured.
+    """
+    rho = np.asarray(rho, dtype=float)
+    taus = 1.0 + 2.0 * np.cumsum(rho[1:])
+    lags = np.arange(1, rho.size)
+    ok = lags >= SOKAL_WINDOW * taus
+    window = int(lags[np.argmax(ok)]) if ok.any() else int(lags[-1])
+    return float(taus[window - 1]), window
+
+
+@dataclass
+class Whiteness:
+    """What the residuals' autocorrelation says about the noise."""
+
+    n: int
+    lag1: float            # rho_1
+    tau: float             # integrated autocorrelation time, samples
+    window: int            # Sokal window used for tau
+    q: float               # Ljung-Box statistic over ``lags``
+    lags: int
+    p_value: float
+
+    @property
+    def inflation(self) -> float:
+        """Factor on the u of a mean computed as if white: sqrt(tau), never below 1."""
+        return float(np.sqrt(max(self.tau, 1.0)))
+
+    @property
+    def correlated(self) -> bool:
+        return self.p_value < ALPHA and self.inflation > MATERIAL_INFLATION
+
+    def block_length(self) -> int:
+        """Batch-means block length for ``sandwich_covariance``, samples."""
+        return max(1, int(np.ceil(BLOCK_PER_TAU * max(self.tau, 1.0))))
+
+    def describe(self) -> str:
+        return (f"residuals are correlated in time (lag-1 autocorrelation {self.lag1:.2f}, "
+                f"integrated time {self.tau:.1f} samples): a white-noise u would be "
+                f"{self.inflation:.1f}x too small")
+
+    def to_dict(self) -> dict:
+        return {"n": self.n, "lag1": self.lag1, "tau_samples": self.tau, "window": self.window,
+                "ljung_box_q": self.q, "lags": self.lags, "p_value": self.p_value,
+                "inflation": self.inflation, "correlated": self.correlated}
+
+
+def whiteness(residuals: np.ndarray, lags: int | None = None) -> Whiteness:
+    """Test a 1-D residual series (in time order) for whiteness and measure its correlation time.
+
+    ``lags`` for Ljung-Box defaults to min(20, n/5) (Box-Jenkins' usual choice);
+    tau is computed with up to n/4 lags.
+    """
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    if n < 10:
+        raise ValueError(f"a whiteness test needs at least 10 residuals, got {n}")
+    lags = int(lags or max(1, min(20, n // 5)))
+    rho = autocorrelation(r, max(lags, n // 4))
+    tau, window = integrated_time(rho)
+    k = np.arange(1, lags + 1)
+    q = float(n * (n + 2) * np.sum(rho[1: lags + 1] ** 2 / (n - k)))
+    p = float(_sps.chi2.sf(q, lags))
+    return Whiteness(n, float(rho[1]), tau, window, q, lags, p)
+
+
+def whiteness_by_column(residuals: np.ndarray) -> list[Whiteness]:
+    """``whiteness`` of each column of an (n, k) residual array (one per axis)."""
+    residuals = np.asarray(residuals, dtype=float)
+    return [whiteness(residuals[:, j]) for j in range(residuals.shape[1])]
+
+
+def block_scores(jacobian: np.ndarray, residuals: np.ndarray, block: int, rows_per_instant: int = 1) -> np.ndarray:
+    """Sums of the score J_t' r_t over consecutive blocks of ``block`` instants, (K, p).
+
+    Rows of ``jacobian`` (n_rows, p) and ``residuals`` (n_rows,) are in time
+    order with the ``rows_per_instant`` rows of one instant (e.g. three axes)
+    adjacent, so a block never splits an instant.  A last partial block is
+    kept when it is at least half a block long, else merged into the previous.
+    """
+    jacobian = np.asarray(jacobian, dtype=float)
+    residuals = np.asarray(residuals, dtype=float).ravel()
+    scores = jacobian * residuals[:, None]
+    instants = residuals.size // rows_per_instant
+    scores = scores[: instants * rows_per_instant].reshape(instants, rows_per_instant, -1).sum(axis=1)
+    k = max(1, instants // block)
+    if instants - k * block >= block / 2:
+        k += 1
+    edges = np.minimum(np.arange(k + 1) * block, instants)
+    edges[-1] = instants
+    return np.add.reduceat(scores, edges[:-1], axis=0)
+
+
+@dataclass
+class Sandwich:
+    covariance: np.ndarray
+    blocks: int
+    block: int             # instants per block
+    method: str = "batch-means sandwich"
+
+    @property
+    def underresolved(self) -> bool:
+        """Too few blocks for a trustworthy middle matrix (say so, widen or refuse)."""
+        return self.blocks < MIN_BLOCKS
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "blocks": self.blocks, "block_samples": self.block,
+                "underresolved": self.underresolved}
+
+
+def sandwich_covariance(normal_matrix: np.ndarray, scores: np.ndarray, block: int) -> Sandwich:
+    """Covariance (J'J)^-1 M (J'J)^-1 with M = sum over blocks of S_b S_b' (batch means).
+
+    ``normal_matrix`` is J'J of the (weighted) fit; ``scores`` the per-block
+    score sums from ``block_scores`` (or a chunked fit's own).  The score sums
+    are centred (at the least-squares optimum they sum to zero; removing their
+    mean keeps a fit stopped short of it from inflating M).  With white noise
+    M ~ sigma^2 J'J and this reduces to the usual sigma^2 (J'J)^-1.
+    """
+    scores = np.asarray(scores, dtype=float)
+    k = scores.shape[0]
+    centred = scores - scores.mean(axis=0)
+    middle = centred.T @ centred * (k / max(k - 1, 1))
+    bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
+    cov = bread @ middle @ bread
+    return Sandwich(0.5 * (cov + cov.T), k, int(block))
+
+
+@dataclass
+class LackOfFit:
+    """Residual variance against a model-free noise variance (F test)."""
+
+    residual_variance: float
+    noise_variance: float
+    dof_residual: float
+    dof_noise: float
+    p_value: float
+
+    @property
+    def ratio(self) -> float:
+        """Residual rms over the noise sd (1 when the model explains everything but noise)."""
+        return float(np.sqrt(self.residual_variance / self.noise_variance)) if self.noise_variance > 0 else np.inf
+
+    def significant(self, alpha: float = ALPHA) -> bool:
+        return self.p_value < alpha
+
+    def describe(self) -> str:
+        return (f"the model does not fit: residual rms is {self.ratio:.2f}x the sensor noise "
+                f"measured without the model (F test p = {self.p_value:.1g})")
+
+    def to_dict(self) -> dict:
+        return {"residual_variance": self.residual_variance, "noise_variance": self.noise_variance,
+                "rms_ratio": self.ratio, "dof_residual": self.dof_residual, "dof_noise": self.dof_noise,
+                "p_value": self.p_value, "significant": self.significant()}
+
+
+def lack_of_fit(residual_variance: float, dof_residual: float, noise_variance: float, dof_noise: float) -> LackOfFit:
+    """F test of residual_variance (dof_residual) against noise_variance (dof_noise), one-sided."""
+    if noise_variance <= 0:
+        p = 0.0 if residual_variance > 0 else 1.0
+    else:
+        p = float(_sps.f.sf(residual_variance / noise_variance, dof_residual, dof_noise))
+    return LackOfFit(float(residual_variance), float(noise_variance), float(dof_residual), float(dof_noise), p)
+
+
+def difference_noise_variance(x: np.ndarray, order: int = 2) -> tuple[float, float]:
+    """White-noise variance of a smooth signal plus noise, with no model: var of its
+    ``order``-th differences over C(2 order, order), and its effective dof.
+
+    A smooth signal sampled fast is nearly a polynomial over order + 1 samples,
+    so its differences are noise alone.  The dof accounts for the overlap of
+    successive differences (about n / (1 + 2 sum of their squared correlations)).
+    Correlated noise makes this smaller than the true variance: a fit whose
+    residuals are correlated will fail the lack-of-fit test against it, which is
+    why the whiteness check runs first.
+    """
+    from math import comb
+
+    x = np.asarray(x, dtype=float).ravel()
+    d = np.diff(x, n=order)
+    scale = comb(2 * order, order)
+    # correlation of successive order-th differences of white noise: binomial convolution
+    w = np.array([(-1) ** k * comb(order, k) for k in range(order + 1)], dtype=float)
+    acf = np.correlate(w, w, mode="full")[order:] / scale
+    dof = d.size / (1.0 + 2.0 * float(np.sum(acf[1:] ** 2)))
+    return float(np.mean(d**2) / scale), dof

@@ -1,0 +1,105 @@
+"""The shared residual check (accelrig.estimation.residuals) against processes whose answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from accelrig.estimation.residuals import (
+    block_scores,
+    difference_noise_variance,
+    lack_of_fit,
+    sandwich_covariance,
+    whiteness,
+)
+from accelrig.sim.sensor import SensorModel
+
+
+def ar1(n, rho, rng):
+    sensor = SensorModel(noise_density=SensorModel.noise_density_for_sd(1.0, 2.0), ar1=rho, range_g=16)
+    return sensor.noise(n, rng, 2.0)[:, 0]
+
+
+def test_white_noise_passes_and_ar1_is_caught_with_its_integrated_time():
+    rng = np.random.default_rng(1)
+    white = whiteness(rng.standard_normal(20000))
+    assert not white.correlated and abs(white.tau - 1.0) < 0.15 and white.inflation < 1.1
+    rho = 0.9
+    check = whiteness(ar1(200000, rho, rng))
+    assert check.correlated
+    # tau of AR(1) = (1 + rho) / (1 - rho) = 19
+    assert check.tau == pytest.approx((1 + rho) / (1 - rho), rel=0.15)
+    assert "correlated" in check.describe()
+
+
+def test_false_alarm_rate_of_the_whiteness_decision_is_small():
+    rng = np.random.default_rng(2)
+    alarms = sum(whiteness(rng.standard_normal(2000)).correlated for _ in range(300))
+    assert alarms <= 6   # ALPHA = 1 %: 3 expected
+
+
+def test_sandwich_covers_the_mean_of_correlated_noise_where_the_white_formula_does_not():
+    rng = np.random.default_rng(3)
+    n, rho = 20000, 0.9
+    means, u_sandwich, u_white = [], [], []
+    for _ in range(200):
+        x = ar1(n, rho, rng)
+        mean = x.mean()
+        r = x - mean
+        jac = np.ones((n, 1))
+        check = whiteness(r)
+        block = check.block_length()
+        sw = sandwich_covariance(jac.T @ jac, block_scores(jac, r, block), block)
+        assert not sw.underresolved
+        means.append(mean)
+        u_sandwich.append(np.sqrt(sw.covariance[0, 0]))
+        u_white.append(r.std() / np.sqrt(n))
+    sd = np.std(means)
+    assert np.median(u_sandwich) / sd == pytest.approx(1.0, abs=0.2)
+    assert np.median(u_white) / sd < 0.35          # 1/sqrt(19) = 0.23: the white u is far too small
+
+
+def test_sandwich_reduces_to_the_usual_covariance_for_white_noise():
+    rng = np.random.default_rng(4)
+    n = 40000
+    t = np.arange(n) / 100.0
+    jac = np.column_stack([np.sin(2 * np.pi * 1.3 * t), np.cos(2 * np.pi * 1.3 * t), np.ones(n)])
+    r = rng.standard_normal(n) * 0.5
+    sw = sandwich_covariance(jac.T @ jac, block_scores(jac, r, 200), 200)
+    usual = 0.25 * np.linalg.inv(jac.T @ jac)
+    assert np.sqrt(np.diag(sw.covariance)) == pytest.approx(np.sqrt(np.diag(usual)), rel=0.3)
+
+
+def test_block_scores_keep_instants_whole_and_lose_no_row():
+    jac = np.arange(30, dtype=float).reshape(15, 2)
+    r = np.ones(15)
+    sums = block_scores(jac, r, block=3, rows_per_instant=3)    # 5 instants: blocks of 3 and 2
+    assert sums.shape == (2, 2)
+    assert sums.sum(axis=0) == pytest.approx(jac.sum(axis=0))
+
+
+def test_lack_of_fit_against_the_difference_noise_estimate():
+    rng = np.random.default_rng(5)
+    t = np.linspace(0, 10, 5000)
+    signal = np.sin(t) * 3
+    y = signal + rng.standard_normal(t.size) * 0.1
+    var, dof = difference_noise_variance(y)
+    assert var == pytest.approx(0.01, rel=0.1) and dof < t.size
+    fit_ok = lack_of_fit(np.var(y - signal), t.size - 1, var, dof)
+    assert not fit_ok.significant()
+    wrong = lack_of_fit(np.var(y - 0.98 * signal), t.size - 1, var, dof)    # 2 % gain error
+    assert wrong.significant() and wrong.ratio > 1.1 and "does not fit" in wrong.describe()
+
+
+def test_a_short_last_block_joins_the_previous_one():
+    sums = block_scores(np.ones((7, 1)), np.ones(7), block=3)    # 3 + 4: the 1 left over is merged
+    assert sums.ravel().tolist() == [3.0, 4.0]
+
+
+def test_coloured_sim_noise_is_continuous_across_blocks():
+    """One process, whatever the block cut: AR(1) lag-1 correlation survives block joins."""
+    sensor = SensorModel(noise_density=SensorModel.noise_density_for_sd(1.0, 100.0), ar1=0.95, range_g=16)
+    rng = np.random.default_rng(6)
+    x = np.concatenate([sensor.noise(7, rng, 100.0)[:, 0] for _ in range(4000)])
+    joins = np.arange(7, x.size, 7)
+    assert np.corrcoef(x[joins - 1], x[joins])[0, 1] > 0.9
