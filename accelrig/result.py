@@ -46,6 +46,16 @@ class Correction:
     def identity(cls) -> Correction:
         return cls(np.eye(3), np.zeros(3), np.zeros((12, 12)))
 
+    def with_gravity_uncertainty(self, g: float, u_g: float) -> Correction:
+        """This correction with u(g) of the local gravity it was scaled to added to its covariance.
+
+        Every gravity-referenced calibration makes calibrated vectors read g: C is proportional to the g
+        used and b does not depend on it, so an error dg moves C by C dg / g (fully correlated entries)."""
+        if not u_g:
+            return self
+        d = np.concatenate([self.matrix.ravel(), np.zeros(3)]) * (u_g / g)
+        return Correction(self.matrix, self.bias, self.covariance + np.outer(d, d))
+
     @property
     def matrix_uncertainty(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.covariance)[:9], 0, None)).reshape(3, 3)

@@ -199,5 +199,14 @@ def values_from_texts(settings, texts: dict[str, str]) -> dict:
 # and a command's --help must not (tests/test_settings.py checks the two agree).
 # Earth's gravity runs from 9.780 (equator) to 9.832 m/s^2 (poles), a few mm/s^2 less on a mountain:
 # outside 9.76 .. 9.84 the number is a slip (another unit, a typo), not a place.
-GRAVITY = Setting("g", "local gravity", unit="m/s^2", default=9.80665, low=9.76, high=9.84,
+GRAVITY = Setting("g", "local gravity (default standard gravity, which stands for anywhere on Earth: u 0.015; "
+                  "or give --latitude)", unit="m/s^2", default=9.80665, low=9.76, high=9.84,
                   label="local gravity", hint="Earth's gravity lies within 9.76-9.84 m/s^2; give it in m/s^2, e.g. 9.81")
+# Local gravity from where the rig stands: accelrig.units.local_gravity turns these into g and u(g).
+LATITUDE = Setting("latitude", "latitude of the rig: g from the WGS-84 normal gravity formula (u 0.001)",
+                   unit="deg", low=-90.0, high=90.0, label="latitude", example="48.1")
+HEIGHT = Setting("height", "height of the rig above sea level, with --latitude (default 0)", unit="m",
+                 low=-500.0, high=6000.0, label="height", example="520")
+GRAVITY_U = Setting("g_u", "standard uncertainty of g, replacing the default one (e.g. a surveyed g)",
+                    unit="m/s^2", low=0.0, high=0.05, label="u(g)")
+GRAVITY_SETTINGS = (GRAVITY, LATITUDE, HEIGHT, GRAVITY_U)

@@ -137,18 +137,22 @@ def test_tilted_poses_raise_a_lack_of_fit_warning_and_the_exact_face_u_grows():
     assert np.all(np.abs(result.correction.bias - sensor.correction().bias) < 4 * u)
 
 
-def test_correlated_noise_is_detected_and_warned_about():
+def test_correlated_noise_is_detected_and_widens_u():
     from scipy.signal import lfilter
 
     rec, _, _ = _record("sim://static", seed=11)
     white = calibrate_static(rec)
-    assert 0.7 < white.quality["noise_correlation_factor"] < 1.4
-    assert not any("correlated" in w for w in white.warnings)
-    # a first-order low-pass over the raw stream, as a sensor's DLPF would apply
+    assert not white.quality["noise"]["correlated"]
+    assert all(0.7 < t < 1.4 for t in white.quality["noise"]["tau_samples"])
+    # a first-order low-pass over the raw stream, as a sensor's DLPF would apply: tau = (1 + 0.8) / (1 - 0.8) = 9
     smoothed = Recording(rec.t, lfilter([0.2], [1, -0.8], rec.acc - rec.acc[0], axis=0) + rec.acc[0], "m/s^2", {}, {})
     filtered = calibrate_static(smoothed)
-    assert filtered.quality["noise_correlation_factor"] > 3
-    assert any("correlated" in w for w in filtered.warnings)
+    noise = filtered.quality["noise"]
+    assert noise["correlated"] and all(5 < t < 14 for t in noise["tau_samples"])
+    assert "n / tau" in filtered.quality["uncertainty_source"]
+    # the low-pass shrinks the per-sample sd by sqrt(0.2^2 / (1 - 0.8^2)) = 1/3 and tau brings the means' u back
+    ratio = filtered.correction.bias_uncertainty / white.correction.bias_uncertainty
+    assert np.all((ratio > 0.7) & (ratio < 1.4))
 
 
 def test_created_from_the_declared_settings_and_the_device_facts():

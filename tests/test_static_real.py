@@ -8,6 +8,7 @@ and the published tools' numbers in tests/data/README.md.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -97,7 +98,8 @@ def test_xsens_six_face_mode_refuses_in_one_line_naming_a_pose_and_its_angle(tmp
         err = capsys.readouterr().err.strip()
         assert code == CalibrationError.exit_code and not out.exists()
         assert len(err.splitlines()) == 1
-        assert "pose 27 is 45.9 degrees from -y" in err and "--model multi-position" in err
+        # 45.9 before the still-sample edges were found from the data (issue 18); the pose is the same
+        assert re.search(r"pose 27 is 45.[89] degrees from -y", err) and "--model multi-position" in err
 
 
 def test_xsens_multi_position_leaves_every_pose_on_g(tmp_path, capsys):

@@ -89,6 +89,11 @@ def text_report(result) -> str:
         lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
     lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
     lines.append(f"lack of fit: chi2 {q['chi2']:.1f} for {q['dof']} dof (p = {q['p_value']:.3g})")
+    settings = result.settings
+    if "g_u" in settings:
+        lines.append(f"gravity: g = {settings['g']:.5f} +- {settings['g_u']:.2g} m/s^2 ({settings['g_source']})")
+    if "noise" in q:
+        lines.append(f"noise: {q['noise']['description']}")
     lines.append(f"uncertainty: {q['uncertainty_source']}")
     lines.append(f"residual rms {q['residual_rms']:.4f} m/s^2, largest |g| residual of a pose "
                  f"{q['max_magnitude_residual']:.4f} m/s^2")

@@ -33,8 +33,9 @@ scatter inflates it, one of two ways (``inflation``), and the fit says which
 (``uncertainty_source``):
   "repeatability" (default)  an additive per-pose error of sd sigma_r (isotropic,
       independent between poses: drift, hand pressure, re-seating) is added to
-      every pose mean's covariance and solved so that chi^2 = dof (Paule-Mandel);
-      the fit is redone with those weights.
+      every pose mean's covariance and solved so that chi^2 = dof (Paule-Mandel); that variance is
+      estimated from the few dof of the poses, so it is widened by the Student factor of those dof (as
+      the observed flatness is), keeping +-2u a 95 % interval; the fit is redone with those weights.
   "birge"  the covariance is multiplied by the Birge ratio squared chi^2/dof.
 On real hand-held sessions the excess sits in a few poses (a sensor drifting
 between repeats of one face), which the uniform Birge factor spreads thin; the
@@ -329,10 +330,11 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
     source, sigma_r = "noise of the pose means", 0.0
     cov_scale = 1.0
     if rejected and inflation == "repeatability":
-        v = _solve_repeatability(lambda var: solve(var)[3], dof)
+        v = _solve_repeatability(lambda var: solve(var)[3], dof) * _student_variance_factor(dof)
         x, resid, jw, chi2 = solve(v)
         sigma_r = float(np.sqrt(v))
-        source += f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for {dof} dof)"
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
+                   f"{dof} dof; Student-widened)")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (chi^2 {chi2:.3g} for {dof} dof)"
@@ -585,10 +587,11 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     birge, rejected = _birge(chi2_m, dof)
     cov_scale, sigma_r = 1.0, 0.0
     if rejected and inflation == "repeatability":
-        v = _solve_repeatability(lambda var: solve(flat, var)[2], dof)
+        v = _solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof)
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
         sigma_r = float(np.sqrt(v))
-        source += f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for {dof} dof)"
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
+                   f"{dof} dof; Student-widened)")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (chi^2 {chi2_m:.3g} for {dof} dof)"

@@ -44,6 +44,8 @@ from accelrig.procedures.contract import Event
 from accelrig.recording import count_scale
 from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 
+_CHI2_1_MEDIAN = 0.4549364   # median of chi^2 with 1 dof: median(d^2) = 0.455 var(d) for a normal d
+
 # The detector's own kinds of happening, as the contract's kinds of event (data["kind"] keeps the own one).
 EVENT_KIND = {
     "start": "instruction", "hold_still": "instruction", "already_done": "instruction", "redo": "instruction",
@@ -407,11 +409,18 @@ class PoseDetector:
             return pose, None
         means = x[: n_blocks * b].reshape(n_blocks, b, 3).mean(axis=1)
         deviation = np.linalg.norm(means - np.median(means, axis=0), axis=1)
+        # The sd of a block mean: noise_sd / sqrt(b) for white noise; more when the noise is correlated in
+        # time (a low-pass filter, 1/f), read from the scatter of successive block means (robustly: the
+        # median of their squared differences, so that one step of a move does not raise it).
+        block_sd = pose.noise_sd / np.sqrt(b)
+        if n_blocks >= 5:
+            steps = np.sum(np.diff(means, axis=0) ** 2, axis=1) / 3.0
+            block_sd = max(block_sd, float(np.sqrt(np.median(steps) / (2.0 * _CHI2_1_MEDIAN))))
         # Edges: strict, noise-based (4.5 sd of a block mean's offset, beyond the 99.9th percentile of
         # its norm), because a half-settled block left in biases the pose mean at the CRB level.
-        edge_off = deviation > 4.5 * pose.noise_sd / np.sqrt(b)
+        edge_off = deviation > 4.5 * block_sd
         # Interior: lenient, so noise never calls a good pose 'moved'.
-        tolerance = max(self.drift_tolerance, 6.0 * pose.noise_sd * np.sqrt(2.0 / b))
+        tolerance = max(self.drift_tolerance, 6.0 * block_sd * np.sqrt(2.0))
         off = deviation > tolerance
         allowance = self.settle_blocks
         lead = 0

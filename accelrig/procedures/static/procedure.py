@@ -23,6 +23,7 @@ Every still pose found is reported with its fate (``details["poses"]``).
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gravity_fit import (
@@ -40,11 +41,12 @@ from accelrig.estimation.gravity_fit import (
 from accelrig.geometry import FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
+from accelrig.procedures.static.noise import StillNoise, still_noise
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, Estimate
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import STANDARD_GRAVITY, LocalGravity, local_gravity
 
 # Seconds a face is held before the live flow says "captured" (a pose still counts from min_hold on).
 HOLD = 4.0
@@ -59,7 +61,7 @@ class StaticProcedure(Procedure):
     actions = {"redo": "redo a face"}   # act("redo", face="+x"): take that face again
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, model: str = "auto", method: str = "vp",
-                 pose_flatness_deg: float = POSE_FLATNESS_DEG, **detection):
+                 pose_flatness_deg: float = POSE_FLATNESS_DEG, gravity: LocalGravity | None = None, **detection):
         """``detection``: PoseDetector's settings (hold, min_hold, still_threshold, full_scale, ...).
 
         ``model="multi-position"`` is the any-orientation flow: progress and ``done`` count distinct
@@ -67,7 +69,9 @@ class StaticProcedure(Procedure):
         _check_model(model, method)
         self.model, self.method, self.pose_flatness_deg = model, method, float(pose_flatness_deg)
         self.any_orientation = model == "multi-position"
-        self.detector = PoseDetector(rate, g=g, **detection)
+        # g and u(g): from the settings (create), else the g given (its u: standard gravity's, or its rounding)
+        self.gravity = gravity or local_gravity(g)
+        self.detector = PoseDetector(rate, g=self.gravity.value, **detection)
         self._started = False
         self._n_distinct = 0
         self._n_captured = 0
@@ -77,7 +81,8 @@ class StaticProcedure(Procedure):
         rate = device.get("rate") or device.get("nominal_rate")
         if not rate:
             raise DataError("the sample rate is not known", "give the rate of a file without a t column (--rate)")
-        return cls(rate, g=values["g"], model=values["model"], method=values["method"],
+        gravity = local_gravity(values["g"], values.get("latitude"), values.get("height"), values.get("g_u"))
+        return cls(rate, gravity=gravity, model=values["model"], method=values["method"],
                    pose_flatness_deg=values.get("pose_flatness_deg", POSE_FLATNESS_DEG), min_hold=values["min_hold"], hold=max(HOLD, values["min_hold"]),
                    still_threshold=values["still_threshold"], full_scale=full_scale_of(device))
 
@@ -222,9 +227,21 @@ class StaticProcedure(Procedure):
                 s.face = tilt.face
             for (k, _), tilt in zip(used, tilts, strict=True):
                 rows[k - 1].update(face=tilt.face, angle_deg=tilt.angle_deg)
+        poses = [p for _, p in used]
+        # the noise within the poses: correlation (u of each mean from n / tau), per-axis sd, drift
+        noise = still_noise([p.samples for p in poses], [p.t for p in poses],
+                            [s.face if model != "multi-position" else None for s in stats],
+                            self.detector.g, self.pose_flatness_deg)
+        scale = noise.mean_covariance_scale()
+        for s in stats:
+            s.cov = s.cov * scale
+        for (k, pose), pose_noise in zip(used, noise.per_pose, strict=True):
+            rows[k - 1]["noise"] = {"sd": np.std(pose.samples, axis=0, ddof=1).tolist(),
+                                    "tau_samples": [w.tau if w else None for w in pose_noise],
+                                    "ljung_box_p": [w.p_value if w else None for w in pose_noise]}
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
-        return build_result([p for _, p in used], stats, rows, model, self.method, settings)
+        return build_result(poses, stats, rows, model, self.method, settings, noise)
 
     def _require_six_faces(self, present: set[str]) -> None:
         missing = [f for f in FACES if f not in present]
@@ -245,7 +262,7 @@ class StaticProcedure(Procedure):
 
     def settings_used(self) -> dict:
         d = self.detector
-        return {"g": d.g, "rate": d.rate, "hold": d.hold, "min_hold": d.min_hold,
+        return {**self.gravity.to_dict(), "rate": d.rate, "hold": d.hold, "min_hold": d.min_hold,
                 "window": d.window_n / d.rate, "still_threshold": d.still_threshold,
                 "motion_factor": d.motion_factor, "trim": d.trim_n / d.rate,
                 "live_face_tolerance_deg": d.face_tolerance_deg, "drift_tolerance": d.drift_tolerance,
@@ -302,7 +319,7 @@ def _units(name: str) -> str:
 
 
 def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
-                 settings: dict) -> CalibrationResult:
+                 settings: dict, noise: StillNoise) -> CalibrationResult:
     """Fit ``model`` (exact-face paper / affine, six-face, multi-position) and package the CalibrationResult.
 
     ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order."""
@@ -324,6 +341,13 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
                            "residual": (corr.matrix @ lof).tolist(), "residual_norm": float(np.linalg.norm(corr.matrix @ lof))}
                           for p, f, lof in zip(poses, data.faces, fit.residuals, strict=True)]
         arrays = {"pose_references": data.references, "pose_residuals": fit.residuals}
+        if noise.correlated:
+            # exact-face models weigh every pose by one pooled sigma: the mean of the axes' tau scales it
+            tau = float(np.mean(noise.tau))
+            cov, uncertainty, chi2 = cov * tau, uncertainty * np.sqrt(tau), chi2 / tau
+            corr = Correction(corr.matrix, corr.bias, corr.covariance * tau)
+            p_value = float(chi2_dist.sf(chi2, dof)) if dof > 0 else float("nan")
+            source = f"noise of the pose means x mean integrated autocorrelation time {tau:.3g} (correlated noise)"
         if dof > 0 and p_value < CHI2_ALPHA:
             # The data disagree with exact faces: the stated u grows with the misfit (Birge ratio), the
             # numbers stay the fit's.  Tilted poses are better served by the six-face model, which says so.
@@ -364,11 +388,24 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
     for r, m in zip(used_rows, magnitudes, strict=True):
         r["magnitude_residual"] = float(m)
     all_res = np.concatenate([np.ravel(r) for r in calibrated_residuals])
-    correlation = noise_correlation_factor(poses, max(int(round(0.25 * settings["rate"])), 5), data.noise_sd)
+    # u(g): C scales with the g used (b does not), and so do the parameters that are C's (gains, C_ij,
+    # the paper model's calibrated-domain offsets c = -G R b)
+    u_g = float(settings.get("g_u") or 0.0)
+    if u_g:
+        corr = corr.with_gravity_uncertainty(g, u_g)
+        d = np.array([v if n.startswith(("gain_", "C_", "offset_")) else 0.0
+                      for n, v in zip(names, values, strict=True)]) * (u_g / g)
+        cov = np.asarray(cov) + np.outer(d, d)
+        uncertainty = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        source += f"; + local gravity u(g) {u_g:.2g} m/s^2 ({u_g / g:.1e} of the gains)"
+    if noise.correlated and model not in MODELS:
+        source += "; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
+    warnings += noise.warnings
     quality = {
         "residual_rms": float(np.sqrt(np.mean(all_res**2))),
-        "noise_correlation_factor": correlation,
+        "noise": noise.to_dict(),
         "noise_sd": data.noise_sd,
+        "noise_sd_axes": noise.sd.tolist(),
         "n_samples": int(np.sum(data.counts)),
         "n_poses": len(poses),
         "n_poses_found": len(rows),
@@ -381,10 +418,6 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         "fit_seconds": seconds,
         **extra,
     }
-    if correlation > 1.5:
-        warnings.append(f"the noise is correlated in time (pose means scatter {correlation:.1f} times more in "
-                        "variance than white noise predicts; a digital low-pass filter?): the uncertainties "
-                        "assume white noise and are too small by about the square root of that")
     parameters = {n: Estimate(float(v), float(u), unit)
                   for n, v, u, unit in zip(names, values, uncertainty, units, strict=True)}
     return CalibrationResult(
@@ -401,24 +434,6 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         warnings=warnings,
         details={"poses": rows},
     )
-
-
-def noise_correlation_factor(poses: list[Pose], block: int, sigma: float) -> float:
-    """Variance of block means x block length / sigma^2, pooled over poses and axes.
-
-    About 1 for white noise (the model the uncertainties assume); a low-pass
-    filtered sensor, or a pose that creeps, shows more.  nan when the poses
-    are too short for two blocks.
-    """
-    total, dof = 0.0, 0
-    for p in poses:
-        n_blocks = len(p.samples) // block
-        if n_blocks < 2:
-            continue
-        means = p.samples[: n_blocks * block].reshape(n_blocks, block, 3).mean(axis=1)
-        total += float(np.sum((means - means.mean(axis=0)) ** 2)) * block
-        dof += 3 * (n_blocks - 1)
-    return total / dof / sigma**2 if dof and sigma > 0 else float("nan")
 
 
 # ------------------------------------------------------------------ files

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.settings import GRAVITY, Setting
+from accelrig.settings import GRAVITY_SETTINGS, Setting
 
 MODELS = ("paper", "affine")                           # the exact-face models of accelrig.procedures.static.fit
 MODEL_CHOICES = ("auto", "six-face", "multi-position", *MODELS)
@@ -18,7 +18,7 @@ SETTINGS = (
             label="model (multi-position: hold it still in any orientation)"),
     Setting("method", "vp = variable projection + Levenberg-Marquardt; paper = the paper's Nelder-Mead over "
             "the angles (9-parameter model only)", kind="choice", choices=METHODS, default="vp", label="method"),
-    GRAVITY,
+    *GRAVITY_SETTINGS,
     Setting("pose_flatness_deg", "sd of each pose's tilt from its face (six-face Type B term); a pose more "
             "than 5 x this from a face is refused in six-face mode", unit="deg", default=POSE_FLATNESS_DEG,
             low=0.0, low_open=True, high=10.0, label="pose flatness"),

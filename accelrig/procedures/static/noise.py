@@ -1,0 +1,186 @@
+"""What the still samples say about the noise and the offset: correlation in time, per-axis sd, drift.
+
+Every pose mean's uncertainty rests on the noise within the poses.  The fits take each pose as its
+mean and the covariance of that mean; this module measures what that covariance must be, from the
+data, with the one residual check of the project (``accelrig.estimation.residuals``):
+
+correlation   per axis, the still samples of all poses (each pose's own mean removed) are one noise
+              process seen in stretches: ``pooled_whiteness`` gives the integrated autocorrelation
+              time tau (samples) and the Ljung-Box test.  When the policy calls it correlated (the
+              test rejects at 1 % and u would grow by more than 10 %), each pose mean's covariance is
+              the sample covariance scaled by sqrt(tau_j tau_k) (the long-run covariance): the
+              effective sample count n / tau.  Why not the batch-means sandwich: a pose mean is a
+              location estimate, whose variance is exactly sigma^2 tau / n; the sandwich would need
+              blocks of 20 tau (400 samples at tau = 20) and at least 20 of them per pose, 8000
+              samples where a 4-s pose at 200 Hz holds 800.  tau pooled over the run's poses has a
+              quarter of the single pose's scatter.  Per pose and per axis the whiteness is recorded
+              too (``details["poses"]``), for the operator to see where it came from.
+per axis      each pose keeps its own 3 x 3 sample covariance (no pooled sigma): a z axis twice as
+              noisy as x weighs its own rows in the six-face and multi-position fits.
+drift         an offset that moves during the run is invisible in one pose's mean but biases the
+              calibration.  Two looks: (1) the trend within the poses, the least-squares slope of
+              every axis against time pooled over the poses (its u from the same tau), tested against
+              zero; (2) a face (or orientation) held again later: the difference of the two poses'
+              means along gravity (a tilt changes it only to second order, covered by the stated
+              flatness) against its noise.  Either one significant at 1 % is a warning naming what was
+              seen; the revisit also enters the fits' lack-of-fit test, which widens u by the scatter.
+              A drift slower than the within-pose trends can resolve is caught only by a revisit:
+              the docs tell the operator to end on the face they began with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from accelrig.estimation.residuals import ALPHA, Whiteness, pooled_whiteness, whiteness
+from accelrig.geometry import AXES
+
+
+@dataclass
+class StillNoise:
+    """The noise of a run's still samples, per axis (x, y, z)."""
+
+    axes: list[Whiteness]                 # pooled over the poses, per axis
+    sd: np.ndarray                        # per-axis sd, pooled within poses, m/s^2
+    per_pose: list[list[Whiteness | None]]  # [pose][axis]; None for a pose too short to test
+    drift: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def correlated(self) -> bool:
+        return any(w.correlated for w in self.axes) or self.slow_factor > 1.0
+
+    slow_factor: float = 1.0              # > 1 when pose halves disagree beyond tau (slower noise)
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Factor on the variance of a pose mean, per axis: tau where correlated (1 where white), times
+        the slow-noise factor when the halves of the poses disagree beyond it."""
+        return np.array([max(w.tau, 1.0) if w.correlated else 1.0 for w in self.axes]) * self.slow_factor
+
+    @property
+    def tau_any(self) -> np.ndarray:
+        """The tau measured, per axis, whether or not the policy calls it material (for tests of a slope)."""
+        return np.array([max(w.tau, 1.0) for w in self.axes]) * self.slow_factor
+
+    def mean_covariance_scale(self) -> np.ndarray:
+        """3 x 3 factors on a sample covariance that make it the long-run covariance: sqrt(tau_j tau_k)."""
+        root = np.sqrt(self.tau)
+        return np.outer(root, root)
+
+    def describe(self) -> str:
+        taus = "/".join(f"{w.tau:.1f}" for w in self.axes)
+        if not self.correlated:
+            return f"white within the poses (integrated autocorrelation time x/y/z {taus} samples)"
+        slow = (f"; the halves of the poses differ {np.sqrt(self.slow_factor):.1f}x more than that predicts "
+                "(noise slower than a pose: 1/f, a wander), which widens it too" if self.slow_factor > 1 else "")
+        return (f"correlated in time within the poses (integrated autocorrelation time x/y/z {taus} samples, "
+                f"lag-1 autocorrelation {'/'.join(f'{w.lag1:.2f}' for w in self.axes)}): each pose mean's u "
+                f"is from the effective sample count n / tau{slow}: {np.sqrt(self.tau.max()):.1f}x the white-noise u")
+
+    def to_dict(self) -> dict:
+        return {"correlated": self.correlated, "sd": self.sd.tolist(), "slow_factor": self.slow_factor,
+                "tau_samples": [w.tau for w in self.axes], "mean_variance_factor": self.tau.tolist(),
+                "axes": {a: w.to_dict() for a, w in zip(AXES, self.axes, strict=True)},
+                "drift": self.drift, "description": self.describe()}
+
+
+def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[str | None],
+                g: float, flatness_deg: float) -> StillNoise:
+    """Check the still samples of the poses used (raw m/s^2, (n, 3) each, with their times)."""
+    centred = [x - x.mean(axis=0) for x in samples]
+    axes = [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
+    dof = sum(len(c) - 1 for c in centred)
+    sd = np.sqrt(sum(np.sum(c**2, axis=0) for c in centred) / max(dof, 1))
+    per_pose = [[whiteness(c[:, k]) if len(c) >= 10 else None for k in range(3)] for c in centred]
+    noise = StillNoise(axes, sd, per_pose)
+    _halves(noise, centred)
+    _trend(noise, samples, times)
+    _revisits(noise, samples, times, faces, g, flatness_deg)
+    return noise
+
+
+def _halves(noise: StillNoise, centred: list[np.ndarray]) -> None:
+    """The model-free check of tau: each pose's two halves' means differ by d with var(d) = 4 sigma^2 tau / n
+    when tau describes the noise.  Noise slower than the autocorrelation window sees (1/f, a wander) makes
+    them differ more; then every pose mean's variance is widened by the ratio observed (pooled over poses
+    and axes, 3 P degrees of freedom), when it is significant at ALPHA."""
+    tau = np.array([max(w.tau, 1.0) if w.correlated else 1.0 for w in noise.axes])
+    ratios = []
+    for c in centred:
+        half = len(c) // 2
+        if half < 5:
+            continue
+        d = c[:half].mean(axis=0) - c[half:2 * half].mean(axis=0)
+        ratios.append(half * d**2 / 2.0 / (noise.sd**2 * tau))     # ~ chi^2(1) per axis under the tau model
+    if not ratios:
+        return
+    ratios = np.array(ratios)
+    dof = ratios.size
+    ratio = float(ratios.mean())
+    p = float(chi2_dist.sf(ratio * dof, dof))
+    noise.drift["pose_halves"] = {"ratio": ratio, "dof": dof, "p_value": p}
+    if p < ALPHA and ratio > 1.0:
+        noise.slow_factor = ratio
+
+
+def _trend(noise: StillNoise, samples, times) -> None:
+    """Pooled within-pose slope per axis (m/s^2 per s) and its u; warn when it differs from zero at ALPHA."""
+    sxx = 0.0
+    sxy = np.zeros(3)
+    for x, t in zip(samples, times, strict=True):
+        dt = t - t.mean()
+        sxx += float(dt @ dt)
+        sxy += dt @ (x - x.mean(axis=0))
+    if sxx <= 0:
+        return
+    slope = sxy / sxx
+    # var(slope) = sigma^2 tau / sum dt^2 for a process correlated over tau samples (long-run variance)
+    u = noise.sd * np.sqrt(noise.tau_any / sxx)
+    chi2 = float(np.sum((slope / u) ** 2))
+    p = float(chi2_dist.sf(chi2, 3))
+    noise.drift["trend"] = {"slope": slope.tolist(), "u": u.tolist(), "chi2": chi2, "p_value": p}
+    if p < ALPHA:
+        k = int(np.argmax(np.abs(slope / u)))
+        noise.warnings.append(
+            f"the offset drifts during the poses: {AXES[k]} moves {slope[k] * 60:+.3g} m/s^2 per minute "
+            f"({abs(slope[k] / u[k]):.1f} u; all axes chi^2 {chi2:.1f} for 3, p = {p:.1g}): warming up? "
+            "Let the sensor settle powered, or calibrate again later; the offsets hold for the middle of the run")
+
+
+def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: float) -> None:
+    """A face held twice: the change of its mean along gravity between the first and the last hold."""
+    found = []
+    tau = noise.tau_any
+    for face in dict.fromkeys(f for f in faces if f is not None):
+        idx = [k for k, f in enumerate(faces) if f == face]
+        if len(idx) < 2:
+            continue
+        a, b = idx[0], idx[-1]
+        axis = AXES.index(face[1])
+        change = float(samples[b][:, axis].mean() - samples[a][:, axis].mean())
+        var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[a]) + 1 / len(samples[b]))
+        # a tilt of either hold shortens the gravity component by g (1 - cos theta) ~ g theta^2 / 2:
+        # with each of two components of sd s, theta^2 / 2 has mean and sd s^2 (exponential)
+        s2 = np.radians(flatness_deg) ** 2
+        var += 2 * (g * s2) ** 2
+        z = change / np.sqrt(var)
+        found.append({"face": face, "first": float(times[a].mean()), "last": float(times[b].mean()),
+                      "change": change, "u": float(np.sqrt(var)), "z": float(z)})
+    if not found:
+        return
+    noise.drift["revisits"] = found
+    chi2 = float(sum(f["z"] ** 2 for f in found))
+    p = float(chi2_dist.sf(chi2, len(found)))
+    noise.drift["revisit_p_value"] = p
+    if p < ALPHA:
+        worst = max(found, key=lambda f: abs(f["z"]))
+        span = worst["last"] - worst["first"]
+        noise.warnings.append(
+            f"the offset drifted during the run: {worst['face']} down read {worst['change']:+.4f} m/s^2 "
+            f"along {worst['face'][1]} at t = {worst['last']:.0f} s against t = {worst['first']:.0f} s "
+            f"({abs(worst['z']):.1f} u, {span:.0f} s apart): warming up? The uncertainties include the "
+            "scatter this causes; let the sensor settle powered and calibrate again for the best result")
