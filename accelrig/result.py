@@ -122,6 +122,19 @@ class CalibrationResult:
     warnings: list[str] = field(default_factory=list)
     details: dict = field(default_factory=dict)
 
+    def with_local_gravity(self, gravity) -> CalibrationResult:
+        """Record the local gravity used (``accelrig.units.LocalGravity``: g, u(g), where it came from) and put
+        u(g) into the correction's covariance (``Correction.with_gravity_uncertainty``), in place.  A
+        procedure whose own parameters scale with g adds their term itself (the static one does)."""
+        if self.correction is not None:
+            self.correction = self.correction.with_gravity_uncertainty(gravity.value, gravity.u)
+        self.settings.update(gravity.to_dict())
+        if gravity.u:
+            note = f"local gravity u(g) {gravity.u:.2g} m/s^2 ({gravity.u / gravity.value:.1e} of the gains)"
+            source = self.quality.get("uncertainty_source")
+            self.quality["uncertainty_source"] = f"{source}; + {note}" if source else f"+ {note}"
+        return self
+
     def to_json_dict(self, include_arrays: bool = False) -> dict:
         out = {
             "procedure": self.procedure,

@@ -25,8 +25,9 @@ def test_offline_poses_lie_inside_the_true_still_intervals_with_the_right_faces(
     truth = rig.truth()["poses"]
     assert [p.face for p in proc.poses] == [p["face"] for p in truth]
     for pose, tp in zip(proc.poses, truth, strict=True):
-        assert tp["start"] - 0.15 <= pose.start and pose.stop <= tp["stop"] + 0.01
-        assert pose.duration > 0.75 * rig.hold   # edges trimmed, not the pose thrown away
+        # the edges are found from the data and the detector's resolution, not a fixed fraction
+        assert tp["start"] - 0.15 <= pose.start and pose.stop <= tp["stop"] + 0.05
+        assert pose.duration > 0.85 * rig.hold   # the still samples kept (a fixed 0.3 s trim kept about 0.8)
     assert proc.rejected == []
 
 

@@ -46,10 +46,13 @@ def run_calibrate(args) -> int:
     check_profile_target(args)   # an -o that would be refused is refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     from accelrig.commands.progress import Progress
+    from accelrig.units import local_gravity
 
+    gravity = local_gravity(v["g"], v["latitude"], v["height"], v["g_u"])
     with Progress(f"fitting the wheel ({v['method']} method)"):
-        result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
-                                 bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+        result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
+                                 g=gravity.value, bootstrap=v["bootstrap"],
+                                 cross_axis_sd=v["cross_axis_sd"]).with_local_gravity(gravity)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:

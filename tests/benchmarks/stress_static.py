@@ -91,6 +91,9 @@ CONDITIONS = [
     Condition("static", "local g 9.81, --g 9.81", lambda s: _run(s, rig_g=9.81, values={"g": 9.81})),
     Condition("static", "drift 0.01 m/s^2 over the run", lambda s: _run(s, drift_total=0.01),
               refusal_must_say=("drift",)),
+    Condition("static", "drift 0.01, ends on the first face", lambda s: _run(
+        s, drift_total=0.01, rig_options={"order": ("+z", "-z", "+x", "-x", "+y", "-y", "+z")}),
+              refusal_must_say=("drift",)),
     Condition("static", "hand tilt 1 deg", lambda s: _run(s, rig_options={"tilt_deg": 1.0},
                                                        values={"pose_flatness_deg": 1.0})),
 ]

@@ -13,8 +13,15 @@ calibration does not exist yet, and a wrong one must not hide motion):
   hysteresis  still when it drops below ``still_threshold`` (0.25 m/s^2, the
               value PX4's detect_orientation uses), moving again only above
               ``motion_factor`` x that, so noise near the threshold does not chatter;
-  edges       the window that first sees motion already contains it: the last
-              window of a pose and ``trim`` s at both ends are dropped;
+  edges       found from the data, not by a fixed trim: windows whose dispersion
+              is above 1.5 x the pose's median hold motion and are dropped, and
+              one window more at each end (the detector's resolution), and
+              before a motion ``lift`` s (0.3: the slow start of a lift); then
+              whole off-plateau blocks at either end (``moved`` below), then the
+              first and last samples whose summed offset from the plateau is
+              significant (``_edge_cuts``: the hand's lift starts as a slow tilt
+              before the dispersion sees it); every other still sample is kept
+              (``trim`` s more at both ends only if asked, default 0);
   hold        a pose counts once it has ``min_hold`` s of clean data; the live
               flow asks for ``hold`` s (default 4) before saying "captured";
   face        the nearest face (the axis with the largest |mean|; its sign names
@@ -117,7 +124,7 @@ class PoseDetector:
 
     def __init__(self, rate: float, g: float = STANDARD_GRAVITY, hold: float = 4.0, min_hold: float = 2.0,
                  window: float = 0.2, still_threshold: float = 0.25, motion_factor: float = 2.0,
-                 trim: float = 0.3, face_tolerance_deg: float = 10.0, drift_block: float = 0.25,
+                 trim: float = 0.0, lift: float = 0.3, face_tolerance_deg: float = 10.0, drift_block: float = 0.25,
                  drift_tolerance: float = 0.05, settle: float = 1.0, full_scale: float | None = None):
         if not rate or rate <= 0:
             raise DataError("the sample rate must be positive to detect still poses")
@@ -126,6 +133,7 @@ class PoseDetector:
         self.rate, self.g, self.hold, self.min_hold = float(rate), float(g), float(hold), float(min_hold)
         self.window_n = max(int(round(window * rate)), 5)
         self.trim_n = int(round(trim * rate))
+        self.lift_n = int(round(lift * rate))
         self.still_threshold, self.motion_factor = float(still_threshold), float(motion_factor)
         self.face_tolerance_deg = face_tolerance_deg
         self.drift_block_n = max(int(round(drift_block * rate)), 5)
@@ -312,9 +320,15 @@ class PoseDetector:
         Handling rarely starts or stops abruptly: the dispersion creeps up
         before it crosses the motion threshold and settles after the still
         threshold.  Windows whose dispersion is above 1.5 x the pose's median
-        at either end hold some of that motion, so the pose ends a window
-        before the first of them (and starts after the last of them), then
-        ``trim`` more is dropped.
+        at either end hold some of that motion, so the pose ends before the
+        first of them (and starts after the last of them).  One window more
+        goes at the start (the pose starts where the first quiet window ends)
+        and, when motion ended the pose, ``end_clip`` (a window) and ``lift``
+        s at the end: a hand's lift starts as a tilt growing like t^3 that
+        reaches a window's sight 0.2-0.7 s later (on imucal's hand-held session
+        the last 0.3 s before the dispersion rises already lean by 0.008 m/s^2);
+        ``trim`` more at both ends only when asked (default 0: ``_settle``
+        finds the rest from the data).
         """
         t = np.concatenate(self._seg_t)
         x = np.concatenate(self._seg_x)
@@ -323,12 +337,14 @@ class PoseDetector:
         start = 0
         while start < d.size and d[start] > limit:
             start += 1
-        start = max(start - (self.window_n - 1), 0) + self.trim_n
+        # where the first quiet window ends (a segment's first window_n - 1 samples carry its opening window's
+        # dispersion): the hand settles below a window's sight
+        start = max(start, self.window_n - 1) + self.trim_n
         stop = d.size
         if end_clip:
             while stop > start and d[stop - 1] > limit:
                 stop -= 1
-            stop -= end_clip
+            stop -= end_clip + self.lift_n
         stop -= self.trim_n
         t, x = t[start:max(stop, start)], x[start:max(stop, start)]
         face, angle = classify_face(x.mean(axis=0)) if t.size else (None, float("nan"))
@@ -437,8 +453,41 @@ class PoseDetector:
             return pose, ("moved", f"{pose.face} down moved during the pose at t = {pose.t[k * b]:.1f} s "
                                    f"({size:.2f} m/s^2, about {deg:.1f} degrees): hold that face still again")
         stop = x.shape[0] - tail * b if tail else x.shape[0]
-        face, angle = classify_face(x[lead * b:stop].mean(axis=0))
-        return Pose(face, pose.t[lead * b:stop], x[lead * b:stop], angle_deg=angle), None
+        start = lead * b
+        # Then sample by sample: the hand's first lift (or last settling) shifts the mean of the last (first)
+        # few samples before it raises a whole block; cut where the data show it (_edge_cuts).
+        plateau = np.median(means[lead:n_blocks - tail], axis=0)
+        sample_var = np.var(x[start:stop], axis=0)
+        long_var = sample_var * max(1.0, b * block_sd**2 / max(float(sample_var.mean()), 1e-30))
+        cut_start, cut_end = _edge_cuts(x[start:stop] - plateau, long_var, self.settle_blocks * b)
+        start, stop = start + cut_start, stop - cut_end
+        face, angle = classify_face(x[start:stop].mean(axis=0))
+        return Pose(face, pose.t[start:stop], x[start:stop], angle_deg=angle), None
+
+
+# A stretch of L samples at a pose's end is cut when its summed offset from the plateau S is clear of the
+# noise: sum_k S_k^2 / (L var_k) beyond chi^2 with 3 dof at 1e-4 (21.1).  The scan over every length up to
+# the settling allowance makes a few hundred correlated looks, and under pure noise its best length can be
+# long, so the level is strict: a false cut in about 1 pose of 1000.
+EDGE_CHI2 = 21.1
+
+
+def _edge_cuts(deviation: np.ndarray, long_var: np.ndarray, max_n: int) -> tuple[int, int]:
+    """How many samples to cut at the start and at the end of a pose: the length L (<= max_n) whose summed
+    deviation from the plateau is the most significant, sum_k S_Lk^2 / (L var_k), when that exceeds
+    EDGE_CHI2; else 0.  ``deviation``: (n, 3) samples minus the plateau; ``long_var``: per-axis variance of
+    a sample sum's increments (tau x sigma^2 when the noise is correlated)."""
+    n = deviation.shape[0]
+    max_n = min(int(max_n), n // 4)
+    if max_n < 1 or np.any(long_var <= 0):
+        return 0, 0
+    lengths = np.arange(1, max_n + 1)[:, None]
+    cuts = []
+    for ordered in (deviation[:max_n], deviation[::-1][:max_n]):
+        z = np.sum(np.cumsum(ordered, axis=0) ** 2 / (lengths * long_var), axis=1)
+        k = int(np.argmax(z))
+        cuts.append(k + 1 if z[k] > EDGE_CHI2 else 0)
+    return cuts[0], cuts[1]
 
 
 def full_scale_of(meta: dict) -> float | None:

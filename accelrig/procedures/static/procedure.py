@@ -264,7 +264,7 @@ class StaticProcedure(Procedure):
         d = self.detector
         return {**self.gravity.to_dict(), "rate": d.rate, "hold": d.hold, "min_hold": d.min_hold,
                 "window": d.window_n / d.rate, "still_threshold": d.still_threshold,
-                "motion_factor": d.motion_factor, "trim": d.trim_n / d.rate,
+                "motion_factor": d.motion_factor, "trim": d.trim_n / d.rate, "lift": d.lift_n / d.rate,
                 "live_face_tolerance_deg": d.face_tolerance_deg, "drift_tolerance": d.drift_tolerance,
                 "settle": d.settle_blocks * d.drift_block_n / d.rate,
                 "full_scale": d.full_scale}
@@ -392,12 +392,10 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
     # the paper model's calibrated-domain offsets c = -G R b)
     u_g = float(settings.get("g_u") or 0.0)
     if u_g:
-        corr = corr.with_gravity_uncertainty(g, u_g)
         d = np.array([v if n.startswith(("gain_", "C_", "offset_")) else 0.0
                       for n, v in zip(names, values, strict=True)]) * (u_g / g)
         cov = np.asarray(cov) + np.outer(d, d)
         uncertainty = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        source += f"; + local gravity u(g) {u_g:.2g} m/s^2 ({u_g / g:.1e} of the gains)"
     if noise.correlated and model not in MODELS:
         source += "; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
     warnings += noise.warnings
@@ -433,7 +431,7 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         settings={**settings, "faces": list(data.faces)},
         warnings=warnings,
         details={"poses": rows},
-    )
+    ).with_local_gravity(LocalGravity(g, u_g, settings.get("g_source", "")))
 
 
 # ------------------------------------------------------------------ files

@@ -39,7 +39,7 @@ from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, Estimate
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.units import STANDARD_GRAVITY, local_gravity
 
 MODEL = "v = o + diag(gain) R a(t); Pedersini eq. 1-7, cubic angular velocity"
 # A gain known worse than this (relative, k = 1) earns a warning about the mounting.
@@ -303,5 +303,7 @@ class WheelProcedure(Procedure):
 
     def result(self) -> CalibrationResult:
         v = self.values
+        gravity = local_gravity(v["g"], v.get("latitude"), v.get("height"), v.get("g_u"))
         return calibrate_wheel(self.recording(), radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
-                               g=v["g"], bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+                               g=gravity.value, bootstrap=v["bootstrap"],
+                               cross_axis_sd=v["cross_axis_sd"]).with_local_gravity(gravity)

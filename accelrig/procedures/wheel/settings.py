@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from accelrig.settings import GRAVITY, REQUIRED, Setting
+from accelrig.settings import GRAVITY, GRAVITY_SETTINGS, REQUIRED, Setting
 
 METHODS = ("joint", "paper")
 DEFAULT_BOOTSTRAP = 20
@@ -32,7 +32,7 @@ CROSS_AXIS_SD = Setting("cross_axis_sd", "prior sd of the correction's off-diago
 # Local gravity, declared once for every procedure (default standard gravity, 9.7 .. 9.9 m/s^2).
 G = GRAVITY
 
-SETTINGS = (RADIUS, TILT_DEG, METHOD, BOOTSTRAP, CROSS_AXIS_SD, G)
+SETTINGS = (RADIUS, TILT_DEG, METHOD, BOOTSTRAP, CROSS_AXIS_SD, *GRAVITY_SETTINGS)   # g, latitude, height, g_u
 
 # A planned run (accelrig plan wheel): the radius given, the tilt estimated, a perfect sensor.
 PLAN_SETTINGS = (
