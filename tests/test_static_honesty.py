@@ -1,0 +1,108 @@
+"""Static calibration off the ideal (issue 18): correlated noise, per-axis noise, local gravity, drift.
+
+Each case runs the simulator (sim://static through accelrig.sim, which shares no code with the
+estimators) and the procedure's own code path; the full picture is tests/benchmarks/bench_stress.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from accelrig.cli import main
+from accelrig.errors import DataError
+from accelrig.procedures.static.procedure import calibrate_static
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs.static import StaticRig
+from accelrig.sim.sensor import SensorModel, SimClock
+from accelrig.units import STANDARD_GRAVITY, STANDARD_GRAVITY_U, local_gravity, normal_gravity
+
+RATE = 200.0
+
+
+def _record(seed: int, order=None, g: float = STANDARD_GRAVITY, **sensor_options):
+    rng = np.random.default_rng(seed)
+    options = {"noise_density": SensorModel.noise_density_for_sd(0.03, RATE), **sensor_options}
+    sensor = SensorModel.random(rng, **options)
+    rig = StaticRig(rng, tilt_deg=0.1, g=g, **({"order": order} if order else {}))
+    return simulate(rig, sensor, SimClock(RATE), seed=seed), sensor, rig
+
+
+def test_ar1_noise_widens_u_by_its_correlation_time_and_says_so():
+    white, _, _ = _record(1)
+    red, _, _ = _record(1, ar1=0.9)          # same marginal sd, tau = 19 samples
+    w = calibrate_static(white, pose_flatness_deg=0.1, g_u=0.0)
+    r = calibrate_static(red, pose_flatness_deg=0.1, g_u=0.0)
+    assert not w.quality["noise"]["correlated"]
+    noise = r.quality["noise"]
+    assert noise["correlated"] and all(10 < t < 35 for t in noise["tau_samples"])
+    assert "n / tau" in r.quality["uncertainty_source"] and "correlated" in noise["description"]
+    ratio = r.correction.bias_uncertainty / w.correction.bias_uncertainty
+    assert np.all((ratio > 3.0) & (ratio < 6.5))                  # sqrt(19) = 4.4
+    assert not any("moved" in row["reason"] for row in r.details["poses"])   # not misread as motion
+    assert all(len(row["noise"]["tau_samples"]) == 3 for row in r.details["poses"] if row["fate"] == "used")
+
+
+def test_each_axis_keeps_its_own_noise():
+    rec, _, _ = _record(2, axis_noise=[1.0, 1.0, 3.0])
+    result = calibrate_static(rec, pose_flatness_deg=0.1, g_u=0.0)
+    sd = np.array(result.quality["noise_sd_axes"])
+    assert sd[2] == pytest.approx(3 * sd[0], rel=0.1)
+    u = result.correction.bias_uncertainty
+    assert u[2] > 2.2 * u[0] and u[1] == pytest.approx(u[0], rel=0.3)
+
+
+def test_local_gravity_from_latitude_and_height_and_its_u_in_the_gains():
+    assert normal_gravity(0.0) == pytest.approx(9.7803253359, abs=1e-9)       # WGS-84 equator
+    assert normal_gravity(90.0) == pytest.approx(9.8321849379, abs=1e-9)      # WGS-84 pole
+    assert normal_gravity(45.0, 1000.0) == pytest.approx(9.806198 - 0.003086, abs=2e-5)   # free-air -3.086e-6 /m
+    assert local_gravity().u == pytest.approx((STANDARD_GRAVITY - 9.780) / np.sqrt(3))
+    assert local_gravity(9.81).u == pytest.approx(0.005 / np.sqrt(3))        # 9.81 as typed: +-0.005
+    with pytest.raises(DataError, match="not both|give one"):
+        local_gravity(9.81, latitude=48.0)
+    with pytest.raises(DataError, match="--height needs --latitude"):
+        local_gravity(height=500.0)
+
+    rec, _, _ = _record(3, g=normal_gravity(60.0, 200.0))
+    local = calibrate_static(rec, pose_flatness_deg=0.1, latitude=60.0, height=200.0)
+    assert local.settings["g"] == pytest.approx(normal_gravity(60.0, 200.0))
+    assert local.settings["g_u"] == 1e-3 and "WGS-84" in local.settings["g_source"]
+    default = calibrate_static(rec, pose_flatness_deg=0.1)
+    assert default.settings["g_u"] == pytest.approx(STANDARD_GRAVITY_U)
+    # the default g stands for anywhere on Earth: 1.6e-3 of every gain, in C's u (and C's error is covered)
+    diag_u = np.diag(default.correction.matrix_uncertainty)
+    assert np.all(diag_u > 0.9 * STANDARD_GRAVITY_U / STANDARD_GRAVITY)
+    assert np.all(np.diag(local.correction.matrix_uncertainty) < 0.3 * diag_u)
+    assert "local gravity u(g)" in default.quality["uncertainty_source"]
+
+
+def test_latitude_through_the_cli_reaches_the_report_and_the_profile(tmp_path, capsys):
+    rec, _, _ = _record(4, g=normal_gravity(48.1, 520.0))
+    path = tmp_path / "run.npz"
+    from accelrig.recording import save_recording
+
+    save_recording(rec, path)
+    out = tmp_path / "p.yaml"
+    assert main(["calibrate", "static", str(path), "--latitude", "48.1", "--height", "520",
+                 "--pose-flatness-deg", "0.1", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "gravity: g = 9.80739" in text and "WGS-84" in text
+    from accelrig.profiles.io import load_profile
+
+    profile = load_profile(out)
+    assert profile.data["calibration"]["g"] == pytest.approx(normal_gravity(48.1, 520.0))
+    assert profile.data["calibration"]["settings"]["g_u"] == 1e-3
+
+
+def test_a_drifting_offset_is_warned_when_a_face_is_held_again():
+    order = ("+z", "-z", "+x", "-x", "+y", "-y", "+z")
+    rec, sensor, rig = _record(5, order=order, drift_rate=np.array([0.0, 0.0, 0.05]) / 40.0)
+    result = calibrate_static(rec, pose_flatness_deg=0.1, g_u=0.0)
+    drift = [w for w in result.warnings if "drifted during the run" in w]
+    assert drift and "+z down read" in drift[0]
+    revisit = result.quality["noise"]["drift"]["revisits"][0]
+    assert revisit["face"] == "+z" and revisit["change"] == pytest.approx(0.05 * (revisit["last"] - revisit["first"]) / 40,
+                                                                          abs=3 * revisit["u"])
+    # a steady offset held again: no warning
+    steady, _, _ = _record(5, order=order)
+    assert not any("drift" in w for w in calibrate_static(steady, pose_flatness_deg=0.1, g_u=0.0).warnings)
