@@ -31,11 +31,11 @@ import numpy as np
 from accelrig.procedures.static.fit import (
     AFFINE_NAMES,
     PAPER_NAMES,
+    PoseData,
     fit_model,
     paper_params_to_correction,
     static_crb,
 )
-from accelrig.procedures.static.fit import PoseData
 from accelrig.procedures.static.procedure import calibrate_static, detect_poses
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig, sensor_with_response
