@@ -37,6 +37,9 @@ scatter inflates it, one of two ways (``inflation``), and the fit says which
       estimated from the few dof of the poses, so it is widened by the Student factor of those dof (as
       the observed flatness is), keeping +-2u a 95 % interval; the fit is redone with those weights.
   "birge"  the covariance is multiplied by the Birge ratio squared chi^2/dof.
+``wander_var`` (both fits): an additive per-pose variance known before the fit (the still-noise check's
+slow-noise wander between poses, accelrig.procedures.static.noise); the repeatability solved from the
+scatter replaces it when the scatter asks for more (a floor, like the stated flatness).
 On real hand-held sessions the excess sits in a few poses (a sensor drifting
 between repeats of one face), which the uniform Birge factor spreads thin; the
 additive term puts it where it is (docs/static-tilt-notes.md).
@@ -189,6 +192,11 @@ def _solve_repeatability(chi2_of, dof: int) -> float:
     return float(brentq(lambda v: chi2_of(v) - dof, lo, hi, xtol=1e-14, rtol=1e-6))
 
 
+def _wander_note(wander_var: float) -> str:
+    return (f" + slow-noise wander between the poses {np.sqrt(wander_var):.2g} m/s^2 (1/f, extrapolated from the "
+            "poses' halves)") if wander_var > 0 else ""
+
+
 def _check_inflation(inflation: str) -> None:
     if inflation not in INFLATIONS:
         raise CalibrationError(f"unknown inflation {inflation!r}", "use repeatability, birge or none")
@@ -272,7 +280,8 @@ def _multi_covariance_to_correction(cov9: np.ndarray) -> np.ndarray:
 
 
 def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
-                      min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability") -> GravityFit:
+                      min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability",
+                      wander_var: float = 0.0) -> GravityFit:
     """Tedaldi et al. (imu_tk) multi-position fit: |C (m_p - b)| = g, C upper triangular (9 parameters).
 
     Refuses (CalibrationError) with fewer than ``min_distinct`` orientations more than DISTINCT_DEG apart,
@@ -315,7 +324,7 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
         resid, jac_raw, _ = _multi_residual_jacobian(x, means, g)
         return x, resid, jac_raw / s[:, None], float(np.sum((resid / s) ** 2))
 
-    x, resid, jw, chi2 = solve(0.0)
+    x, resid, jw, chi2 = solve(wander_var)
     norms = np.linalg.norm(jw, axis=0)
     sv = np.linalg.svd(jw / norms, compute_uv=False)
     problem = unidentifiable_direction(jw, MULTI_NAMES)
@@ -325,16 +334,18 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
             f"C and b ({problem or f'reciprocal condition {sv[-1] / sv[0]:.1e}'})",
             "add poses in orientations far from the ones held, e.g. tilted between two faces")
     dof = len(poses) - 9
-    chi2_before = chi2
-    birge, rejected = _birge(chi2, dof)
-    source, sigma_r = "noise of the pose means", 0.0
+    # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
+    chi2_before = chi2 if wander_var == 0 else solve(0.0)[3]
+    birge, rejected = _birge(chi2_before, dof)
+    source, sigma_r = "noise of the pose means" + ("" if rejected else _wander_note(wander_var)), 0.0
     cov_scale = 1.0
     if rejected and inflation == "repeatability":
-        v = _solve_repeatability(lambda var: solve(var)[3], dof) * _student_variance_factor(dof)
+        v = max(_solve_repeatability(lambda var: solve(var)[3], dof) * _student_variance_factor(dof), wander_var)
         x, resid, jw, chi2 = solve(v)
         sigma_r = float(np.sqrt(v))
+        replaces = "; it replaces the slow-noise wander" if wander_var else ""
         source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened)")
+                   f"{dof} dof; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (chi^2 {chi2:.3g} for {dof} dof)"
@@ -512,7 +523,7 @@ def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: f
 
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 inflation: str = "repeatability") -> GravityFit:
+                 inflation: str = "repeatability", wander_var: float = 0.0) -> GravityFit:
     """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
 
     model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
@@ -558,7 +569,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         return sol.x, jac, chi2_m, chi2_t, n_t
 
     flat = float(pose_flatness_deg)
-    x, jac, chi2_m, chi2_t, n_t = solve(flat, 0.0)
+    x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
     names = list(m.names) + [f"tilt{k}" for k in range(n_t)]
     problem = unidentifiable_direction(jac, names)
     if problem:
@@ -581,17 +592,20 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                          f"with {tilt_dof:.3g} dof): flatness {observed:.2g} deg from the observed tilts used")
         source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
         flat = observed
-        x, jac, chi2_m, chi2_t, n_t = solve(flat, 0.0)
+        x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
     dof = n_pose - 6 if flat > 0 else 3 * n_pose - m.size
-    chi2_before = chi2_m
-    birge, rejected = _birge(chi2_m, dof)
+    # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
+    chi2_before = chi2_m if wander_var == 0 else solve(flat, 0.0)[2]
+    birge, rejected = _birge(chi2_before, dof)
     cov_scale, sigma_r = 1.0, 0.0
+    source += "" if rejected else _wander_note(wander_var)
     if rejected and inflation == "repeatability":
-        v = _solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof)
+        v = max(_solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof), wander_var)
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
         sigma_r = float(np.sqrt(v))
+        replaces = "; it replaces the slow-noise wander" if wander_var else ""
         source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened)")
+                   f"{dof} dof; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (chi^2 {chi2_m:.3g} for {dof} dof)"

@@ -54,6 +54,7 @@ class StillNoise:
         return any(w.correlated for w in self.axes) or self.slow_factor > 1.0
 
     slow_factor: float = 1.0              # > 1 when pose halves disagree beyond tau (slower noise)
+    wander_var: float = 0.0               # additive per-pose variance between poses from that slow noise
 
     @property
     def tau(self) -> np.ndarray:
@@ -83,6 +84,7 @@ class StillNoise:
 
     def to_dict(self) -> dict:
         return {"correlated": self.correlated, "sd": self.sd.tolist(), "slow_factor": self.slow_factor,
+                "wander_sd": float(np.sqrt(self.wander_var)),
                 "tau_samples": [w.tau for w in self.axes], "mean_variance_factor": self.tau.tolist(),
                 "axes": {a: w.to_dict() for a, w in zip(AXES, self.axes, strict=True)},
                 "drift": self.drift, "description": self.describe()}
@@ -97,17 +99,26 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     sd = np.sqrt(sum(np.sum(c**2, axis=0) for c in centred) / max(dof, 1))
     per_pose = [[whiteness(c[:, k]) if len(c) >= 10 else None for k in range(3)] for c in centred]
     noise = StillNoise(axes, sd, per_pose)
-    _halves(noise, centred)
+    span = float(max(t[-1] for t in times) - min(t[0] for t in times)) if times else 0.0
+    pose_seconds = float(np.mean([t[-1] - t[0] for t in times])) if times else 0.0
+    _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
     _revisits(noise, samples, times, faces, g, flatness_deg)
     return noise
 
 
-def _halves(noise: StillNoise, centred: list[np.ndarray]) -> None:
+def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) -> None:
     """The model-free check of tau: each pose's two halves' means differ by d with var(d) = 4 sigma^2 tau / n
     when tau describes the noise.  Noise slower than the autocorrelation window sees (1/f, a wander) makes
-    them differ more; then every pose mean's variance is widened by the ratio observed (pooled over poses
-    and axes, 3 P degrees of freedom), when it is significant at ALPHA."""
+    them differ more (ratio R, pooled over poses and axes, 3 P degrees of freedom).  When R is significant
+    at ALPHA, each pose mean's variance becomes 1 + 2 (R - 1) k times the tau model's: R within the pose,
+    and the rest as an additive per-pose variance ``wander_var`` (it does not shrink with the pose's length):
+    the excess seen between the halves of a pose, extrapolated to the separation of the poses with the
+    1/f law.  For 1/f noise (flat Allan
+    variance) two means of length tau a distance D apart differ in variance by 2 h (2 ln 2 + ln(D / tau)),
+    so relative to adjacent halves by k = 1 + ln(D / tau) / (2 ln 2), D / tau the run's span in pose
+    lengths; and a pose mean's deviation from the run's level has half the variance of such a difference,
+    where for white noise it has a quarter of the halves' (hence the 2)."""
     tau = np.array([max(w.tau, 1.0) if w.correlated else 1.0 for w in noise.axes])
     ratios = []
     for c in centred:
@@ -124,7 +135,15 @@ def _halves(noise: StillNoise, centred: list[np.ndarray]) -> None:
     p = float(chi2_dist.sf(ratio * dof, dof))
     noise.drift["pose_halves"] = {"ratio": ratio, "dof": dof, "p_value": p}
     if p < ALPHA and ratio > 1.0:
+        reach = 1.0 + np.log(max(span_in_poses, 1.0)) / (2.0 * np.log(2.0))
         noise.slow_factor = ratio
+        # the rest of 2 (R - 1) k, beyond the (R - 1) inside each pose mean, is common to a pose whatever its
+        # length: an additive per-pose variance (the fits' wander_var), per axis sigma^2 tau / n
+        n_mean = float(np.mean([len(c) for c in centred]))
+        unit = noise.sd**2 * np.array([max(w.tau, 1.0) if w.correlated else 1.0 for w in noise.axes]) / n_mean
+        noise.wander_var = float(np.mean(unit)) * (ratio - 1.0) * (2.0 * reach - 1.0)
+        noise.drift["pose_halves"]["extrapolated_to_span"] = reach
+        noise.drift["pose_halves"]["wander_sd"] = float(np.sqrt(noise.wander_var))
 
 
 def _trend(noise: StillNoise, samples, times) -> None:

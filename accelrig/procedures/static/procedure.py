@@ -364,10 +364,10 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
             warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
     else:
         if model == "six-face":
-            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g)
+            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var)
             method_used = "map"
         else:
-            fit = fit_multiposition(stats, g)
+            fit = fit_multiposition(stats, g, wander_var=noise.wander_var)
             method_used = "lm"
         corr, source, label = fit.correction, fit.uncertainty_source, model
         names, values, uncertainty, cov = fit.names, fit.values, fit.uncertainty, fit.covariance
