@@ -13,7 +13,10 @@ correlation   per axis, the still samples of all poses (each pose's own mean rem
               location estimate, whose variance is exactly sigma^2 tau / n; the sandwich would need
               blocks of 20 tau (400 samples at tau = 20) and at least 20 of them per pose, 8000
               samples where a 4-s pose at 200 Hz holds 800.  tau pooled over the run's poses has a
-              quarter of the single pose's scatter.  Per pose and per axis the whiteness is recorded
+              quarter of the single pose's scatter.  Noise slower than tau can see (1/f) is caught by
+              the halves of the poses (``_halves``), which widen each mean and add a between-pose wander
+              (1/f law) that the fits use as a floor of their pose repeatability.
+              Per pose and per axis the whiteness is recorded
               too (``details["poses"]``), for the operator to see where it came from.
 per axis      each pose keeps its own 3 x 3 sample covariance (no pooled sigma): a z axis twice as
               noisy as x weighs its own rows in the six-face and multi-position fits.
@@ -114,8 +117,7 @@ def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) 
     at ALPHA, each pose mean's variance becomes 1 + 2 (R - 1) k times the tau model's: R within the pose,
     and the rest as an additive per-pose variance ``wander_var`` (it does not shrink with the pose's length):
     the excess seen between the halves of a pose, extrapolated to the separation of the poses with the
-    1/f law.  For 1/f noise (flat Allan
-    variance) two means of length tau a distance D apart differ in variance by 2 h (2 ln 2 + ln(D / tau)),
+    1/f law.  For 1/f noise (flat Allan variance) two means of length tau a distance D apart differ in variance by 2 h (2 ln 2 + ln(D / tau)),
     so relative to adjacent halves by k = 1 + ln(D / tau) / (2 ln 2), D / tau the run's span in pose
     lengths; and a pose mean's deviation from the run's level has half the variance of such a difference,
     where for white noise it has a quarter of the halves' (hence the 2)."""
