@@ -73,13 +73,19 @@ def html_to_pdf(html_path: Path, pdf_path: Path) -> None:
 def write_certificate(src: Source, path: str | os.PathLike, conditions: dict | None = None,
                       figures: bool = True) -> None:
     """Write FILE.html or FILE.pdf (chosen by the suffix), whole or not at all."""
+    write_page(lambda: certificate_html(src, conditions, figures), path)
+
+
+def write_page(render, path: str | os.PathLike) -> None:
+    """Write the page ``render()`` returns as FILE.html, or printed as FILE.pdf (by the suffix), whole or not
+    at all; the suffix and the browser are checked before anything is rendered."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".html", ".htm", ".pdf"):
         raise DataError(f"{path}: the certificate's format follows the suffix", "use .html or .pdf")
     if suffix == ".pdf":
         require_browser()   # before the figures are drawn: a missing browser is known at once
-    page = certificate_html(src, conditions, figures)
+    page = render()
     if suffix != ".pdf":
         atomic_write(path, lambda fh: fh.write(page), text=True)
         return

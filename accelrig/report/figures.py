@@ -425,6 +425,49 @@ def noise_figure(src: Source) -> Figure:
     return Figure("noise", "Noise (Allan deviation)", caption, _svg(fig), series)
 
 
+# ------------------------------------------------------------------ batch
+
+
+def batch_figures(batch) -> list[Figure]:
+    """Per quantity (and unit), one panel per axis: every device's value with U (k), the weighted mean, the
+    mean of the devices; outliers in red.  ``series`` keeps the plotted values per axis."""
+    plt = require_matplotlib()
+    figures = []
+    kinds = list(dict.fromkeys((g.quantity, g.unit) for g in batch.groups))
+    for quantity, unit in kinds:
+        groups = [g for g in batch.groups if (g.quantity, g.unit) == (quantity, unit)]
+        n_dev = max(len(g.rows) for g in groups)
+        fig, axs = plt.subplots(1, len(groups), figsize=(min(3.2 * len(groups), 9.5), 2.6 + 0.06 * n_dev),
+                                squeeze=False)
+        series: dict[str, np.ndarray] = {}
+        for ax, g in zip(axs[0], groups, strict=True):
+            x = np.arange(1, len(g.rows) + 1)
+            values = np.array([j.entry.value for j in g.rows])
+            expanded = batch.k * np.array([j.entry.u for j in g.rows])
+            flagged = np.array([j.outlier for j in g.rows])
+            series[f"{g.axis}_value"], series[f"{g.axis}_U"], series[f"{g.axis}_outlier"] = values, expanded, flagged
+            ax.axhline(g.weighted_mean, color="C0", lw=1, label="weighted mean")
+            ax.axhline(g.mean, color="C1", lw=1, ls="--", label="mean of the devices")
+            ok = ~flagged
+            ax.errorbar(x[ok], values[ok], yerr=expanded[ok], fmt="o", ms=3, color="C0", label=f"U (k = {batch.k:g})")
+            if flagged.any():
+                ax.errorbar(x[flagged], values[flagged], yerr=expanded[flagged], fmt="s", ms=4, color="C3",
+                            label="outlier")
+            ax.set_xticks(x)
+            ax.set_xticklabels([j.entry.device for j in g.rows], rotation=90, fontsize=6)
+            ax.set_ylabel(f"{quantity} {g.axis} ({'relative' if unit == '1' else unit})")
+            ax.set_title(f"axis {g.axis}", fontsize=9)
+        axs[0, 0].legend(fontsize=6)
+        fig.suptitle(f"{quantity.capitalize()} per device: red squares are outliers",
+                     fontsize=9)
+        fig.tight_layout()
+        figures.append(Figure(f"batch-{quantity}-{unit}", f"{quantity.capitalize()} per device",
+                              f"Each device's {quantity} with its expanded uncertainty, the group's weighted mean "
+                              "and the plain mean of the devices; devices flagged by the outlier rule (section 2) "
+                              "are red squares.", _svg(fig), series))
+    return figures
+
+
 FIGURES = {"static": [static_figure], "wheel": [wheel_figure], "slider-crank": [slider_crank_figure]}
 
 

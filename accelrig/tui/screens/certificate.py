@@ -9,6 +9,7 @@ told so before anything is drawn, and .html is offered instead.
 from __future__ import annotations
 
 import asyncio
+import re
 from pathlib import Path
 
 from rich.markup import escape
@@ -18,10 +19,13 @@ from accelrig.report import certificate, from_result, write_certificate
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 
 
+def file_stem(identity) -> str:
+    """A device identity as a file-name part (letters, digits, _ . -), "device" when there is none."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity or "device")).strip("-") or "device"
+
+
 def default_certificate_path(directory: Path, result, device: dict | None) -> Path:
     """``<identity>-<procedure>-certificate.pdf`` in ``directory``; .html when no browser can print a PDF."""
-    from accelrig.tui.screens.results import file_stem
-
     suffix = ".pdf" if certificate.find_browser() else ".html"
     return Path(directory) / f"{file_stem((device or {}).get('identity'))}-{result.procedure}-certificate{suffix}"
 

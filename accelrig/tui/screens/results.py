@@ -6,7 +6,6 @@ saved by accelrig.profiles, the flash planned and rendered by accelrig.profiles.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult
+from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -233,11 +233,6 @@ def correction_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
              f"{c.bias[i]:+.5f} ± {u_b[i]:.2g}") for i, axis in enumerate("xyz")]
 
 
-def file_stem(identity) -> str:
-    """A device identity as a file-name part (letters, digits, _ . -), "device" when there is none."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity or "device")).strip("-") or "device"
-
-
 def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
     identity = session.info.identity if session is not None and session.info is not None else "device"
     return f"{file_stem(identity)}-{result.procedure}.yaml"
@@ -409,8 +404,6 @@ class ResultsScreen(Screen):
 
     @work(exclusive=True, group="certificate")
     async def certificate_flow(self) -> None:
-        from accelrig.tui.screens.certificate import write_certificate_flow
-
         written = await write_certificate_flow(self, self.result, self.recording, self.device_facts(), self.set_status)
         if written is not None:
             self.certificate_path = written
