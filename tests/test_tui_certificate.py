@@ -145,3 +145,28 @@ def test_device_identity_names_the_default_file(tmp_path, static_run):
     result, _ = static_run
     path = default_certificate_path(tmp_path, result, DEVICE)
     assert path.parent == tmp_path and path.name.startswith("sim-0042-static-certificate.")
+
+
+@async_test
+async def test_the_campaign_screen_plots_the_sensitivities_and_writes_the_certificate(tmp_path, monkeypatch):
+    from accelrig.tui.screens.rotary_wizard import CampaignScreen
+    from report_support import rotary_campaign_result
+
+    monkeypatch.setattr("accelrig.report.certificate.find_browser", lambda: None)
+    result, _ = rotary_campaign_result(tmp_path / "campaign")
+    app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        app.push_screen(CampaignScreen(result, DEVICE))
+        await wait_for(pilot, lambda: isinstance(app.screen, CampaignScreen) and app.screen.query_one("#campaign-plot"))
+        screen = app.screen
+        plot = screen.query_one("#campaign-plot")
+        assert plot.x_label == "test number" and "counts per m/s²" in plot.title
+        values = sorted(v for s in plot.series for v in s.y)
+        assert values == sorted(t_s["value"] for t in result.details["tests"] for t_s in t["sensitivity"].values())
+        await pilot.press("c")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        assert app.screen.query_one("#path").value.endswith("sim-0042-rotary-certificate.html")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: screen.certificate_path is not None, timeout=60)
+        assert "Group results" in screen.certificate_path.read_text(encoding="utf-8")
