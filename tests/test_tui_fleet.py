@@ -94,3 +94,19 @@ async def test_m_on_the_live_screen_asks_for_the_broker_and_a_refusal_is_shown(b
         await wait_for(pilot, lambda: "refused" in str(screen.query_one("#fleet-title").render()), timeout=15)
         await pilot.press("escape")
         await wait_for(pilot, lambda: not isinstance(app.screen, FleetScreen))
+
+
+@async_test
+async def test_a_broker_that_is_not_there_is_said_and_tried_again_one_connect_at_a_time(tmp_path):
+    from mqtt_support import free_port
+
+    app = AccelrigApp(fleet=FleetOptions(f"mqtt://127.0.0.1:{free_port()}"), refresh_interval=0.05)
+    async with app.run_test(size=(120, 30)) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
+                       and "cannot connect" in str(app.screen.query_one("#fleet-title").render()), timeout=15)
+        screen = app.screen
+        await pilot.pause(2.5)   # refreshed twice more: tried again, never two connects at once
+        assert "trying again" in str(screen.query_one("#fleet-title").render())
+        running = [w for w in app.workers if w.group == "fleet-connect" and not w.is_finished]
+        assert len(running) <= 1
+        assert screen.query_one("#fleet-devices").row_count == 0

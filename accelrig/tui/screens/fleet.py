@@ -42,6 +42,7 @@ class FleetScreen(Screen):
         self.interval = interval
         self.watcher = None
         self.connect_error: str | None = None
+        self.connecting = False       # a connect is under way (an unanswered address can take long)
         self.table_rows: list[dict] = []
 
     def compose(self) -> ComposeResult:
@@ -63,10 +64,15 @@ class FleetScreen(Screen):
         self.sub_title = "fleet (read-only)"
         table = self.query_one("#fleet-devices", DataTable)
         table.add_columns(*columns(self.options.recalibrate_days))
-        self.connect()
+        self.start_connect()
         self.set_interval(self.interval, self.action_refresh_now)
 
-    @work(thread=True, exclusive=True, group="fleet-connect")
+    def start_connect(self) -> None:
+        if not self.connecting:
+            self.connecting = True
+            self.connect()
+
+    @work(thread=True, group="fleet-connect")
     def connect(self) -> None:
         """Subscribe off the UI thread; a broker that cannot be reached is tried again at the next refresh."""
         from accelrig.daemon.fleet import FleetWatcher
@@ -81,10 +87,16 @@ class FleetScreen(Screen):
         self.app.call_from_thread(self._set_watcher, watcher)
 
     def _set_error(self, message: str) -> None:
+        self.connecting = False
         self.connect_error = message
-        self.action_refresh_now()
+        if self.is_attached:
+            self.show_error()   # tried again at the next refresh, not at once: no tight loop of attempts
 
     def _set_watcher(self, watcher) -> None:
+        self.connecting = False
+        if not self.is_attached:   # the screen was closed while connecting
+            watcher.close()
+            return
         self.watcher, self.connect_error = watcher, None
         self.action_refresh_now()
 
@@ -92,15 +104,14 @@ class FleetScreen(Screen):
         from accelrig.daemon.fleet import NO_DEVICES, cells, rows
 
         title = self.query_one("#fleet-title", Static)
-        where = escape(self.options.broker) + (f", site {escape(self.options.site)}" if self.options.site else "")
         if self.watcher is None:
             if self.connect_error is not None:
-                title.update(f"[red]fleet at {where}: {escape(self.connect_error)}[/] (trying again)")
-                self.connect()
+                self.show_error()
+                self.start_connect()
             return
         self.table_rows = rows(self.watcher.snapshot(), recalibrate_days=self.options.recalibrate_days)
         state = "[green]connected[/]" if self.watcher.connected else f"[red]{escape(self.watcher.error or 'not connected')}[/]"
-        title.update(f"fleet at {where}: {state}, {len(self.table_rows)} devices (read-only; r refreshes, "
+        title.update(f"fleet at {self.where}: {state}, {len(self.table_rows)} devices (read-only; r refreshes, "
                      "escape goes back)")
         table = self.query_one("#fleet-devices", DataTable)
         table.clear()
@@ -111,6 +122,14 @@ class FleetScreen(Screen):
             f"[yellow]offline:[/] {escape(', '.join(offline))} (the broker's last will: the daemon went away)"
             if offline else "")
         self.query_one("#fleet-note", Static).update(note)
+
+    @property
+    def where(self) -> str:
+        return escape(self.options.broker) + (f", site {escape(self.options.site)}" if self.options.site else "")
+
+    def show_error(self) -> None:
+        self.query_one("#fleet-title", Static).update(
+            f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/] (trying again every {self.interval:g} s)")
 
     def on_unmount(self) -> None:
         if self.watcher is not None:
