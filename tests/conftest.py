@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from accelrig.cli import main
+from mqtt_support import broker  # noqa: F401  (a real Mosquitto, for the fleet tests)
 
 
 @pytest.fixture(autouse=True)

@@ -14,13 +14,37 @@ from accelrig.sim.sensor import SensorModel, SimClock
 DEVICE = {"identity": "sim-0042", "chip": "mpu9250", "driver": "sim", "range_g": 4.0, "rate": 200.0}
 
 
-def static_result(seed: int = 3):
+def static_result(seed: int = 3, with_sensor: bool = False, **sensor_overrides):
+    """A static calibration of a random part (``sensor_overrides`` fix some of its truth); with_sensor: the
+    part's SensorModel too."""
     from accelrig.procedures.static.procedure import calibrate_static
 
     rig = StaticRig.from_url(DeviceURL.parse("sim://static"), np.random.default_rng(seed))
-    sensor = SensorModel.random(np.random.default_rng(seed + 100))
+    sensor = SensorModel.random(np.random.default_rng(seed + 100), **sensor_overrides)
     rec = simulate(rig, sensor, SimClock(200.0), seed=seed)
-    return calibrate_static(rec), rec
+    return (calibrate_static(rec), rec, sensor) if with_sensor else (calibrate_static(rec), rec)
+
+
+BATCH_GOOD = 6
+BATCH_OUTLIER_GAIN = 1.12   # a part 12 % off in x; the random ones are within 2 %
+
+
+def write_batch_profiles(directory) -> dict:
+    """Profiles of BATCH_GOOD random parts and one whose x gain is BATCH_OUTLIER_GAIN (its offsets zero, so
+    nothing else about it stands out), as dev-1 ... dev-7.yaml; returns identity -> SensorModel (the truth)."""
+    from pathlib import Path
+
+    from accelrig.profiles import profile_from_result, save_profile
+
+    truth = {}
+    for i in range(BATCH_GOOD + 1):
+        overrides = {"gain": [BATCH_OUTLIER_GAIN, 1.0, 1.0], "offset": [0.0, 0.0, 0.0]} if i == BATCH_GOOD else {}
+        result, rec, sensor = static_result(20 + i, with_sensor=True, **overrides)
+        identity = f"dev-{i + 1}"
+        save_profile(profile_from_result(result, rec, device={**DEVICE, "identity": identity}),
+                     Path(directory) / f"{identity}.yaml")
+        truth[identity] = sensor
+    return truth
 
 
 def wheel_result(seed: int = 11, seconds: float = 40.0):

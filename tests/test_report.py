@@ -119,8 +119,9 @@ def test_wheel_certificate_and_figure(wheel_run):
     assert_every_parameter_with_its_u_and_U(result, html)
     assert "Pedersini" in html and "cross-axis" in text_of(html)
     fig = wheel_figure(src)
-    for key in ("speed_time", "speed_samples", "speed_fit", "speed_residuals", "t", "residuals"):
+    for key in ("speed_time", "speed_samples", "speed_fit", "speed_residuals", "t", "residuals", "angle_deg"):
         np.testing.assert_allclose(fig.series[key], result.arrays[key])
+    assert "wheel angle (degrees)" in fig.svg and 0 <= fig.series["angle_deg"].min() < fig.series["angle_deg"].max() < 360
     # the spectrum of white residuals is flat near the noise density sigma * sqrt(2 / fs)
     sd = np.std(result.arrays["residuals"], axis=0)
     level = np.median(fig.series["spectrum"][1:], axis=0)

@@ -16,7 +16,7 @@ class PlotApp(App):
 
 
 def rows_of(plot) -> list[str]:
-    return plot.render().plain.split("\n")[1:]  # drop the title row
+    return plot.render().plain.split("\n")[1:-1]  # drop the title row and the x axis row
 
 
 def test_a_rising_line_goes_from_bottom_left_to_top_right():
@@ -25,13 +25,14 @@ def test_a_rising_line_goes_from_bottom_left_to_top_right():
         async with app.run_test(size=(28, 6)) as pilot:
             plot = app.query_one("#plot")
             plot.styles.height = 5
+            plot.x_label = "time (s)"
             await pilot.pause()
             plot.set_series([Series(np.array([0.0, 1.0]), np.array([0.0, 1.0]), "red")])
             await pilot.pause()
             rows = rows_of(plot)
             cells = [row[8:] for row in rows]  # after the 8-character axis labels
             width = plot.size.width - 8
-            assert len(cells) == plot.size.height - 1 == 4
+            assert len(cells) == plot.size.height - 2 == 3
             # bottom-left cell holds the lowest-left dot (dot 7: bit 0x40), top-right the highest-right (dot 4: 0x08)
             assert ord(cells[-1][0]) - BASE & 0x40
             assert ord(cells[0][width - 1]) - BASE & 0x08
@@ -39,6 +40,9 @@ def test_a_rising_line_goes_from_bottom_left_to_top_right():
             for col in range(width):
                 assert any(ord(c[col]) > BASE for c in cells if col < len(c))
             assert rows[0].strip().startswith("1") and rows[-1].strip().startswith("0")
+            # under the plot: x at both ends with the quantity and its unit between them
+            axis = plot.render().plain.split("\n")[-1]
+            assert axis[8:].startswith("0") and axis.rstrip().endswith("1") and "time (s)" in axis
 
     asyncio.run(run())
 

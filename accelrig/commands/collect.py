@@ -6,9 +6,10 @@ import signal
 import threading
 
 
-def add_broker_arguments(p) -> None:
-    """The broker options ``collect`` and ``fleet`` share."""
-    p.add_argument("--broker", required=True, help="mqtt://HOST[:PORT] or mqtts://HOST[:PORT] (TLS)")
+def add_broker_arguments(p, required: bool = True, broker_help: str = "") -> None:
+    """The broker options ``collect``, ``fleet`` and ``tui`` share."""
+    p.add_argument("--broker", required=required,
+                   help=broker_help or "mqtt://HOST[:PORT] or mqtts://HOST[:PORT] (TLS)")
     p.add_argument("--site", help="one site (default: the whole fleet)")
     p.add_argument("--prefix", default="accelrig", help="first part of the topics (default accelrig)")
     p.add_argument("--username", help="user name at the broker")

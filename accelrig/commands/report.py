@@ -9,19 +9,26 @@ from __future__ import annotations
 def register(sub, groups) -> None:
     p = sub.add_parser(
         "report",
-        help="calibration certificate (HTML with figures, or PDF) from a profile, a result or a campaign",
+        help="calibration certificate (HTML with figures, or PDF) from a profile, a result or a campaign; "
+        "a batch report from several",
         description="Write a calibration certificate in the manner of ISO/IEC 17025: the device, the method and "
         "its paper, the conditions, the recording's hash, the correction and every parameter with u (k = 1) and "
         "U (k = 2), the uncertainty budget, quality figures, verdicts, warnings, and figures in physical units. "
         "SOURCE is a device profile (.yaml), a result saved with --json, a campaign report "
         "(calibrate rotary --campaign C.yaml -o R.yaml) or a campaign file (its tests are analysed). "
-        "A .pdf is printed by headless Chromium.",
+        "A .pdf is printed by headless Chromium. "
+        "Several SOURCEs, or a directory of them, give one batch report instead: each device's sensitivity and "
+        "bias per axis with U, the group statistics, E_n against the other devices (or --reference), and "
+        "outliers flagged by the rule the report states.",
     )
-    p.add_argument("source", help="profile, saved result (.json/.yaml) or rotary campaign")
+    p.add_argument("source", nargs="+", help="profile, saved result (.json/.yaml) or rotary campaign; several, "
+                   "or a directory of them, for a batch report")
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="certificate to write: .html or .pdf")
     p.add_argument("--noise", metavar="NOISE.json", help="Allan curves from 'accelrig noise REC --json' (the "
                    "same recording as the profile's noise figures) to plot the measured curve")
     p.add_argument("--no-figures", action="store_true", help="leave the figures out (no matplotlib needed)")
+    p.add_argument("--reference", metavar="DEVICE", help="batch report: compare every device with this one "
+                   "(its identity) instead of with the weighted mean of the others")
     p.add_argument("--number", help="certificate number")
     p.add_argument("--customer", help="customer (name and address)")
     p.add_argument("--operator", help="who performed the calibration")
@@ -32,14 +39,42 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
+    from pathlib import Path
+
+    from accelrig.errors import DataError
+
+    conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
+                  "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
+    if len(args.source) > 1 or Path(args.source[0]).is_dir():
+        if args.noise:
+            raise DataError("--noise belongs to one device's certificate, not to a batch report",
+                            "give one SOURCE with --noise")
+        return run_batch(args, conditions)
+    if args.reference:
+        raise DataError("--reference compares devices: give several sources or a directory")
     from accelrig.report import load_source, write_certificate
     from accelrig.report.source import load_noise
 
-    src = load_source(args.source)
+    src = load_source(args.source[0])
     if args.noise:
         src.noise = load_noise(args.noise, src.noise)
-    conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
-                  "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
     write_certificate(src, args.output, conditions, figures=not args.no_figures)
     print(f"wrote {args.output}")
+    return 0
+
+
+def run_batch(args, conditions: dict) -> int:
+    import sys
+
+    from accelrig.report.batch import batch_report_html, load_batch
+    from accelrig.report.certificate import write_page
+
+    batch = load_batch(args.source, args.reference)
+    for file, why in batch.skipped:
+        print(f"not read: {file}: {why}", file=sys.stderr)
+    write_page(lambda: batch_report_html(batch, conditions, figures=not args.no_figures), args.output)
+    flagged = batch.outliers
+    print(f"wrote {args.output}: {len(batch.sources)} sources, "
+          + (f"{len(flagged)} outliers: " + ", ".join(f"{j.entry.device} {j.entry.quantity} {j.entry.axis}"
+                                                      for j in flagged) if flagged else "no outlier"))
     return 0

@@ -18,6 +18,12 @@ def register(sub, groups) -> None:
                    "into the profile store, $ACCELRIG_HOME/profiles; captures and reports beside it)")
     p.add_argument("--daemon", metavar="SOCKET_OR_CONFIG", default=None,
                    help="watch a running daemon's devices (read-only): its status socket or its configuration")
+    from accelrig.commands.collect import add_broker_arguments
+
+    add_broker_arguments(p, required=False, broker_help="open on the fleet screen: the devices publishing to "
+                         "this MQTT broker, live and read-only (mqtt://HOST[:PORT] or mqtts:// for TLS)")
+    p.add_argument("--recalibrate-days", type=float,
+                   help="fleet screen: mark devices whose profile is older than this many days as due")
     p.set_defaults(func=run)
 
 
@@ -36,6 +42,15 @@ def run(args) -> int:
         from accelrig.daemon.config import load_config
 
         socket = load_config(args.daemon).status_socket if args.daemon.endswith((".yaml", ".yml")) else args.daemon
-    app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir, daemon_socket=socket)
+    fleet = None
+    if args.broker is not None:
+        from accelrig.commands.collect import broker_options
+        from accelrig.daemon.wire import parse_broker
+        from accelrig.tui.screens.fleet import FleetOptions
+
+        parse_broker(args.broker)   # a wrong URL is refused here, in one line, before the screen opens
+        fleet = FleetOptions(args.broker, recalibrate_days=args.recalibrate_days, **broker_options(args))
+    app = AccelrigApp(device=args.device or DEFAULT_DEVICE, profile_dir=args.profile_dir, daemon_socket=socket,
+                      fleet=fleet)
     app.run()
     return int(app.return_code or 0)

@@ -16,6 +16,71 @@ from datetime import UTC, datetime
 from accelrig.daemon import wire
 
 
+class FleetWatcher:
+    """A live subscription to the fleet's retained ``status`` and ``meta``: ``snapshot()`` is every device's
+    latest.  paho's network thread keeps it connected (it reconnects by itself when the broker comes back);
+    ``error`` says why it is not connected, in one line."""
+
+    def __init__(self, broker: str, *, site: str | None = None, prefix: str = wire.DEFAULT_PREFIX,
+                 username: str | None = None, password: str | None = None, ca_file: str | None = None):
+        self.parsed = wire.parse_broker(broker)
+        self.site, self.prefix = site, prefix
+        self.client = wire.make_client(f"accelrig-fleet-{wire.host_name()}-{time.time_ns() % 10**9}", self.parsed,
+                                       username, password, ca_file, clean=True)
+        self.client.on_connect = self._on_connect
+        self.client.on_disconnect = self._on_disconnect
+        self.client.on_message = self._on_message
+        self.lock = threading.Lock()
+        self.devices: dict[tuple[str, str], dict] = {}
+        self.connected = False
+        self.refused: str | None = None
+        self.error: str | None = None
+        self.last_message = time.monotonic()
+
+    def _on_connect(self, client, userdata, flags, reason, properties=None):
+        if getattr(reason, "is_failure", False):
+            self.refused = self.error = wire.connect_error(self.parsed, reason)
+            return
+        self.connected, self.error = True, None
+        client.subscribe([(wire.topic(self.prefix, self.site or "+", "+", "status"), 1),
+                          (wire.topic(self.prefix, self.site or "+", "+", "meta"), 1)])
+
+    def _on_disconnect(self, client, userdata, flags, reason=None, properties=None):
+        if self.connected:
+            self.error = f"{self.parsed}: connection lost, reconnecting"
+        self.connected = False
+
+    def _on_message(self, client, userdata, message):
+        where = wire.split_topic(self.prefix, message.topic)
+        if where is None or not message.payload:
+            return
+        try:
+            value = json.loads(message.payload)
+        except ValueError:
+            value = {"state": "unreadable status"}
+        with self.lock:
+            self.devices.setdefault(where[:2], {})[where[2]] = value
+            self.last_message = time.monotonic()
+
+    def start(self) -> FleetWatcher:
+        """Connect (BrokerError in one line when the address is wrong) and keep the subscription live."""
+        try:
+            self.client.connect(self.parsed.host, self.parsed.port, keepalive=30)
+        except OSError as exc:
+            raise wire.BrokerError(f"{self.parsed}: cannot connect ({exc.strerror or exc})",
+                                   "check the broker's address and that it is running") from None
+        self.client.loop_start()
+        return self
+
+    def snapshot(self) -> dict[tuple[str, str], dict]:
+        with self.lock:
+            return {key: dict(value) for key, value in self.devices.items()}
+
+    def close(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()
+
+
 def gather(broker: str, *, site: str | None = None, prefix: str = wire.DEFAULT_PREFIX,
            username: str | None = None, password: str | None = None, ca_file: str | None = None,
            timeout: float = 3.0, quiet: float = 0.5) -> dict[tuple[str, str], dict]:
@@ -24,58 +89,22 @@ def gather(broker: str, *, site: str | None = None, prefix: str = wire.DEFAULT_P
     Returns ``quiet`` seconds after the last message (retained ones come at once), at the
     latest after ``timeout``; BrokerError in one line when refused or unreachable.
     """
-    parsed = wire.parse_broker(broker)
-    client = wire.make_client(f"accelrig-fleet-{wire.host_name()}-{time.time_ns() % 10**9}", parsed,
-                              username, password, ca_file, clean=True)
-    devices: dict[tuple[str, str], dict] = {}
-    lock = threading.Lock()
-    outcome: dict = {}
-    last = [time.monotonic()]
-
-    def on_connect(client, userdata, flags, reason, properties=None):
-        if getattr(reason, "is_failure", False):
-            outcome["refused"] = wire.connect_error(parsed, reason)
-            return
-        outcome["connected"] = True
-        client.subscribe([(wire.topic(prefix, site or "+", "+", "status"), 1),
-                          (wire.topic(prefix, site or "+", "+", "meta"), 1)])
-
-    def on_message(client, userdata, message):
-        where = wire.split_topic(prefix, message.topic)
-        if where is None or not message.payload:
-            return
-        try:
-            value = json.loads(message.payload)
-        except ValueError:
-            value = {"state": "unreadable status"}
-        with lock:
-            devices.setdefault(where[:2], {})[where[2]] = value
-            last[0] = time.monotonic()
-
-    client.on_connect = on_connect
-    client.on_message = on_message
-    try:
-        client.connect(parsed.host, parsed.port, keepalive=30)
-    except OSError as exc:
-        raise wire.BrokerError(f"{parsed}: cannot connect ({exc.strerror or exc})",
-                               "check the broker's address and that it is running") from None
-    client.loop_start()
+    watcher = FleetWatcher(broker, site=site, prefix=prefix, username=username, password=password,
+                           ca_file=ca_file).start()
     try:
         start = time.monotonic()
-        last[0] = start
-        while time.monotonic() - start < timeout and "refused" not in outcome:
+        watcher.last_message = start
+        while time.monotonic() - start < timeout and watcher.refused is None:
             time.sleep(0.05)
-            if "connected" in outcome and time.monotonic() - last[0] > quiet and devices:
+            if watcher.connected and time.monotonic() - watcher.last_message > quiet and watcher.devices:
                 break
-        if "refused" in outcome:
-            raise wire.BrokerError(outcome["refused"])
-        if "connected" not in outcome:
-            raise wire.BrokerError(f"{parsed}: no answer within {timeout:g} s")
+        if watcher.refused is not None:
+            raise wire.BrokerError(watcher.refused)
+        if not watcher.connected:
+            raise wire.BrokerError(f"{watcher.parsed}: no answer within {timeout:g} s")
     finally:
-        client.disconnect()
-        client.loop_stop()
-    with lock:
-        return dict(devices)
+        watcher.close()
+    return watcher.snapshot()
 
 
 def _parse_utc(text) -> datetime | None:
@@ -124,22 +153,33 @@ def rows(devices: dict, now: datetime | None = None, recalibrate_days: float | N
     return out
 
 
-def format_table(table: list[dict], recalibrate_days: float | None = None) -> str:
-    if not table:
-        return "no devices have published under this prefix and site"
+def columns(recalibrate_days: float | None = None) -> list[str]:
+    """The table's column titles (``accelrig fleet`` and the TUI's fleet screen)."""
     head = ["site/device", "host", "state", "last seen", "rate Hz", "gaps", "spooled", "profile", "profile age"]
     if recalibrate_days is not None:
         head.append(f"recal ({recalibrate_days:g} d)")
-    lines = [head]
-    for r in table:
-        line = [f"{r['site']}/{r['device']}", r["host"] or "-", r["state"] or "-",
-                f"{_age(r['seconds_since_seen'])} ago" if r["seconds_since_seen"] is not None else "-",
-                f"{r['rate']:.1f}" if r["rate"] else "-", str(r["gaps"]) if r["gaps"] is not None else "-",
-                str(r["spooled"]) if r["spooled"] is not None else "-", r["profile"] or "none",
-                _age(r["profile_age_seconds"])]
-        if recalibrate_days is not None:
-            line.append(r["recalibration"])
-        lines.append(line)
-    widths = [max(len(str(line[i])) for line in lines) for i in range(len(head))]
+    return head
+
+
+def cells(r: dict, recalibrate_days: float | None = None) -> list[str]:
+    """One row of ``rows()`` as the table's texts, in the order of ``columns()``."""
+    line = [f"{r['site']}/{r['device']}", r["host"] or "-", r["state"] or "-",
+            f"{_age(r['seconds_since_seen'])} ago" if r["seconds_since_seen"] is not None else "-",
+            f"{r['rate']:.1f}" if r["rate"] else "-", str(r["gaps"]) if r["gaps"] is not None else "-",
+            str(r["spooled"]) if r["spooled"] is not None else "-", r["profile"] or "none",
+            _age(r["profile_age_seconds"])]
+    if recalibrate_days is not None:
+        line.append(r["recalibration"])
+    return line
+
+
+NO_DEVICES = "no devices have published under this prefix and site"
+
+
+def format_table(table: list[dict], recalibrate_days: float | None = None) -> str:
+    if not table:
+        return NO_DEVICES
+    lines = [columns(recalibrate_days), *(cells(r, recalibrate_days) for r in table)]
+    widths = [max(len(str(line[i])) for line in lines) for i in range(len(lines[0]))]
     return "\n".join("  ".join(str(v).ljust(w) for v, w in zip(line, widths, strict=True)).rstrip()
                      for line in lines)

@@ -20,6 +20,20 @@ COUNTERS = (
     ("accelrig_bytes_written", "bytes_written", "bytes of segments written"),
     ("accelrig_connects", "connects", "successful connections"),
 )
+# A device's MQTT publishing (the daemon's mqtt: section), from Publisher.stats(): counters, then gauges.
+MQTT_COUNTERS = (
+    ("accelrig_mqtt_messages_sent", "published", "data messages handed to the broker (QoS 1)"),
+    ("accelrig_mqtt_messages_acknowledged", "acknowledged", "data messages the broker acknowledged"),
+    ("accelrig_mqtt_dropped_samples", "dropped_samples",
+     "samples dropped from a full spool, each in a gap record the collector receives"),
+    ("accelrig_mqtt_dropped_messages", "dropped_messages", "spooled messages dropped (full spool)"),
+    ("accelrig_mqtt_spool_gaps", "spool_gaps", "gap records made by a full spool"),
+    ("accelrig_mqtt_reconnects", "reconnects", "connections to the broker after the first"),
+)
+MQTT_GAUGES = (
+    ("accelrig_mqtt_spooled_messages", "spooled", "messages on disk waiting for the broker"),
+    ("accelrig_mqtt_spool_bytes", "spool_bytes", "bytes of the spool on disk"),
+)
 
 
 def serve_metrics(port: int, snapshot: Callable[[], dict]):
@@ -45,6 +59,24 @@ def serve_metrics(port: int, snapshot: Callable[[], dict]):
                 up.add_metric([d["name"], d["state"]], 1.0 if d["state"] == "streaming" else 0.0)
             yield rate
             yield up
+            publishing = [d for d in devices if d.get("mqtt")]
+            if not publishing:
+                return
+            for name, key, text in MQTT_COUNTERS:
+                family = CounterMetricFamily(name, text, labels=["device"])
+                for d in publishing:
+                    family.add_metric([d["name"]], d["mqtt"].get(key) or 0)
+                yield family
+            for name, key, text in MQTT_GAUGES:
+                family = GaugeMetricFamily(name, text, labels=["device"])
+                for d in publishing:
+                    family.add_metric([d["name"]], d["mqtt"].get(key) or 0)
+                yield family
+            connected = GaugeMetricFamily("accelrig_mqtt_connected", "1 while connected to the broker",
+                                          labels=["device"])
+            for d in publishing:
+                connected.add_metric([d["name"]], 1.0 if d["mqtt"].get("connected") else 0.0)
+            yield connected
 
     registry = prometheus_client.CollectorRegistry()
     registry.register(Collector())

@@ -93,7 +93,7 @@ class Publisher:
         self.scale = 0.0
         self.profile = ""
         self.counts = {"published": 0, "acknowledged": 0, "dropped_samples": 0, "dropped_messages": 0,
-                       "spool_gaps": 0}
+                       "spool_gaps": 0, "connects": 0, "reconnects": 0}
         self.connected = False
         self.error: str | None = None
         self._lock = threading.Lock()
@@ -350,6 +350,9 @@ class Publisher:
             self.error = error
             return
         self.connected, self.error = True, None
+        with self._lock:
+            self.counts["reconnects"] += self.counts["connects"] > 0   # every connection after the first
+            self.counts["connects"] += 1
         self.log(f"{self.device}: mqtt: connected to {self.broker} as {self.client_id}"
                  f"{f', {len(self.spool)} spooled message(s) to send' if len(self.spool) else ''}")
         if self._meta is not None:

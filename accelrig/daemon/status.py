@@ -172,6 +172,8 @@ def mqtt_summary(m: dict) -> str:
             f"({m['spool_bytes'] / 1e6:.1f} MB), {m['acknowledged']} acknowledged")
     if m["dropped_samples"]:
         text += f", {m['dropped_samples']} samples dropped from a full spool (sent as gaps)"
+    if m.get("reconnects"):
+        text += f", {m['reconnects']} reconnects"
     if m.get("error"):
         text += f" ({m['error']})"
     return text

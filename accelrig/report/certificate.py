@@ -38,6 +38,15 @@ def find_browser() -> str | None:
     return next((p for p in map(shutil.which, BROWSERS) if p), None)
 
 
+def require_browser() -> str:
+    """The browser that prints PDFs, or the error saying how to get one (asked before any work is done)."""
+    browser = find_browser()
+    if browser is None:
+        raise AccelrigError("a PDF needs Chromium (headless) to print the HTML, and none was found",
+                            "install it (Debian: apt-get install chromium), or write .html and print that")
+    return browser
+
+
 def browser_command(browser: str, profile_dir: str) -> list[str]:
     cmd = [browser, *BROWSER_FLAGS, f"--user-data-dir={profile_dir}"]
     if hasattr(os, "geteuid") and os.geteuid() == 0:
@@ -46,10 +55,7 @@ def browser_command(browser: str, profile_dir: str) -> list[str]:
 
 
 def html_to_pdf(html_path: Path, pdf_path: Path) -> None:
-    browser = find_browser()
-    if browser is None:
-        raise AccelrigError("a PDF needs Chromium (headless) to print the HTML, and none was found",
-                            "install it (Debian: apt-get install chromium), or write .html and print that")
+    browser = require_browser()
     with tempfile.TemporaryDirectory(prefix="accelrig-chromium-") as profile:
         cmd = browser_command(browser, profile) + [f"--print-to-pdf={pdf_path}", html_path.resolve().as_uri()]
         try:
@@ -67,11 +73,19 @@ def html_to_pdf(html_path: Path, pdf_path: Path) -> None:
 def write_certificate(src: Source, path: str | os.PathLike, conditions: dict | None = None,
                       figures: bool = True) -> None:
     """Write FILE.html or FILE.pdf (chosen by the suffix), whole or not at all."""
+    write_page(lambda: certificate_html(src, conditions, figures), path)
+
+
+def write_page(render, path: str | os.PathLike) -> None:
+    """Write the page ``render()`` returns as FILE.html, or printed as FILE.pdf (by the suffix), whole or not
+    at all; the suffix and the browser are checked before anything is rendered."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".html", ".htm", ".pdf"):
         raise DataError(f"{path}: the certificate's format follows the suffix", "use .html or .pdf")
-    page = certificate_html(src, conditions, figures)
+    if suffix == ".pdf":
+        require_browser()   # before the figures are drawn: a missing browser is known at once
+    page = render()
     if suffix != ".pdf":
         atomic_write(path, lambda fh: fh.write(page), text=True)
         return

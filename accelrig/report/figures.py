@@ -64,9 +64,10 @@ def _dense(n: int) -> bool:
 # ------------------------------------------------------------------ static
 
 
-def static_figure(src: Source) -> Figure:
-    """|g| error per pose before and after the correction; residual per pose and axis when the model has them."""
-    plt = require_matplotlib()
+def static_series(src: Source) -> dict[str, np.ndarray]:
+    """What the static figure shows: per pose, |a| - g before (nominal scale) and after the correction, the
+    pose's mid time (s) when the source has it, and the fit residual per axis when the model has them.
+    Pure numpy: the TUI draws the same arrays."""
     arrays, g = src.arrays, float(src.result["settings"].get("g", 9.80665))
     corr = src.result.get("correction")
     series: dict[str, np.ndarray] = {}
@@ -83,7 +84,19 @@ def static_figure(src: Source) -> Figure:
                               "(a profile keeps neither: render the certificate from the result)")
         series["pose"] = np.arange(1, len(rows) + 1)
         series["after"] = np.array([r["magnitude_residual"] for r in rows])
-    has_vectors = "pose_residuals" in arrays
+    times = np.asarray(arrays.get("pose_times", []), dtype=float)
+    if times.ndim == 2 and times.shape == (series["pose"].size, 2):
+        series["pose_time_s"] = times.mean(axis=1)
+    if "pose_residuals" in arrays:
+        series["residuals"] = np.asarray(arrays["pose_residuals"], dtype=float)
+    return series
+
+
+def static_figure(src: Source) -> Figure:
+    """|g| error per pose before and after the correction; residual per pose and axis when the model has them."""
+    plt = require_matplotlib()
+    series = static_series(src)
+    has_vectors = "residuals" in series
     fig, axs = plt.subplots(1, 2 if has_vectors else 1, figsize=(9 if has_vectors else 5.5, 3.2), squeeze=False)
     ax = axs[0, 0]
     width = 0.38
@@ -98,8 +111,7 @@ def static_figure(src: Source) -> Figure:
     ax.set_title("Gravity magnitude per pose: after should sit near 0", fontsize=9)
     ax.legend(fontsize=7)
     if has_vectors:
-        res = np.asarray(arrays["pose_residuals"], dtype=float)
-        series["residuals"] = res
+        res = series["residuals"]
         ax = axs[0, 1]
         for k in range(3):
             ax.bar(series["pose"] + (k - 1) * 0.27, res[:, k], 0.27, label=AXES[k])
@@ -117,29 +129,39 @@ def static_figure(src: Source) -> Figure:
 # ------------------------------------------------------------------ wheel
 
 
-def wheel_figure(src: Source) -> Figure:
-    plt = require_matplotlib()
+def wheel_series(src: Source) -> dict[str, np.ndarray]:
+    """What the wheel figure shows: the half-turn speeds and the fitted law (s, rad/s), the acceleration
+    residuals against time (s) and the wheel's angle (degrees, when the result has it), and their spectrum."""
     a = src.arrays
     if "speed_time" not in a:
         raise LookupError("the source carries no wheel arrays (a profile or a saved --json result keeps none: "
                           "render the certificate from the result)")
     series = {k: np.asarray(a[k], dtype=float) for k in ("speed_time", "speed_samples", "speed_fit",
-                                                         "speed_residuals", "t", "residuals")}
-    fig, axs = plt.subplots(2, 2, figsize=(9, 5.6))
-    ax = axs[0, 0]
+                                                         "speed_residuals", "t", "residuals", "angle_deg")
+              if k in a}
+    series["spectrum_frequency"], series["spectrum"] = residual_asd(series["t"], series["residuals"])
+    return series
+
+
+def wheel_figure(src: Source) -> Figure:
+    plt = require_matplotlib()
+    series = wheel_series(src)
+    fig = plt.figure(figsize=(9, 8.2))
+    grid = fig.add_gridspec(3, 2)
+    ax = fig.add_subplot(grid[0, 0])
     ax.plot(series["speed_time"], series["speed_samples"], ".", ms=3, label="half turns")
     ax.plot(series["speed_time"], series["speed_fit"], "-", lw=1.2, label="fitted cubic speed law")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("angular speed (rad/s)")
     ax.set_title("Speed law: points should follow the curve", fontsize=9)
     ax.legend(fontsize=7)
-    ax = axs[0, 1]
+    ax = fig.add_subplot(grid[0, 1])
     ax.plot(series["speed_time"], series["speed_residuals"], ".", ms=3)
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("speed residual (rad/s)")
     ax.set_title("Speed residuals: no trend expected", fontsize=9)
-    ax = axs[1, 0]
+    ax = fig.add_subplot(grid[1, 0])
     t, res = series["t"], series["residuals"]
     for k in range(res.shape[1]):
         ax.plot(t, res[:, k], ",", label=AXES[k], rasterized=_dense(t.size), alpha=0.6)
@@ -147,9 +169,20 @@ def wheel_figure(src: Source) -> Figure:
     ax.set_ylabel("acceleration residual (m/s²)")
     ax.set_title("Residuals over the run: flat noise, no drift", fontsize=9)
     ax.legend(fontsize=7, markerscale=20)
-    ax = axs[1, 1]
-    freq, spectrum = residual_asd(t, res)
-    series["spectrum_frequency"], series["spectrum"] = freq, spectrum
+    ax = fig.add_subplot(grid[1, 1])
+    if "angle_deg" in series:
+        for k in range(res.shape[1]):
+            ax.plot(series["angle_deg"], res[:, k], ",", label=AXES[k], rasterized=_dense(t.size), alpha=0.6)
+        ax.set_xlim(0, 360)
+        ax.set_xticks(range(0, 361, 90))
+        ax.set_xlabel("wheel angle (degrees)")
+        ax.set_ylabel("acceleration residual (m/s²)")
+        ax.set_title("Residuals against the angle: no wave (a wave: radius, tilt or mounting off)", fontsize=9)
+    else:
+        ax.text(0.5, 0.5, "the result keeps no wheel angle", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+    ax = fig.add_subplot(grid[2, :])
+    freq, spectrum = series["spectrum_frequency"], series["spectrum"]
     for k in range(res.shape[1]):
         ax.semilogy(freq[1:], spectrum[1:, k], lw=0.8, label=AXES[k])
     ax.set_xlabel("frequency (Hz)")
@@ -157,7 +190,7 @@ def wheel_figure(src: Source) -> Figure:
     ax.set_title("Residual spectrum: white, no peak at the turn rate", fontsize=9)
     fig.tight_layout()
     return Figure("wheel", "Wheel", "Speed of each half turn against the fitted cubic law, and the acceleration "
-                  "residuals over time and frequency.", _svg(fig), series)
+                  "residuals over time, over the wheel's angle and over frequency.", _svg(fig), series)
 
 
 def residual_asd(t: np.ndarray, res: np.ndarray, segments: int = 16) -> tuple[np.ndarray, np.ndarray]:
@@ -179,13 +212,14 @@ def residual_asd(t: np.ndarray, res: np.ndarray, segments: int = 16) -> tuple[np
 # ------------------------------------------------------------------ slider-crank
 
 
-def slider_crank_figure(src: Source) -> Figure:
-    plt = require_matplotlib()
+def slider_crank_series(src: Source) -> dict[str, np.ndarray]:
+    """What the slider-crank figure shows, per step: frequency (Hz), measured and model amplitude with the
+    clearance band (m/s²), the radius from the motion (m), each with u (k = 1)."""
     d = src.details
     if not d.get("steps"):
         raise LookupError("the source carries no per-step table (a profile keeps none)")
     steps = d["steps"]
-    series = {
+    return {
         "frequency_hz": np.array([s["frequency_hz"]["value"] for s in steps]),
         "amplitude": np.array([s["amplitude"]["value"] for s in steps]),
         "amplitude_uncertainty": np.array([s["amplitude"]["uncertainty"] for s in steps]),
@@ -195,6 +229,12 @@ def slider_crank_figure(src: Source) -> Figure:
         "radius_m": np.array([s["radius_m"]["value"] for s in steps]),
         "radius_uncertainty_m": np.array([s["radius_m"]["uncertainty"] for s in steps]),
     }
+
+
+def slider_crank_figure(src: Source) -> Figure:
+    plt = require_matplotlib()
+    d = src.details
+    series = slider_crank_series(src)
     f = series["frequency_hz"]
     order = np.argsort(f)
     fig, axs = plt.subplots(1, 2, figsize=(9, 3.4))
@@ -228,10 +268,10 @@ def slider_crank_figure(src: Source) -> Figure:
 # ------------------------------------------------------------------ rotary
 
 
-def rotary_figures(src: Source) -> list[Figure]:
-    plt = require_matplotlib()
+def rotary_sensitivity_series(src: Source) -> tuple[list[str], dict[str, np.ndarray]]:
+    """Each test's sensitivity per sensor axis (counts per m/s², u at k = 1): the group ("sensor axis") of
+    each row, and the arrays test, sensitivity, uncertainty."""
     d = src.details
-    figures = []
     tests = d.get("tests")
     if tests is None and "sensitivity" in d:
         tests = [{"index": 0, "label": "test", "sensor": "sensor", **d}]
@@ -239,11 +279,18 @@ def rotary_figures(src: Source) -> list[Figure]:
         raise LookupError("the source carries no per-test table (a profile keeps none)")
     rows = [(t["index"], f"{t['sensor']} {axis}", s["value"], s["uncertainty"])
             for t in tests for axis, s in t["sensitivity"].items()]
-    series = {"test": np.array([r[0] for r in rows]), "sensitivity": np.array([r[2] for r in rows]),
-              "uncertainty": np.array([r[3] for r in rows])}
+    return [r[1] for r in rows], {"test": np.array([r[0] for r in rows]), "sensitivity": np.array([r[2] for r in rows]),
+                                  "uncertainty": np.array([r[3] for r in rows])}
+
+
+def rotary_figures(src: Source) -> list[Figure]:
+    plt = require_matplotlib()
+    d = src.details
+    figures = []
+    groups, series = rotary_sensitivity_series(src)
     fig, ax = plt.subplots(figsize=(6.5, 3.2))
-    for group in dict.fromkeys(r[1] for r in rows):
-        sel = [i for i, r in enumerate(rows) if r[1] == group]
+    for group in dict.fromkeys(groups):
+        sel = [i for i, g in enumerate(groups) if g == group]
         ax.errorbar(series["test"][sel], series["sensitivity"][sel], yerr=2 * series["uncertainty"][sel],
                     fmt="o", ms=4, label=group)
     ax.set_xlabel("test number")
@@ -376,6 +423,49 @@ def noise_figure(src: Source) -> Figure:
                "The Allan deviation terms the certified noise figures imply; the measured curve is not kept in "
                "the profile (give the certificate the curves with --noise NOISE.json from accelrig noise --json).")
     return Figure("noise", "Noise (Allan deviation)", caption, _svg(fig), series)
+
+
+# ------------------------------------------------------------------ batch
+
+
+def batch_figures(batch) -> list[Figure]:
+    """Per quantity (and unit), one panel per axis: every device's value with U (k), the weighted mean, the
+    mean of the devices; outliers in red.  ``series`` keeps the plotted values per axis."""
+    plt = require_matplotlib()
+    figures = []
+    kinds = list(dict.fromkeys((g.quantity, g.unit) for g in batch.groups))
+    for quantity, unit in kinds:
+        groups = [g for g in batch.groups if (g.quantity, g.unit) == (quantity, unit)]
+        n_dev = max(len(g.rows) for g in groups)
+        fig, axs = plt.subplots(1, len(groups), figsize=(min(3.2 * len(groups), 9.5), 2.6 + 0.06 * n_dev),
+                                squeeze=False)
+        series: dict[str, np.ndarray] = {}
+        for ax, g in zip(axs[0], groups, strict=True):
+            x = np.arange(1, len(g.rows) + 1)
+            values = np.array([j.entry.value for j in g.rows])
+            expanded = batch.k * np.array([j.entry.u for j in g.rows])
+            flagged = np.array([j.outlier for j in g.rows])
+            series[f"{g.axis}_value"], series[f"{g.axis}_U"], series[f"{g.axis}_outlier"] = values, expanded, flagged
+            ax.axhline(g.weighted_mean, color="C0", lw=1, label="weighted mean")
+            ax.axhline(g.mean, color="C1", lw=1, ls="--", label="mean of the devices")
+            ok = ~flagged
+            ax.errorbar(x[ok], values[ok], yerr=expanded[ok], fmt="o", ms=3, color="C0", label=f"U (k = {batch.k:g})")
+            if flagged.any():
+                ax.errorbar(x[flagged], values[flagged], yerr=expanded[flagged], fmt="s", ms=4, color="C3",
+                            label="outlier")
+            ax.set_xticks(x)
+            ax.set_xticklabels([j.entry.device for j in g.rows], rotation=90, fontsize=6)
+            ax.set_ylabel(f"{quantity} {g.axis} ({'relative' if unit == '1' else unit})")
+            ax.set_title(f"axis {g.axis}", fontsize=9)
+        axs[0, 0].legend(fontsize=6)
+        fig.suptitle(f"{quantity.capitalize()} per device: red squares are outliers",
+                     fontsize=9)
+        fig.tight_layout()
+        figures.append(Figure(f"batch-{quantity}-{unit}", f"{quantity.capitalize()} per device",
+                              f"Each device's {quantity} with its expanded uncertainty, the group's weighted mean "
+                              "and the plain mean of the devices; devices flagged by the outlier rule (section 2) "
+                              "are red squares.", _svg(fig), series))
+    return figures
 
 
 FIGURES = {"static": [static_figure], "wheel": [wheel_figure], "slider-crank": [slider_crank_figure]}

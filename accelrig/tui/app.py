@@ -53,9 +53,10 @@ class AccelrigApp(App):
 
     def __init__(self, device: str = DEFAULT_DEVICE, refresh_interval: float = 0.1,
                  profile_dir: str | Path | None = None, buffer_seconds: float = 30.0,
-                 daemon_socket: str | Path | None = None):
+                 daemon_socket: str | Path | None = None, fleet=None):
         super().__init__()
         self.daemon_socket = daemon_socket  # set: watch a running daemon instead of opening a device
+        self.fleet = fleet                  # screens.fleet.FleetOptions: watch an MQTT fleet instead
         self.device = device
         self.refresh_interval = refresh_interval
         # None: profiles go into the store (accelrig.profiles.store), captures beside it
@@ -116,6 +117,11 @@ class AccelrigApp(App):
             from accelrig.tui.screens.daemon import DaemonScreen
 
             self.push_screen(DaemonScreen(self.daemon_socket))
+            return
+        if self.fleet is not None:
+            from accelrig.tui.screens.fleet import FleetScreen
+
+            self.push_screen(FleetScreen(self.fleet))
             return
         self.push_screen(LiveScreen())
         self.connect_to(self.device)

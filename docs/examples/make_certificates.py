@@ -1,4 +1,4 @@
-"""Write the three example certificates (static, wheel, rotary campaign) from the simulator.
+"""Write the three example certificates (static, wheel, rotary campaign) and a batch report from the simulator.
 
     python docs/examples/make_certificates.py [OUT_DIR]     (default: docs/examples)
 
@@ -17,7 +17,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 from accelrig.files import atomic_write  # noqa: E402
 from accelrig.report import certificate_html, from_result  # noqa: E402
-from report_support import DEVICE, rotary_campaign_result, static_result, wheel_result  # noqa: E402
+from accelrig.report.batch import batch_report_html, load_batch  # noqa: E402
+from report_support import (  # noqa: E402
+    DEVICE,
+    rotary_campaign_result,
+    static_result,
+    wheel_result,
+    write_batch_profiles,
+)
 
 ISSUED = datetime(2026, 1, 15, 9, 0, tzinfo=UTC)
 CONDITIONS = {"customer": "Example Structural Monitoring Ltd.", "operator": "A. Tester", "location": "Lab 2",
@@ -41,6 +48,14 @@ def main(out: Path) -> None:
         page = certificate_html(src, {**CONDITIONS, "certificate_number": number}, issued=ISSUED)
         atomic_write(out / name, lambda fh, page=page: fh.write(page), text=True)
         print(f"wrote {out / name} ({len(page) // 1024} KiB)")
+    with tempfile.TemporaryDirectory() as tmp:
+        write_batch_profiles(tmp)
+        batch = load_batch([tmp])
+        for src in batch.sources:   # the profiles lived in a temporary directory: name them by file alone
+            src.path = Path(src.path).name
+        page = batch_report_html(batch, {**CONDITIONS, "certificate_number": "EX-004"}, issued=ISSUED)
+    atomic_write(out / "report-batch.html", lambda fh: fh.write(page), text=True)
+    print(f"wrote {out / 'report-batch.html'} ({len(page) // 1024} KiB)")
 
 
 if __name__ == "__main__":

@@ -87,7 +87,13 @@ def run(n: int, per_daemon: int, seconds: float, work: Path) -> dict:
         log = open(work / f"daemon{d}.log", "wb")
         daemons.append(subprocess.Popen([sys.executable, "-m", "accelrig", "daemon", "--config", str(path)],
                                         stdout=log, stderr=log))
-    time.sleep(5.0)   # warm-up: every device connected and streaming
+    # warm-up: every device connected and its blocks arriving (daemon start-up takes longer with more of them
+    # on a loaded machine), then 3 s more so the start-up backlog is through
+    deadline = time.monotonic() + 90
+    while len(collector.streams) < n and time.monotonic() < deadline:
+        time.sleep(0.5)
+    started = len(collector.streams)
+    time.sleep(3.0)
     measuring.set()
     cpu0, broker0, wall0 = time.process_time(), cpu_seconds(broker.pid), time.monotonic()
     daemon0 = sum(cpu_seconds(p.pid) for p in daemons)
@@ -124,7 +130,7 @@ def run(n: int, per_daemon: int, seconds: float, work: Path) -> dict:
             if got < local and not gaps:
                 unexplained.append((directory.name, local - got))
     lat = np.array(latencies) * 1e3
-    return {"n": n, "daemons": len(daemons), "seconds": wall, "messages/s": taken["messages"] / wall,
+    return {"n": n, "daemons": len(daemons), "streaming at start": started, "seconds": wall, "messages/s": taken["messages"] / wall,
             "samples/s": taken["samples"] / wall, "p50 ms": float(np.percentile(lat, 50)) if lat.size else math.nan,
             "p99 ms": float(np.percentile(lat, 99)) if lat.size else math.nan,
             "collector %/dev": 100 * cpu / wall / n, "broker %": 100 * broker_cpu / wall,
@@ -142,16 +148,19 @@ def main() -> int:
         print("mosquitto is not installed (apt-get install mosquitto)", file=sys.stderr)
         return 2
     print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} cores; {args.seconds:g} s measured per row\n")
-    print("| devices | daemons | messages/s | samples/s | latency p50 ms | p99 ms | collector CPU %/device "
+    loads = []
+    print("| devices | daemons | streaming when measured | messages/s | samples/s | latency p50 ms | p99 ms | collector CPU %/device "
           "| broker CPU % | daemons CPU %/device | samples in local files | stored by the collector | not received gaps | loss unexplained |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n in args.devices:
         with tempfile.TemporaryDirectory(prefix="bench-fleet-") as tmp:
             r = run(n, args.per_daemon, args.seconds, Path(tmp))
-        print(f"| {r['n']} | {r['daemons']} | {r['messages/s']:.0f} | {r['samples/s']:.0f} | {r['p50 ms']:.0f} "
+        print(f"| {r['n']} | {r['daemons']} | {r['streaming at start']} | {r['messages/s']:.0f} | {r['samples/s']:.0f} | {r['p50 ms']:.0f} "
               f"| {r['p99 ms']:.0f} | {r['collector %/dev']:.2f} | {r['broker %']:.1f} | {r['daemons %/dev']:.1f} "
               f"| {r['delivered']} | {r['stored']} | {r['not received gaps']} | {r['unexplained'] or 'none'} |",
               flush=True)
+        loads.append(os.getloadavg()[0])
+    print("\nload average after each row: " + ", ".join(f"{v:.2f}" for v in loads))
     return 0
 
 

@@ -198,8 +198,10 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
         "time_origin": "first sample",
         "cross_axis_sd": float(cross_axis_sd),
     }
+    # the wheel's fitted angle, wrapped to one turn: residuals against it show a pattern tied to the rotation
+    angle_deg = np.mod(np.rad2deg(phase(t, state.theta0, state.omega)[0]), 360.0)
     arrays = {
-        "t": t, "residuals": resid,
+        "t": t, "residuals": resid, "angle_deg": angle_deg,
         "speed_time": steps.speed_time, "speed_samples": steps.speed_samples,
         "speed_fit": np.abs(speed_fit), "speed_residuals": speed_resid,
     }

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
@@ -9,6 +10,8 @@ from textual.widgets import Footer, Header
 
 from accelrig.tui.screens.calibrate import CalibrateMenu
 from accelrig.tui.screens.connect import ConnectScreen
+from accelrig.tui.screens.dialogs import PathScreen
+from accelrig.tui.screens.fleet import FleetOptions, FleetScreen
 from accelrig.tui.widgets.live import LiveView
 
 
@@ -17,6 +20,7 @@ class LiveScreen(Screen):
         Binding("c", "connect", "Connect"),
         Binding("k", "calibrate", "Calibrate"),
         Binding("p", "pause", "Pause view"),
+        Binding("m", "fleet", "Fleet (MQTT)"),
     ]
 
     def __init__(self):
@@ -49,3 +53,27 @@ class LiveScreen(Screen):
 
     def action_calibrate(self) -> None:
         self.app.push_screen(CalibrateMenu())
+
+    def action_fleet(self) -> None:
+        """The fleet screen: of the broker given with --broker, else of one the operator names."""
+        if self.app.fleet is not None:
+            self.app.push_screen(FleetScreen(self.app.fleet))
+        else:
+            self.ask_broker()
+
+    @work(exclusive=True, group="fleet-broker")
+    async def ask_broker(self) -> None:
+        from accelrig.daemon.wire import parse_broker
+        from accelrig.errors import AccelrigError
+
+        url = await self.app.push_screen_wait(PathScreen(
+            "MQTT broker of the fleet (mqtt://HOST[:PORT], or mqtts:// for TLS; for a user name and password "
+            "start with: accelrig tui --broker URL --username NAME --password-file FILE):", "mqtt://localhost:1883"))
+        if url is None:
+            return
+        try:
+            parse_broker(url)
+        except AccelrigError as exc:
+            self.notify(str(exc), title="not a broker URL", severity="error", timeout=8)
+            return
+        self.app.push_screen(FleetScreen(FleetOptions(url)))

@@ -6,7 +6,7 @@ saved by accelrig.profiles, the flash planned and rendered by accelrig.profiles.
 
 from __future__ import annotations
 
-import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult
+from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -81,6 +82,114 @@ def plot_series(name: str, arrays: dict) -> tuple[str, list[Series]] | None:
     return x_name, series
 
 
+@dataclass
+class PlotView:
+    """One plot of the results screen: the title names the quantity with its unit, x_label the x axis's."""
+
+    title: str
+    x_label: str
+    series: list[Series]
+
+
+def _points(x, y, style: str, label: str = "") -> Series:
+    return Series(np.asarray(x, dtype=float), np.asarray(y, dtype=float), style, label, join=False)
+
+
+def _axes(x, columns: np.ndarray, join: bool = False) -> list[Series]:
+    return [Series(np.asarray(x, dtype=float), columns[:, k], SERIES_STYLES[k], "xyz"[k], join=join)
+            for k in range(columns.shape[1])]
+
+
+def static_views(src) -> list[PlotView]:
+    from accelrig.report.figures import static_series
+
+    s = static_series(src)
+    x, x_name = (s["pose_time_s"], "time (s), middle of each pose") if "pose_time_s" in s else (s["pose"], "pose")
+    magnitude = [_points(x, s["after"], "green", "after")]
+    if "before" in s:
+        magnitude.insert(0, _points(x, s["before"], "grey50", "before"))
+    views = [PlotView("|a| − g per pose (m/s²): after should sit near 0", x_name, magnitude)]
+    if "residuals" in s:
+        views.append(PlotView("fit residual per pose (m/s²): no pose should stand out", x_name,
+                              _axes(x, s["residuals"])))
+    return views
+
+
+def wheel_views(src) -> list[PlotView]:
+    from accelrig.report.figures import wheel_series
+
+    s = wheel_series(src)
+    views = [
+        PlotView("wheel speed (rad/s): half turns on the fitted law", "time (s)",
+                 [_points(s["speed_time"], s["speed_samples"], "yellow", "half turns"),
+                  Series(s["speed_time"], s["speed_fit"], "dodger_blue1", "fitted law")]),
+        PlotView("speed residual (rad/s): no trend", "time (s)",
+                 [_points(s["speed_time"], s["speed_residuals"], "yellow")]),
+        PlotView("acceleration residual (m/s²): flat noise, no drift", "time (s)", _axes(s["t"], s["residuals"])),
+    ]
+    if "angle_deg" in s:
+        views.append(PlotView("acceleration residual (m/s²) against the wheel angle: no wave", "angle (degrees)",
+                              _axes(s["angle_deg"], s["residuals"])))
+    freq, spectrum = s["spectrum_frequency"][1:], s["spectrum"][1:]
+    views.append(PlotView("residual spectrum, log10 of (m/s²)/√Hz: white, no peak", "frequency (Hz)",
+                          _axes(freq, np.log10(np.maximum(spectrum, 1e-30)), join=True)))
+    return views
+
+
+def slider_crank_views(src) -> list[PlotView]:
+    from accelrig.report.figures import slider_crank_series
+
+    s = slider_crank_series(src)
+    f = s["frequency_hz"]
+    order = np.argsort(f)
+    band = [Series(f[order], s[k][order], "grey50", label) for k, label in
+            (("model_lower", "clearance band"), ("model_upper", ""))]
+    views = [PlotView("first-harmonic amplitude (m/s²): measured inside the band", "crank frequency (Hz)",
+                      [*band, Series(f[order], s["model_amplitude"][order], "dodger_blue1", "model"),
+                       _points(f, s["amplitude"], "yellow", "measured")])]
+    r0, clearance = src.details.get("crank_radius_m"), src.details.get("clearance_m") or 0.0
+    radius = [_points(f, 1e3 * s["radius_m"], "yellow", "from the motion")]
+    if r0 is not None:
+        radius = [Series(f[order], np.full(f.size, 1e3 * (r0 + sign * clearance)), "grey50",
+                         "caliper ± clearance" if sign > 0 else "") for sign in (1, -1)] + radius
+    views.append(PlotView("crank radius per step (mm): inside the clearance band", "crank frequency (Hz)", radius))
+    return views
+
+
+def rotary_views(src) -> list[PlotView]:
+    from accelrig.report.figures import rotary_sensitivity_series
+
+    groups, s = rotary_sensitivity_series(src)
+    series = []
+    for k, group in enumerate(dict.fromkeys(groups)):
+        sel = [i for i, g in enumerate(groups) if g == group]
+        series.append(_points(s["test"][sel] + 1, s["sensitivity"][sel], SERIES_STYLES[k % len(SERIES_STYLES)],
+                              group))
+    return [PlotView("sensitivity per test (counts per m/s²): the same axis should agree", "test number", series)]
+
+
+VIEWS = {"static": static_views, "wheel": wheel_views, "slider-crank": slider_crank_views, "rotary": rotary_views}
+
+
+def result_views(result: CalibrationResult, recording: Recording | None = None) -> list[PlotView]:
+    """The plots of a result with physical axes: the arrays the certificate's figures draw (accelrig.report
+    computes them), else each array against its time or frequency (``plot_series``)."""
+    make = VIEWS.get(result.procedure)
+    if make is not None:
+        from accelrig.report import from_result
+
+        try:
+            return make(from_result(result, recording))
+        except LookupError:
+            pass   # this result does not carry the figure's arrays: draw what it has
+    views = []
+    for name in plottable(result.arrays):
+        x_name, series = plot_series(name, result.arrays)
+        unit = ARRAY_UNITS.get(name)
+        views.append(PlotView(name + (f" ({unit})" if unit else ""), x_name, series))
+    return views
+
+
 def plottable(arrays: dict) -> list[str]:
     names = []
     for name in arrays:
@@ -126,8 +235,7 @@ def correction_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
 
 def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
     identity = session.info.identity if session is not None and session.info is not None else "device"
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(identity)).strip("-") or "device"
-    return f"{safe}-{result.procedure}.yaml"
+    return f"{file_stem(identity)}-{result.procedure}.yaml"
 
 
 class ResultsScreen(Screen):
@@ -135,6 +243,7 @@ class ResultsScreen(Screen):
         Binding("s", "save", "Save profile"),
         Binding("f", "flash", "Flash to device"),
         Binding("n", "next_plot", "Next plot"),
+        Binding("c", "certificate", "Certificate"),
         Binding("escape", "close", "Close"),
     ]
 
@@ -143,8 +252,9 @@ class ResultsScreen(Screen):
         self.result = result
         self.recording = recording
         self.session = session
-        self.plots = plottable(result.arrays)
+        self.plots = result_views(result, recording)
         self.plot_index = 0
+        self.certificate_path: Path | None = None
         self.profile = None
         self.saved_path: Path | None = None
 
@@ -154,7 +264,7 @@ class ResultsScreen(Screen):
         with VerticalScroll(id="results"):
             yield Static(f"[b]{r.procedure}[/b]  method {r.method}  model {r.model}", id="results-title")
             yield Static("s saves the profile" + (", f flashes it to the device" if can_flash(self.session) else "")
-                         + ", n shows the next plot", id="results-status")
+                         + ", n shows the next plot, c writes the certificate", id="results-status")
             if r.correction is not None:
                 yield Label("[b]Correction[/b] a = C (raw − b), b in m/s², u at k = 1 (what the profile applies)")
                 yield DataTable(id="correction", show_cursor=False, zebra_stripes=True)
@@ -193,7 +303,7 @@ class ResultsScreen(Screen):
         except ModuleNotFoundError:
             self.set_status("[red]profiles are not part of this installation:[/] the result cannot be saved")
             return
-        device = self.session.info.to_dict() if self.session is not None and self.session.info else None
+        device = self.device_facts()
         try:
             self.profile = profile_from_result(self.result, self.recording, device=device)
         except AccelrigError as exc:
@@ -232,13 +342,10 @@ class ResultsScreen(Screen):
             plot.title = "(this result has no plots)"
             plot.set_series([])
             return
-        name = self.plots[self.plot_index % len(self.plots)]
-        x_name, series = plot_series(name, self.result.arrays)
-        unit = ARRAY_UNITS.get(name)
-        plot.title = (f"{name}" + (f" ({unit})" if unit else "")
-                      + f"  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)")
-        plot.x_label = x_name
-        plot.set_series(series)
+        view = self.plots[self.plot_index % len(self.plots)]
+        plot.title = f"{view.title}  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)"
+        plot.x_label = view.x_label
+        plot.set_series(view.series)
 
     def set_status(self, text: str) -> None:
         self.query_one("#results-status", Static).update(text)
@@ -287,6 +394,19 @@ class ResultsScreen(Screen):
             return
         self.saved_path = target
         self.set_status(f"[green]profile saved to[/] {target}")
+
+    # ------------------------------------------------------------------ certificate
+    def device_facts(self) -> dict | None:
+        return self.session.info.to_dict() if self.session is not None and self.session.info else None
+
+    def action_certificate(self) -> None:
+        self.certificate_flow()
+
+    @work(exclusive=True, group="certificate")
+    async def certificate_flow(self) -> None:
+        written = await write_certificate_flow(self, self.result, self.recording, self.device_facts(), self.set_status)
+        if written is not None:
+            self.certificate_path = written
 
     # ------------------------------------------------------------------ flash
     def action_flash(self) -> None:

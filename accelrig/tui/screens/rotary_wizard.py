@@ -1,6 +1,6 @@
 """The rotary bench wizard: RotaryProcedure on the contract, plus each axis's sensitivity per step as it
 comes; the campaign report (per-step sensitivities, budget, linearity, groups) as tables at the end, saved as
-Markdown with s.  v ends the session early: the campaign of the steps recorded so far."""
+Markdown with s, and the certificate with c.  v ends the session early: the campaign of the steps recorded so far."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ class RotaryWizard(ProcedureWizard):
     progress_label = "steps"
 
     def compose_body(self) -> ComposeResult:
-        yield LinePlot("sensitivity per step (counts per m/s²)", x_label="step", id="sensitivity-plot")
+        yield LinePlot("sensitivity per step (counts per m/s²)", x_label="step number", id="sensitivity-plot")
 
     def show_procedure(self, events: list) -> None:
         if not any(e.kind == "captured" for e in events):
@@ -41,7 +41,8 @@ class RotaryWizard(ProcedureWizard):
             for axis, v in self.procedure.sensitivities().items()])
 
     def result_screen(self, result, recording) -> Screen:
-        return CampaignScreen(result)
+        device = self.session.info.to_dict() if self.session is not None and self.session.info else None
+        return CampaignScreen(result, device)
 
 
 def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple[str, ...]]]]:
@@ -85,22 +86,26 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
 
 class CampaignScreen(Screen):
     """The campaign of the steps recorded: per-step sensitivities, budget, linearity, groups; s saves the
-    report (Markdown, or YAML by the suffix)."""
+    report (Markdown, or YAML by the suffix); c writes the certificate (accelrig.report, as 'accelrig report')."""
 
-    BINDINGS = [Binding("s", "save", "Save report"), Binding("escape", "close", "Close")]
+    BINDINGS = [Binding("s", "save", "Save report"), Binding("c", "certificate", "Certificate"),
+                Binding("escape", "close", "Close")]
 
-    def __init__(self, result):
+    def __init__(self, result, device: dict | None = None):
         super().__init__()
         self.report = result
+        self.device = device
         self.saved_path: Path | None = None
+        self.certificate_path: Path | None = None
 
     def compose(self) -> ComposeResult:
         yield Header()
         with VerticalScroll(id="results"):
-            yield Static("[b]rotary bench: campaign report[/b]   s saves it (Markdown)", id="campaign-status")
+            yield Static("[b]rotary bench: campaign report[/b]   s saves it (Markdown), c writes the certificate", id="campaign-status")
             if self.report.warnings:
                 yield Static("\n".join(f"[yellow]warning:[/] {escape(w)}" for w in self.report.warnings),
                              id="campaign-warnings")
+            yield LinePlot("", id="campaign-plot")
             for i, (title, _, _) in enumerate(campaign_tables(self.report.details)):
                 yield Label(f"[b]{title}[/b]")
                 yield DataTable(id=f"campaign-{i}", show_cursor=False, zebra_stripes=True, classes="quality-table")
@@ -108,6 +113,15 @@ class CampaignScreen(Screen):
 
     def on_mount(self) -> None:
         self.sub_title = "campaign"
+        from accelrig.tui.screens.results import result_views
+
+        views = result_views(self.report)
+        plot = self.query_one("#campaign-plot", LinePlot)
+        if views:
+            plot.title, plot.x_label = views[0].title, views[0].x_label
+            plot.set_series(views[0].series)
+        else:
+            plot.display = False
         for i, (_, columns, rows) in enumerate(campaign_tables(self.report.details)):
             table = self.query_one(f"#campaign-{i}", DataTable)
             table.add_columns(*columns)
@@ -137,6 +151,18 @@ class CampaignScreen(Screen):
             return
         self.saved_path = target
         status.update(f"[green]report saved to[/] {escape(str(target))}")
+
+    def action_certificate(self) -> None:
+        self.certificate_flow()
+
+    @work(exclusive=True, group="certificate")
+    async def certificate_flow(self) -> None:
+        from accelrig.tui.screens.certificate import write_certificate_flow
+
+        status = self.query_one("#campaign-status", Static)
+        written = await write_certificate_flow(self, self.report, None, self.device, status.update)
+        if written is not None:
+            self.certificate_path = written
 
     def action_close(self) -> None:
         self.app.pop_screen()

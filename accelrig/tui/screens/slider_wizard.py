@@ -50,7 +50,7 @@ class SliderCrankWizard(ProcedureWizard):
 
     def compose_body(self) -> ComposeResult:
         yield Static("", id="slider-steps")
-        yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="fr-plot")
+        yield LinePlot("frequency response: first harmonic (m/s²)", x_label="frequency (Hz)", id="fr-plot")
 
     def show_procedure(self, events: list) -> None:
         procedure = self.procedure
@@ -120,7 +120,7 @@ class VerificationScreen(Screen):
                          + (f"; motor tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else ""),
                          id="verification-radius")
             yield DataTable(id="steps", show_cursor=False, zebra_stripes=True)
-            yield LinePlot("frequency response: first harmonic (m/s²)", x_label="Hz", id="verification-plot")
+            yield LinePlot("frequency response: first harmonic (m/s²)", x_label="frequency (Hz)", id="verification-plot")
             yield Static("\n".join(f"[yellow]warning:[/] {w}" for w in self.verification.warnings),
                          id="verification-warnings")
         yield Footer()

@@ -21,7 +21,7 @@ class WheelWizard(ProcedureWizard):
     def compose_body(self) -> ComposeResult:
         yield Static("turns: waiting for rotation", id="wheel-turns")
         yield Static("speed: -", id="wheel-speed")
-        yield LinePlot("wheel speed (rad/s)", x_label="s", id="speed-plot")
+        yield LinePlot("wheel speed (rad/s)", x_label="time (s)", id="speed-plot")
 
     def reset_body(self) -> None:
         self.query_one("#wheel-turns", Static).update("turns: waiting for rotation")

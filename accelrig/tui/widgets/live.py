@@ -67,7 +67,7 @@ class LiveView(Vertical):
 
     def compose(self) -> ComposeResult:
         yield Static("", id="device-line")
-        yield LinePlot("axes (m/s²)", x_label="t s", id="axes-plot")
+        yield LinePlot("axes (m/s²)", x_label="time (s)", id="axes-plot")
         yield Static("", id="axes-now")
         yield Sparkline([], id="magnitude")
         yield Static("", id="stats-line")

@@ -32,15 +32,15 @@ class LinePlot(Widget):
     """Plots one or more series; the y range is fixed (``y_range``) or follows the data."""
 
     DEFAULT_CSS = """
-    LinePlot { height: 8; }
+    LinePlot { height: 9; }
     """
 
     def __init__(self, title: str = "", y_range: tuple[float, float] | None = None, x_label: str = "",
                  *, id: str | None = None, classes: str | None = None):
         super().__init__(id=id, classes=classes)
-        self.title = title
+        self.title = title            # what is plotted, with the y unit: "wheel speed (rad/s)"
         self.y_range = y_range
-        self.x_label = x_label
+        self.x_label = x_label        # the x quantity with its unit: "time (s)", "frequency (Hz)"
         self.series: list[Series] = []
 
     def set_series(self, series: list[Series]) -> None:
@@ -50,7 +50,7 @@ class LinePlot(Widget):
     def render(self) -> Text:
         width, height = self.size.width, self.size.height
         label_width = 8
-        plot_w, plot_h = max(width - label_width, 1), max(height - 1, 1)
+        plot_w, plot_h = max(width - label_width, 1), max(height - 2, 1)
         text = Text(no_wrap=True, overflow="crop")
         header = Text(self.title, style="bold")
         for s in self.series:
@@ -77,8 +77,6 @@ class LinePlot(Widget):
             y0, y1 = y0 - pad, y1 + pad
         if x1 <= x0:
             x1 = x0 + 1.0
-        if self.x_label:
-            text.append(f"  {self.x_label} {x0:.3g} .. {x1:.3g}", style="dim")
         text.append("\n")
         dots_w, dots_h = plot_w * 2, plot_h * 4
         cells = np.zeros((plot_h, plot_w), dtype=np.int32)
@@ -97,15 +95,13 @@ class LinePlot(Widget):
             bits = _DOT_BITS[px % 2, py % 4]
             np.bitwise_or.at(cells, (rows, cols), bits)
             owner[rows, cols] = index
-        top = f"{y1:>7.3g}"
-        bottom = f"{y0:>7.3g}"
+        # the top row's first dot is y1, the bottom row's last dot y0; a middle row is labelled at its centre
+        y_ticks = {0: y1, plot_h - 1: y0}
+        if plot_h >= 5:
+            mid = (plot_h - 1) // 2
+            y_ticks[mid] = y1 - (y1 - y0) * (4 * mid + 1.5) / (dots_h - 1)
         for row in range(plot_h):
-            if row == 0:
-                label = top
-            elif row == plot_h - 1:
-                label = bottom
-            else:
-                label = ""
+            label = _tick(y_ticks[row]) if row in y_ticks else ""
             text.append(f"{label:>7} ", style="dim")
             # one append per run of cells of the same series keeps rendering cheap
             col = 0
@@ -117,9 +113,23 @@ class LinePlot(Widget):
                 run = "".join(chr(_BRAILLE_BASE + int(b)) if b else " " for b in cells[row, col:end])
                 text.append(run, style=finite[who].style if who >= 0 else "")
                 col = end
-            if row < plot_h - 1:
-                text.append("\n")
+            text.append("\n")
+        text.append(" " * label_width + x_axis_row(x0, x1, self.x_label, plot_w), style="dim")
         return text
+
+
+def _tick(value: float) -> str:
+    return f"{value:.3g}" if abs(value) >= 1e-12 else "0"
+
+
+def x_axis_row(x0: float, x1: float, label: str, width: int) -> str:
+    """The row under the plot: x0 under the first column, x1 ending under the last, the label centred."""
+    left, right = _tick(x0), _tick(x1)
+    inner = width - len(left) - len(right)
+    name = label if len(label) + 2 <= inner else label[:max(inner - 2, 0)]
+    if inner < 1:
+        return (left + " " + right)[:width]
+    return left + name.center(inner) + right
 
 
 def _join(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
