@@ -253,3 +253,86 @@ def difference_noise_variance(x: np.ndarray, order: int = 2) -> tuple[float, flo
     acf = np.correlate(w, w, mode="full")[order:] / scale
     dof = d.size / (1.0 + 2.0 * float(np.sum(acf[1:] ** 2)))
     return float(np.mean(d**2) / scale), dof
+
+
+# ---------------------------------------------------------------- short records: a parametric middle matrix
+
+AR_MAX_ORDER = 20            # highest autoregressive order tried for the residual spectrum
+
+
+@dataclass
+class ARNoise:
+    """An autoregressive model of the residuals: x_t = sum_k a_k x_{t-k} + e_t, var(e) = innovation."""
+
+    coefficients: np.ndarray
+    innovation: float
+
+    @property
+    def order(self) -> int:
+        return int(self.coefficients.size)
+
+    def spectrum(self, omega: np.ndarray) -> np.ndarray:
+        """Two-sided spectral density per sample at angular frequencies omega (rad per sample);
+        white noise of variance s2 gives s2 everywhere."""
+        k = np.arange(1, self.order + 1)
+        transfer = 1.0 - np.exp(-1j * np.outer(omega, k)) @ self.coefficients if self.order else np.ones_like(omega)
+        return self.innovation / np.abs(transfer) ** 2
+
+    def variance_ratio(self, cycles_per_sample: float) -> float:
+        """S(f) over the marginal variance: the factor on a white-noise variance for a parameter that sees
+        the noise at f (a sine's amplitude and phase); tau for f = 0."""
+        omega = np.linspace(0.0, np.pi, 4097)
+        marginal = float(np.mean(self.spectrum(omega)))   # the variance: the mean of S over a uniform grid
+        return float(self.spectrum(np.array([2 * np.pi * cycles_per_sample]))[0] / marginal)
+
+
+def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER) -> ARNoise:
+    """AR model of a residual series: Levinson-Durbin on its autocovariance, order by AIC (<= max_order)."""
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    max_order = int(min(max_order, max(n // 10, 0)))
+    var = float(np.mean((r - r.mean()) ** 2))
+    if var <= 0 or max_order == 0:
+        return ARNoise(np.zeros(0), var)
+    acov = autocorrelation(r, max_order) * var
+    best = (n * np.log(var), np.zeros(0), var)
+    a = np.zeros(0)
+    error = var
+    for p in range(1, max_order + 1):
+        reflection = (acov[p] - a @ acov[p - 1:0:-1]) / error if p > 1 else acov[1] / error
+        a = np.concatenate([a - reflection * a[::-1], [reflection]])
+        error *= 1.0 - reflection**2
+        if error <= 0:
+            break
+        aic = n * np.log(error) + 2 * p
+        if aic < best[0]:
+            best = (aic, a.copy(), error)
+    return ARNoise(best[1], float(best[2]))
+
+
+def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, residuals: np.ndarray,
+                           noise: ARNoise | None = None) -> Sandwich:
+    """Sandwich covariance with the middle matrix J' Sigma J from an AR model of the residuals.
+
+    For records too short for batch means (fewer than MIN_BLOCKS blocks of BLOCK_PER_TAU tau): the
+    middle matrix is computed in the frequency domain, sum_k S(w_k) J^(w_k)* J^(w_k), with S the AR
+    spectrum, so each parameter sees the noise at the frequencies its Jacobian column occupies (a
+    sine's amplitude the noise at the sine's frequency).  A smooth parametric spectrum, not the
+    residuals' periodogram: the fit has emptied the periodogram exactly where its columns live.
+    Rows of ``jacobian`` are in time order, one instant each, uniformly sampled.
+    """
+    jacobian = np.asarray(jacobian, dtype=float)
+    noise = noise or ar_noise_model(residuals)
+    n = jacobian.shape[0]
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    spectrum_j = np.fft.rfft(jacobian, size, axis=0)
+    omega = 2 * np.pi * np.arange(spectrum_j.shape[0]) / size
+    weights = np.full(omega.size, 2.0)
+    weights[0] = 1.0
+    if size % 2 == 0:
+        weights[-1] = 1.0
+    s = noise.spectrum(omega) * weights / size
+    middle = np.real((spectrum_j.conj() * s[:, None]).T @ spectrum_j)
+    bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
+    cov = bread @ middle @ bread
+    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"AR({noise.order}) spectral sandwich")

@@ -39,6 +39,7 @@ from scipy import stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.residuals import (
+    ar_sandwich_covariance,
     block_scores,
     difference_noise_variance,
     lack_of_fit,
@@ -314,8 +315,8 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
     """Whiteness and lack of fit of the crank-motion fit's residuals; the covariance they call for.
 
     White residuals: sigma^2 (J'J)^-1.  Correlated (estimation.residuals policy): the batch-means
-    sandwich (or, with too few blocks for it, the white covariance times the integrated
-    correlation time).  Lack of fit is judged only on white residuals (correlated noise makes the
+    sandwich, or, with too few blocks for it (a step of a second or two), the sandwich whose
+    middle matrix comes from an AR model of the residual spectrum.  Lack of fit is judged only on white residuals (correlated noise makes the
     model-free variance too small): a warning above LOF_WARN, a refusal above LOF_REFUSE.  With
     backlash the knocks are phase-locked and not noise: their folded template is removed first.
     """
@@ -336,8 +337,10 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
         block = w.block_length()
         sw = sandwich_covariance(normal, block_scores(motion.jacobian, resid, block), block)
         sandwich = sw.to_dict()
-        if sw.underresolved:
-            cov, method = white * max(w.tau, 1.0), f"white x integrated time {w.tau:.1f} (too few blocks for a sandwich)"
+        if sw.underresolved:   # a short step: the AR-spectrum sandwich instead of batch means
+            sw = ar_sandwich_covariance(normal, motion.jacobian, resid)
+            sandwich = sw.to_dict()
+            cov, method = sw.covariance, sw.method
         else:
             cov, method = sw.covariance, f"batch-means sandwich, {sw.blocks} blocks of {sw.block} samples"
         notes.append(f"{where}: {w.describe()}; u from the {method}")
@@ -649,7 +652,8 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
                 f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
             )
         if s.backlash:
-            warnings.append(f"step {s.index} ({s.label}): backlash, knocks of {s.knock_peak:.2g} m/s^2 at the dead centres")
+            warnings.append(f"step {s.index} ({s.label}): backlash (play taken up at the dead centres): a phase-locked "
+                            f"residual of up to {s.knock_peak:.2g} m/s^2 there; the play's share is in u(radius)")
         if s.speed_unsteady:
             warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz "
                             f"({100 * s.speed_spread_hz / s.frequency_hz.value:.1f} %) within the record: followed by "

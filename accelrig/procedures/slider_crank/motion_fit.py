@@ -22,6 +22,10 @@ mean of phi' over the record.  The profile's order starts at 1 (constant
 speed) and grows while an added term lowers the residual sum of squares
 significantly (nested F test at ``ORDER_ALPHA``): a steady motor costs nothing,
 a wandering one is followed and pays for it in u, through the full covariance.
+The F test assumes white residuals; correlated noise would pass it with
+spurious terms, so its statistic is divided by the residuals' integrated
+autocorrelation time (estimation.residuals.whiteness): the effective number of
+independent samples is n / tau.
 """
 
 from __future__ import annotations
@@ -33,8 +37,10 @@ from numpy.polynomial import chebyshev as cheb
 from scipy import optimize
 from scipy import stats as _sps
 
+from accelrig.estimation.residuals import whiteness
+
 ORDER_ALPHA = 1e-3   # an added speed term must lower the RSS at this significance to be kept
-MAX_ORDER = 14       # highest Chebyshev order of the crank angle (about 4 wobble cycles per record)
+MAX_ORDER = 24       # highest Chebyshev order of the crank angle (about 7 wobble cycles per record)
 
 
 @dataclass
@@ -128,8 +134,9 @@ def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: 
     coefficients = _fit_order(tau, y, coefficients, h, harmonics)
     _, resid, _ = _project(tau, y, coefficients, h, harmonics)
     rss = {1: float(resid @ resid)}
-    # keep a few hundred residual degrees of freedom per speed term: the profile follows the motor, not the noise
-    limit = int(min(max_order, max(1, (n - 2 * harmonics - 1) // 200)))
+    correlation = max(whiteness(resid).tau, 1.0)
+    # keep about a hundred residual degrees of freedom per speed term: the profile follows the motor, not the noise
+    limit = int(min(max_order, max(1, (n - 2 * harmonics - 1) // 100)))
     order = 1
     while order < limit:
         # look two orders ahead: a wobble's odd (or even) part alone may not lower the RSS at the next order
@@ -141,9 +148,10 @@ def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: 
             trial = _fit_order(tau, y, np.concatenate([trial, [0.0]]), h, harmonics)
             _, t_resid, _ = _project(tau, y, trial, h, harmonics)
             t_rss = float(t_resid @ t_resid)
-            dof = n - (order + extra + 1) - (2 * harmonics + 1)
+            dof = (n - (order + extra + 1) - (2 * harmonics + 1)) / correlation
             if t_rss < rss[order]:
-                p = float(_sps.f.sf((rss[order] - t_rss) / extra / (t_rss / dof), extra, dof))
+                statistic = (rss[order] - t_rss) / extra / (t_rss / (dof * correlation)) / correlation
+                p = float(_sps.f.sf(statistic, extra, dof))
                 if p < ORDER_ALPHA:
                     accepted = True
                     break
@@ -151,6 +159,7 @@ def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: 
             break
         order += extra
         coefficients, rss[order] = trial, t_rss
+        correlation = max(whiteness(t_resid).tau, 1.0)
     linear, resid, basis = _project(tau, y, coefficients, h, harmonics)
     jac = _jacobian(tau, coefficients, linear, h, harmonics, basis)
     return CrankMotionFit(order, coefficients, linear, jac, resid, harmonics, h, rss)

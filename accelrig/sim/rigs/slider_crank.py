@@ -50,7 +50,7 @@ HUNT_RIPPLE = 0.02
 HUNT_FREQUENCY = 1.7
 KNOCK_RISE = 0.002  # s over which the play is taken up
 # The pick-up after a dwell is a softplus over this fraction of the play (the contact's compliance).
-PLAY_SMOOTHING = 0.3
+PLAY_SMOOTHING = 0.6
 # A knock has rung out (e^-40) this long after its dead centre: older ones count as settled.
 KNOCK_MEMORY = 40.0 / (KNOCK_DAMPING * 2 * np.pi * KNOCK_FREQUENCY)
 # The knock's jerk jumps where the take-up starts and ends: a short differentiation
@@ -272,9 +272,10 @@ class SliderCrankRig(Rig):
                            slider_position(np.pi, self.effective_radius, self.rod))
         s = np.where(top, 1.0, -1.0)   # +1: the pin now moves down, away from the top
         u = s * (extreme - pin) / b    # how far the pin has come back, in units of the play
-        # softplus, max(u - 1, 0) smoothed, less its value at u = 0 so the slider does not jump at the dead centre
-        taken = PLAY_SMOOTHING * (np.logaddexp(0.0, (u - 1.0) / PLAY_SMOOTHING)
-                                  - np.logaddexp(0.0, -1.0 / PLAY_SMOOTHING))
+        # softplus, max(u - 1, 0) smoothed; less its value at u = 0 faded out by u = 1, so the slider
+        # neither jumps at the dead centre nor ends up off its half-play lag after the pick-up
+        at_zero = PLAY_SMOOTHING * np.logaddexp(0.0, -1.0 / PLAY_SMOOTHING)
+        taken = PLAY_SMOOTHING * np.logaddexp(0.0, (u - 1.0) / PLAY_SMOOTHING) - at_zero * np.maximum(1.0 - u, 0.0) ** 2
         return extreme - s * b / 2 - s * b * taken
 
     def position(self, t: np.ndarray) -> np.ndarray:
