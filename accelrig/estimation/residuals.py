@@ -336,3 +336,24 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
     cov = bread @ middle @ bread
     return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"AR({noise.order}) spectral sandwich")
+
+
+def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray):
+    """The policy in one call: (covariance, how it was made, Whiteness) for a least-squares fit.
+
+    ``white`` is the fit's white-noise covariance sigma^2 (J'J)^-1, returned as it is when the
+    residuals pass as white.  Correlated residuals: the batch-means sandwich when the record
+    holds MIN_BLOCKS blocks of BLOCK_PER_TAU tau, else the AR-spectrum sandwich.  Rows of
+    ``jacobian`` and ``residuals`` are in time order, one instant each.
+    """
+    w = whiteness(residuals)
+    if not w.correlated:
+        return white, "white noise: sigma^2 (J'J)^-1", w
+    jacobian = np.asarray(jacobian, dtype=float)
+    normal = jacobian.T @ jacobian
+    block = w.block_length()
+    sandwich = sandwich_covariance(normal, block_scores(jacobian, residuals, block), block)
+    if sandwich.underresolved:
+        sandwich = ar_sandwich_covariance(normal, jacobian, residuals)
+        return sandwich.covariance, sandwich.method, w
+    return sandwich.covariance, f"batch-means sandwich, {sandwich.blocks} blocks of {sandwich.block} samples", w

@@ -28,6 +28,11 @@ uncertainties include the frequency's contribution over that lever arm.
 
 Uncertainties are standard (k = 1), from the fit's covariance
 sigma^2 (J^T J)^-1 with sigma estimated from the residuals (RSS / (n - p)).
+With ``check_noise=True`` the residuals are tested for whiteness first
+(estimation.residuals); when they are correlated the covariance is the
+sandwich instead (batch means, or for a record too short for enough blocks
+the AR-spectrum sandwich), and ``covariance_method`` / ``whiteness`` say so.
+Needs samples uniform in ``t`` for the AR form (sample indices always are).
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ import numpy as np
 
 from accelrig.errors import DataError
 from accelrig.estimation.crb import crb_covariance
+from accelrig.estimation.residuals import Whiteness, checked_covariance
 
 MIN_CYCLES = 1.5  # below this the frequency and the offset cannot be told apart (IEEE 1057)
 MAX_ITERATIONS = 60
@@ -69,6 +75,8 @@ class SineFit:
     start_frequency: float = float("nan")
     harmonics: int = 1
     frequency_fitted: bool = True
+    covariance_method: str = "white noise: sigma^2 (J'J)^-1"
+    whiteness: Whiteness | None = None   # with check_noise=True
 
     def model(self, t: np.ndarray) -> np.ndarray:
         """Evaluate the fitted model at times ``t`` (same axis as the fit)."""
@@ -92,6 +100,8 @@ class SineFit:
             "n_iterations": self.n_iterations,
             "converged": self.converged,
             "harmonics": self.harmonics,
+            "covariance_method": self.covariance_method,
+            **({"whiteness": self.whiteness.to_dict()} if self.whiteness is not None else {}),
         }
 
 
@@ -317,7 +327,8 @@ def interpolated_dft_frequency(t, y) -> float:
     return (peak + delta) / (n * dt)
 
 
-def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequency: bool = True) -> SineFit:
+def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequency: bool = True,
+             check_noise: bool = False) -> SineFit:
     """Fit offset + harmonics 1..H of one frequency to ``y`` sampled at ``t``.
 
     ``t`` may be timestamps (s, possibly non-uniform) or sample indices (then
@@ -373,6 +384,9 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
     sigma2 = float(resid @ resid) / dof
     jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
     cov_q = _covariance(jac, sigma2, _internal_names(harmonics, fit_frequency))
+    method, white_test = "white noise: sigma^2 (J'J)^-1", None
+    if check_noise:
+        cov_q, method, white_test = checked_covariance(jac, resid, cov_q)
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -395,6 +409,8 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
         start_frequency=float(start),
         harmonics=harmonics,
         frequency_fitted=fit_frequency,
+        covariance_method=method,
+        whiteness=white_test,
     )
 
 

@@ -38,14 +38,7 @@ from scipy import stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
-from accelrig.estimation.residuals import (
-    ar_sandwich_covariance,
-    block_scores,
-    difference_noise_variance,
-    lack_of_fit,
-    sandwich_covariance,
-    whiteness,
-)
+from accelrig.estimation.residuals import checked_covariance, difference_noise_variance, lack_of_fit
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.estimation.stats import robust_sd
 from accelrig.procedures.slider_crank.motion_fit import CrankMotionFit, fit_crank_motion
@@ -303,22 +296,22 @@ class ResidualChecks:
     method: str
     whiteness: dict
     lack_of_fit: dict | None
-    sandwich: dict | None
     notes: list[str]
 
     def to_dict(self) -> dict:
         return {"covariance_method": self.method, "inflation": self.inflation, "whiteness": self.whiteness,
-                "lack_of_fit": self.lack_of_fit, "sandwich": self.sandwich}
+                "lack_of_fit": self.lack_of_fit}
 
 
 def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | None) -> ResidualChecks:
     """Whiteness and lack of fit of the crank-motion fit's residuals; the covariance they call for.
 
-    White residuals: sigma^2 (J'J)^-1.  Correlated (estimation.residuals policy): the batch-means
-    sandwich, or, with too few blocks for it (a step of a second or two), the sandwich whose
-    middle matrix comes from an AR model of the residual spectrum.  Lack of fit is judged only on white residuals (correlated noise makes the
-    model-free variance too small): a warning above LOF_WARN, a refusal above LOF_REFUSE.  With
-    backlash the knocks are phase-locked and not noise: their folded template is removed first.
+    White residuals: sigma^2 (J'J)^-1.  Correlated (estimation.residuals.checked_covariance): the
+    batch-means sandwich, or, with too few blocks for it (a step of a second or two), the sandwich
+    whose middle matrix comes from an AR model of the residual spectrum.  Lack of fit is judged
+    only on white residuals (correlated noise makes the model-free variance too small): a warning
+    above LOF_WARN, a refusal above LOF_REFUSE.  With backlash the knocks are phase-locked and not
+    noise: their folded template is removed first.
     """
     resid = motion.residuals
     dof = resid.size - motion.n_parameters
@@ -330,19 +323,10 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
     sigma2 = float(resid @ resid) / dof
     normal = motion.jacobian.T @ motion.jacobian
     white = sigma2 * np.linalg.pinv(normal)
-    w = whiteness(resid)
+    cov, method, w = checked_covariance(motion.jacobian, resid, white)
     notes: list[str] = []
-    cov, method, sandwich, lof = white, "white noise, sigma^2 (J'J)^-1", None, None
+    lof = None
     if w.correlated:
-        block = w.block_length()
-        sw = sandwich_covariance(normal, block_scores(motion.jacobian, resid, block), block)
-        sandwich = sw.to_dict()
-        if sw.underresolved:   # a short step: the AR-spectrum sandwich instead of batch means
-            sw = ar_sandwich_covariance(normal, motion.jacobian, resid)
-            sandwich = sw.to_dict()
-            cov, method = sw.covariance, sw.method
-        else:
-            cov, method = sw.covariance, f"batch-means sandwich, {sw.blocks} blocks of {sw.block} samples"
         notes.append(f"{where}: {w.describe()}; u from the {method}")
     else:
         noise_var, noise_dof = difference_noise_variance(y, order=3)
@@ -358,7 +342,7 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
             notes.append(f"{where}: {result.describe()}; u is from the residuals, so it includes the misfit")
     _, g = motion.radius_gradient()
     inflation = float(np.sqrt(max((g @ cov @ g) / (g @ white @ g), 1.0))) if g @ white @ g > 0 else 1.0
-    return ResidualChecks(cov, inflation, method, w.to_dict(), lof, sandwich, notes)
+    return ResidualChecks(cov, inflation, method, w.to_dict(), lof, notes)
 
 
 def fft_peak_frequency(t, y) -> float:
