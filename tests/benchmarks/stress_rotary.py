@@ -5,8 +5,9 @@ numerically, an LSM6DSR-like sensor at +-8 g with 0.03 m/s^2 white noise per sam
 0.2-0.5 % off the nominal 1660 Hz), one test of the paper's plan with a random motor phase,
 20 s, the encoder log at 1 kHz on the accurate clock; then ``analyse_test`` on the MEMS
 recording as ``accelrig calibrate rotary --mems M.csv --encoder E.csv`` loads it (a file without
-a ``t`` column: times k / nominal rate).  The radius is known to 1 um here (the bench's own
-0.3 % radius term would hide every noise effect); the true radius is the nominal.
+a ``t`` column: times k / nominal rate).  The radius is known to 1 um and the bench's geometry
+is perfect here (its own 0.3 % radius and 0.035 % geometry terms would hide every noise effect);
+the true radius is the nominal.
 
 Judged: the sample rate (truth: the clock's true rate; not in the loss conditions, where the
 "rate" of a record with holes is not one number) and the sensitivities of the tangential and
@@ -32,8 +33,10 @@ SECONDS = 20.0
 NOISE_SD = 0.03
 
 
-def _lose(rec: Recording, rng: np.random.Generator, share: float, burst: int) -> Recording:
-    """Drop ``share`` of the samples, in runs of 1..burst, and forget the timestamps."""
+def _lose(rec: Recording, rng: np.random.Generator, share: float, burst: int, trace: str = "") -> Recording:
+    """Drop ``share`` of the samples, in runs of 1..burst.  ``trace``: "" forgets where (times
+    k / nominal rate of the kept samples), "times" keeps each kept sample's time on the nominal
+    grid, "gaps" writes the recorder's gap list into the metadata."""
     n = len(rec)
     lost = np.zeros(n, dtype=bool)
     while lost.mean() < share:
@@ -41,11 +44,19 @@ def _lose(rec: Recording, rng: np.random.Generator, share: float, burst: int) ->
         lost[start: start + int(rng.integers(1, burst + 1))] = True
     keep = ~lost
     m = int(keep.sum())
-    return Recording(np.arange(m) / NOMINAL_RATE, rec.acc[keep], rec.units,
-                     {k: v[keep] for k, v in rec.channels.items()}, dict(rec.meta))
+    meta = dict(rec.meta)
+    t = np.arange(m) / NOMINAL_RATE
+    if trace == "times":
+        t = np.flatnonzero(keep) / NOMINAL_RATE
+    elif trace == "gaps":
+        starts = np.flatnonzero(np.diff(np.concatenate([[0], lost.astype(int)])) == 1)
+        ends = np.flatnonzero(np.diff(np.concatenate([lost.astype(int), [0]])) == -1) + 1
+        before = np.cumsum(keep) - keep      # kept samples before each position
+        meta["gaps"] = [{"index": int(before[a]), "missing": int(b - a)} for a, b in zip(starts, ends, strict=True)]
+    return Recording(t, rec.acc[keep], rec.units, {k: v[keep] for k, v in rec.channels.items()}, meta)
 
 
-def _run(seed: int, sensor_options: dict | None = None, loss: tuple[float, int] | None = None) -> Outcome:
+def _run(seed: int, sensor_options: dict | None = None, loss: tuple | None = None) -> Outcome:
     rng = np.random.default_rng(seed)
     frequency, amplitude = PAPER_PLAN[rng.integers(len(PAPER_PLAN))]
     sensor = paper_sensor(rng, noise_sd=NOISE_SD, rate=NOMINAL_RATE)
@@ -64,11 +75,12 @@ def _run(seed: int, sensor_options: dict | None = None, loss: tuple[float, int] 
     enc = EncoderLog(**encoder_samples(rig, SECONDS, 1000.0))
     outcome = Outcome()
     try:
-        test = analyse_test(rec, enc, "x", "y", NOMINAL_RATE, setup=RotarySetup(radius_uncertainty=1e-6))
+        test = analyse_test(rec, enc, "x", "y", NOMINAL_RATE,
+                            setup=RotarySetup(radius_uncertainty=1e-6, geometry_uncertainty=0.0))
     except AccelrigError as exc:
         outcome.refused = str(exc)
         return outcome
-    if loss is None:
+    if loss is None or loss[2:]:
         outcome.errors["rate"] = test.sample_rate.value - clock.true_rate
         outcome.u["rate"] = test.sample_rate.uncertainty
     for axis, s in test.sensitivity.items():
@@ -85,5 +97,9 @@ CONDITIONS = [
     Condition("rotary", "5 % samples lost, scattered, no timestamps", lambda s: _run(s, loss=(0.05, 1)),
               refusal_must_say=("lost", "missing")),
     Condition("rotary", "5 % samples lost in bursts, no timestamps", lambda s: _run(s, loss=(0.05, 40)),
+              refusal_must_say=("lost", "missing")),
+    Condition("rotary", "5 % lost in bursts, with the recorder's gap list", lambda s: _run(s, loss=(0.05, 40, "gaps")),
+              refusal_must_say=("lost", "missing")),
+    Condition("rotary", "5 % lost, scattered, with timestamps", lambda s: _run(s, loss=(0.05, 1, "times")),
               refusal_must_say=("lost", "missing")),
 ]
