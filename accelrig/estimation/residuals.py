@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats as _sps
+from scipy.fft import next_fast_len as _next_fast_len
 
 ALPHA = 0.01                 # false alarm rate of each test
 MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
@@ -55,7 +56,8 @@ def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     x = x - x.mean()
     n = x.size
     max_lag = int(min(max_lag, n - 1))
-    size = 1 << int(np.ceil(np.log2(2 * n - 1)))
+    # n + max_lag points of zero padding keep the circular wrap off every lag asked for
+    size = _next_fast_len(n + max_lag)
     spectrum = np.fft.rfft(x, size)
     acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1]
     if acov[0] <= 0:
@@ -274,8 +276,9 @@ class ARNoise:
     def spectrum(self, omega: np.ndarray) -> np.ndarray:
         """Two-sided spectral density per sample at angular frequencies omega (rad per sample);
         white noise of variance s2 gives s2 everywhere."""
-        k = np.arange(1, self.order + 1)
-        transfer = 1.0 - np.exp(-1j * np.outer(omega, k)) @ self.coefficients if self.order else np.ones_like(omega)
+        z = np.exp(-1j * np.asarray(omega, dtype=float))
+        # 1 - sum_k a_k z^k = 1 - z (a_1 + a_2 z + ...), by Horner (polyval): no (n, order) matrix
+        transfer = 1.0 - z * np.polyval(self.coefficients[::-1], z) if self.order else np.ones_like(z)
         return self.innovation / np.abs(transfer) ** 2
 
     def variance_ratio(self, cycles_per_sample: float) -> float:
@@ -326,12 +329,13 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     n = jacobian.shape[0]
     size = 1 << int(np.ceil(np.log2(2 * n)))
     spectrum_j = np.fft.rfft(jacobian, size, axis=0)
-    omega = 2 * np.pi * np.arange(spectrum_j.shape[0]) / size
-    weights = np.full(omega.size, 2.0)
+    weights = np.full(spectrum_j.shape[0], 2.0)
     weights[0] = 1.0
     if size % 2 == 0:
         weights[-1] = 1.0
-    s = noise.spectrum(omega) * weights / size
+    # the AR transfer 1 - sum a_k e^{-i w k} on the FFT grid is the FFT of its coefficients
+    transfer = np.fft.rfft(np.concatenate([[1.0], -noise.coefficients]), size)
+    s = noise.innovation / np.abs(transfer) ** 2 * weights / size
     middle = np.real((spectrum_j.conj() * s[:, None]).T @ spectrum_j)
     bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
     cov = bread @ middle @ bread

@@ -24,11 +24,19 @@ Processing, as the paper and with its known weaknesses made explicit:
    ends trimmed by the filter's settling time, then zero-crossing trimming of
    the tangential axis to whole periods.
 4. Amplitudes at f, 2f and DC of each axis: ``fit`` by a three-parameter fit
-   (with harmonics) at the estimated nu; ``scan`` by the paper's FFT bins of
-   the whole-period record.  Standard uncertainties come from the same model
-   fitted to the UNFILTERED whole-period record: low-pass filtering leaves the
-   noise at f untouched but shrinks the residuals, so a covariance from the
-   filtered residuals would be several times too small.
+   (with harmonics) at the estimated nu of the UNFILTERED whole-period record
+   (the fit is blind to the out-of-band noise the low-pass removes, so the
+   filter adds nothing to it); ``scan`` by the paper's FFT bins of the
+   filtered whole-period record, divided by the filter's gain.  Standard
+   uncertainties come from the unfiltered fit in both (low-pass filtering
+   leaves the noise at f untouched but shrinks the residuals, so a covariance
+   from the filtered residuals would be several times too small), its
+   residuals checked for whiteness (estimation.residuals: correlated noise
+   gets the sandwich covariance, and the warnings say so).
+   Before stage 3 the sample timing is checked: a record that lost samples
+   without a trace (its phase in sample index jumps) is refused; gaps the
+   record knows of (the recorder's gap list, or its timestamps) are placed on
+   the sample grid and only real samples enter the fits.
 5. Sensitivity in counts per m/s^2: tangential axis from the f component,
    radial axis from the 2f component; the DC of the radial axis is reported
    and not used (it carries the offset and the bench's tilt, as the paper found).
@@ -45,7 +53,7 @@ from scipy import signal, stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
-from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.estimation.sinefit import SineFit, fit_sine, fit_sines_known_frequency, interpolated_dft_frequency
 from accelrig.geometry import AXES, parse_axis
 from accelrig.procedures.rotary.settings import RATE_METHODS
 from accelrig.recording import Recording, load_recording, read_table
@@ -733,19 +741,17 @@ def axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain):
     nu_amplitudes = nu if rate_method == "fit" else bin_f / n_seg
     amplitudes: dict[str, AxisAmplitudes] = {}
     raw_fits: dict[str, SineFit] = {}
+    # one design matrix for the three raw axes (and, by the fit method, the three filtered ones)
+    raw = fit_sines_known_frequency(k_seg, real[inside], nu_amplitudes, HARMONICS, check_noise=True)
     for axis in range(3):
-        raw_fit = fit_sine(k_seg, real[inside, axis], frequency=nu_amplitudes, harmonics=HARMONICS,
-                           fit_frequency=False, check_noise=True)
+        raw_fit = raw[axis]
         g_f, g_2f = gain["at_f"], gain["at_2f"]
-        if gapped:
-            # bridged gaps would leak through the filter into the amplitudes: the raw fit's own
-            # amplitudes (no filter, so no filter gain), from the real samples alone
+        if gapped or rate_method == "fit":
+            # the fit's own amplitudes: a three-parameter fit at f, 2f, 3f is already blind to the noise
+            # a low-pass would remove, so it needs no filter (and no filter gain); bridged gaps would
+            # leak through a filter into the amplitudes, the fit uses the real samples alone
             a1, a2, dc = raw_fit.amplitude[0], raw_fit.amplitude[1], raw_fit.offset
             g_f = g_2f = 1.0
-        elif rate_method == "fit":
-            filt_fit = fit_sine(k_seg, filtered[k_seg.astype(int), axis], frequency=nu, harmonics=HARMONICS,
-                                fit_frequency=False)
-            a1, a2, dc = filt_fit.amplitude[0], filt_fit.amplitude[1], filt_fit.offset
         else:
             a1, a2, dc = _fft_components(filtered[seg, axis], bin_f)
         raw_fits[AXES[axis]] = raw_fit
