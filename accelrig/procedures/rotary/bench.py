@@ -68,6 +68,7 @@ SCAN_STEP = 1.0  # Hz
 SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
 HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
 RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
+RATE_OFF_LIMIT = 0.03  # a rate further than this from nominal is not a MEMS clock's error (datasheets: ~1 %)
 
 
 @dataclass
@@ -404,6 +405,12 @@ def analyse_test(
         warnings.append(
             f"the radial axis {AXES[i_r]} carries {radial_at_f:.3f} m/s^2 at f (the paper's mounting limit is "
             f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
+        )
+    if abs(fs / nominal_rate - 1) > RATE_OFF_LIMIT:
+        warnings.append(
+            f"the sample rate found, {fs:.1f} Hz, is {100 * (fs / nominal_rate - 1):+.1f} % off the nominal "
+            f"{nominal_rate:g} Hz: beyond what a MEMS clock drifts. Check --nominal-rate; if samples were lost at a "
+            "steady pace the sensitivity still holds, but this is not the device's rate"
         )
     up_counts = amplitudes[AXES[i_up]].dc
     quality = {
