@@ -122,44 +122,67 @@ def _jacobian(tau, coefficients, linear, h, harmonics, basis):
     return np.column_stack(cols + [basis])
 
 
+def _select(rss: dict, n: int, harmonics: int, correlation: float, limit: int) -> int:
+    """The order the nested F tests choose over the RSS of orders 1..: each step up (by one or, looking
+    ahead, two orders) must lower the RSS at ORDER_ALPHA, with n / correlation independent samples."""
+    order = 1
+    while True:
+        for extra in (1, 2):
+            if order + extra not in rss or order + extra > limit:
+                return order
+            new = rss[order + extra]
+            dof = (n - (order + extra + 1) - (2 * harmonics + 1)) / correlation
+            if new < rss[order] and dof > 0:
+                statistic = (rss[order] - new) / extra / (new / dof) / correlation
+                if float(_sps.f.sf(statistic, extra, dof)) < ORDER_ALPHA:
+                    order += extra
+                    break
+        else:
+            return order
+
+
 def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: int,
                      max_order: int = MAX_ORDER) -> CrankMotionFit:
-    """Fit the slider's acceleration ``y`` (along the axis, m/s^2) at times ``t`` (s), starting from ``frequency``."""
+    """Fit the slider's acceleration ``y`` (along the axis, m/s^2) at times ``t`` (s), starting from ``frequency``.
+
+    The order: first the white-noise F tests choose (a wandering speed leaves structured residuals
+    that no correlation correction should excuse); the residuals at that order are then mostly the
+    sensor's noise, and when they are correlated (a coloured sensor buys spurious terms from a white
+    test) the choice is made again over the same fits with the tests' statistic divided by their
+    integrated correlation time.
+    """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
     mid, h = 0.5 * (t[0] + t[-1]), 0.5 * (t[-1] - t[0])
     tau = (t - mid) / h
     n = y.size
-    coefficients = np.array([2 * np.pi * frequency * h])
-    coefficients = _fit_order(tau, y, coefficients, h, harmonics)
-    _, resid, _ = _project(tau, y, coefficients, h, harmonics)
-    rss = {1: float(resid @ resid)}
-    correlation = max(whiteness(resid).tau, 1.0)
+    fits = {1: _fit_order(tau, y, np.array([2 * np.pi * frequency * h]), h, harmonics)}
+    rss = {}
+
+    def residual_of(order):
+        resid = _project(tau, y, fits[order], h, harmonics)[1]
+        rss[order] = float(resid @ resid)
+        return resid
+
+    residual_of(1)
     # keep about a hundred residual degrees of freedom per speed term: the profile follows the motor, not the noise
     limit = int(min(max_order, max(1, (n - 2 * harmonics - 1) // 100)))
     order = 1
-    while order < limit:
-        # look two orders ahead: a wobble's odd (or even) part alone may not lower the RSS at the next order
-        accepted = False
-        trial = coefficients
-        for extra in (1, 2):
-            if order + extra > limit:
-                break
-            trial = _fit_order(tau, y, np.concatenate([trial, [0.0]]), h, harmonics)
-            _, t_resid, _ = _project(tau, y, trial, h, harmonics)
-            t_rss = float(t_resid @ t_resid)
-            dof = (n - (order + extra + 1) - (2 * harmonics + 1)) / correlation
-            if t_rss < rss[order]:
-                statistic = (rss[order] - t_rss) / extra / (t_rss / (dof * correlation)) / correlation
-                p = float(_sps.f.sf(statistic, extra, dof))
-                if p < ORDER_ALPHA:
-                    accepted = True
-                    break
-        if not accepted:
+    while True:
+        top = max(fits)
+        for extra in (1, 2):   # the fits the next white test needs (two ahead: a wobble's odd part alone may not help)
+            if order + extra <= limit and order + extra not in fits:
+                previous = fits[order + extra - 1] if order + extra - 1 in fits else fits[top]
+                fits[order + extra] = _fit_order(tau, y, np.concatenate([previous, [0.0]]), h, harmonics)
+                residual_of(order + extra)
+        chosen = _select(rss, n, harmonics, 1.0, limit)
+        if chosen == order:
             break
-        order += extra
-        coefficients, rss[order] = trial, t_rss
-        correlation = max(whiteness(t_resid).tau, 1.0)
+        order = chosen
+    correlation = max(whiteness(residual_of(order)).tau, 1.0)
+    if correlation > 1.0:
+        order = _select(rss, n, harmonics, correlation, order)
+    coefficients = fits[order]
     linear, resid, basis = _project(tau, y, coefficients, h, harmonics)
     jac = _jacobian(tau, coefficients, linear, h, harmonics, basis)
     return CrankMotionFit(order, coefficients, linear, jac, resid, harmonics, h, rss)

@@ -202,8 +202,7 @@ class SliderCrankRig(Rig):
     def _end_speed(self, i: int) -> float:
         """Crank speed in rad/s at the end of segment i, where the next ramp starts."""
         ripple = HUNT_RIPPLE * np.sin(2 * np.pi * HUNT_FREQUENCY * self.step_seconds) if self._hunting(i) else 0.0
-        t_end = (i + 1) * self.segment
-        ripple += self.ramp + self.wobble * np.sin(2 * np.pi * self.wobble_hz * t_end + self.wobble_phase)
+        ripple += self.ramp + self._wobble(np.array([self.step_seconds]))[0]
         return 2 * np.pi * self.actual_speeds[i] * (1 + ripple)
 
     def _phase_in_segment(self, i: int, tau: np.ndarray) -> np.ndarray:
@@ -221,12 +220,16 @@ class SliderCrankRig(Rig):
             phase = phase + w_new * ts
         if self.ramp:  # the speed drifts linearly by ``ramp`` over the steady part
             phase = phase + w_new * self.ramp * ts**2 / (2 * self.step_seconds)
-        if self.wobble:  # speed w_new (1 + wobble sin(h t + psi)), t the rig's time
-            h = 2 * np.pi * self.wobble_hz
-            t0 = i * self.segment + settle
-            phase = phase + w_new * self.wobble * (np.cos(h * t0 + self.wobble_phase)
-                                                   - np.cos(h * (t0 + ts) + self.wobble_phase)) / h
+        if self.wobble:  # speed w_new (1 + wobble(ts)), its closed-form integral
+            h, psi = 2 * np.pi * self.wobble_hz, self.wobble_phase
+            phase = phase + w_new * self.wobble * ((np.cos(psi) - np.cos(h * ts + psi)) / h - ts * np.sin(psi))
         return phase
+
+    def _wobble(self, ts: np.ndarray) -> np.ndarray:
+        """Relative speed ripple ts s into a step's steady part: wobble (sin(h ts + psi) - sin psi), zero
+        where the ramp hands over (the speed stays continuous: no infinite crank acceleration)."""
+        h, psi = 2 * np.pi * self.wobble_hz, self.wobble_phase
+        return self.wobble * (np.sin(h * ts + psi) - np.sin(psi))
 
     def crank_angle(self, t: np.ndarray):
         """phi(t), the segment index of each time and the time into that segment."""
