@@ -47,7 +47,8 @@ def run(args) -> int:
         raise DataError(f"one test needs {', '.join(missing)}", "or give --campaign CAMPAIGN.yaml")
     import numpy as np
 
-    from accelrig.procedures.rotary.bench import RotarySetup, analyse_files
+    from accelrig.commands import warn_loss
+    from accelrig.procedures.rotary.bench import RotarySetup, analyse_test, load_test_inputs
     from accelrig.result import to_json
 
     v = values_from_args(TEST_SETTINGS, args)
@@ -55,8 +56,11 @@ def run(args) -> int:
     from accelrig.commands.progress import Progress
 
     with Progress(f"analysing {args.mems}"):
-        result = analyse_files(args.mems, args.encoder, v["tangential"], v["radial"], v["nominal_rate"],
-                               v["frequency"], v["rate_method"], setup, units=args.units)
+        mems, encoder = load_test_inputs(args.mems, args.encoder, v["nominal_rate"], units=args.units)
+        result = analyse_test(mems, encoder, v["tangential"], v["radial"], v["nominal_rate"],
+                              v["frequency"], v["rate_method"], setup)
+    analysis_warnings = list(result.warnings)
+    warn_loss(mems, result)   # heavy link loss: on stderr now, and in the result
     if args.json:
         print(to_json(result.to_calibration_result().to_json_dict()))
         return 0
@@ -70,7 +74,7 @@ def run(args) -> int:
               f"reference {s.reference_amplitude:.3f} m/s^2)")
     dc = result.dc_sensitivity
     print(f"S_{dc.axis} from DC  {dc.value:.3f} counts per m/s^2  (reported, not used: offset and tilt enter it)")
-    for w in result.warnings:
+    for w in analysis_warnings:   # warn_loss printed its own
         print(f"warning: {w}", file=sys.stderr)
     return 0
 

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats as _sps
+from scipy.fft import next_fast_len as _next_fast_len
 
 ALPHA = 0.01                 # false alarm rate of each test
 MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
@@ -55,7 +56,8 @@ def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     x = x - x.mean()
     n = x.size
     max_lag = int(min(max_lag, n - 1))
-    size = 1 << int(np.ceil(np.log2(2 * n - 1)))
+    # n + max_lag points of zero padding keep the circular wrap off every lag asked for
+    size = _next_fast_len(n + max_lag)
     spectrum = np.fft.rfft(x, size)
     acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1]
     if acov[0] <= 0:
@@ -290,3 +292,109 @@ def pooled_whiteness(segments: list[np.ndarray]) -> Whiteness:
         tau /= shrink
     p = float(_sps.chi2.sf(q, lags_total))
     return Whiteness(n_total, float(rho[1]), float(tau), window, q, lags_total, p)
+
+
+# ---------------------------------------------------------------- short records: a parametric middle matrix
+
+AR_MAX_ORDER = 20            # highest autoregressive order tried for the residual spectrum
+
+
+@dataclass
+class ARNoise:
+    """An autoregressive model of the residuals: x_t = sum_k a_k x_{t-k} + e_t, var(e) = innovation."""
+
+    coefficients: np.ndarray
+    innovation: float
+
+    @property
+    def order(self) -> int:
+        return int(self.coefficients.size)
+
+    def spectrum(self, omega: np.ndarray) -> np.ndarray:
+        """Two-sided spectral density per sample at angular frequencies omega (rad per sample);
+        white noise of variance s2 gives s2 everywhere."""
+        z = np.exp(-1j * np.asarray(omega, dtype=float))
+        # 1 - sum_k a_k z^k = 1 - z (a_1 + a_2 z + ...), by Horner (polyval): no (n, order) matrix
+        transfer = 1.0 - z * np.polyval(self.coefficients[::-1], z) if self.order else np.ones_like(z)
+        return self.innovation / np.abs(transfer) ** 2
+
+    def variance_ratio(self, cycles_per_sample: float) -> float:
+        """S(f) over the marginal variance: the factor on a white-noise variance for a parameter that sees
+        the noise at f (a sine's amplitude and phase); tau for f = 0."""
+        omega = np.linspace(0.0, np.pi, 4097)
+        marginal = float(np.mean(self.spectrum(omega)))   # the variance: the mean of S over a uniform grid
+        return float(self.spectrum(np.array([2 * np.pi * cycles_per_sample]))[0] / marginal)
+
+
+def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER) -> ARNoise:
+    """AR model of a residual series: Levinson-Durbin on its autocovariance, order by AIC (<= max_order)."""
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    max_order = int(min(max_order, max(n // 10, 0)))
+    var = float(np.mean((r - r.mean()) ** 2))
+    if var <= 0 or max_order == 0:
+        return ARNoise(np.zeros(0), var)
+    acov = autocorrelation(r, max_order) * var
+    best = (n * np.log(var), np.zeros(0), var)
+    a = np.zeros(0)
+    error = var
+    for p in range(1, max_order + 1):
+        reflection = (acov[p] - a @ acov[p - 1:0:-1]) / error if p > 1 else acov[1] / error
+        a = np.concatenate([a - reflection * a[::-1], [reflection]])
+        error *= 1.0 - reflection**2
+        if error <= 0:
+            break
+        aic = n * np.log(error) + 2 * p
+        if aic < best[0]:
+            best = (aic, a.copy(), error)
+    return ARNoise(best[1], float(best[2]))
+
+
+def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, residuals: np.ndarray,
+                           noise: ARNoise | None = None) -> Sandwich:
+    """Sandwich covariance with the middle matrix J' Sigma J from an AR model of the residuals.
+
+    For records too short for batch means (fewer than MIN_BLOCKS blocks of BLOCK_PER_TAU tau): the
+    middle matrix is computed in the frequency domain, sum_k S(w_k) J^(w_k)* J^(w_k), with S the AR
+    spectrum, so each parameter sees the noise at the frequencies its Jacobian column occupies (a
+    sine's amplitude the noise at the sine's frequency).  A smooth parametric spectrum, not the
+    residuals' periodogram: the fit has emptied the periodogram exactly where its columns live.
+    Rows of ``jacobian`` are in time order, one instant each, uniformly sampled.
+    """
+    jacobian = np.asarray(jacobian, dtype=float)
+    noise = noise or ar_noise_model(residuals)
+    n = jacobian.shape[0]
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    spectrum_j = np.fft.rfft(jacobian, size, axis=0)
+    weights = np.full(spectrum_j.shape[0], 2.0)
+    weights[0] = 1.0
+    if size % 2 == 0:
+        weights[-1] = 1.0
+    # the AR transfer 1 - sum a_k e^{-i w k} on the FFT grid is the FFT of its coefficients
+    transfer = np.fft.rfft(np.concatenate([[1.0], -noise.coefficients]), size)
+    s = noise.innovation / np.abs(transfer) ** 2 * weights / size
+    middle = np.real((spectrum_j.conj() * s[:, None]).T @ spectrum_j)
+    bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
+    cov = bread @ middle @ bread
+    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"AR({noise.order}) spectral sandwich")
+
+
+def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray):
+    """The policy in one call: (covariance, how it was made, Whiteness) for a least-squares fit.
+
+    ``white`` is the fit's white-noise covariance sigma^2 (J'J)^-1, returned as it is when the
+    residuals pass as white.  Correlated residuals: the batch-means sandwich when the record
+    holds MIN_BLOCKS blocks of BLOCK_PER_TAU tau, else the AR-spectrum sandwich.  Rows of
+    ``jacobian`` and ``residuals`` are in time order, one instant each.
+    """
+    w = whiteness(residuals)
+    if not w.correlated:
+        return white, "white noise: sigma^2 (J'J)^-1", w
+    jacobian = np.asarray(jacobian, dtype=float)
+    normal = jacobian.T @ jacobian
+    block = w.block_length()
+    sandwich = sandwich_covariance(normal, block_scores(jacobian, residuals, block), block)
+    if sandwich.underresolved:
+        sandwich = ar_sandwich_covariance(normal, jacobian, residuals)
+        return sandwich.covariance, sandwich.method, w
+    return sandwich.covariance, f"batch-means sandwich, {sandwich.blocks} blocks of {sandwich.block} samples", w

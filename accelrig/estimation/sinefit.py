@@ -28,6 +28,11 @@ uncertainties include the frequency's contribution over that lever arm.
 
 Uncertainties are standard (k = 1), from the fit's covariance
 sigma^2 (J^T J)^-1 with sigma estimated from the residuals (RSS / (n - p)).
+With ``check_noise=True`` the residuals are tested for whiteness first
+(estimation.residuals); when they are correlated the covariance is the
+sandwich instead (batch means, or for a record too short for enough blocks
+the AR-spectrum sandwich), and ``covariance_method`` / ``whiteness`` say so.
+Needs samples uniform in ``t`` for the AR form (sample indices always are).
 """
 
 from __future__ import annotations
@@ -38,9 +43,12 @@ import numpy as np
 
 from accelrig.errors import DataError
 from accelrig.estimation.crb import crb_covariance
+from accelrig.estimation.residuals import Whiteness, checked_covariance
 
 MIN_CYCLES = 1.5  # below this the frequency and the offset cannot be told apart (IEEE 1057)
 MAX_ITERATIONS = 60
+STATISTICAL_TOLERANCE = 1e-3  # Gauss-Newton stops at steps below this share of the frequency's own u
+STAGE_SAMPLES = 4096  # a first (one-sine) stage needs no more samples than this to reach the basin
 
 
 @dataclass
@@ -69,6 +77,8 @@ class SineFit:
     start_frequency: float = float("nan")
     harmonics: int = 1
     frequency_fitted: bool = True
+    covariance_method: str = "white noise: sigma^2 (J'J)^-1"
+    whiteness: Whiteness | None = None   # with check_noise=True
 
     def model(self, t: np.ndarray) -> np.ndarray:
         """Evaluate the fitted model at times ``t`` (same axis as the fit)."""
@@ -92,6 +102,8 @@ class SineFit:
             "n_iterations": self.n_iterations,
             "converged": self.converged,
             "harmonics": self.harmonics,
+            "covariance_method": self.covariance_method,
+            **({"whiteness": self.whiteness.to_dict()} if self.whiteness is not None else {}),
         }
 
 
@@ -133,20 +145,29 @@ def _check_harmonics(harmonics: int) -> int:
 
 # ---------------------------------------------------------------- model pieces
 
-def _basis(tc: np.ndarray, frequency: float, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
-    """Design matrix [1, cos wt, sin wt, cos 2wt, sin 2wt, ...] and its derivative in f."""
-    k = np.arange(1, harmonics + 1)
-    arg = 2 * np.pi * frequency * np.outer(tc, k)  # (n, H)
-    cos, sin = np.cos(arg), np.sin(arg)
+def _basis(tc: np.ndarray, frequency: float, harmonics: int, derivative: bool = True):
+    """Design matrix [1, cos wt, sin wt, cos 2wt, sin 2wt, ...] and (``derivative``) its derivative in f.
+
+    One cos and one sin per sample; the harmonics by the angle-addition recurrence (a few
+    multiply-adds instead of a transcendental each: the basis is most of a tall fit's time).
+    """
     n = tc.size
     phi = np.empty((n, 2 * harmonics + 1))
     phi[:, 0] = 1.0
-    phi[:, 1::2] = cos
-    phi[:, 2::2] = sin
-    lever = 2 * np.pi * np.outer(tc, k)  # d(arg)/df
+    arg = (2 * np.pi * frequency) * tc
+    c1, s1 = np.cos(arg), np.sin(arg)
+    phi[:, 1], phi[:, 2] = c1, s1
+    for k in range(2, harmonics + 1):
+        cp, sp = phi[:, 2 * k - 3], phi[:, 2 * k - 2]
+        phi[:, 2 * k - 1] = cp * c1 - sp * s1
+        phi[:, 2 * k] = sp * c1 + cp * s1
+    if not derivative:
+        return phi, None
     dphi = np.zeros_like(phi)
-    dphi[:, 1::2] = -lever * sin
-    dphi[:, 2::2] = lever * cos
+    lever = (2 * np.pi) * tc  # d(arg)/df for k = 1
+    for k in range(1, harmonics + 1):
+        dphi[:, 2 * k - 1] = -(k * lever) * phi[:, 2 * k]
+        dphi[:, 2 * k] = (k * lever) * phi[:, 2 * k - 1]
     return phi, dphi
 
 
@@ -186,16 +207,30 @@ def _project(phi: np.ndarray, y: np.ndarray):
 
 
 def _vp_step(tc, y, frequency, harmonics):
-    """Residual, cost and the Golub-Pereyra Jacobian of the projected residual in f."""
-    phi, dphi = _basis(tc, frequency, harmonics)
+    """Residual, cost and the Golub-Pereyra Jacobian of the projected residual in f.
+
+    The basis's derivative in f is never built: column k of it is +-k lever times the matching
+    sin/cos column (lever = 2 pi t), so dPhi c and dPhi' r are products with the basis itself.
+    Also returns (basis, dPhi c, linear coefficients) for the caller's final covariance.
+    """
+    phi, _ = _basis(tc, frequency, harmonics, derivative=False)
     chol, coef, resid = _project(phi, y)
-    dc = np.einsum("ni,i->n", dphi, coef)
+    lever = (2 * np.pi) * tc
+    k = np.arange(1, harmonics + 1)
+    weights = np.zeros_like(coef)
+    weights[1::2] = k * coef[2::2]      # on cos k: k b_k
+    weights[2::2] = -k * coef[1::2]     # on sin k: -k a_k
+    dc = lever * np.einsum("ni,i->n", phi, weights)
+    v = np.einsum("ni,n->i", phi, lever * resid)
+    dphi_r = np.zeros_like(coef)
+    dphi_r[1::2] = -k * v[2::2]
+    dphi_r[2::2] = k * v[1::2]
     # d(P_perp y)/df = -P_perp (dPhi c) - Phi^+T (dPhi^T r); the second term is
     # Golub-Pereyra's, which Kaufman drops; kept since a one-sine fit of a
     # slider-crank signal has large residuals.  Both share Phi G^-1 (.):
-    rhs = np.einsum("ni,n->i", phi, dc) + np.einsum("ni,n->i", dphi, resid)
+    rhs = np.einsum("ni,n->i", phi, dc) + dphi_r
     jac = -dc + np.einsum("ni,i->n", phi, _solve_gram(chol, rhs))
-    return resid, float(resid @ resid), jac, coef
+    return resid, float(resid @ resid), jac, (phi, dc, coef)
 
 
 def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
@@ -214,31 +249,41 @@ def _covariance(jac: np.ndarray, sigma2: float, names: list[str]) -> np.ndarray:
 
 
 def _gauss_newton(tc, y, start, harmonics, tol):
-    """One-dimensional Gauss-Newton on the variable projection functional, with step halving."""
+    """One-dimensional Gauss-Newton on the variable projection functional, with step halving.
+
+    Stops when a step is below ``tol`` or below STATISTICAL_TOLERANCE times the frequency's own
+    standard uncertainty (sqrt(cost / dof / J'J)): a step a thousand times smaller than the
+    uncertainty changes nothing a user could see, so it is not taken and the point already
+    evaluated is the answer.  Returns (frequency, iterations, converged, (basis, its derivative,
+    linear coefficients, residuals) at that frequency).
+    """
     frequency = start
-    resid, cost, jac, _ = _vp_step(tc, y, frequency, harmonics)
+    resid, cost, jac, pieces = _vp_step(tc, y, frequency, harmonics)
+    dof = max(y.size - 2 * harmonics - 2, 1)
     for iteration in range(1, MAX_ITERATIONS + 1):
         jj = float(jac @ jac)
         if jj <= 0:
-            return frequency, iteration, False
+            return frequency, iteration, False, (*pieces, resid)
         step = -float(jac @ resid) / jj
+        if abs(step) < STATISTICAL_TOLERANCE * np.sqrt(cost / dof / jj):
+            return frequency, iteration, True, (*pieces, resid)
         for _ in range(40):
             trial = frequency + step
             if trial > 0:
-                t_resid, t_cost, t_jac, _ = _vp_step(tc, y, trial, harmonics)
+                t_resid, t_cost, t_jac, t_pieces = _vp_step(tc, y, trial, harmonics)
                 if t_cost <= cost * (1 + 1e-14):
                     break
             step *= 0.5
         else:
-            return frequency, iteration, abs(step) < tol
-        frequency, resid, cost, jac = trial, t_resid, t_cost, t_jac
+            return frequency, iteration, abs(step) < tol, (*pieces, resid)
+        frequency, resid, cost, jac, pieces = trial, t_resid, t_cost, t_jac, t_pieces
         if abs(step) < tol:
-            return frequency, iteration, True
-    return frequency, MAX_ITERATIONS, False
+            return frequency, iteration, True, (*pieces, resid)
+    return frequency, MAX_ITERATIONS, False, (*pieces, resid)
 
 
 def _full_jacobian(tc, frequency, coef, harmonics, fit_frequency):
-    phi, dphi = _basis(tc, frequency, harmonics)
+    phi, dphi = _basis(tc, frequency, harmonics, derivative=fit_frequency)
     if not fit_frequency:
         return phi
     return np.column_stack([dphi @ coef, phi])
@@ -317,7 +362,8 @@ def interpolated_dft_frequency(t, y) -> float:
     return (peak + delta) / (n * dt)
 
 
-def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequency: bool = True) -> SineFit:
+def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequency: bool = True,
+             check_noise: bool = False) -> SineFit:
     """Fit offset + harmonics 1..H of one frequency to ``y`` sampled at ``t``.
 
     ``t`` may be timestamps (s, possibly non-uniform) or sample indices (then
@@ -359,20 +405,32 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
         stages = [1, harmonics] if harmonics > 1 else [1]
         for stage_harmonics in stages:
             # the final stage stops far below any achievable uncertainty; an
-            # earlier stage only has to hand a start well inside the basin
-            tol = (1e-11 if stage_harmonics == harmonics else 1e-4) / span
-            estimate, iters, ok = _gauss_newton(tc, y, estimate, stage_harmonics, tol)
+            # earlier stage only has to hand a start well inside the basin, and
+            # does so from every stride-th sample of a long record (still at
+            # least STAGE_SAMPLES, and 5 samples per period of the top harmonic)
+            final = stage_harmonics == harmonics
+            tol = (1e-11 if final else 1e-4) / span
+            stride = 1 if final else int(max(1, min(y.size // STAGE_SAMPLES,
+                                                     0.2 / (harmonics * estimate * mean_dt))))
+            estimate, iters, ok, last = _gauss_newton(tc[::stride], y[::stride], estimate, stage_harmonics, tol)
             n_iterations += iters
             converged = ok
         if estimate * harmonics >= 0.5 / mean_dt or estimate * (span + mean_dt) < 1.0:
             converged = False  # ran off to a frequency the record cannot support
 
-    phi, _ = _basis(tc, estimate, harmonics)
-    _, coef, resid = _project(phi, y)
+    if fit_frequency:   # the last stage ran on every sample, at this frequency: its basis and fit are final
+        phi, dc, coef, resid = last
+        jac = np.column_stack([dc, phi])
+    else:
+        phi, _ = _basis(tc, estimate, harmonics, derivative=False)
+        _, coef, resid = _project(phi, y)
+        jac = phi
     dof = y.size - n_params
     sigma2 = float(resid @ resid) / dof
-    jac = _full_jacobian(tc, estimate, coef, harmonics, fit_frequency)
     cov_q = _covariance(jac, sigma2, _internal_names(harmonics, fit_frequency))
+    method, white_test = "white noise: sigma^2 (J'J)^-1", None
+    if check_noise:
+        cov_q, method, white_test = checked_covariance(jac, resid, cov_q)
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -395,7 +453,58 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
         start_frequency=float(start),
         harmonics=harmonics,
         frequency_fitted=fit_frequency,
+        covariance_method=method,
+        whiteness=white_test,
     )
+
+
+def fit_sines_known_frequency(t, signals, frequency: float, harmonics: int = 1,
+                              check_noise=False) -> list[SineFit]:
+    """Three-parameter fits (IEEE 1057, frequency known) of several signals sampled at the same ``t``.
+
+    ``signals`` is (n, m): one fit per column, the same as ``fit_sine(t, column, frequency,
+    harmonics, fit_frequency=False)`` each, with the design matrix and its factorisation made once.
+    ``check_noise``: one bool for all columns, or one per column.
+    """
+    signals = np.asarray(signals, dtype=float)
+    if signals.ndim != 2:
+        raise DataError(f"fit_sines_known_frequency needs an (n, m) array of signals, got shape {signals.shape}")
+    columns = [_as_inputs(t, signals[:, j])[1] for j in range(signals.shape[1])]
+    t = _as_inputs(t, columns[0])[0]
+    harmonics = _check_harmonics(harmonics)
+    n_params = 2 * harmonics + 1
+    if t.size < max(8, 3 * n_params):
+        raise DataError(f"only {t.size} samples: a {n_params}-parameter sine fit needs at least {max(8, 3 * n_params)}")
+    if not (np.isfinite(frequency) and frequency > 0):
+        raise DataError(f"the frequency must be positive, got {frequency!r}")
+    t_ref = float(np.mean(t))
+    tc = t - t_ref
+    phi, _ = _basis(tc, frequency, harmonics, derivative=False)
+    chol = _gram_factor(phi)
+    coefs = _solve_gram(chol, phi.T @ np.column_stack(columns))
+    names = _internal_names(harmonics, False)
+    unit = _covariance(phi, 1.0, names)
+    checks = [bool(check_noise)] * len(columns) if np.ndim(check_noise) == 0 else [bool(c) for c in check_noise]
+    fits = []
+    for j, y in enumerate(columns):
+        coef = coefs[:, j]
+        resid = y - phi @ coef
+        sigma2 = float(resid @ resid) / (y.size - n_params)
+        cov_q = sigma2 * unit
+        method, white_test = "white noise: sigma^2 (J'J)^-1", None
+        if checks[j]:
+            cov_q, method, white_test = checked_covariance(phi, resid, cov_q)
+        amp, phase, cov, reported = _to_reported(coef, frequency, t_ref, harmonics, False, cov_q)
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+        fits.append(SineFit(
+            frequency=float(frequency), frequency_uncertainty=0.0, amplitude=amp,
+            amplitude_uncertainty=sd[1::2].copy(), phase=phase, phase_uncertainty=sd[2::2].copy(),
+            offset=float(coef[0]), offset_uncertainty=float(sd[0]), covariance=cov, parameter_names=reported,
+            residual_sd=float(np.sqrt(sigma2)), residuals=resid, fitted=y - resid, n_iterations=0, converged=True,
+            start_frequency=float(frequency), harmonics=harmonics, frequency_fitted=False,
+            covariance_method=method, whiteness=white_test,
+        ))
+    return fits
 
 
 def sine_crb(t, frequency: float, amplitude, phase, sigma: float, offset: float = 0.0,

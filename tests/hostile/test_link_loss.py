@@ -43,3 +43,17 @@ def test_a_verification_from_a_lossy_recording_carries_the_warning(cli, tmp_path
     assert result.returncode in (0, 1), result.stderr   # the verdict is not the point here
     assert result.stderr.startswith("accelrig: warning: the link lost")
     assert any("the link lost" in w for w in json.loads(result.stdout)["warnings"])
+
+
+def test_a_rotary_test_from_a_lossy_recording_carries_the_warning_and_places_the_gaps(cli, tmp_path):
+    out = tmp_path / "rotary.csv"
+    assert cli("record", "sim://rotary?seed=3&pace=fast&rate=1660&range=8&seconds=12&drop=0.2&block=64",
+               "--units", "counts", "-o", out).returncode == 0
+    result = cli("calibrate", "rotary", "--mems", out, "--radius", "0.170", "--tangential", "x", "--radial", "y",
+                 "--nominal-rate", "1660", "--json")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.startswith("accelrig: warning: the link lost")
+    warnings = json.loads(result.stdout)["warnings"]
+    assert any("the link lost" in w for w in warnings)
+    # the gaps are placed on the sample grid (from the recorder's gap list), not closed up
+    assert any("are missing in" in w and "gap list" in w for w in warnings)

@@ -24,11 +24,19 @@ Processing, as the paper and with its known weaknesses made explicit:
    ends trimmed by the filter's settling time, then zero-crossing trimming of
    the tangential axis to whole periods.
 4. Amplitudes at f, 2f and DC of each axis: ``fit`` by a three-parameter fit
-   (with harmonics) at the estimated nu; ``scan`` by the paper's FFT bins of
-   the whole-period record.  Standard uncertainties come from the same model
-   fitted to the UNFILTERED whole-period record: low-pass filtering leaves the
-   noise at f untouched but shrinks the residuals, so a covariance from the
-   filtered residuals would be several times too small.
+   (with harmonics) at the estimated nu of the UNFILTERED whole-period record
+   (the fit is blind to the out-of-band noise the low-pass removes, so the
+   filter adds nothing to it); ``scan`` by the paper's FFT bins of the
+   filtered whole-period record, divided by the filter's gain.  Standard
+   uncertainties come from the unfiltered fit in both (low-pass filtering
+   leaves the noise at f untouched but shrinks the residuals, so a covariance
+   from the filtered residuals would be several times too small), its
+   residuals checked for whiteness (estimation.residuals: correlated noise
+   gets the sandwich covariance, and the warnings say so).
+   Before stage 3 the sample timing is checked: a record that lost samples
+   without a trace (its phase in sample index jumps) is refused; gaps the
+   record knows of (the recorder's gap list, or its timestamps) are placed on
+   the sample grid and only real samples enter the fits.
 5. Sensitivity in counts per m/s^2: tangential axis from the f component,
    radial axis from the 2f component; the DC of the radial axis is reported
    and not used (it carries the offset and the bench's tilt, as the paper found).
@@ -41,11 +49,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
+from scipy import signal, stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
-from accelrig.estimation.sinefit import SineFit, fit_sine, interpolated_dft_frequency
+from accelrig.estimation.sinefit import SineFit, fit_sine, fit_sines_known_frequency, interpolated_dft_frequency
 from accelrig.geometry import AXES, parse_axis
 from accelrig.procedures.rotary.settings import RATE_METHODS
 from accelrig.recording import Recording, load_recording, read_table
@@ -60,6 +68,7 @@ SCAN_STEP = 1.0  # Hz
 SETTLE_SECONDS = 0.5  # dropped at each end after filtering: far beyond the filter's ~0.1 s ring-down
 HARMONICS = 3  # f, 2f, 3f: the centripetal cross-talk and motion distortion, kept out of the fundamental
 RADIAL_F_LIMIT = 0.15  # m/s^2 at f on the radial axis: the paper's mounting check
+RATE_OFF_LIMIT = 0.03  # a rate further than this from nominal is not a MEMS clock's error (datasheets: ~1 %)
 
 
 @dataclass
@@ -352,8 +361,14 @@ def analyse_test(
     """Process one rotary test (see the module docstring): each numbered stage is one function below."""
     setup = setup or RotarySetup()
     i_t, i_r, i_up = check_test_inputs(tangential, radial, nominal_rate, frequency, rate_method)
-    counts = checked_counts(mems)
+    real = checked_counts(mems)
     source = mems.meta.get("source", "MEMS recording")
+    warnings: list[str] = []
+    # sample positions on the MEMS's own sample grid: gaps the record knows of are kept as gaps
+    index, gap_note = sample_positions(mems, nominal_rate)
+    if gap_note:
+        warnings.append(gap_note)
+    counts = on_full_grid(index, real)   # for the filter and the spectra only; every fit uses the real samples
     if encoder is None:
         encoder = EncoderLog.from_recording(mems)
     enc = overlapping_encoder(mems, encoder, counts.shape[0], nominal_rate)
@@ -362,29 +377,40 @@ def analyse_test(
     f = ref.frequency
     rate_fit = None
     if rate_method == "fit":                                                               # 2
-        rate_fit, nu, fs, u_fs = sample_rate_by_fit(counts[:, i_t], nu_peak, f, ref.u_f_rel)
+        rate_fit, nu, fs, u_fs = sample_rate_by_fit(real[:, i_t], nu_peak, f, ref.u_f_rel, index)
         fs_for_filter = fs
     else:
         # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
         fs_for_filter = nominal_rate
+    timing = check_sample_timing(index, real[:, i_t], rate_fit.frequency if rate_fit else nu_peak, source)
     sos, filtered, seg, periods = filter_and_trim(counts, i_t, f, fs_for_filter, setup.filter_cutoff,  # 3
                                                   nominal_rate, source)
     if rate_method == "scan":
         fs, u_fs, nu, sos, filtered = sample_rate_by_scan(counts, filtered, seg, i_t, f, nominal_rate, sos,
                                                           setup.filter_cutoff)
     gain = {"at_f": zero_phase_gain(sos, f, fs), "at_2f": zero_phase_gain(sos, 2 * f, fs)}
-    amplitudes = axis_amplitudes(counts, filtered, seg, f, fs, nu, rate_method, gain)    # 4
+    amplitudes, noise = axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain)   # 4
     check_axis_roles(amplitudes, i_t, i_r, f)
     sensitivity, dc_sens = sensitivities(amplitudes, ref.components, i_t, i_r)            # 5
 
     amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
-    warnings: list[str] = []
+    fits = ([("sample-rate fit", rate_fit)] if rate_fit is not None else []) + [
+        (f"axis {AXES[i]} amplitudes", noise[AXES[i]]) for i in (i_t, i_r)]
+    for what, fit in fits:
+        if fit.whiteness is not None and fit.whiteness.correlated:
+            warnings.append(f"{what}: {fit.whiteness.describe()}; u from the {fit.covariance_method}")
     radial_at_f = amp_r.at_f / sensitivity[AXES[i_r]].value
     a_tan = ref.components["tangential"]["value"]
     if radial_at_f > RADIAL_F_LIMIT * (a_tan / 49.0):
         warnings.append(
             f"the radial axis {AXES[i_r]} carries {radial_at_f:.3f} m/s^2 at f (the paper's mounting limit is "
             f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
+        )
+    if abs(fs / nominal_rate - 1) > RATE_OFF_LIMIT:
+        warnings.append(
+            f"the sample rate found, {fs:.1f} Hz, is {100 * (fs / nominal_rate - 1):+.1f} % off the nominal "
+            f"{nominal_rate:g} Hz: beyond what a MEMS clock drifts. Check --nominal-rate; if samples were lost at a "
+            "steady pace the sensitivity still holds, but this is not the device's rate"
         )
     up_counts = amplitudes[AXES[i_up]].dc
     quality = {
@@ -399,6 +425,11 @@ def analyse_test(
     if rate_fit is not None:
         quality["rate_fit_residual_sd_counts"] = rate_fit.residual_sd
         quality["rate_fit_iterations"] = rate_fit.n_iterations
+    quality["sample_timing"] = timing
+    quality["noise"] = {what: {"covariance_method": fit.covariance_method,
+                               "whiteness": fit.whiteness.to_dict() if fit.whiteness is not None else None}
+                        for what, fit in fits}
+    quality["samples_missing"] = int(counts.shape[0] - real.shape[0])
     bland = _bland_altman_reference(enc, ref.fit, setup) if enc.ref is not None else None
     arrays = {"filtered_tangential": filtered[seg, i_t], "filtered_radial": filtered[seg, i_r]} if keep_arrays else {}
     return RotaryTest(
@@ -452,6 +483,111 @@ def checked_counts(mems: Recording) -> np.ndarray:
         raise DataError(f"{mems.meta.get('source', 'MEMS recording')}: {clipped} samples sit at the int16 full scale "
                         "(clipped)", "lower the oscillation angle or set a larger range")
     return counts
+
+
+# Sample timing: a record that lost samples without saying where breaks the sample-index model
+# (the motion's phase, counted in samples, jumps at every loss).  Judged on TIMING_SEGMENTS
+# stretches of the record: their phases against one steady sine must agree within their
+# uncertainties (p below TIMING_FALSE_ALARM refuses), and the disagreement must be worth at least
+# a sample (a clock cannot do that within a test; lost samples do).
+TIMING_SEGMENTS = 20
+TIMING_FALSE_ALARM = 1e-6
+
+
+def sample_positions(mems: Recording, nominal_rate: float) -> tuple[np.ndarray, str | None]:
+    """Each real sample's position on the MEMS's sample grid, and a note when the record has gaps.
+
+    Gaps come from the record's metadata (``gaps``: the recorder's sample counter) or, failing
+    that, from its timestamps: a step of about m sample periods is m - 1 samples missing.  The
+    MEMS clock's rate is not trusted, but a gap of a whole sample is far beyond its error.
+    Without either, every sample is taken to follow the previous one (checked later by
+    ``check_sample_timing``).
+    """
+    n = len(mems)
+    positions = np.arange(n, dtype=float)
+    gaps = [g for g in mems.meta.get("gaps") or [] if isinstance(g, dict) and int(g.get("missing", 0)) > 0]
+    where = "metadata's gap list"
+    if gaps:
+        for g in gaps:
+            positions[min(int(g["index"]), n):] += int(g["missing"])
+    elif n > 2:
+        dt = np.diff(np.asarray(mems.t, dtype=float))
+        step = float(np.median(dt))
+        if step > 0 and np.any(dt > 1.5 * step):
+            positions = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(dt / step), 1.0))])
+            where = "timestamps"
+    missing = int(positions[-1] + 1 - n) if n else 0
+    if missing <= 0:
+        return np.arange(n, dtype=float), None
+    runs = int(np.count_nonzero(np.diff(positions) > 1))
+    return positions, (f"{missing} MEMS samples ({missing / (n + missing):.1%}) are missing in {runs} gaps (from the "
+                       f"record's {where}): kept as gaps, each fit uses the real samples at their places on the "
+                       "sample grid")
+
+
+def on_full_grid(positions: np.ndarray, real: np.ndarray) -> np.ndarray:
+    """The samples on the whole sample grid, gaps bridged linearly: for the low-pass filter and the
+    spectra only (a filter needs uniform samples); no fit uses a bridged value."""
+    if positions.size == 0 or positions[-1] == positions.size - 1:
+        return real
+    grid = np.arange(int(positions[-1]) + 1, dtype=float)
+    return np.column_stack([np.interp(grid, positions, real[:, j]) for j in range(real.shape[1])])
+
+
+def phase_wander(t: np.ndarray, y: np.ndarray, frequency: float, segments: int = TIMING_SEGMENTS) -> dict | None:
+    """Phase of one steady sine fitted on stretches of the record, against a straight line in time.
+
+    Returns the deviations (rad), their uncertainties (noise checked for whiteness), the chi-square
+    p-value of the line (dof segments - 2) and the largest deviation; None when the record holds
+    too few periods for the test (fewer than 3 per stretch and 4 stretches).
+    """
+    periods = frequency * (t[-1] - t[0])
+    k = int(min(segments, periods // 3))
+    if k < 4:
+        return None
+    edges = np.linspace(0, t.size, k + 1).astype(int)
+    phases, sds, centres = [], [], []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        fit = fit_sine(t[a:b], y[a:b], frequency=frequency, harmonics=HARMONICS, fit_frequency=False,
+                       check_noise=True)
+        phases.append(float(fit.phase[0]))
+        sds.append(float(fit.phase_uncertainty[0]))
+        centres.append(float(np.mean(t[a:b])))
+    phases = np.unwrap(np.array(phases))
+    sds, centres = np.maximum(np.array(sds), 1e-12), np.array(centres)
+    design = np.column_stack([np.ones(k), centres - centres.mean()]) / sds[:, None]
+    coef, *_ = np.linalg.lstsq(design, phases / sds, rcond=None)
+    deviation = phases - (design * sds[:, None]) @ coef
+    chi2 = float(np.sum((deviation / sds) ** 2))
+    return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(stats.chi2.sf(chi2, k - 2)),
+            "max_deviation_rad": float(np.max(np.abs(deviation))), "deviation_rad": deviation.tolist(),
+            "uncertainty_rad": sds.tolist()}
+
+
+def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, source: str) -> dict | None:
+    """Refuse a record whose samples do not follow one another (samples lost without a trace).
+
+    The tangential axis is a steady sine in the sample index only if every sample is where the
+    index says.  A lost sample shifts the rest of the record by one period of the sample clock, a
+    phase step of 2 pi nu: over a record the phase then wanders far beyond its uncertainty and the
+    amplitude of a whole-record fit shrinks (5 % scattered loss: about -4 % to -14 % sensitivity).
+    """
+    wander = phase_wander(positions, y_t, nu)
+    if wander is None:
+        return None
+    samples = wander["max_deviation_rad"] / (2 * np.pi * nu)
+    wander["max_deviation_samples"] = float(samples)
+    if wander["p_value"] < TIMING_FALSE_ALARM and samples > 1.0:
+        raise CalibrationError(
+            f"{source}: samples were lost without a trace: the sample count does not match the motion. Counted "
+            f"in samples, the phase of the tangential axis's oscillation wanders by up to {samples:.0f} sample "
+            f"periods ({wander['max_deviation_rad']:.2f} rad) between stretches of the record (chi-square "
+            f"{wander['chi2']:.3g} for {wander['dof']} degrees of freedom); a sample-index fit would report a "
+            "sensitivity several per cent low",
+            "record the MEMS with its timestamps or its recorder's gap list (accelrig record keeps both) so the "
+            "gaps can be placed, or re-record over a steady link",
+        )
+    return wander
 
 
 def overlapping_encoder(mems: Recording, encoder: EncoderLog, n: int, nominal_rate: float) -> EncoderLog:
@@ -557,10 +693,14 @@ def excitation_on_tangential(y_t: np.ndarray, f: float, nominal_rate: float, axi
     return nu_peak
 
 
-def sample_rate_by_fit(y_t: np.ndarray, nu_peak: float, f: float, u_f_rel: float):
-    """Stage 2 (fit): cycles per sample nu by a sample-index sine fit; fs = f / nu.  Returns (fit, nu, fs, u_fs)."""
-    rate_fit = fit_sine(np.arange(y_t.size, dtype=float), y_t, frequency=nu_peak, harmonics=HARMONICS,
-                        fit_frequency=True)
+def sample_rate_by_fit(y_t: np.ndarray, nu_peak: float, f: float, u_f_rel: float, index: np.ndarray | None = None):
+    """Stage 2 (fit): cycles per sample nu by a sample-index sine fit; fs = f / nu.  Returns (fit, nu, fs, u_fs).
+
+    ``index``: each sample's position on the sample grid (gaps kept); default 0 .. n-1.  The
+    residuals are checked for whiteness: correlated noise gets the sandwich covariance.
+    """
+    index = np.arange(y_t.size, dtype=float) if index is None else index
+    rate_fit = fit_sine(index, y_t, frequency=nu_peak, harmonics=HARMONICS, fit_frequency=True, check_noise=True)
     if not rate_fit.converged:
         raise CalibrationError("the sample-index sine fit of the tangential axis did not converge")
     nu = rate_fit.frequency
@@ -593,29 +733,41 @@ def sample_rate_by_scan(counts, filtered, seg, i_t, f, nominal_rate, sos, cutoff
     return fs, u_fs, f / fs, sos, filtered
 
 
-def axis_amplitudes(counts, filtered, seg, f, fs, nu, rate_method, gain) -> dict[str, AxisAmplitudes]:
+def axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain):
     """Stage 4: each axis's components at f, 2f and DC over the whole periods, filter gain corrected;
-    their uncertainties from the same model fitted to the unfiltered record (see the module docstring)."""
+    their uncertainties from the same model fitted to the unfiltered record (see the module docstring),
+    its residuals checked for whiteness.  ``index`` places the ``real`` samples on the sample grid
+    of ``filtered`` (gaps kept: only real samples enter a fit; a record with gaps takes its
+    amplitudes from the unfiltered fit).  Returns (amplitudes, raw fits)."""
+    gapped = bool(index.size and index[-1] != index.size - 1)
+    inside = (index >= seg.start) & (index < seg.stop)
+    k_seg = index[inside]
     n_seg = seg.stop - seg.start
-    k_seg = np.arange(counts.shape[0], dtype=float)[seg]
     bin_f = int(round(f * n_seg / fs))
     # the FFT reads the bin's frequency, m / N cycles per sample: its noise level is that of a fit there
     nu_amplitudes = nu if rate_method == "fit" else bin_f / n_seg
     amplitudes: dict[str, AxisAmplitudes] = {}
+    raw_fits: dict[str, SineFit] = {}
+    # one design matrix for the three raw axes (and, by the fit method, the three filtered ones)
+    raw = fit_sines_known_frequency(k_seg, real[inside], nu_amplitudes, HARMONICS, check_noise=True)
     for axis in range(3):
-        raw_fit = fit_sine(k_seg, counts[seg, axis], frequency=nu_amplitudes, harmonics=HARMONICS,
-                           fit_frequency=False)
-        if rate_method == "fit":
-            filt_fit = fit_sine(k_seg, filtered[seg, axis], frequency=nu, harmonics=HARMONICS, fit_frequency=False)
-            a1, a2, dc = filt_fit.amplitude[0], filt_fit.amplitude[1], filt_fit.offset
+        raw_fit = raw[axis]
+        g_f, g_2f = gain["at_f"], gain["at_2f"]
+        if gapped or rate_method == "fit":
+            # the fit's own amplitudes: a three-parameter fit at f, 2f, 3f is already blind to the noise
+            # a low-pass would remove, so it needs no filter (and no filter gain); bridged gaps would
+            # leak through a filter into the amplitudes, the fit uses the real samples alone
+            a1, a2, dc = raw_fit.amplitude[0], raw_fit.amplitude[1], raw_fit.offset
+            g_f = g_2f = 1.0
         else:
             a1, a2, dc = _fft_components(filtered[seg, axis], bin_f)
+        raw_fits[AXES[axis]] = raw_fit
         amplitudes[AXES[axis]] = AxisAmplitudes(
-            at_f=float(a1 / gain["at_f"]), at_f_uncertainty=float(raw_fit.amplitude_uncertainty[0] / gain["at_f"]),
-            at_2f=float(a2 / gain["at_2f"]), at_2f_uncertainty=float(raw_fit.amplitude_uncertainty[1] / gain["at_2f"]),
+            at_f=float(a1 / g_f), at_f_uncertainty=float(raw_fit.amplitude_uncertainty[0] / g_f),
+            at_2f=float(a2 / g_2f), at_2f_uncertainty=float(raw_fit.amplitude_uncertainty[1] / g_2f),
             dc=float(dc), dc_uncertainty=float(raw_fit.offset_uncertainty),
         )
-    return amplitudes
+    return amplitudes, raw_fits
 
 
 def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, f: float) -> None:
@@ -692,6 +844,15 @@ def _bland_altman_reference(enc: EncoderLog, enc_fit: SineFit, setup: RotarySetu
     return out
 
 
+def load_test_inputs(mems_path: str | os.PathLike, encoder_path: str | os.PathLike | None, nominal_rate: float,
+                     units: str | None = None) -> tuple[Recording, EncoderLog | None]:
+    """The MEMS recording (counts; a file without ``t`` gets k / nominal_rate) and the encoder log, if given."""
+    if units is not None:
+        normalise_unit(units)
+    mems = load_recording(mems_path, units=units, rate=nominal_rate)
+    return mems, (read_encoder_csv(encoder_path) if encoder_path else None)
+
+
 def analyse_files(
     mems_path: str | os.PathLike,
     encoder_path: str | os.PathLike | None,
@@ -703,9 +864,6 @@ def analyse_files(
     setup: RotarySetup | None = None,
     units: str | None = None,
 ) -> RotaryTest:
-    """Load the MEMS recording (counts; a file without ``t`` gets k / nominal_rate) and the encoder log."""
-    if units is not None:
-        normalise_unit(units)
-    mems = load_recording(mems_path, units=units, rate=nominal_rate)
-    encoder = read_encoder_csv(encoder_path) if encoder_path else None
+    """Load the MEMS recording and the encoder log (``load_test_inputs``), then ``analyse_test``."""
+    mems, encoder = load_test_inputs(mems_path, encoder_path, nominal_rate, units)
     return analyse_test(mems, encoder, tangential, radial, nominal_rate, frequency, rate_method, setup)

@@ -58,7 +58,7 @@ from accelrig.procedures.rotary.bench import (
     analyse_test,
     read_encoder_csv,
 )
-from accelrig.recording import load_recording
+from accelrig.recording import load_recording, loss_warning
 from accelrig.result import CalibrationResult, Estimate, to_plain
 from accelrig.safe_yaml import load_yaml_file
 from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
@@ -191,8 +191,11 @@ def run_test(test: CampaignTest) -> RotaryTest:
     try:
         mems = load_recording(test.mems, units=o["units"], rate=o["nominal_rate"])
         encoder = read_encoder_csv(test.encoder) if test.encoder else None
-        return analyse_test(mems, encoder, o["tangential"], o["radial"], o["nominal_rate"],
-                            o["frequency"], o["rate_method"], test.setup)
+        result = analyse_test(mems, encoder, o["tangential"], o["radial"], o["nominal_rate"],
+                              o["frequency"], o["rate_method"], test.setup)
+        if (loss := loss_warning(mems)) is not None:   # heavy link loss: in the test's (and the report's) warnings
+            result.warnings.append(loss)
+        return result
     except AccelrigError as exc:
         # name the test: in a campaign of 50 files "not found on the tangential axis" alone is no help
         raise type(exc)(f"test {test.index} ({test.label}): {exc.message}", exc.hint) from None

@@ -32,15 +32,16 @@ and the verdict: does the static calibration hold under motion?
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from itertools import pairwise
 
 import numpy as np
 from scipy import stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
+from accelrig.estimation.residuals import checked_covariance, difference_noise_variance, lack_of_fit
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.estimation.stats import robust_sd
+from accelrig.procedures.slider_crank.motion_fit import CrankMotionFit, fit_crank_motion
 from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
 from accelrig.recording import Recording, count_scale
 from accelrig.result import CalibrationResult, Estimate
@@ -63,6 +64,14 @@ NEIGHBOUR_FACTOR = 3.0
 # fits a slow "sine" whose start frequency passed the 1.5-cycle check).  2 cycles, not
 # more: the paper's own first step, 2.5 Hz for 1 s, must pass.
 MIN_AMPLITUDE_SNR = 10.0
+# A speed profile that moves by less than this share of the mean speed is "steady" (a record's
+# tiny drift is followed by the fit but is not worth a warning).
+SPEED_SPREAD = 0.005
+# Residual rms over the model-free noise (white residuals only): above LOF_WARN the step carries a
+# warning (u already includes the misfit, being from the residuals); above LOF_REFUSE the motion is
+# not a crank's and the step is refused.
+LOF_WARN = 1.15
+LOF_REFUSE = 4.0
 MIN_STEP_CYCLES = 2.0
 
 
@@ -103,6 +112,9 @@ class StepResult:
     n_iterations: int = 0
     fit: SineFit | None = None
     harmonics: int = DEFAULT_HARMONICS  # fitted (fewer when the rate leaves no room below Nyquist)
+    speed_order: int = 1           # order of the crank-angle profile fitted (1: constant speed)
+    residual_checks: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # what the residual checks found, for the warnings
 
     def to_json_dict(self) -> dict:
         return {
@@ -138,6 +150,8 @@ class StepResult:
             "noise_sd": self.noise_sd,
             "n_iterations": self.n_iterations,
             "harmonics": self.harmonics,
+            "speed_order": self.speed_order,
+            "residual_checks": self.residual_checks,
         }
 
 
@@ -212,6 +226,14 @@ def fold_residuals(t, residuals, frequency, phase1, samples_per_bin: float = 2.0
     return centres, means, counts
 
 
+def _phase_locked_template(t, residuals, frequency, phase1):
+    """The residuals' crank-angle-folded mean at each sample, and the number of bins it used."""
+    _, means, counts = fold_residuals(t, residuals, frequency, phase1, samples_per_bin=1.0)
+    theta = np.mod(2 * np.pi * frequency * t + phase1, 2 * np.pi)
+    idx = np.minimum((theta / (2 * np.pi) * means.size).astype(int), means.size - 1)
+    return means[idx], int(np.count_nonzero(counts))
+
+
 def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     """The fit with its covariance scaled to the random noise alone, for a record with knocks.
 
@@ -219,15 +241,13 @@ def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     would inflate every uncertainty several times over, yet they are not noise.
     Their effect on the first harmonic is a systematic, budgeted separately
     (the play term of the radius uncertainty).  The noise is what remains of
-    the residuals after removing their crank-angle-folded mean.
+    the residuals after removing their crank-angle-folded mean (one sample per
+    cycle per bin: the template follows even a fast ring; the degrees of
+    freedom it takes are subtracted).
     """
-    # one sample per cycle per bin: the template follows even a fast ring; the
-    # degrees of freedom it takes are subtracted below
-    _, means, counts = fold_residuals(t, fit.residuals, fit.frequency, float(fit.phase[0]), samples_per_bin=1.0)
-    theta = np.mod(2 * np.pi * fit.frequency * t + fit.phase[0], 2 * np.pi)
-    idx = np.minimum((theta / (2 * np.pi) * means.size).astype(int), means.size - 1)
-    cleaned = fit.residuals - means[idx]
-    dof = cleaned.size - fit.covariance.shape[0] - int(np.count_nonzero(counts))
+    template, bins = _phase_locked_template(t, fit.residuals, fit.frequency, float(fit.phase[0]))
+    cleaned = fit.residuals - template
+    dof = cleaned.size - fit.covariance.shape[0] - bins
     if dof <= 0:
         return fit
     scale = float(np.sqrt(cleaned @ cleaned / dof)) / fit.residual_sd
@@ -267,30 +287,62 @@ def detect_backlash(t, residuals, frequency, phase1, noise_sd):
     return bool(detected), float(np.max(np.abs(means[near]))), p_value
 
 
-def speed_steadiness(t, y, frequency, harmonics):
-    """Frequency fitted on segments of >= 3 cycles: (unsteady?, spread of segment frequencies in Hz)."""
-    cycles = frequency * (t[-1] - t[0])
-    n_segments = int(min(4, cycles // 3))
-    if n_segments < 2:
-        return False, 0.0
-    edges = np.linspace(0, t.size, n_segments + 1).astype(int)
-    values, sds = [], []
-    for a, b in pairwise(edges):
-        try:
-            seg = fit_sine(t[a:b], y[a:b], frequency=frequency, harmonics=harmonics)
-        except DataError:
-            return False, 0.0
-        values.append(seg.frequency)
-        sds.append(seg.frequency_uncertainty)
-    values, sds = np.array(values), np.array(sds)
-    w = 1 / sds**2
-    mean = np.sum(w * values) / np.sum(w)
-    chi2 = float(np.sum(w * (values - mean) ** 2))
-    p_value = stats.chi2.sf(chi2, values.size - 1)
-    spread = float(values.max() - values.min())
-    # Also demand a spread that matters physically (0.5 %), so model error in a
-    # long record with a tiny uncertainty does not read as a wandering motor.
-    return bool(p_value < FALSE_ALARM and spread > 0.005 * frequency), spread
+@dataclass
+class ResidualChecks:
+    """What the step's residuals say (estimation.residuals) and the covariance that follows."""
+
+    covariance: np.ndarray   # of the crank-motion parameters
+    inflation: float         # factor on the sine fit's white-noise u (harmonic amplitudes, peak)
+    method: str
+    whiteness: dict
+    lack_of_fit: dict | None
+    notes: list[str]
+
+    def to_dict(self) -> dict:
+        return {"covariance_method": self.method, "inflation": self.inflation, "whiteness": self.whiteness,
+                "lack_of_fit": self.lack_of_fit}
+
+
+def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | None) -> ResidualChecks:
+    """Whiteness and lack of fit of the crank-motion fit's residuals; the covariance they call for.
+
+    White residuals: sigma^2 (J'J)^-1.  Correlated (estimation.residuals.checked_covariance): the
+    batch-means sandwich, or, with too few blocks for it (a step of a second or two), the sandwich
+    whose middle matrix comes from an AR model of the residual spectrum.  Lack of fit is judged
+    only on white residuals (correlated noise makes the model-free variance too small): a warning
+    above LOF_WARN, a refusal above LOF_REFUSE.  With backlash the knocks are phase-locked and not
+    noise: their folded template is removed first.
+    """
+    resid = motion.residuals
+    dof = resid.size - motion.n_parameters
+    if knocked is not None:
+        template, bins = _phase_locked_template(t, resid, knocked.frequency, float(knocked.phase[0]))
+        resid = resid - template
+        dof -= bins
+    dof = max(dof, 1)
+    sigma2 = float(resid @ resid) / dof
+    normal = motion.jacobian.T @ motion.jacobian
+    white = sigma2 * np.linalg.pinv(normal)
+    cov, method, w = checked_covariance(motion.jacobian, resid, white)
+    notes: list[str] = []
+    lof = None
+    if w.correlated:
+        notes.append(f"{where}: {w.describe()}; u from the {method}")
+    else:
+        noise_var, noise_dof = difference_noise_variance(y, order=3)
+        result = lack_of_fit(sigma2, dof, noise_var, noise_dof)
+        lof = result.to_dict()
+        if result.significant() and result.ratio > LOF_REFUSE:
+            raise CalibrationError(
+                f"{where}: {result.describe()}: the slider's acceleration is not a crank's motion (even with the "
+                f"speed followed to order {motion.order})",
+                "check that the sensor rides the slider firmly, the stand runs freely and nothing else shakes it",
+            )
+        if result.significant() and result.ratio > LOF_WARN:
+            notes.append(f"{where}: {result.describe()}; u is from the residuals, so it includes the misfit")
+    _, g = motion.radius_gradient()
+    inflation = float(np.sqrt(max((g @ cov @ g) / (g @ white @ g), 1.0))) if g @ white @ g > 0 else 1.0
+    return ResidualChecks(cov, inflation, method, w.to_dict(), lof, notes)
 
 
 def fft_peak_frequency(t, y) -> float:
@@ -373,17 +425,29 @@ def analyse_step(
     backlash, knock_peak, knock_p = detect_backlash(t, fit.residuals, fit.frequency, float(fit.phase[0]), noise_sd)
     if backlash:
         fit = _noise_only_covariance(t, fit)
-    f = fit.frequency
     check_crank_motion(where, fit, t)
-    omega2 = (2 * np.pi * f) ** 2
-    amp1 = float(fit.amplitude[0])
-    i_f = fit.parameter_names.index("frequency")
-    i_a = fit.parameter_names.index("amplitude_1")
-    cov_fa = fit.covariance[np.ix_([i_f, i_a], [i_f, i_a])]
 
-    radius = amp1 / omega2
-    jac_r = np.array([-2 * radius / f, 1 / omega2])
-    u_radius = float(np.sqrt(jac_r @ cov_fa @ jac_r))
+    # The radius and the mean speed from the crank-angle model (motion_fit): identical to the sine
+    # fit when the motor runs steadily, and still right (with a wider u) when its speed wanders.
+    motion = fit_crank_motion(t, y, fit.frequency, fit.harmonics)
+    f, grad_f = motion.mean_frequency_gradient()
+    radius, grad_r = motion.radius_gradient()
+    checks = motion_checks(where, t, y, motion, fit if backlash else None)
+    cov = checks.covariance
+    u_f = float(np.sqrt(grad_f @ cov @ grad_f))
+    u_radius = float(np.sqrt(grad_r @ cov @ grad_r))
+    cov_rf = float(grad_r @ cov @ grad_f)
+    omega2 = (2 * np.pi * f) ** 2
+    speed_hz = motion.speed(np.linspace(-1.0, 1.0, 201)) / (2 * np.pi)
+    spread = float(np.ptp(speed_hz))
+    unsteady = bool(motion.order > 1 and spread > SPEED_SPREAD * f)
+    if motion.order == 1:
+        amp1, u_amp1 = float(fit.amplitude[0]), float(fit.amplitude_uncertainty[0]) * checks.inflation
+    else:
+        # the first harmonic of the acceleration at the mean speed: A_1 = r omega^2
+        amp1 = radius * omega2
+        jac = np.array([omega2, 2 * radius * omega2 / f])
+        u_amp1 = float(np.sqrt(jac @ np.array([[u_radius**2, cov_rf], [cov_rf, u_f**2]]) @ jac))
     play = u_play = 0.0
     if backlash and fit.harmonics >= 3:
         # The crank's kinematics have no odd harmonic above the first, so the
@@ -407,9 +471,8 @@ def analyse_step(
     # uncertainty (GUM propagation through the max)
     idx = [fit.parameter_names.index(f"{kind}_{k}") for k in range(1, h + 1) for kind in ("amplitude", "phase")]
     amps_phases = np.array([val for k in range(h) for val in (fit.amplitude[k], fit.phase[k])])
-    peak, peak_cov = propagate_covariance(lambda p: _peak_of_waveform(p, h), amps_phases, fit.covariance[np.ix_(idx, idx)])
-
-    unsteady, spread = speed_steadiness(t, y, f, h)
+    peak, peak_cov = propagate_covariance(lambda p: _peak_of_waveform(p, h), amps_phases,
+                                          fit.covariance[np.ix_(idx, idx)] * checks.inflation**2)
     lam = crank_radius / rod_length
     commanded_model = None if commanded_hz is None else crank_radius * (2 * np.pi * commanded_hz) ** 2
     angles = np.degrees(np.arccos(np.clip(np.abs(axis), 0, 1)))
@@ -418,11 +481,12 @@ def analyse_step(
         label=label,
         n_samples=int(t.size),
         commanded_hz=commanded_hz,
-        frequency_hz=Estimate(f, fit.frequency_uncertainty, "Hz"),
+        frequency_hz=Estimate(f, u_f, "Hz"),
         fft_peak_hz=fft_peak_frequency(t, y),
         start_frequency_hz=float(start),
-        amplitude=Estimate(amp1, float(fit.amplitude_uncertainty[0]), "m/s^2"),
-        harmonic_amplitudes=Estimate(fit.amplitude.tolist(), fit.amplitude_uncertainty.tolist(), "m/s^2"),
+        amplitude=Estimate(amp1, u_amp1, "m/s^2"),
+        harmonic_amplitudes=Estimate(fit.amplitude.tolist(), (fit.amplitude_uncertainty * checks.inflation).tolist(),
+                                     "m/s^2"),
         peak=Estimate(float(peak[0]), float(np.sqrt(peak_cov[0, 0])), "m/s^2"),
         model_amplitude=float(model),
         model_amplitude_bounds=(float((crank_radius - clearance) * omega2), float((crank_radius + clearance) * omega2)),
@@ -438,7 +502,7 @@ def analyse_step(
         knock_significance=knock_p,
         speed_unsteady=unsteady,
         speed_spread_hz=spread,
-        motor_limited=bool(unsteady),  # the shortfall against the commanded speeds is judged over all steps
+        motor_limited=False,  # judged over all steps (mark_rolloff): shortfall, or hunting at the top
         axis=axis.tolist(),
         axis_angles_deg=angles.tolist(),
         axis_angle_uncertainty_deg=float(np.degrees(angle_sd)),
@@ -447,6 +511,9 @@ def analyse_step(
         n_iterations=fit.n_iterations,
         fit=fit,
         harmonics=fit.harmonics,
+        speed_order=motion.order,
+        residual_checks=checks.to_dict(),
+        notes=checks.notes,
     )
 
 
@@ -484,9 +551,20 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     while the schedule rises.  A speed controller's scale is rarely exact
     (the paper's 100 % is "theoretically" 800 rpm), so "short" is judged
     against the best measured/commanded ratio of all steps, not against 1.
+    A step whose speed wandered is beyond the limit only when it is among the
+    fastest and at least two steady steps run below it (a motor hunting at its
+    top); a motor that wanders at every speed is followed by the fit instead
+    (its steps keep their radius, with the wider u that costs).
     The roll-off is the fastest mean speed seen in any step: where the motor
     tops out.
     """
+    by_speed = sorted(steps, key=lambda s: s.frequency_hz.value)
+    top = len(by_speed)
+    while top > 0 and by_speed[top - 1].speed_unsteady:
+        top -= 1
+    if sum(1 for s in by_speed[:top] if not s.speed_unsteady) >= 2:
+        for step in by_speed[top:]:
+            step.motor_limited = True
     ratios = [s.frequency_hz.value / s.commanded_hz for s in steps if s.commanded_hz]
     best_ratio = max(ratios) if ratios else None
     best = -np.inf
@@ -558,9 +636,13 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
                 f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
             )
         if s.backlash:
-            warnings.append(f"step {s.index} ({s.label}): backlash, knocks of {s.knock_peak:.2g} m/s^2 at the dead centres")
+            warnings.append(f"step {s.index} ({s.label}): backlash (play taken up at the dead centres): a phase-locked "
+                            f"residual of up to {s.knock_peak:.2g} m/s^2 there; the play's share is in u(radius)")
         if s.speed_unsteady:
-            warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz within the record")
+            warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz "
+                            f"({100 * s.speed_spread_hz / s.frequency_hz.value:.1f} %) within the record: followed by "
+                            f"a speed profile of order {s.speed_order}, u widened accordingly")
+        warnings.extend(s.notes)
     if rolloff is not None:
         limited = [s.index for s in steps if s.motor_limited]
         warnings.append(

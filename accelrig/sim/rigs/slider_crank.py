@@ -15,9 +15,17 @@ Imperfections the verification must see:
   centre the velocity reverses and the play is taken up on the other side: the
   slider moves by the play, a ramp over KNOCK_RISE through the contact's
   resonance (a knock, paper Fig. 6).
+* play: the pin joint has ``play`` metres of clearance and the slider rides
+  on friction.  At each dead centre the pin reverses; the slider dwells where
+  it stopped until the pin has crossed the clearance, then is picked up on
+  the other side (the take-up smoothed over PLAY_SMOOTHING of the play: a
+  contact of finite stiffness).  No resonance: a dwell and a pick-up.
 * motor limit: above ``max_speed`` the motor cannot follow: its speed falls
   back below the limit (the more so the harder it is pushed) and hunts with a
   slow ripple (paper: a drop-off above about 11.5 Hz).
+* an unsteady motor: ``wobble`` is a slow speed ripple (relative amplitude, at
+  ``wobble_hz`` with a random phase), ``ramp`` a steady drift of the speed
+  over each step (relative change over the step's steady part).
 """
 
 from __future__ import annotations
@@ -41,6 +49,8 @@ OVERLOAD_DROOP = 0.3
 HUNT_RIPPLE = 0.02
 HUNT_FREQUENCY = 1.7
 KNOCK_RISE = 0.002  # s over which the play is taken up
+# The pick-up after a dwell is a softplus over this fraction of the play (the contact's compliance).
+PLAY_SMOOTHING = 0.6
 # A knock has rung out (e^-40) this long after its dead centre: older ones count as settled.
 KNOCK_MEMORY = 40.0 / (KNOCK_DAMPING * 2 * np.pi * KNOCK_FREQUENCY)
 # The knock's jerk jumps where the take-up starts and ends: a short differentiation
@@ -98,7 +108,11 @@ class SliderCrankRig(Rig):
         "rod": "connecting rod length, m (default 0.0353, lambda = 0.18)",
         "clearance": "+-clearance on the radius, m: the effective radius is drawn inside it (default 0)",
         "backlash": "play in the slider joint, m: knocks at the dead centres (default 0)",
+        "play": "clearance in the pin joint, m: the slider dwells at the dead centres until it is taken up (default 0)",
         "max_speed": "highest crank speed the motor can follow, Hz (default 11.5)",
+        "wobble": "slow motor speed ripple, relative amplitude (default 0)",
+        "wobble_hz": "frequency of the speed ripple, Hz (default 1.3)",
+        "ramp": "relative drift of the speed over each step's steady part (default 0)",
         "axis": "direction of motion in the sensor frame: +x .. -z or three numbers (default +x)",
     }
     channel_names = ("step",)
@@ -116,6 +130,11 @@ class SliderCrankRig(Rig):
         axis="+x",
         radius_offset: float = 0.0,
         g: float = STANDARD_GRAVITY,
+        play: float = 0.0,
+        wobble: float = 0.0,
+        wobble_hz: float = 1.3,
+        wobble_phase: float = 0.0,
+        ramp: float = 0.0,
     ):
         steps = np.asarray(steps, dtype=float)
         if steps.ndim != 1 or steps.size == 0 or np.any(~np.isfinite(steps)) or np.any(steps <= 0):
@@ -123,8 +142,10 @@ class SliderCrankRig(Rig):
         for label, value in (("step_seconds", step_seconds), ("radius", radius), ("rod", rod), ("max_speed", max_speed)):
             if not value > 0:
                 raise DeviceError(f"{label}={value} must be positive")
-        if settle < 0 or clearance < 0 or backlash < 0:
-            raise DeviceError("settle, clearance and backlash cannot be negative")
+        if settle < 0 or clearance < 0 or backlash < 0 or play < 0:
+            raise DeviceError("settle, clearance, backlash and play cannot be negative")
+        if not (0 <= wobble < 0.5 and wobble_hz > 0 and -0.5 < ramp < 0.5):
+            raise DeviceError("wobble must lie in [0, 0.5), wobble_hz be positive and ramp lie in (-0.5, 0.5)")
         if settle == 0 and steps.size > 1:
             raise DeviceError("settle=0 would change the motor speed instantly between steps (an infinite "
                               "acceleration)", "give the ramp a time, e.g. settle=0.5")
@@ -140,6 +161,9 @@ class SliderCrankRig(Rig):
         self.clearance = float(clearance)
         self.backlash = float(backlash)
         self.max_speed = float(max_speed)
+        self.play = float(play)
+        self.wobble, self.wobble_hz, self.wobble_phase = float(wobble), float(wobble_hz), float(wobble_phase)
+        self.ramp = float(ramp)
         self.axis = parse_axis(axis) if isinstance(axis, str) else np.asarray(axis, float) / np.linalg.norm(axis)
         self.effective_radius = self.radius + float(radius_offset)
         self.g = g
@@ -164,7 +188,7 @@ class SliderCrankRig(Rig):
         for i in range(steps.size):
             starts.append(starts[-1] + self._phase_in_segment(i, np.array([self.segment]))[0])
         self._segment_phase = np.array(starts)
-        self._dead_centres = self._find_dead_centres() if self.backlash > 0 else np.zeros(0)
+        self._dead_centres = self._find_dead_centres() if self.backlash > 0 or self.play > 0 else np.zeros(0)
 
     # ---------------------------------------------------------------- motor
     def _actual_speed(self, commanded: float) -> float:
@@ -178,6 +202,7 @@ class SliderCrankRig(Rig):
     def _end_speed(self, i: int) -> float:
         """Crank speed in rad/s at the end of segment i, where the next ramp starts."""
         ripple = HUNT_RIPPLE * np.sin(2 * np.pi * HUNT_FREQUENCY * self.step_seconds) if self._hunting(i) else 0.0
+        ripple += self.ramp + self._wobble(np.array([self.step_seconds]))[0]
         return 2 * np.pi * self.actual_speeds[i] * (1 + ripple)
 
     def _phase_in_segment(self, i: int, tau: np.ndarray) -> np.ndarray:
@@ -193,7 +218,18 @@ class SliderCrankRig(Rig):
             phase = phase + w_new * (ts + HUNT_RIPPLE * (1 - np.cos(h * ts)) / h)
         else:
             phase = phase + w_new * ts
+        if self.ramp:  # the speed drifts linearly by ``ramp`` over the steady part
+            phase = phase + w_new * self.ramp * ts**2 / (2 * self.step_seconds)
+        if self.wobble:  # speed w_new (1 + wobble(ts)), its closed-form integral
+            h, psi = 2 * np.pi * self.wobble_hz, self.wobble_phase
+            phase = phase + w_new * self.wobble * ((np.cos(psi) - np.cos(h * ts + psi)) / h - ts * np.sin(psi))
         return phase
+
+    def _wobble(self, ts: np.ndarray) -> np.ndarray:
+        """Relative speed ripple ts s into a step's steady part: wobble (sin(h ts + psi) - sin psi), zero
+        where the ramp hands over (the speed stays continuous: no infinite crank acceleration)."""
+        h, psi = 2 * np.pi * self.wobble_hz, self.wobble_phase
+        return self.wobble * (np.sin(h * ts + psi) - np.sin(psi))
 
     def crank_angle(self, t: np.ndarray):
         """phi(t), the segment index of each time and the time into that segment."""
@@ -228,11 +264,30 @@ class SliderCrankRig(Rig):
             offset[ringing] += sign * _take_up(t[ringing] - self._dead_centres[idx[ringing]])
         return self.backlash * offset
 
+    def _dwell(self, t: np.ndarray, pin: np.ndarray) -> np.ndarray:
+        """Where the slider rides, given the pin's position: it dwells after each dead centre until the
+        pin has crossed the clearance, then follows it on the other side (half the play behind)."""
+        b = self.play
+        # the crank starts at phi = 0, a top dead centre; dead centre m (phi = m pi): odd m bottom, even m top
+        passed = np.searchsorted(self._dead_centres, t, side="right")
+        top = passed % 2 == 0
+        extreme = np.where(top, slider_position(0.0, self.effective_radius, self.rod),
+                           slider_position(np.pi, self.effective_radius, self.rod))
+        s = np.where(top, 1.0, -1.0)   # +1: the pin now moves down, away from the top
+        u = s * (extreme - pin) / b    # how far the pin has come back, in units of the play
+        # softplus, max(u - 1, 0) smoothed; less its value at u = 0 faded out by u = 1, so the slider
+        # neither jumps at the dead centre nor ends up off its half-play lag after the pick-up
+        at_zero = PLAY_SMOOTHING * np.logaddexp(0.0, -1.0 / PLAY_SMOOTHING)
+        taken = PLAY_SMOOTHING * np.logaddexp(0.0, (u - 1.0) / PLAY_SMOOTHING) - at_zero * np.maximum(1.0 - u, 0.0) ** 2
+        return extreme - s * b / 2 - s * b * taken
+
     def position(self, t: np.ndarray) -> np.ndarray:
         """The slider (and the sensor on it) along world x, from the crank axis."""
         t = np.asarray(t, dtype=float)
         x = slider_position(self.crank_angle(t)[0], self.effective_radius, self.rod)
-        if self._dead_centres.size:
+        if self.play > 0:
+            x = self._dwell(t, x)
+        if self.backlash > 0:
             x = x + self._play(t)
         return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
 
@@ -265,8 +320,14 @@ class SliderCrankRig(Rig):
             clearance=clearance,
             backlash=url.get_float("backlash", 0.0, low=0.0, high=0.1, unit="m"),
             max_speed=url.get_float("max_speed", 11.5, low=0.0, low_open=True, high=100.0, unit="Hz"),
+            play=url.get_float("play", 0.0, low=0.0, high=0.01, unit="m"),
+            wobble=url.get_float("wobble", 0.0, low=0.0, high=0.4),
+            wobble_hz=url.get_float("wobble_hz", 1.3, low=0.0, low_open=True, high=100.0, unit="Hz"),
+            ramp=url.get_float("ramp", 0.0, low=-0.4, high=0.4),
             axis=url.get_str("axis", "+x"),
             radius_offset=float(rng.uniform(-clearance, clearance)) if clearance > 0 else 0.0,
+            # drawn last, and only when asked for: a stand without wobble keeps its seeds' draws
+            wobble_phase=float(rng.uniform(-np.pi, np.pi)) if url.get_float("wobble", 0.0) > 0 else 0.0,
         )
 
     def channels(self, t: np.ndarray) -> dict[str, np.ndarray]:
@@ -282,6 +343,10 @@ class SliderCrankRig(Rig):
             "lambda": self.effective_radius / self.rod,
             "clearance": self.clearance,
             "backlash": self.backlash,
+            "play": self.play,
+            "wobble": self.wobble,
+            "wobble_hz": self.wobble_hz,
+            "ramp": self.ramp,
             "max_speed": self.max_speed,
             "axis": self.axis.tolist(),
             "up": self.up.tolist(),

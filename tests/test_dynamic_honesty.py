@@ -1,0 +1,199 @@
+"""Issue 18 for the dynamic procedures: the slider-crank and the rotary bench check their own assumptions.
+
+A wandering motor widens u instead of failing a sound calibration; play is seen at the dead centres
+whatever its shape; correlated noise gets a sandwich u and says so; a rotary record that lost samples
+without a trace is refused, one with a gap list is placed on its sample grid.  The stress benchmark
+(tests/benchmarks/bench_stress.py) measures the coverage; these pin the behaviours, fast.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from accelrig.errors import CalibrationError
+from accelrig.estimation.residuals import ar_noise_model, ar_sandwich_covariance
+from accelrig.estimation.sinefit import fit_sine, fit_sines_known_frequency
+from accelrig.procedures.rotary.bench import EncoderLog, RotarySetup, analyse_test
+from accelrig.procedures.slider_crank.motion_fit import fit_crank_motion
+from accelrig.procedures.slider_crank.procedure import verify_slider_crank
+from accelrig.recording import Recording
+from accelrig.sim.campaign import paper_sensor
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs.rotary import RotaryRig, encoder_samples, true_sensitivity
+from accelrig.sim.rigs.slider_crank import SliderCrankRig
+from accelrig.sim.sensor import SensorModel, SimClock
+
+FS = 2048.0
+RADIUS, ROD = 0.00635, 0.0353
+
+
+def crank(seed=0, sensor_options=None, **rig_options):
+    rig = SliderCrankRig(steps=(4.0, 7.0, 10.0), **rig_options)
+    sensor = SensorModel(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(0.08, FS),
+                         **(sensor_options or {}))
+    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=seed)
+    return rig, verify_slider_crank([("sim", rec)], RADIUS, ROD)
+
+
+# ---------------------------------------------------------------- slider-crank
+
+
+def test_a_steady_motor_gives_the_sine_fits_numbers():
+    rng = np.random.default_rng(1)
+    t = np.arange(2048) / FS
+    rig = SliderCrankRig(steps=(6.0,), settle=0.0)
+    y = rig.slider_acceleration(t) + rng.normal(0, 0.08, t.size)
+    y -= y.mean()
+    motion = fit_crank_motion(t, y, 6.0, 4)
+    sine = fit_sine(t, y, frequency=6.0, harmonics=4)
+    assert motion.order == 1
+    radius, _ = motion.radius_gradient()
+    assert radius == pytest.approx(sine.amplitude[0] / (2 * np.pi * sine.frequency) ** 2, rel=1e-7)
+    assert motion.mean_frequency_gradient()[0] == pytest.approx(sine.frequency, rel=1e-9)
+
+
+def test_a_wandering_motor_widens_u_instead_of_failing_a_sound_calibration():
+    rig, result = crank(seed=3, wobble=0.025, wobble_hz=1.3, wobble_phase=0.7)
+    steps = result.details["steps"]
+    assert all(s["speed_unsteady"] and s["speed_order"] > 2 for s in steps)
+    assert not any(s["motor_limited"] for s in steps)   # a motor wandering at every speed is followed
+    for s in steps:
+        assert abs(s["radius_m"]["value"] - rig.effective_radius) < 3 * s["radius_m"]["uncertainty"]
+    assert result.details["verdict"] == "holds"
+    assert any("the speed wandered" in w and "u widened" in w for w in result.warnings)
+
+
+def test_a_speed_ramp_is_followed_and_the_mean_speed_is_honest():
+    rig, result = crank(seed=5, ramp=0.02)
+    rec_t = None
+    for s in result.details["steps"]:
+        assert s["speed_order"] == 2 and s["speed_unsteady"]
+        # the mean speed over the step: commanded x (1 + ramp / 2) within its u
+        expected = rig.steps[s["index"]] * 1.01
+        assert abs(s["frequency_hz"]["value"] - expected) < 4 * s["frequency_hz"]["uncertainty"] + 2e-4
+    assert rec_t is None and result.details["verdict"] == "holds"
+
+
+def test_correlated_noise_gets_a_sandwich_u_and_says_so():
+    _, white = crank(seed=2)
+    _, coloured = crank(seed=2, sensor_options={"ar1": 0.9})
+    for w, c in zip(white.details["steps"], coloured.details["steps"], strict=True):
+        assert w["residual_checks"]["covariance_method"].startswith("white")
+        assert "sandwich" in c["residual_checks"]["covariance_method"]
+        assert c["residual_checks"]["whiteness"]["correlated"]
+        # AR(1) 0.9: the noise near the crank frequency is ~19x the white level per sample
+        assert c["radius_m"]["uncertainty"] > 2.5 * w["radius_m"]["uncertainty"]
+        assert c["speed_order"] == 1   # correlated noise buys no spurious speed terms
+    assert any("correlated in time" in w for w in coloured.warnings)
+
+
+def test_play_without_ringing_is_seen_at_the_dead_centres_and_budgeted():
+    rig, result = crank(seed=4, play=5e-5)
+    steps = result.details["steps"]
+    assert all(s["backlash"] for s in steps)
+    assert all(s["radius_play_uncertainty_m"] > 0 for s in steps)
+    radius = result.parameters["radius"]
+    assert abs(radius.value - rig.effective_radius) < 2 * radius.uncertainty
+    assert any("backlash (play taken up at the dead centres)" in w for w in result.warnings)
+    _, clean = crank(seed=4)
+    assert not any(s["backlash"] for s in clean.details["steps"])
+
+
+def test_the_simulated_play_is_continuous_and_dwells():
+    rig = SliderCrankRig(steps=(5.0,), settle=0.0, play=1e-4)
+    plain = SliderCrankRig(steps=(5.0,), settle=0.0)
+    t = np.arange(0, 1, 1 / 20000)
+    x, x0 = rig.position(t)[:, 0], plain.position(t)[:, 0]
+    assert np.max(np.abs(np.diff(x))) < 2 * np.max(np.abs(np.diff(x0)))   # no jump at a dead centre
+    assert np.max(np.abs(x - x0)) == pytest.approx(5e-5, rel=0.05)       # half the play behind the pin
+
+
+# ---------------------------------------------------------------- rotary
+
+
+NOMINAL = 1660.0
+SECONDS = 10.0
+
+
+def rotary_run(seed=0, sensor_options=None):
+    rng = np.random.default_rng(seed)
+    sensor = paper_sensor(rng, noise_sd=0.03, rate=NOMINAL)
+    for name, value in (sensor_options or {}).items():
+        setattr(sensor, name, value)
+    rig = RotaryRig(frequency=5.0, amplitude_deg=34.0, duration=SECONDS, phase=0.3)
+    rec = simulate(rig, sensor, SimClock(NOMINAL, 0.003, 0.0), seconds=SECONDS, seed=seed, units="counts")
+    rec.channels = {}
+    rec.t = np.arange(len(rec)) / NOMINAL
+    return rec, EncoderLog(**encoder_samples(rig, SECONDS, 1000.0)), true_sensitivity(rec.meta["truth"])
+
+
+def lose(rec, share=0.05, gap_list=False):
+    """Drop ``share`` of the samples at scattered places; the kept ones get times on the nominal grid."""
+    keep = np.random.default_rng(9).random(len(rec)) >= share
+    meta = dict(rec.meta)
+    if gap_list:
+        before = np.cumsum(keep) - keep
+        meta["gaps"] = [{"index": int(before[i]), "missing": 1} for i in np.flatnonzero(~keep)]
+    return Recording(np.arange(keep.sum()) / NOMINAL, rec.acc[keep], rec.units, {}, meta)
+
+
+SETUP = RotarySetup(radius_uncertainty=1e-6, geometry_uncertainty=0.0)
+
+
+def test_rotary_samples_lost_without_a_trace_are_refused_naming_the_cause():
+    rec, enc, _ = rotary_run(1)
+    with pytest.raises(CalibrationError, match="samples were lost without a trace"):
+        analyse_test(lose(rec), enc, "x", "y", NOMINAL, setup=SETUP)
+
+
+def test_rotary_gaps_from_the_gap_list_are_placed_and_the_sensitivity_holds():
+    rec, enc, truth = rotary_run(2)
+    test = analyse_test(lose(rec, gap_list=True), enc, "x", "y", NOMINAL, setup=SETUP)
+    assert any("are missing in" in w and "gap list" in w for w in test.warnings)
+    assert 0.04 * len(rec) < test.quality["samples_missing"] < 0.06 * len(rec)
+    for axis in ("x", "y"):
+        s = test.sensitivity[axis]
+        assert abs(s.value - truth[axis]) < 3 * s.uncertainty
+
+
+def test_rotary_correlated_noise_gets_a_sandwich_and_a_warning():
+    rec, enc, truth = rotary_run(3, {"ar1": 0.9})
+    test = analyse_test(rec, enc, "x", "y", NOMINAL, setup=SETUP)
+    assert "sandwich" in test.quality["noise"]["sample-rate fit"]["covariance_method"]
+    assert any("correlated in time" in w for w in test.warnings)
+    white = analyse_test(rotary_run(3)[0], enc, "x", "y", NOMINAL, setup=SETUP)
+    assert test.sample_rate.uncertainty > 2.5 * white.sample_rate.uncertainty
+    assert not any("correlated" in w for w in white.warnings)
+
+
+# ---------------------------------------------------------------- shared pieces
+
+
+def test_the_ar_sandwich_is_the_white_covariance_for_white_noise_and_wider_for_ar1():
+    rng = np.random.default_rng(0)
+    n = 2048
+    t = np.arange(n)
+    jac = np.column_stack([np.ones(n), np.cos(2 * np.pi * 0.003 * t), np.sin(2 * np.pi * 0.003 * t)])
+    normal = jac.T @ jac
+    white = rng.standard_normal(n)
+    cov = ar_sandwich_covariance(normal, jac, white).covariance
+    assert np.diag(cov) == pytest.approx(np.diag(np.var(white) * np.linalg.inv(normal)), rel=0.15)
+    red = signal.lfilter([1.0], [1.0, -0.9], rng.standard_normal(n + 500))[500:]
+    model = ar_noise_model(red)
+    assert model.order >= 1 and model.coefficients[0] == pytest.approx(0.9, abs=0.05)
+    ratio = np.diag(ar_sandwich_covariance(normal, jac, red).covariance) / np.diag(np.var(red) * np.linalg.inv(normal))
+    assert np.all(ratio > 8)
+
+
+def test_several_signals_at_one_known_frequency_match_one_fit_each():
+    rng = np.random.default_rng(4)
+    t = np.arange(3000, dtype=float)
+    signals = np.column_stack([np.cos(2 * np.pi * 0.01 * t + p) + rng.normal(0, 0.1, t.size) for p in (0, 1)])
+    together = fit_sines_known_frequency(t, signals, 0.01, harmonics=2, check_noise=[True, False])
+    for j, fit in enumerate(together):
+        alone = fit_sine(t, signals[:, j], frequency=0.01, harmonics=2, fit_frequency=False, check_noise=j == 0)
+        assert fit.amplitude == pytest.approx(alone.amplitude, rel=1e-10)
+        assert fit.amplitude_uncertainty == pytest.approx(alone.amplitude_uncertainty, rel=1e-8)
+        assert fit.covariance_method == alone.covariance_method
