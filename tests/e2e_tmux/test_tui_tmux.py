@@ -50,7 +50,7 @@ def test_static_calibration_with_keystrokes_alone(tmp_path):
     tmux = Tmux(f"accelrig-test-{os.getpid()}")
     # (Textual draws on stderr, so it is not redirected; an error line stays on the screen)
     command = (f"{sys.executable} -m accelrig tui --device '{DEVICE}' --profile-dir '{tmp_path}'; "
-               f"echo exit=$? > '{tmp_path / 'exit.txt'}'; sleep 30")
+               f"echo exit=$? > '{tmp_path / 'exit.tmp'}' && mv '{tmp_path / 'exit.tmp'}' '{tmp_path / 'exit.txt'}'; sleep 30")
     env_args = [arg for key in ("ACCELRIG_HOME", "XDG_DATA_HOME", "PATH", "HOME") if key in os.environ
                 for arg in ("-e", f"{key}={os.environ[key]}")]
     tmux.run("-f", "/dev/null", "new-session", "-d", "-s", "tui", "-x", "80", "-y", "24", *env_args, command)

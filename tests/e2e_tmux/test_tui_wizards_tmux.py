@@ -21,7 +21,7 @@ if shutil.which("tmux") is None:
 def start_tui(tmp_path, name: str) -> Tmux:
     tmux = Tmux(f"accelrig-{name}-{os.getpid()}")
     home = tmp_path / "home"
-    command = f"{sys.executable} -m accelrig tui; echo exit=$? > '{tmp_path / 'exit.txt'}'; sleep 30"
+    command = f"{sys.executable} -m accelrig tui; echo exit=$? > '{tmp_path / 'exit.tmp'}' && mv '{tmp_path / 'exit.tmp'}' '{tmp_path / 'exit.txt'}'; sleep 30"
     env = {**{k: os.environ[k] for k in ("PATH", "HOME") if k in os.environ}, "ACCELRIG_HOME": str(home)}
     env_args = [arg for key, value in env.items() for arg in ("-e", f"{key}={value}")]
     tmux.run("-f", "/dev/null", "new-session", "-d", "-s", "tui", "-x", "80", "-y", "24", *env_args, command)
