@@ -37,6 +37,7 @@ from accelrig.procedures.wheel.fit import (
 from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
+from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.units import STANDARD_GRAVITY
@@ -88,13 +89,14 @@ def calibrate_wheel(
     look = survey(t, v, recording.meta, g)
     warnings = check_capture(look, radius, g)
     started = time.perf_counter()
-    steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
     if method == "joint":
+        steps = joint_start(t, v, look, radius, tilt, g, gap_times)
         fit = joint_fit(t, v, steps.state, free, g)
         state, cov, sigma, resid = fit.state, fit.covariance, fit.sigma, fit.residuals
         quality = {"iterations": fit.iterations}
         uncertainty_source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate)"
     else:
+        steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
         state = steps.state
         resid = v - predict(t, state, g)
         sigma = np.sqrt(np.mean(resid**2, axis=0))
