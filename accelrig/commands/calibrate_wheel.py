@@ -47,9 +47,9 @@ def run_calibrate(args) -> int:
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
     from accelrig.commands.progress import Progress
 
-    with Progress(f"fitting the wheel ({v['method']} method)"):
+    with Progress(f"fitting the wheel ({v['method']} method)") as progress:
         result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"], g=v["g"],
-                                 bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"])
+                                 bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"], on_progress=progress.step)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:

@@ -129,8 +129,7 @@ def weighted_cost(t, v, state, g, weight) -> float:
     return cost
 
 
-def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, max_iter=MAX_ITERATIONS,
-                         cost_tolerance=COST_TOLERANCE):
+def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, cost_tolerance=COST_TOLERANCE):
     """Minimise the weighted misfit; the rotation is re-centred each step (increment about R).
 
     A trial step costs one pass of the model alone; the Jacobian is computed only where a
@@ -139,7 +138,7 @@ def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, max_iter=MAX_
     lam = 1e-4
     iterations = 0
     converged = False
-    for iterations in range(1, max_iter + 1):  # noqa: B007 (the count is returned)
+    for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is returned)
         d = np.sqrt(np.diag(a))
         d[d == 0] = 1.0
         scaled = a / np.outer(d, d)
@@ -169,7 +168,7 @@ def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, max_iter=MAX_
     return state, iterations, converged
 
 
-def _reporting_map(state: WheelState, free: FreeSet, time_scale: float) -> np.ndarray:
+def reporting_map(state: WheelState, free: FreeSet, time_scale: float) -> np.ndarray:
     """d(reported)/d(internal): c_k -> w_k = c_k / T^k, rotation increment -> Euler angles."""
     p = free.size
     m = np.eye(p)
@@ -213,7 +212,7 @@ def joint_fit(t: np.ndarray, v: np.ndarray, start: WheelState, free: FreeSet,
         cov_internal = normal_covariance(a, free.names)
     except CalibrationError as exc:
         raise CalibrationError(exc.message, MOUNTING_HINT) from None
-    m = _reporting_map(state, free, time_scale)
+    m = reporting_map(state, free, time_scale)
     cov = m @ cov_internal @ m.T
     return JointFit(state, cov, reported_names(free), sigma, resid, it1 + it2, cov, a, time_scale)
 
@@ -225,7 +224,7 @@ def wheel_crb(t: np.ndarray, truth: WheelState, free: FreeSet, sigma, g: float =
     weight = 1.0 / np.broadcast_to(np.asarray(sigma, dtype=float), (3,))
     _, jac = model_and_jacobian(t, truth, free, time_scale, g)
     jw = (jac * weight[None, :, None]).reshape(-1, free.size)
-    m = _reporting_map(truth, free, time_scale)
+    m = reporting_map(truth, free, time_scale)
     return m @ crb_covariance(jw, 1.0, free.names) @ m.T
 
 
@@ -233,21 +232,3 @@ def reported_values(state: WheelState, free: FreeSet) -> np.ndarray:
     geo = ([state.tilt] if free.tilt_free else []) + ([state.radius] if free.radius_free else [])
     return np.concatenate([[state.theta0], state.omega, geo, state.euler, state.gain, state.offset])
 
-
-def phase_misfit(t, v, state, free, time_scale, g, weight, resid) -> tuple[float, float]:
-    """Share of the residual along the model's phase direction dv/dtheta, against the rest.
-
-    Noise that is the same on the (weighted) axes, white or not, puts a third of its variance
-    along any direction; a speed law the wheel did not follow (it stopped, it carries an
-    imbalance) moves the model along theta and leaves its residual there.  Returns (ratio of
-    the variance along dv/dtheta to the mean variance across it, residual series along it)."""
-    along, across = 0.0, 0.0
-    for part in chunks(t.size):
-        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
-        direction = jac[:, :, 0] * weight
-        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-        rw = resid[part] * weight
-        a = np.sum(rw * direction, axis=1)
-        along += float(a @ a)
-        across += float(np.sum(rw * rw) - a @ a)
-    return along / (across / 2.0)

@@ -70,14 +70,19 @@ def realign_y(r1: np.ndarray, grid_step_deg: float = 0.5) -> float:
 
     The excursion has period pi in eps_z; a grid over [0, pi) then a bounded
     refinement around the best node."""
+    per_pass = int(np.clip(4_000_000 // max(r1.shape[0], 1), 1, 60))   # about 32 MB of candidates at a time
+
     def excursion(eps: np.ndarray) -> np.ndarray:
-        ry = np.outer(np.sin(eps), r1[:, 0]) + np.outer(np.cos(eps), r1[:, 1])
-        return ry.max(axis=1) - ry.min(axis=1)
+        out = np.empty(eps.size)
+        for i in range(0, eps.size, per_pass):
+            e = eps[i:i + per_pass]
+            ry = np.outer(np.sin(e), r1[:, 0])
+            ry += np.outer(np.cos(e), r1[:, 1])
+            out[i:i + per_pass] = ry.max(axis=1) - ry.min(axis=1)
+        return out
 
     grid = np.deg2rad(np.arange(0.0, 180.0, grid_step_deg))
-    per_pass = int(np.clip(4_000_000 // max(r1.shape[0], 1), 1, 60))   # about 32 MB of candidates at a time
-    values = np.concatenate([excursion(grid[i:i + per_pass]) for i in range(0, grid.size, per_pass)])
-    best = grid[int(np.argmin(values))]
+    best = grid[int(np.argmin(excursion(grid)))]
     step = np.deg2rad(grid_step_deg)
     fine = np.linspace(best - step, best + step, 81)
     return float(fine[int(np.argmin(excursion(fine)))])

@@ -27,6 +27,8 @@ wheel axis, or a signal the phase law does not follow), the four steps are the s
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from accelrig.procedures.wheel.checks import WheelSurvey
@@ -81,9 +83,18 @@ def _closed_form(t, v, theta0, omega, radius, tilt, g) -> WheelState | None:
     return WheelState(theta0, omega, alpha, r, rotation, gain, offset)
 
 
+# The start needs the phase law only well enough for the joint fit to converge from it: beyond this
+# many samples it looks at every k-th one, so its time and memory stop growing with the record.
+START_SAMPLES = 40_000
+
+
 def joint_start(t: np.ndarray, v: np.ndarray, survey: WheelSurvey, radius: float | None, tilt: float | None,
                 g: float = STANDARD_GRAVITY, gap_times: np.ndarray | None = None) -> PaperSteps:
     """A start for the joint fit: steps A, B, then step C in closed form; the four steps if that fails."""
+    stride = max(1, int(np.ceil(t.size / START_SAMPLES)))
+    if stride > 1:
+        t, v = t[::stride], v[::stride]
+        survey = replace(survey, period=survey.period * stride)
     motion = paper_motion(t, v, survey, gap_times)
     amplitude = abs(motion.amplitude)
     for direction in (1.0, -1.0):
