@@ -73,8 +73,8 @@ class ScoreTest:
 class Checks:
     whiteness: list[Whiteness]
     correlated: bool
-    block: int
-    blocks: int
+    block: int | None                    # batch-means block length u came from (None: white)
+    blocks: int | None
     speed_law: ScoreTest | None
     drift: ScoreTest | None
     covariance_internal: np.ndarray      # what u is computed from, internal parameters
@@ -236,13 +236,14 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
                          "blocks in the record, too few to pin the uncertainty down; record longer")
     else:
         cov = full_inv[:p, :p]
+        block_used, blocks_used = None, None     # white: no batch means
         source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate): residuals white"
     if taken:
         names = [n for test, n in ((speed_law, "the speed swings the cubic law misses"),
                                    (drift, "a linear offset drift per axis")) if test.significant]
         source += "; the model takes in " + " and ".join(names)
     drift_per_axis = 2.0 * extra_step[dr] if drift.significant else None    # tau runs -1 .. 1
-    checks = Checks(white, correlated, block, k_blocks, speed_law, drift, cov, source,
+    checks = Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source,
                     step[:p] if taken else None, drift_per_axis, notes)
     checks.extra_step = extra_step if taken else None
     return checks
