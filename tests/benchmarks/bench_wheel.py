@@ -235,7 +235,7 @@ def long_recording(seconds: float, seed: int = 0):
     return simulate(rig, sensor, SimClock(RATE), seconds=seconds, seed=seed)
 
 
-def one_length(seconds: float, method: str) -> dict:
+def one_length(seconds: float, method: str, memory: bool = True) -> dict:
     """Whole command path (calibrate_wheel) on one record: CPU, wall, then peak traced memory in a second run."""
     rec = long_recording(seconds)
 
@@ -250,15 +250,17 @@ def one_length(seconds: float, method: str) -> dict:
     out = {"seconds": seconds, "samples": int(rec.t.size), "method": method,
            "cpu_s": time.process_time() - cpu, "wall_s": time.perf_counter() - start,
            "gain": list(map(float, gain)), "u_gain": list(map(float, u_gain))}
-    tracemalloc.start()
-    run()
-    out["peak_mb"] = tracemalloc.get_traced_memory()[1] / 1e6
-    tracemalloc.stop()
+    out["peak_mb"] = float("nan")
+    if memory:
+        tracemalloc.start()
+        run()
+        out["peak_mb"] = tracemalloc.get_traced_memory()[1] / 1e6
+        tracemalloc.stop()
     out["data_mb"] = (rec.t.nbytes + rec.acc.nbytes) / 1e6
     return out
 
 
-def benchmark_lengths(lengths: list[float], methods: list[str]) -> None:
+def benchmark_lengths(lengths: list[float], methods: list[str], memory_methods: list[str]) -> None:
     """Each length and method in a fresh process (memory and caches of one do not blur the next)."""
     print("\n### Time and peak memory by record length (200 Hz, noise 0.08 m/s^2, one thread; "
           "whole calibrate_wheel: checks, start, fit, uncertainties)\n")
@@ -266,14 +268,17 @@ def benchmark_lengths(lengths: list[float], methods: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|")
     for seconds in lengths:
         for method in methods:
-            proc = subprocess.run([sys.executable, __file__, "--one-length", str(seconds), "--method", method],
-                                  capture_output=True, text=True, check=False)
+            command = [sys.executable, __file__, "--one-length", str(seconds), "--method", method]
+            if method not in memory_methods:
+                command.append("--no-memory")
+            proc = subprocess.run(command, capture_output=True, text=True, check=False)
             if proc.returncode != 0:
                 print(f"| {seconds:g} s | - | {method} | failed: {proc.stderr.strip().splitlines()[-1:]} |")
                 continue
             r = json.loads(proc.stdout.strip().splitlines()[-1])
+            peak = "-" if np.isnan(r["peak_mb"]) else f"{r['peak_mb']:.0f}"
             print(f"| {seconds:g} s | {r['samples']} | {method} | {r['cpu_s']:.1f} | {r['wall_s']:.1f} "
-                  f"| {r['peak_mb']:.0f} | {r['data_mb']:.0f} | {' '.join(f'{u:.2g}' for u in r['u_gain'])} |",
+                  f"| {peak} | {r['data_mb']:.0f} | {' '.join(f'{u:.2g}' for u in r['u_gain'])} |",
                   flush=True)
     print("\njoint: the default method, whole (capture checks, closed-form start, chunked fit, residual checks, "
           "covariance); four-steps: the paper's steps A-D alone (capture checks included, no uncertainties); "
@@ -288,14 +293,18 @@ def main() -> None:
     parser.add_argument("--methods", default="joint,four-steps",
                         help="for --lengths: joint, four-steps (the paper's steps alone) and/or paper "
                              "(the paper method with a 5-run bootstrap); default joint,four-steps")
+    parser.add_argument("--memory-methods", default="joint,four-steps,paper",
+                        help="for --lengths: methods whose peak memory is measured (a second, traced run)")
+    parser.add_argument("--no-memory", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--one-length", type=float, help=argparse.SUPPRESS)
     parser.add_argument("--method", default="joint", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one_length:
-        print(json.dumps(one_length(args.one_length, args.method)))
+        print(json.dumps(one_length(args.one_length, args.method, memory=not args.no_memory)))
         return
     if args.lengths:
-        benchmark_lengths([float(x) for x in args.lengths.split(",")], args.methods.split(","))
+        benchmark_lengths([float(x) for x in args.lengths.split(",")], args.methods.split(","),
+                          args.memory_methods.split(","))
         return
     print("## Tilted wheel (paper 002): Table I reproduced, four steps vs joint ML vs CRB")
     timing = []
