@@ -220,17 +220,20 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     extra_step = np.zeros(q)
     extra_step[taken] = step[p:]
     if use_blocks:
-        sandwich, block_used, blocks_used, long_memory = _widest_sandwich(
+        sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(
             full, np.concatenate([js, xs[:, taken]], axis=1), block, full_inv)
         cov = sandwich[:p, :p]
         worst = max(white, key=lambda w: w.tau)
         source = (f"batch-means sandwich over {blocks_used} blocks of {block_used} samples: the residuals are "
                   f"correlated in time (lag-1 {worst.lag1:.2f}, integrated time {worst.tau:.1f} samples), so a "
                   "white-noise u would be too small")
-        if long_memory:
+        if extrapolation > 1.0:
             notes.append("the noise has a long memory (1/f-like wander): its effect on the estimates still grew at "
-                         f"the longest time scale this record can show ({block_used * period:.0f} s), so the stated "
-                         "u may be too small; a sensor that has settled at a steady temperature wanders less")
+                         f"the longest time scale this record can show ({block_used * period:.0f} s); u is "
+                         f"extrapolated to the length of the run ({np.sqrt(extrapolation):.1f}x), which assumes the "
+                         "wander keeps growing the same way; a sensor that has settled at a steady temperature "
+                         "wanders less")
+            source += f", extrapolated {np.sqrt(extrapolation):.1f}x for a noise with a long memory"
         elif blocks_used < MIN_BLOCKS:
             notes.append(f"the noise is correlated over {block_used} samples: only {blocks_used} independent "
                          "blocks in the record, too few to pin the uncertainty down; record longer")
@@ -259,13 +262,14 @@ def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:
     return merged
 
 
-def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int, bool]:
+def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int, float]:
     """Batch means over blocks of ``block``, 2 ``block``, 4 ``block`` ... while MIN_BLOCKS remain; the
     widest covariance (largest mean variance ratio to the white one) is kept.  The integrated time
     from the residuals sees only the short correlations; noise with a long memory (1/f) keeps
     growing with the block length, and the longest blocks the record allows are what show it.
-    The flag says the variance was still growing over the last two doublings: then even the
-    longest blocks do not hold the slowest part of the noise."""
+    When the variance was still growing over the last two doublings, even the longest blocks do
+    not hold the slowest part of the noise: the growth per doubling is then carried on to blocks
+    of half the record (an extrapolation, returned as the factor on the variance; 1 otherwise)."""
     best, best_block, best_k, best_ratio = None, block, scores.shape[0], -np.inf
     white_diag = np.diag(bread)
     current, size = scores, block
@@ -279,5 +283,11 @@ def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int
         if current.shape[0] // 2 < MIN_BLOCKS:
             growth = LONG_MEMORY_GROWTH
             long_memory = len(ratios) >= 3 and ratios[-1] > growth * ratios[-2] > growth**2 * ratios[-3]
-            return best, best_block, best_k, long_memory
+            extrapolation = 1.0
+            if long_memory:
+                # carry the growth per doubling on to blocks of half the record, the slowest scale
+                # that moves the estimates; at most 2 per doubling (a random walk's variance)
+                per_doubling = min(ratios[-1] / ratios[-2], 2.0)
+                extrapolation = float(per_doubling ** np.log2(max(best_k / 2.0, 1.0)))
+            return best * extrapolation, best_block, best_k, extrapolation
         current, size = _merge(current, 2), 2 * size
