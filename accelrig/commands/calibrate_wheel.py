@@ -49,10 +49,10 @@ def run_calibrate(args) -> int:
     from accelrig.units import local_gravity
 
     gravity = local_gravity(v["g"], v["latitude"], v["height"], v["g_u"])
-    with Progress(f"fitting the wheel ({v['method']} method)"):
+    with Progress(f"fitting the wheel ({v['method']} method)") as progress:
         result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
-                                 g=gravity.value, bootstrap=v["bootstrap"],
-                                 cross_axis_sd=v["cross_axis_sd"]).with_local_gravity(gravity)
+                                 g=gravity.value, bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"],
+                                 on_progress=progress.step).with_local_gravity(gravity)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:

@@ -9,6 +9,7 @@ covariance a least-squares fit reports, so one function serves both.
 Helpers here:
   crb_covariance      sigma^2 (J^T J)^-1, refusing a rank-deficient J with a
                       message naming the parameter combination the data cannot see;
+  normal_covariance   the same from J^T J alone (chunked fits);
   crb_sd              its per-parameter square roots (the bound on the sd);
   numerical_jacobian  central differences of any vector function;
   propagate_covariance  GUM law  U_y = J U_x J^T  through any function.
@@ -82,6 +83,32 @@ def crb_covariance(jacobian: np.ndarray, sigma, names: Sequence[str] | None = No
     norms = np.linalg.norm(jac, axis=0)
     _, s, vt = np.linalg.svd(jac / norms, full_matrices=False)
     inner = (vt.T / s**2) @ vt
+    cov = inner / np.outer(norms, norms)
+    return 0.5 * (cov + cov.T)
+
+
+def normal_covariance(normal_matrix: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
+    """(J^T J)^-1 from the normal matrix alone, for fits that accumulate J^T J in chunks
+    (memory O(p^2) whatever the record length).  Same scaling and rank test as
+    ``crb_covariance``: the singular values of the column-scaled J are the square roots
+    of the eigenvalues of the scaled normal matrix."""
+    a = np.asarray(normal_matrix, dtype=float)
+    p = a.shape[0]
+    names = list(names) if names is not None else [f"p{k}" for k in range(p)]
+    norms = np.sqrt(np.diag(a))
+    dead = [names[k] for k in range(p) if not norms[k] > 0 or not np.isfinite(norms[k])]
+    if dead:
+        raise CalibrationError(f"parameters not identifiable: the data do not depend on {', '.join(dead)}",
+                               "add data that excite them or fix one of them")
+    scaled = a / np.outer(norms, norms)
+    eigval, eigvec = np.linalg.eigh(0.5 * (scaled + scaled.T))
+    if not eigval[0] > RANK_TOLERANCE**2 * eigval[-1]:
+        v = eigvec[:, 0]
+        order = np.argsort(-np.abs(v))
+        terms = [f"{v[k]:+.2f}*{names[k]}" for k in order if abs(v[k]) >= 0.1]
+        raise CalibrationError("parameters not identifiable: the combination " + " ".join(terms)
+                               + " is not determined by the data", "add data that excite them or fix one of them")
+    inner = (eigvec / eigval) @ eigvec.T
     cov = inner / np.outer(norms, norms)
     return 0.5 * (cov + cov.T)
 

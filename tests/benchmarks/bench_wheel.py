@@ -2,6 +2,7 @@
 
     python tests/benchmarks/bench_wheel.py            # 60 noise realisations per noise level
     python tests/benchmarks/bench_wheel.py --runs 10  # quicker
+    python tests/benchmarks/bench_wheel.py --lengths 90,900,3600   # time and peak memory by record length
 
 Truth: Table I of the paper.  The paper gives neither the radius nor the
 duration of its synthetic runs; ours: r = 0.28 m (its real bench), 200 Hz,
@@ -14,8 +15,12 @@ friction, so the tables are independent draws).  Prints Markdown tables.
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
+import sys
 import time
+import tracemalloc
 
 # One core, as stated in the timing table (BLAS threads would blur CPU time on a shared machine).
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -219,11 +224,88 @@ def benchmark_friction(runs: int, noise: float = 0.08):
           f"(cubic friction: {CUBIC_SPEED_SD[0] * 1e3:.1f} mrad/s)")
 
 
+def long_recording(seconds: float, seed: int = 0):
+    """Table I's coast-down stretched over ``seconds`` (as ``accelrig plan wheel`` does), from 6 rad/s."""
+    stretch = 90.0 / seconds
+    omega = TABLE_I_OMEGA * (6.0 / 9.0) * stretch ** np.arange(4)
+    rig = WheelRig(radius=RADIUS, tilt_deg=TABLE_I_TILT_DEG, duration=seconds, omega=omega,
+                   misalignment_deg=TABLE_I_MISALIGNMENT_DEG, theta0_deg=TABLE_I_THETA0_DEG)
+    sensor = SensorModel(offset=TABLE_I_OFFSET, gain=TABLE_I_GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    return simulate(rig, sensor, SimClock(RATE), seconds=seconds, seed=seed)
+
+
+def one_length(seconds: float, method: str, memory: bool = True) -> dict:
+    """Whole command path (calibrate_wheel) on one record: CPU, wall, then peak traced memory in a second run."""
+    rec = long_recording(seconds)
+
+    def run():
+        if method == "four-steps":        # the paper's steps alone, no uncertainties (run_paper)
+            return run_paper(rec)[0].gain, [float("nan")] * 3
+        result = calibrate_wheel(rec, radius=RADIUS, method=method, bootstrap=5)
+        return result.parameters["gain"].value, result.parameters["gain"].uncertainty
+
+    start, cpu = time.perf_counter(), time.process_time()
+    gain, u_gain = run()
+    out = {"seconds": seconds, "samples": int(rec.t.size), "method": method,
+           "cpu_s": time.process_time() - cpu, "wall_s": time.perf_counter() - start,
+           "gain": list(map(float, gain)), "u_gain": list(map(float, u_gain))}
+    out["peak_mb"] = float("nan")
+    if memory:
+        tracemalloc.start()
+        run()
+        out["peak_mb"] = tracemalloc.get_traced_memory()[1] / 1e6
+        tracemalloc.stop()
+    out["data_mb"] = (rec.t.nbytes + rec.acc.nbytes) / 1e6
+    return out
+
+
+def benchmark_lengths(lengths: list[float], methods: list[str], memory_methods: list[str]) -> None:
+    """Each length and method in a fresh process (memory and caches of one do not blur the next)."""
+    print("\n### Time and peak memory by record length (200 Hz, noise 0.08 m/s^2, one thread; "
+          "whole calibrate_wheel: checks, start, fit, uncertainties)\n")
+    print("| record | samples | method | CPU s | wall s | peak traced memory MB | data MB | gain u (x, y, z) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for seconds in lengths:
+        for method in methods:
+            command = [sys.executable, __file__, "--one-length", str(seconds), "--method", method]
+            if method not in memory_methods:
+                command.append("--no-memory")
+            proc = subprocess.run(command, capture_output=True, text=True, check=False)
+            if proc.returncode != 0:
+                print(f"| {seconds:g} s | - | {method} | failed: {proc.stderr.strip().splitlines()[-1:]} |")
+                continue
+            r = json.loads(proc.stdout.strip().splitlines()[-1])
+            peak = "-" if np.isnan(r["peak_mb"]) else f"{r['peak_mb']:.0f}"
+            print(f"| {seconds:g} s | {r['samples']} | {method} | {r['cpu_s']:.1f} | {r['wall_s']:.1f} "
+                  f"| {peak} | {r['data_mb']:.0f} | {' '.join(f'{u:.2g}' for u in r['u_gain'])} |",
+                  flush=True)
+    print("\njoint: the default method, whole (capture checks, closed-form start, chunked fit, residual checks, "
+          "covariance); four-steps: the paper's steps A-D alone (capture checks included, no uncertainties); "
+          "paper: --method paper, whose uncertainties are a parametric bootstrap (5 runs here, 20 by default).")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=60, help="noise realisations per noise level (default 60)")
     parser.add_argument("--friction-runs", type=int, default=20, help="realisations with non-cubic friction")
+    parser.add_argument("--lengths", help="comma-separated record lengths, s: only the time and memory table")
+    parser.add_argument("--methods", default="joint,four-steps",
+                        help="for --lengths: joint, four-steps (the paper's steps alone) and/or paper "
+                             "(the paper method with a 5-run bootstrap); default joint,four-steps")
+    parser.add_argument("--memory-methods", default="joint,four-steps,paper",
+                        help="for --lengths: methods whose peak memory is measured (a second, traced run)")
+    parser.add_argument("--no-memory", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--one-length", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--method", default="joint", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.one_length:
+        print(json.dumps(one_length(args.one_length, args.method, memory=not args.no_memory)))
+        return
+    if args.lengths:
+        benchmark_lengths([float(x) for x in args.lengths.split(",")], args.methods.split(","),
+                          args.memory_methods.split(","))
+        return
     print("## Tilted wheel (paper 002): Table I reproduced, four steps vs joint ML vs CRB")
     timing = []
     CUBIC_SPEED_SD.clear()

@@ -21,8 +21,16 @@ MIN_TURNS = 10.0          # 20 half-turn speed samples for a 4-coefficient speed
 MIN_GRAVITY_SNR = 5.0     # g sin(alpha) over the noise sd: the phase is tracked by gravity
 MIN_CENTRIPETAL_SNR = 3.0  # change of r w^2 over the run, in noise sds: what ties gain to r
 MIN_SPEED_CHANGE = 0.02   # relative change of w^2: with a constant speed, r w^2 is an offset
+MAX_GAP_IN_HALF_TURN = 0.25  # a gap this long (share of the half turn) could hide two crossings
 MAX_TIME_JITTER = 0.25    # timestamp scatter as a fraction of the sample period
 DETREND_DEGREE = 6        # r w(t)^2 is a sixth-degree polynomial under the cubic law
+# A wheel at rest: over REST_WINDOW_S windows the signal scatters by less than REST_SCATTER times the
+# noise sd (a turning wheel swings gravity through every axis).  A rest at the end longer than
+# MIN_REST_S (and MIN_REST_SHARE of the run) is a stop the speed law (eq. 2, a cubic) cannot follow.
+REST_WINDOW_S = 1.0
+REST_SCATTER = 3.0
+MIN_REST_S = 2.0
+MIN_REST_SHARE = 0.02
 
 
 @dataclass
@@ -131,6 +139,28 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
     )
 
 
+def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
+    """Time from which the wheel stood still to the end of the recording, or None when it
+    kept turning (or rested only briefly).  Looks at windows from the end backwards."""
+    width = max(int(round(REST_WINDOW_S / period)), 5)
+    n = t.size
+    limit = REST_SCATTER * max(noise, 1e-12)
+    stop = None
+    moved = False
+    for end in range(n, width - 1, -width):
+        window = acc[end - width:end]
+        if np.max(np.std(window, axis=0)) > limit:
+            moved = True
+            break
+        stop = float(t[end - width])
+    if stop is None or not moved:   # never seen turning: the capture checks say why (tilt, spin)
+        return None
+    rest = float(t[-1]) - stop
+    if rest < max(MIN_REST_S, MIN_REST_SHARE * (float(t[-1]) - float(t[0]))):
+        return None
+    return stop
+
+
 def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """|w| over each full turn of the survey's angle, one value every half turn:
     (midpoint times, speeds rad/s).  A full turn, not a half, because the angle of
@@ -147,10 +177,20 @@ def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return 0.5 * (crossings[2:] + crossings[:-2]), 2 * np.pi / span
 
 
-def _detrend(tau: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
-    basis = np.polynomial.legendre.legvander(tau, degree)
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    return y - basis @ coef
+def _detrend(tau: np.ndarray, y: np.ndarray, degree: int, chunk: int = 65536) -> np.ndarray:
+    """y minus its least-squares Legendre polynomial in tau; normal equations in chunks, so a long
+    record costs no (n, degree) basis at once (Legendre columns on [-1, 1] keep them well conditioned)."""
+    normal = np.zeros((degree + 1, degree + 1))
+    rhs = np.zeros((degree + 1,) + y.shape[1:])
+    for lo in range(0, tau.size, chunk):
+        basis = np.polynomial.legendre.legvander(tau[lo:lo + chunk], degree)
+        normal += basis.T @ basis
+        rhs += basis.T @ y[lo:lo + chunk]
+    coef = np.linalg.lstsq(normal, rhs, rcond=None)[0]
+    out = np.empty_like(y, dtype=float)
+    for lo in range(0, tau.size, chunk):
+        out[lo:lo + chunk] = y[lo:lo + chunk] - np.polynomial.legendre.legvander(tau[lo:lo + chunk], degree) @ coef
+    return out
 
 
 def _slope(t: np.ndarray, y: np.ndarray) -> float:
@@ -255,8 +295,11 @@ def half_turn_speeds(t: np.ndarray, y: np.ndarray, mean_speed: float, period: fl
     """The paper's Fig. 3 samples: the mean speed of each half turn, pi / (time between crossings).
 
     ``y`` is the zero-mean component A sin(theta(t)).  Returns (midpoint times,
-    speeds in rad/s, crossing times, crossing directions).  Half turns that
-    straddle a gap in the timestamps are dropped.
+    speeds in rad/s, crossing times, crossing directions).  A half turn is timed across
+    gaps in the timestamps (the crossings keep their own times, so lost samples only cost
+    data); it is dropped only when a gap in it lasts more than MAX_GAP_IN_HALF_TURN of it,
+    long enough to hide a pair of crossings.  ``gap_times`` (the first sample after each gap)
+    is accepted for callers that already know them; the gaps are measured from ``t``.
     """
     turn_time = 2 * np.pi / max(mean_speed, 1e-6)
     smooth = int(max(1, min(turn_time / 20 / period, 200)))
@@ -266,9 +309,17 @@ def half_turn_speeds(t: np.ndarray, y: np.ndarray, mean_speed: float, period: fl
         return np.empty(0), np.empty(0), times, dirs
     start, stop = times[:-1], times[1:]
     keep = dirs[1:] != dirs[:-1]
-    if gap_times is not None and gap_times.size:
-        straddle = np.array([np.any((gap_times > a) & (gap_times < b)) for a, b in zip(start, stop, strict=True)])
-        keep &= ~straddle
+    dt = np.diff(t)
+    gap = np.flatnonzero(dt > 1.5 * period)
+    if gap.size:
+        gap_end, gap_length = t[gap + 1], dt[gap]
+        # the longest gap ending inside each half turn
+        lo = np.searchsorted(gap_end, start, side="right")
+        hi = np.searchsorted(gap_end, stop, side="left")
+        longest = np.zeros(start.size)
+        for i in np.flatnonzero(hi > lo):
+            longest[i] = gap_length[lo[i]:hi[i]].max()
+        keep &= longest <= MAX_GAP_IN_HALF_TURN * (stop - start)
     mid = 0.5 * (start + stop)[keep]
     speed = np.pi / (stop - start)[keep]
     return mid, speed, times, dirs

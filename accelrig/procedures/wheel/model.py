@@ -258,7 +258,7 @@ def model_and_jacobian(t: np.ndarray, state: WheelState, free: FreeSet, time_sca
     jac = np.empty((n, 3, free.size))
     kb = da.shape[2]
     # Gamma R da: rotate each column then scale rows
-    jac[:, :, :kb] = np.einsum("ij,njk->nik", rot, da) * gamma[None, :, None]
+    jac[:, :, :kb] = np.matmul(rot, da) * gamma[None, :, None]
     # rotation increment: d(exp([d]x) R a)/d d_k = e_k x (R a)
     for k in range(3):
         e = np.zeros(3)

@@ -70,13 +70,19 @@ def realign_y(r1: np.ndarray, grid_step_deg: float = 0.5) -> float:
 
     The excursion has period pi in eps_z; a grid over [0, pi) then a bounded
     refinement around the best node."""
+    per_pass = int(np.clip(4_000_000 // max(r1.shape[0], 1), 1, 60))   # about 32 MB of candidates at a time
+
     def excursion(eps: np.ndarray) -> np.ndarray:
-        ry = np.outer(np.sin(eps), r1[:, 0]) + np.outer(np.cos(eps), r1[:, 1])
-        return ry.max(axis=1) - ry.min(axis=1)
+        out = np.empty(eps.size)
+        for i in range(0, eps.size, per_pass):
+            e = eps[i:i + per_pass]
+            ry = np.outer(np.sin(e), r1[:, 0])
+            ry += np.outer(np.cos(e), r1[:, 1])
+            out[i:i + per_pass] = ry.max(axis=1) - ry.min(axis=1)
+        return out
 
     grid = np.deg2rad(np.arange(0.0, 180.0, grid_step_deg))
-    values = np.concatenate([excursion(grid[i:i + 60]) for i in range(0, grid.size, 60)])
-    best = grid[int(np.argmin(values))]
+    best = grid[int(np.argmin(excursion(grid)))]
     step = np.deg2rad(grid_step_deg)
     fine = np.linspace(best - step, best + step, 81)
     return float(fine[int(np.argmin(excursion(fine)))])
@@ -128,6 +134,10 @@ def fit_motion(t: np.ndarray, ry: np.ndarray, survey: WheelSurvey, gap_times: np
 
     x0 = np.concatenate([[theta0], omega * scale**powers, [ry.mean(), amplitude0]])
     sol = least_squares(residual, x0, jac=jacobian, method="lm", xtol=1e-12, ftol=1e-12)
+    if not sol.success:
+        raise CalibrationError(f"the wheel's speed law could not be fitted to the rotating gravity signal "
+                               f"({sol.message})",
+                               "check that the recording holds one continuous spin of the wheel")
     th0, om, k, amp = unpack(sol.x)
     return th0, om, k, amp, mid[good], speed[good], sol.nfev
 
@@ -144,25 +154,47 @@ def gains_from_constraints(T: np.ndarray, R: np.ndarray, w22: float) -> np.ndarr
     return np.linalg.solve(U.T @ U, U.T @ b)
 
 
-def paper_calibrate(t: np.ndarray, v: np.ndarray, survey: WheelSurvey, radius: float | None,
-                    tilt: float | None, g: float = STANDARD_GRAVITY,
-                    gap_times: np.ndarray | None = None) -> PaperSteps:
-    """The four steps.  t from the first sample (s), v raw (n, 3) in m/s^2."""
+@dataclass
+class Motion:
+    """Steps A and B: the re-alignment and the wheel's phase law from r_y, signs not yet settled."""
+
+    realignment: np.ndarray        # T
+    realigned: np.ndarray          # r = T v, (n, 3)
+    theta0: float
+    omega: np.ndarray              # w0 .. w3, positive speed (the direction is settled later)
+    amplitude: float               # A of eq. 28 (sign not settled)
+    speed_time: np.ndarray
+    speed_samples: np.ndarray
+    n_function_evaluations: int
+
+
+def paper_motion(t: np.ndarray, v: np.ndarray, survey: WheelSurvey, gap_times: np.ndarray | None = None) -> Motion:
+    """Steps A (partial re-alignment) and B (phase law from r_y): shared by both methods."""
     gap_times = np.empty(0) if gap_times is None else gap_times
-    # --- A: partial re-alignment
     T1 = realign_z(v)
     r1 = v @ T1.T
     eps_z = realign_y(r1)
     T = rot_z(eps_z) @ T1
     r = v @ T.T
-    # --- B: motion from r_y
-    theta0, omega, k, amp, speed_t, speed_s, nfev_b = fit_motion(t, r[:, 1], survey, gap_times)
+    theta0, omega, _, amp, speed_t, speed_s, nfev = fit_motion(t, r[:, 1], survey, gap_times)
+    return Motion(T, r, theta0, omega, amp, speed_t, speed_s, nfev)
+
+
+def paper_calibrate(t: np.ndarray, v: np.ndarray, survey: WheelSurvey, radius: float | None,
+                    tilt: float | None, g: float = STANDARD_GRAVITY,
+                    gap_times: np.ndarray | None = None) -> PaperSteps:
+    """The four steps.  t from the first sample (s), v raw (n, 3) in m/s^2."""
+    # --- A, B: partial re-alignment, motion from r_y
+    motion = paper_motion(t, v, survey, gap_times)
+    T, r = motion.realignment, motion.realigned
+    theta0, omega, amp = motion.theta0, motion.omega, motion.amplitude
+    speed_t, speed_s, nfev_b = motion.speed_time, motion.speed_samples, motion.n_function_evaluations
     # Signs.  W = T Gamma R has a positive diagonal (det W = det Gamma > 0, w33 > 0 by T').
     # The centripetal drift enters r_x as + w11 r w^2: if it comes out negative, T'' is off by pi.
     if _rx_terms(t, r[:, 0], theta0, omega)[0] < 0:
         T = rot_z(np.pi) @ T
         r = v @ T.T
-        amp, k = -amp, -k
+        amp = -amp
     if amp < 0:  # A sin(theta) = -A sin(theta + pi): keep A = w22 g sin(alpha) > 0
         theta0, amp = theta0 + np.pi, -amp
     # the half-turn speeds are unsigned: theta and pi - theta give the same r_y; the

@@ -12,15 +12,18 @@ uncertainties come from a parametric bootstrap of the same four steps.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
-from accelrig.errors import DataError
+from accelrig.errors import CalibrationError, DataError
 from accelrig.procedures.contract import Event, Procedure
+from accelrig.procedures.wheel.assumptions import MAX_SYSTEMATIC, Checks, check_residuals, taken_in
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     WheelSurvey,
     check_capture,
+    stopped_at,
     survey,
     timestamp_figures,
     turn_speeds,
@@ -32,11 +35,13 @@ from accelrig.procedures.wheel.fit import (
     joint_fit,
     reported_names,
     reported_values,
+    reporting_map,
     wheel_crb,
 )
-from accelrig.procedures.wheel.model import phase, predict
+from accelrig.procedures.wheel.model import pack, phase, predict, unpack
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
+from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.units import STANDARD_GRAVITY, local_gravity
@@ -72,11 +77,13 @@ def calibrate_wheel(
     bootstrap: int = DEFAULT_BOOTSTRAP,
     seed: int = 0,
     cross_axis_sd: float = DEFAULT_CROSS_AXIS_SD,
+    on_progress: Callable[[str], None] | None = None,
 ) -> CalibrationResult:
     """Calibrate from a wheel recording.  ``radius`` in m and/or ``tilt_deg`` must be given.
 
     ``cross_axis_sd`` is the prior sd given to the off-diagonal terms of the correction matrix,
-    which the wheel does not observe (they are set to 0 with that uncertainty)."""
+    which the wheel does not observe (they are set to 0 with that uncertainty).  ``on_progress``
+    hears how far a long run is ("bootstrap run 120 of 1000"), for a progress line."""
     if method not in METHODS:
         raise DataError(f"unknown method {method!r}", f"use one of: {', '.join(METHODS)}")
     if not (np.isfinite(cross_axis_sd) and cross_axis_sd > 0):
@@ -86,27 +93,54 @@ def calibrate_wheel(
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g)
+    stop = stopped_at(t, v, look.noise_sd, look.period)
+    rest_note = None
+    if stop is not None:
+        # The speed law (a cubic in t) cannot follow a wheel that stops and stays: the fit takes the
+        # spin, the rest after it holds no rotation.  Nothing is dropped from the recording itself.
+        kept = t < stop
+        rest_note = (f"the wheel stopped turning at {stop:.1f} s of {t[-1]:.1f} s: the fit uses the spin before "
+                     f"it ({np.count_nonzero(kept)} of {t.size} samples); the {t[-1] - stop:.1f} s at rest hold no "
+                     f"rotation (give --stop {stop:.1f} to calibrate from the spin alone without this warning)")
+        t, v, gap_times = t[kept], v[kept], gap_times[gap_times < stop]
+        look = survey(t, v, recording.meta, g)
     warnings = check_capture(look, radius, g)
+    if rest_note:
+        warnings.insert(0, rest_note)
     started = time.perf_counter()
-    steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
     if method == "joint":
+        steps = joint_start(t, v, look, radius, tilt, g, gap_times)
         fit = joint_fit(t, v, steps.state, free, g)
-        state, cov, sigma, resid = fit.state, fit.covariance, fit.sigma, fit.residuals
-        quality = {"iterations": fit.iterations}
-        uncertainty_source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate)"
+        state, sigma, resid = fit.state, fit.sigma, fit.residuals
+        checks = check_residuals(t, v, state, free, fit.time_scale, 1.0 / sigma, resid, g)
+        warnings.extend(_assumption_warnings(checks, sigma))
+        if checks.step is not None:
+            # the structure the checks found and took in: the estimates move by its step, the residuals
+            # are what is left after it (in the frame of the fit's own state, where it was found)
+            structure = taken_in(t, state, free, fit.time_scale, checks.extra_step, g)
+            state = unpack(pack(state, free, fit.time_scale) + checks.step, free, fit.time_scale, state)
+            resid = v - predict(t, state, g) - structure
+        m = reporting_map(state, free, fit.time_scale)
+        cov = m @ checks.covariance_internal @ m.T
+        quality = {"iterations": fit.iterations, "residual_checks": checks.to_dict()}
+        uncertainty_source = checks.source
     else:
+        steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
         state = steps.state
         resid = v - predict(t, state, g)
         sigma = np.sqrt(np.mean(resid**2, axis=0))
-        cov = _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, bootstrap, seed)
+        cov = _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, bootstrap, seed,
+                               on_progress)
         crb = wheel_crb(t, state, free, sigma, g)
         quality = {"bootstrap_runs": bootstrap,
                    "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb)), strict=True))}
         uncertainty_source = f"parametric bootstrap of the four steps ({bootstrap} runs)"
     elapsed = time.perf_counter() - started
     names = reported_names(free)
+    # the mounting's part of u: the white-noise covariance (a correlated noise widens u for another reason)
+    mounting_cov = fit.covariance if method == "joint" else cov
     for axis in "xyz":
-        u_gain = np.sqrt(cov[names.index(f"gain_{axis}"), names.index(f"gain_{axis}")])
+        u_gain = np.sqrt(mounting_cov[names.index(f"gain_{axis}"), names.index(f"gain_{axis}")])
         if u_gain > POOR_GAIN * state.gain["xyz".index(axis)]:
             warnings.append(f"gain_{axis} is poorly determined (u = {u_gain:.2g}): the mounting hides it; "
                             + MOUNTING_HINT)
@@ -120,7 +154,35 @@ def calibrate_wheel(
                          elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
 
 
-def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, runs, seed) -> np.ndarray:
+def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
+    """What the residual checks found, in the operator's words; a refusal beyond MAX_SYSTEMATIC."""
+    out = list(checks.notes)
+    law = checks.speed_law
+    if law is not None and law.significant:
+        size = law.systematic_rms * float(np.mean(sigma))
+        seen = (f"the wheel did not follow the model's smooth speed law: the residuals hold a structure locked to "
+                f"the wheel angle or slower than the cubic coast-down, {size:.3g} m/s^2 rms "
+                f"({100 * law.systematic_rms:.0f} % of the noise sd; score test p = {law.p_value:.1g})")
+        if law.systematic_rms > MAX_SYSTEMATIC:
+            raise CalibrationError(
+                seen + f"; beyond {100 * MAX_SYSTEMATIC:.0f} % the gains and offsets are off by many times any u "
+                "the fit can state",
+                "balance the wheel (an unbalanced wheel speeds up and slows down once per turn), check its bearing, "
+                "and record a free coast-down without touching it")
+        out.append(seen + ": an unbalanced wheel or friction that is not a smooth coast-down does this; the fit "
+                   "takes the structure in and u grows with it, but a balanced wheel gives a calibration to trust "
+                   "more")
+    if checks.drift_per_axis is not None:
+        d = checks.drift_per_axis
+        out.append(f"the offsets drifted during the run by {d[0]:+.3g}, {d[1]:+.3g}, {d[2]:+.3g} m/s^2 (x, y, z; "
+                   f"score test p = {checks.drift.p_value:.1g}): the fit takes a linear drift in, the offsets are the "
+                   "run's mean and their u includes it; a sensor still warming up drifts like this, let it settle "
+                   "before calibrating")
+    return out
+
+
+def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, runs, seed,
+                     on_progress=None) -> np.ndarray:
     """Covariance of the four-step estimator: rerun it on data simulated from its own estimate."""
     if runs < 5:
         raise DataError(f"--bootstrap {runs}: the paper method needs at least 5 runs for its uncertainties")
@@ -129,6 +191,8 @@ def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, ru
     names = reported_names(free)
     draws = np.empty((runs, len(names)))
     for i in range(runs):
+        if on_progress is not None:
+            on_progress(f"bootstrap run {i + 1} of {runs}")
         noisy = clean + rng.standard_normal(clean.shape) * sigma
         est = paper_calibrate(t, noisy, look, radius, tilt, g, gap_times).state
         draws[i] = reported_values(est, free)

@@ -23,6 +23,16 @@ Friction laws:
                      (default: Table I's coefficients, scaled by speed / 9 rad/s)
     coulomb-viscous  w' = -(c + k w) for w > 0 (dry plus linear viscous friction): an
                      exponential decay towards a stop, which no cubic fits exactly
+
+An unbalanced wheel (``imbalance`` b > 0, rad/s^2): a mass off the hub feels
+gravity's pull along the tilted rim, a torque b sin(theta - theta_b) that
+speeds the wheel up on the way down and slows it on the way up, so its speed
+swings once per turn on top of the friction law:
+
+    theta'' = (friction law's w') - b sin(theta - theta_b)
+
+integrated numerically (DOP853, dense output); the friction term is the law's
+w' at the same time (cubic) or at the same speed (coulomb-viscous).
 """
 
 from __future__ import annotations
@@ -67,6 +77,8 @@ class WheelRig(Rig):
         "viscous": f"viscous friction, 1/s, coulomb-viscous only (default {DEFAULT_VISCOUS:g})",
         "misalignment": "mounting Euler angles theta,phi,psi in deg (default 30,20,25 as Table I)",
         "theta0_deg": "wheel phase at the first sample, deg (default 30)",
+        "imbalance": "peak angular acceleration from an unbalanced mass, rad/s^2 (default 0: balanced)",
+        "imbalance_deg": "wheel angle at which the unbalanced mass hangs lowest, deg (default 0)",
     }
 
     def __init__(
@@ -81,6 +93,8 @@ class WheelRig(Rig):
         misalignment_deg=TABLE_I_MISALIGNMENT_DEG,
         theta0_deg: float = TABLE_I_THETA0_DEG,
         g: float = STANDARD_GRAVITY,
+        imbalance: float = 0.0,
+        imbalance_deg: float = 0.0,
     ):
         if radius <= 0:
             raise DeviceError(f"radius={radius} m: the sensor must sit off the axis", "give a positive radius")
@@ -92,6 +106,8 @@ class WheelRig(Rig):
             raise DeviceError(f"friction={friction!r} is not a friction law", "use cubic or coulomb-viscous")
         if coulomb < 0 or viscous < 0:
             raise DeviceError("friction coefficients must not be negative")
+        if imbalance < 0:
+            raise DeviceError(f"imbalance={imbalance} must not be negative")
         self.radius = float(radius)
         self.tilt = np.deg2rad(tilt_deg)
         self.duration = float(duration)
@@ -103,6 +119,9 @@ class WheelRig(Rig):
         self.rotation = rotation_xyz(self.misalignment)
         self.theta0 = np.deg2rad(theta0_deg)
         self.g = g
+        self.imbalance = float(imbalance)
+        self.imbalance_angle = np.deg2rad(imbalance_deg)
+        self._unbalanced = None   # dense solution of the unbalanced motion, made on first use
         # the angle is the integral of the cubic speed law, starting at theta0
         self._angle_law = np.polynomial.Polynomial(self.omega).integ(k=self.theta0)
         # the bench frame at theta = 0: Z tilted towards world x, X pointing from the rim's lowest point to the axis
@@ -129,14 +148,43 @@ class WheelRig(Rig):
             viscous=url.get_float("viscous", DEFAULT_VISCOUS, low=0.0),
             misalignment_deg=TABLE_I_MISALIGNMENT_DEG if misalignment is None else misalignment,
             theta0_deg=url.get_float("theta0_deg", TABLE_I_THETA0_DEG),
+            imbalance=url.get_float("imbalance", 0.0, low=0.0),
+            imbalance_deg=url.get_float("imbalance_deg", 0.0),
         )
 
     def motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Wheel angle theta and angular velocity theta' at times t (analytic for both friction laws)."""
         t = np.asarray(t, dtype=float)
+        if self.imbalance > 0:
+            return self._unbalanced_motion(t)
         if self.friction == "cubic":
             return self._angle_law(t), np.polynomial.Polynomial(self.omega)(t)
         return self._coulomb_viscous(t)
+
+    def _unbalanced_motion(self, t: np.ndarray):
+        """theta, theta' of the unbalanced wheel: the equation of motion integrated once, densely."""
+        if self._unbalanced is None:
+            from scipy.integrate import solve_ivp
+
+            cubic_accel = np.polynomial.Polynomial(self.omega).deriv()
+            c, k = self.coulomb, self.viscous
+
+            def rhs(time, y):
+                theta, rate = y
+                if self.friction == "cubic":
+                    friction = cubic_accel(time)
+                else:   # dry + viscous, against the motion; a wheel at rest stays there under friction
+                    friction = -np.sign(rate) * (c + k * abs(rate))
+                return [rate, friction - self.imbalance * np.sin(theta - self.imbalance_angle)]
+
+            # forwards and backwards from t = 0, with a margin: the kinematics differentiates
+            # around the first and the last sample
+            start = [self.theta0, float(self.omega[0])]
+            self._unbalanced = [solve_ivp(rhs, (0.0, end), start, method="DOP853", dense_output=True,
+                                          rtol=1e-11, atol=1e-11).sol for end in (self.duration + 1.0, -1.0)]
+        forward, backward = self._unbalanced
+        out = np.where(t >= 0, forward(np.clip(t, 0.0, self.duration + 1.0)), backward(np.clip(t, -1.0, 0.0)))
+        return out[0], out[1]
 
     def _coulomb_viscous(self, t: np.ndarray):
         # w' = -sign(w0) (c + k |w|): |w|(t) = (|w0| + c/k) e^{-kt} - c/k until it stops.
@@ -195,6 +243,8 @@ class WheelRig(Rig):
             "coulomb": self.coulomb if self.friction == "coulomb-viscous" else None,
             "viscous": self.viscous if self.friction == "coulomb-viscous" else None,
             "theta0_rad": float(self.theta0),
+            "imbalance": self.imbalance,
+            "imbalance_rad": float(self.imbalance_angle),
             "misalignment_rad": self.misalignment.tolist(),
             "rotation": self.rotation.tolist(),
             "g": self.g,

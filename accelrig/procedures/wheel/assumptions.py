@@ -1,0 +1,293 @@
+"""Does the wheel model hold on this recording?  The joint fit's residual checks (issue 18).
+
+The joint fit's covariance (J^T W J)^-1 assumes white noise around a true model.
+Three things break that on real wheels, each checked here with the one shared
+implementation (``accelrig.estimation.residuals``) and settled by the policy stated
+there:
+
+* **Correlated noise** (AR-like, 1/f): the residuals of each axis are tested for
+  whiteness; when correlated, u comes from the batch-means sandwich, whose block
+  scores this module sums in the same chunked pass as the normal equations.
+* **A speed law the wheel did not follow** (an unbalanced wheel speeds up and slows
+  down once per turn; friction that is not a cubic): the model then moves along its
+  phase direction dv/dtheta.  A score (Lagrange multiplier) test of added regressors
+  along that direction -- harmonics of the wheel angle with slowly changing
+  amplitude, and time shapes beyond the cubic law -- asks whether the residuals hold
+  such a structure.  Found: a warning with its size; beyond MAX_SYSTEMATIC of the noise,
+  a refusal.
+* **Offset drift** (a warming sensor): a score test of a linear drift of each axis'
+  offset.  Found: the fit takes the drift in (one Gauss-Newton step of the model with
+  three drift terms, which is exact for a model linear in them), u comes from that
+  larger model, the offsets reported are the run's mean, and a warning says how much
+  the offsets moved.
+
+A score test needs no refit: at the fit's optimum J^T W r = 0, the statistic is
+g' V^-1 g with g = X^T W r and V the variance of g once the fitted parameters are
+projected out (white: C - B^T A^-1 B; correlated: the batch means of the projected
+scores, with Hotelling's small-sample correction).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats as _sps
+
+from accelrig.estimation.residuals import ALPHA, MIN_BLOCKS, Whiteness, sandwich_covariance, whiteness_by_column
+from accelrig.procedures.wheel.fit import chunks
+from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, phase
+from accelrig.units import STANDARD_GRAVITY
+
+HARMONICS = 2          # wheel-angle harmonics 1..HARMONICS of the per-turn structure
+AMPLITUDE_DEGREE = 1   # their amplitude may change linearly over the run (the speed changes)
+SLOW_DEGREES = (5, 6, 7)  # Legendre degrees in time beyond the phase law's quartic
+# Refuse when the structure the model misses is larger than this share of the noise sd (rms):
+# the estimates are then off by many times their u whatever u is made of.
+MAX_SYSTEMATIC = 0.5
+# The sandwich's variance growing by more than this factor per doubling of the block length, twice
+# in a row at the longest blocks, marks noise with a long memory.
+LONG_MEMORY_GROWTH = 1.15
+
+
+@dataclass
+class ScoreTest:
+    name: str
+    statistic: float
+    dof: float
+    p_value: float
+    systematic_rms: float          # rms of the missed structure, in noise sds
+    method: str                    # "white" or "batch means"
+
+    @property
+    def significant(self) -> bool:
+        return self.p_value < ALPHA
+
+    def to_dict(self) -> dict:
+        return {"statistic": self.statistic, "dof": self.dof, "p_value": self.p_value,
+                "systematic_rms_over_noise": self.systematic_rms, "method": self.method,
+                "significant": self.significant}
+
+
+@dataclass
+class Checks:
+    whiteness: list[Whiteness]
+    correlated: bool
+    block: int | None                    # batch-means block length u came from (None: white)
+    blocks: int | None
+    speed_law: ScoreTest | None
+    drift: ScoreTest | None
+    covariance_internal: np.ndarray      # what u is computed from, internal parameters
+    source: str                          # one line: how u was computed and why
+    step: np.ndarray | None = None                # internal-parameter change taking found structure in
+    drift_per_axis: np.ndarray | None = None      # offset change over the run, m/s^2
+    extra_step: np.ndarray | None = None          # coefficients of the added regressors taken in
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        out = {"noise": "correlated" if self.correlated else "white",
+               "whiteness": [w.to_dict() for w in self.whiteness],
+               "block_samples": self.block, "blocks": self.blocks, "uncertainty": self.source}
+        if self.speed_law is not None:
+            out["speed_law_test"] = self.speed_law.to_dict()
+        if self.drift is not None:
+            out["offset_drift_test"] = self.drift.to_dict()
+        if self.drift_per_axis is not None:
+            out["offset_drift_m_s2"] = self.drift_per_axis.tolist()
+        return out
+
+
+def _extra_columns(t, state: WheelState, jac_theta: np.ndarray, time_scale: float) -> np.ndarray:
+    """Added regressors (n, 3, q): speed-law perturbations, then the offset drifts.
+
+    A perturbation d(t) of the wheel angle moves the model by dv/dtheta d + dv/dw d' + dv/dw' d''
+    (gravity, centripetal and tangential terms of eq. 1).  The family: d = harmonics of the wheel
+    angle with an amplitude changing linearly over the run (an imbalance swings the speed once per
+    turn), and Legendre shapes in time beyond the quartic phase law (friction that is not a cubic)."""
+    theta, rate, accel = phase(t, state.theta0, state.omega)
+    tau = 2.0 * t / time_scale - 1.0
+    dtau = 2.0 / time_scale
+    response = state.gain[:, None] * state.rotation                # Gamma R: bench -> sensor
+    radial = 2.0 * state.radius * rate[:, None] * response[:, 0]   # dv/dw
+    tangential = state.radius * response[:, 1]                      # dv/dw'
+    columns = []
+
+    def perturbation(d, d1, d2):
+        columns.append(jac_theta * d[:, None] + radial * d1[:, None] + tangential[None, :] * d2[:, None])
+
+    for k in range(1, HARMONICS + 1):
+        c, s_ = np.cos(k * theta), np.sin(k * theta)
+        for deg in range(AMPLITUDE_DEGREE + 1):
+            amp = np.polynomial.legendre.legval(tau, [0] * deg + [1])
+            # the amplitude changes slowly: its own derivatives are left out
+            perturbation(amp * c, -amp * k * rate * s_, -amp * (k * k * rate**2 * c + k * accel * s_))
+            perturbation(amp * s_, amp * k * rate * c, amp * (-k * k * rate**2 * s_ + k * accel * c))
+    for deg in SLOW_DEGREES:
+        coef = [0] * deg + [1]
+        d = np.polynomial.legendre.legval(tau, coef)
+        d1 = np.polynomial.legendre.legval(tau, np.polynomial.legendre.legder(coef)) * dtau
+        d2 = np.polynomial.legendre.legval(tau, np.polynomial.legendre.legder(coef, 2)) * dtau**2
+        perturbation(d, d1, d2)
+    along = np.stack(columns, axis=2)
+    drift = np.zeros((t.size, 3, 3))
+    for k in range(3):
+        drift[:, k, k] = tau
+    return np.concatenate([along, drift], axis=2)
+
+
+def taken_in(t, state: WheelState, free: FreeSet, time_scale: float, extra_step: np.ndarray,
+             g: float = STANDARD_GRAVITY) -> np.ndarray:
+    """The structure the checks took into the model, (n, 3) m/s^2: X extra_step."""
+    out = np.empty((t.size, 3))
+    for part in chunks(t.size):
+        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
+        out[part] = _extra_columns(t[part], state, jac[:, :, 0], time_scale) @ extra_step
+    return out
+
+
+N_SPEED_LAW = 2 * HARMONICS * (AMPLITUDE_DEGREE + 1) + len(SLOW_DEGREES)
+
+
+def _score_test(name, g, s_white, block_scores, use_blocks, n_values) -> tuple[ScoreTest, np.ndarray]:
+    """Statistic, and the augmented model's coefficients (white normal matrix) for the size."""
+    q = g.size
+    coef = np.linalg.lstsq(s_white, g, rcond=None)[0]
+    systematic = float(np.sqrt(max(coef @ s_white @ coef, 0.0) / n_values))
+    if use_blocks:
+        k = block_scores.shape[0]
+        centred = block_scores - block_scores.mean(axis=0)
+        middle = centred.T @ centred * (k / max(k - 1, 1))
+        t2 = float(g @ np.linalg.lstsq(middle, g, rcond=None)[0])
+        if k - q < 5:
+            return ScoreTest(name, t2, q, float("nan"), systematic, "batch means (too few blocks)"), coef
+        f = t2 * (k - q) / (q * (k - 1))
+        return ScoreTest(name, t2, q, float(_sps.f.sf(f, q, k - q)), systematic, "batch means"), coef
+    stat = float(g @ coef)
+    return ScoreTest(name, stat, q, float(_sps.chi2.sf(stat, q)), systematic, "white"), coef
+
+
+def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeSet, time_scale: float,
+                    weight: np.ndarray, residuals: np.ndarray, g: float = STANDARD_GRAVITY) -> Checks:
+    """Whiteness, the speed-law and drift score tests, and the covariance u is to come from."""
+    white = whiteness_by_column(residuals)
+    correlated = any(w.correlated for w in white)
+    period = float(np.median(np.diff(t)))
+    # blocks start at a quarter of the batch-means length the integrated time asks for: the ladder of
+    # doublings in _widest_sandwich then shows whether the variance levels off (short memory) or not
+    block = (max(1, max(w.block_length() for w in white) // 4) if correlated
+             else max(1, int(round(1.0 / period))))
+    n, p = t.size, free.size
+    k_blocks = max(1, n // block)
+    if n - k_blocks * block >= block / 2:
+        k_blocks += 1
+    q = N_SPEED_LAW + 3
+    a, b, c = np.zeros((p, p)), np.zeros((p, q)), np.zeros((q, q))
+    js, xs = np.zeros((k_blocks, p)), np.zeros((k_blocks, q))
+    for part in chunks(n):
+        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
+        jw = jac * weight[None, :, None]
+        xw = _extra_columns(t[part], state, jac[:, :, 0], time_scale) * weight[None, :, None]
+        rw = residuals[part] * weight
+        jf, xf = jw.reshape(-1, p), xw.reshape(-1, q)
+        a += jf.T @ jf
+        b += jf.T @ xf
+        c += xf.T @ xf
+        index = np.minimum(np.arange(part.start, part.stop) // block, k_blocks - 1)
+        np.add.at(js, index, np.einsum("nkp,nk->np", jw, rw))
+        np.add.at(xs, index, np.einsum("nkq,nk->nq", xw, rw))
+    a_inv = np.linalg.pinv(a)
+    projection = b.T @ a_inv                           # q x p: the part of X the fit absorbs
+    schur = c - projection @ b
+    g_all = xs.sum(axis=0) - projection @ js.sum(axis=0)
+    scores = xs - js @ projection.T
+    use_blocks = correlated
+    # the tests use the batch-means length itself (the finest blocks serve the sandwich ladder)
+    test_scores = _merge(scores, 4) if correlated else scores
+    law = slice(0, N_SPEED_LAW)
+    dr = slice(N_SPEED_LAW, q)
+    speed_law, _ = _score_test("speed law", g_all[law], schur[law, law], test_scores[:, law], use_blocks, 3 * n)
+    drift, _ = _score_test("offset drift", g_all[dr], schur[dr, dr], test_scores[:, dr], use_blocks, 3 * n)
+
+    notes = []
+    # Structure found is taken into the model (one Gauss-Newton step from the optimum, where
+    # J^T W r = 0: exact for terms the model is linear in), so the estimates lose its bias and u
+    # grows by what it costs to tell it from the parameters.
+    taken = [i for test, part in ((speed_law, law), (drift, dr)) if test.significant
+             for i in range(part.start, part.stop)]
+    full = np.block([[a, b[:, taken]], [b[:, taken].T, c[np.ix_(taken, taken)]]])
+    full_inv = np.linalg.pinv(full)
+    step = full_inv @ np.concatenate([js.sum(axis=0), xs[:, taken].sum(axis=0)])
+    extra_step = np.zeros(q)
+    extra_step[taken] = step[p:]
+    if use_blocks:
+        sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(
+            full, np.concatenate([js, xs[:, taken]], axis=1), block, full_inv)
+        cov = sandwich[:p, :p]
+        worst = max(white, key=lambda w: w.tau)
+        source = (f"batch-means sandwich over {blocks_used} blocks of {block_used} samples: the residuals are "
+                  f"correlated in time (lag-1 {worst.lag1:.2f}, integrated time {worst.tau:.1f} samples), so a "
+                  "white-noise u would be too small")
+        if extrapolation > 1.0:
+            notes.append("the noise has a long memory (1/f-like wander): its effect on the estimates still grew at "
+                         f"the longest time scale this record can show ({block_used * period:.0f} s); u is "
+                         f"extrapolated to the length of the run ({np.sqrt(extrapolation):.1f}x), which assumes the "
+                         "wander keeps growing the same way; a sensor that has settled at a steady temperature "
+                         "wanders less")
+            source += f", extrapolated {np.sqrt(extrapolation):.1f}x for a noise with a long memory"
+        elif blocks_used < MIN_BLOCKS:
+            notes.append(f"the noise is correlated over {block_used} samples: only {blocks_used} independent "
+                         "blocks in the record, too few to pin the uncertainty down; record longer")
+    else:
+        cov = full_inv[:p, :p]
+        block_used, blocks_used = None, None     # white: no batch means
+        source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate): residuals white"
+    if taken:
+        names = [n for test, n in ((speed_law, "the speed swings the cubic law misses"),
+                                   (drift, "a linear offset drift per axis")) if test.significant]
+        source += "; the model takes in " + " and ".join(names)
+    drift_per_axis = 2.0 * extra_step[dr] if drift.significant else None    # tau runs -1 .. 1
+    checks = Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source,
+                    step[:p] if taken else None, drift_per_axis, notes)
+    checks.extra_step = extra_step if taken else None
+    return checks
+
+
+def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:
+    """Sums of ``factor`` consecutive blocks; a remainder joins the last."""
+    k = block_sums.shape[0] // factor
+    if k < 1:
+        return block_sums.sum(axis=0, keepdims=True)
+    merged = block_sums[: k * factor].reshape(k, factor, -1).sum(axis=1)
+    merged[-1] += block_sums[k * factor:].sum(axis=0)
+    return merged
+
+
+def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int, float]:
+    """Batch means over blocks of ``block``, 2 ``block``, 4 ``block`` ... while MIN_BLOCKS remain; the
+    widest covariance (largest mean variance ratio to the white one) is kept.  The integrated time
+    from the residuals sees only the short correlations; noise with a long memory (1/f) keeps
+    growing with the block length, and the longest blocks the record allows are what show it.
+    When the variance was still growing over the last two doublings, even the longest blocks do
+    not hold the slowest part of the noise: the growth per doubling is then carried on to blocks
+    of half the record (an extrapolation, returned as the factor on the variance; 1 otherwise)."""
+    best, best_block, best_k, best_ratio = None, block, scores.shape[0], -np.inf
+    white_diag = np.diag(bread)
+    current, size = scores, block
+    ratios = []
+    while True:
+        cov = sandwich_covariance(normal, current, size).covariance
+        ratio = float(np.mean(np.diag(cov) / white_diag))
+        ratios.append(ratio)
+        if ratio > best_ratio:
+            best, best_block, best_k, best_ratio = cov, size, current.shape[0], ratio
+        if current.shape[0] // 2 < MIN_BLOCKS:
+            growth = LONG_MEMORY_GROWTH
+            long_memory = len(ratios) >= 3 and ratios[-1] > growth * ratios[-2] > growth**2 * ratios[-3]
+            extrapolation = 1.0
+            if long_memory:
+                # carry the growth per doubling on to blocks of half the record, the slowest scale
+                # that moves the estimates; at most 2 per doubling (a random walk's variance)
+                per_doubling = min(ratios[-1] / ratios[-2], 2.0)
+                extrapolation = float(per_doubling ** np.log2(max(best_k / 2.0, 1.0)))
+            return best * extrapolation, best_block, best_k, extrapolation
+        current, size = _merge(current, 2), 2 * size
