@@ -225,12 +225,12 @@ class FirmwareDriver(Driver):
             self._block_seq += 1
 
         for frame, first, gap in placed:
+            if gap != 0:
+                emit()   # before a restart forgets the old counter
+                run = []
             if gap == -1:
                 clock.restart()
             clock.observe(first, frame.counts.shape[0], frame.device_time_us * 1e-6, host_time)
-            if gap != 0:
-                emit()
-                run = []
             run.append((frame, first, gap))
         emit()
         self.info.delivered_rate = clock.delivered_rate
