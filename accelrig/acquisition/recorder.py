@@ -8,10 +8,16 @@ and number missing) and never papered over.  Attached to a Session
 (``Recorder.attach``) the reader is lossless: the pump waits for it rather
 than overwrite samples it has not taken.
 
-Taken samples are kept in memory (``_keep``), or, given a
-``segments.SegmentWriter``, streamed to disk segments instead: memory stays
-bounded whatever the duration, and the times are anchored to UTC (host clock
-at the first chunk, stated in the segments' ``time_anchor``).
+Taken samples are kept in memory (``_keep``), or, given a writer, streamed
+instead: memory stays bounded whatever the duration.  ``_stream`` is the one
+place chunks and the gaps in them become writer calls (``write`` for each run
+of samples, ``gap`` at each gap, with its cause and duration), for
+``accelrig record -o DIR`` and the daemon alike.  The
+writer is a ``segments.SegmentWriter`` or anything with its ``write`` and
+``gap`` (the daemon's device, which adds its own bookkeeping around one).
+Times go to it in UTC: the chunk's own (``utc_times``, a driver that maps
+them itself) or anchored to the host clock at the first chunk (stated in the
+segments' ``time_anchor``).
 """
 
 from __future__ import annotations
@@ -34,6 +40,15 @@ if TYPE_CHECKING:
     from accelrig.segments import SegmentWriter
 
 
+def gap_cause(info: DeviceInfo) -> str:
+    """Why a gap the driver reported happened, in words: where a driver of this kind loses samples."""
+    if info.driver in ("i2c", "i2c-sim"):
+        return "FIFO overflow (samples lost in the chip before they were read)"
+    if info.link_stats is not None:
+        return "frames lost on the link (corrupt or dropped)"
+    return "samples lost by the device or link"
+
+
 class Recorder:
     """Every sample one reader delivers, from the first ``poll()`` on.
 
@@ -44,12 +59,15 @@ class Recorder:
     """
 
     def __init__(self, info: DeviceInfo, reader: Reader, session: Session | None = None,
-                 writer: SegmentWriter | None = None):
+                 writer: SegmentWriter | None = None, utc_times: bool = False):
         self.info = info
         self.reader = reader
         self.session = session
         self.writer = writer                # streams to disk instead of keeping in memory
+        self.utc_times = utc_times          # chunk times are UTC seconds already
+        self.gap_cause = gap_cause(info)
         self._utc_offset: int | None = None   # UTC epoch ns minus device time ns, set at the first chunk
+        self._last_ns: int | None = None      # UTC ns of the last sample streamed
         self._lock = threading.Lock()  # poll() on one thread, recording() on another (the TUI's fit worker)
         self._counts: list[np.ndarray] = []
         self._t: list[np.ndarray] = []
@@ -96,14 +114,15 @@ class Recorder:
 
     def _keep(self, chunk: Chunk) -> None:
         with self._lock:
-            if chunk.lost:  # cannot happen on a lossless reader, but never hide it
+            if self.writer is not None:
+                self._stream(chunk)    # the gap records go to the writer, not to memory
+            elif chunk.lost:  # cannot happen on a lossless reader, but never hide it
                 self._gaps.append({"index": self.samples, "missing": chunk.lost, "cause": "reader overrun"})
             for pos, missing in chunk.gaps:
-                self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": "device/link"})
+                if self.writer is None:
+                    self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": self.gap_cause})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
-            if self.writer is not None:
-                self._stream(chunk)
             if not chunk.n:
                 return
             if self._t0 is None:
@@ -118,26 +137,34 @@ class Recorder:
             self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
 
     def _stream(self, chunk: Chunk) -> None:
-        """Write a chunk to the segment writer, each gap record at its place; times in UTC."""
-        from accelrig.segments import to_ns
+        """Write a chunk to the writer: each run of samples, and each gap record at its place with its
+        cause and duration (from the samples either side, less one period); times in UTC."""
+        from accelrig.segments import NS, to_ns
 
         w = self.writer
-        if self._utc_offset is None and chunk.n:
-            now = time.time_ns()
-            # in integer ns: float64 epoch seconds would round the device's times to 0.24 us
-            self._utc_offset = now - int(to_ns(chunk.t[-1:])[0])   # the chunk's last sample arrived just now
-            w.meta["time_anchor"] = {"method": "host UTC clock when the first chunk arrived",
-                                     "utc_ns": now, "device_time": float(chunk.t[-1])}
-        t = to_ns(chunk.t) + (self._utc_offset or 0)
+        if self.utc_times:
+            t = to_ns(chunk.t)
+        else:
+            if self._utc_offset is None and chunk.n:
+                now = time.time_ns()
+                # in integer ns: float64 epoch seconds would round the device's times to 0.24 us
+                self._utc_offset = now - int(to_ns(chunk.t[-1:])[0])   # the chunk's last sample arrived just now
+                w.meta["time_anchor"] = {"method": "host UTC clock when the first chunk arrived",
+                                         "utc_ns": now, "device_time": float(chunk.t[-1])}
+            t = to_ns(chunk.t) + (self._utc_offset or 0)
         if chunk.lost:
             w.gap(t[0] if chunk.n else time.time_ns(), chunk.lost, "reader overrun")
         start = 0
         for pos, missing in [*chunk.gaps, (chunk.n, None)]:
             if pos > start:
                 w.write(t[start:pos], chunk.counts[start:pos],
-                        {name: values[start:pos] for name, values in chunk.channels.items()})
+                        {name: values[start:pos] for name, values in chunk.channels.items()} or None)
+                self._last_ns = int(t[pos - 1])
             if missing is not None:
-                w.gap(t[pos] if pos < chunk.n else time.time_ns(), missing, "device/link")
+                at = int(t[pos]) if pos < chunk.n else time.time_ns()
+                seconds = ((at - self._last_ns) / NS - 1.0 / self.info.nominal_rate
+                           if self._last_ns is not None and pos < chunk.n else None)
+                w.gap(at, missing, self.gap_cause, seconds)
             start = pos
 
     def close(self) -> None:
