@@ -72,6 +72,9 @@ class FirmwareDriver(Driver):
     def _link_options(self) -> set[str]:
         return set(LINK_OPTIONS)
 
+    def known_options(self) -> set[str]:
+        return self._link_options()
+
     def open(self) -> DeviceInfo:
         url = self.url
         url.check_known(self._link_options())
