@@ -12,7 +12,7 @@ Taken samples are kept in memory (``_keep``), or, given a writer, streamed
 instead: memory stays bounded whatever the duration.  ``_stream`` is the one
 place chunks and the gaps in them become writer calls (``write`` for each run
 of samples, ``gap`` at each gap, with its cause and duration), for
-``accelrig record -o DIR`` and the daemon alike.  The
+``accelrig record -o DIR``, the TUI's captures and the daemon alike.  The
 writer is a ``segments.SegmentWriter`` or anything with its ``write`` and
 ``gap`` (the daemon's device, which adds its own bookkeeping around one).
 Times go to it in UTC: the chunk's own (``utc_times``, a driver that maps
@@ -173,11 +173,14 @@ class Recorder:
             self.session.release(self.reader)
 
     def recording(self, units: str = "m/s^2") -> Recording:
-        """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts"."""
+        """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts".
+
+        A recorder streaming to a SegmentWriter reads its segments back (the
+        open one up to its last complete block): memory is spent only when asked.
+        """
         with self._lock:
             if self.writer is not None:
-                raise DeviceError(f"this recorder streamed {self.info.url} to {self.writer.directory}",
-                                  "read it back with accelrig.recording.load_recording")
+                return self._read_back(units)
             if not self.samples:
                 raise DeviceError(f"{self.info.url} delivered no samples")
             counts = np.concatenate(self._counts)
@@ -189,6 +192,19 @@ class Recorder:
         if self.session is not None and self.session.interrupted:
             meta["interrupted"] = self.session.interrupted
         return Recording(t, acc, units, channels, meta)
+
+    def _read_back(self, units: str) -> Recording:
+        from accelrig.recording import read_segments
+
+        directory = getattr(self.writer, "directory", None)
+        if directory is None:
+            raise DeviceError(f"this recorder streamed {self.info.url} to a writer that cannot be read back")
+        if not self.samples:
+            raise DeviceError(f"{self.info.url} delivered no samples")
+        rec = read_segments(directory, units="counts" if units == "counts" else None)
+        if self.session is not None and self.session.interrupted:
+            rec.meta["interrupted"] = self.session.interrupted
+        return rec
 
     def take_until(self, pull: Callable[[], bool], seconds: float | None = None, samples: int | None = None,
                    on_progress: Callable[[Recorder], None] | None = None, progress_interval: float = 0.25) -> None:
@@ -237,6 +253,20 @@ def record(
 
     recorder.take_until(pull, seconds, samples, on_progress, progress_interval)
     return recorder.recording(units)
+
+
+def streaming_writer(info: DeviceInfo, directory, **options) -> SegmentWriter:
+    """The SegmentWriter a Recorder streams a device into (``record -o``, the TUI's captures): the
+    device's metadata as a recording states it, UTC times, segments named after the device's identity;
+    ``options`` go to SegmentWriter (rotation, csv copies)."""
+    import re
+
+    from accelrig.segments import SegmentWriter
+
+    meta = recording_meta(info, np.zeros(0), [], 0)
+    meta.update(time_base="utc", delivered_rate=None, device_rate=None)
+    stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
+    return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels, **options)
 
 
 def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: int) -> dict:

@@ -7,7 +7,6 @@ taken so far.
 
 from __future__ import annotations
 
-import re
 import signal
 import sys
 import time
@@ -52,9 +51,8 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
 
-    from accelrig.acquisition.recorder import Recorder, recording_meta
+    from accelrig.acquisition.recorder import Recorder, streaming_writer
     from accelrig.acquisition.session import Session, State
     from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
@@ -92,13 +90,10 @@ def run(args) -> int:
         sys.stderr.flush()
 
     def make_writer(info) -> SegmentWriter:
-        meta = recording_meta(info, np.zeros(0), [], 0)
-        meta.update(time_base="utc", delivered_rate=None, device_rate=None)
-        stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
-        return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels,
-                             segment_seconds=float("inf") if single else args.segment_minutes * 60.0,
-                             segment_bytes=float("inf") if single else args.segment_mb * 2**20,
-                             csv=args.csv_copies and not single)
+        return streaming_writer(info, directory,
+                                segment_seconds=float("inf") if single else args.segment_minutes * 60.0,
+                                segment_bytes=float("inf") if single else args.segment_mb * 2**20,
+                                csv=args.csv_copies and not single)
 
     session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile, writer=make_writer)
     recorder, writer = session.recorder, session.recorder.writer
