@@ -28,8 +28,6 @@ and the gap is that number less one, its duration whole periods.
 
 from __future__ import annotations
 
-from collections import deque
-
 import numpy as np
 
 from accelrig.acquisition.block import Block
@@ -85,7 +83,11 @@ class FifoStream:
         self._grid_index = 0                   # and its regression counter
         self._reset_window = (0.0, 0.0)        # host time before the last reset, and after its restarting write
         self._grid_unknown = False             # the first frames after the reset could not be placed on it
-        self._bounds: deque[tuple[int, float]] = deque(maxlen=BOUND_POLLS)  # see _sample_time
+        # the last BOUND_POLLS polls (see _sample_time), a ring: regression counter of the newest
+        # frame, host time after the count read; _bound_count of them are filled
+        self._bound_k = np.zeros(BOUND_POLLS)
+        self._bound_end = np.zeros(BOUND_POLLS)
+        self._bound_count = 0
         self._next_poll = 0.0
         self._started = 0.0
         self.started = False
@@ -155,7 +157,10 @@ class FifoStream:
         if self._fit_offset is None:
             self._place_first_frame(count_start, count_time)
         self.fit.add(self._fit_offset + self._segment_frames, count_time)
-        self._bounds.append((self._fit_offset + self._segment_frames - 1, count_time))
+        slot = self._bound_count % BOUND_POLLS
+        self._bound_k[slot] = self._fit_offset + self._segment_frames - 1
+        self._bound_end[slot] = count_time
+        self._bound_count += 1
         self._check_rate()
         if self.resampler.passthrough:
             out = counts_in.astype(np.int16)
@@ -224,7 +229,7 @@ class FifoStream:
         self._grid_unknown = self._grid_time is not None and periods < 1
         if periods < 1:
             self.fit.new_segment()
-            self._bounds.clear()
+            self._bound_count = 0
             self._fit_offset, self._ref_time = 0, estimate
         else:
             self._fit_offset, self._ref_time = self._grid_index + periods, self._grid_time + periods * b
@@ -236,7 +241,7 @@ class FifoStream:
         b = self._timeline_period()
         elapsed = positions - self._ref_pos
         t = self._ref_time + b * elapsed
-        if len(self._bounds) >= SLEW_AFTER_POLLS and elapsed[-1] > 0:
+        if self._bound_count >= SLEW_AFTER_POLLS and elapsed[-1] > 0:
             error = self._sample_time(self._fit_offset + float(positions[-1]), b) - float(t[-1])
             limit = MAX_SLEW * b * float(elapsed[-1])
             t += min(max(error, -limit), limit) * (elapsed / elapsed[-1])
@@ -254,8 +259,9 @@ class FifoStream:
         protocol keeps for the same reason).  A least-squares line would take
         those one-sided delays, and a loaded host's long ones, as noise.
         """
-        k, end = (np.array(column) for column in zip(*self._bounds, strict=True))
-        return float(np.min(end + b * (index - k))) - b / (len(k) + 1)
+        n = min(self._bound_count, BOUND_POLLS)
+        k, end = self._bound_k[:n], self._bound_end[:n]
+        return float(np.min(end + b * (index - k))) - b / (n + 1)
 
     def _restart_segment(self, before: float, after: float) -> None:
         """After a FIFO reset (or the start), between host times ``before`` and ``after``."""
