@@ -483,6 +483,10 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise _storage_error(exc, target) from None
+    finally:
+        # pyarrow's allocator keeps what the conversion used; a daemon converting a segment an
+        # hour for weeks would otherwise hold its peak for ever
+        pa.default_memory_pool().release_unused()
     path.unlink()
     fsync_directory(target.parent)
     return target
