@@ -451,7 +451,10 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
     names = header.get("channels", [])
     info = {"format": FORMAT, "version": FORMAT_VERSION, "stem": header["stem"], "index": header["index"],
             "scale": header["scale"], "units": "counts", "channels": names, "samples": scanned.samples,
-            "first_ns": scanned.first_ns, "last_ns": scanned.last_ns, "gaps": scanned.gaps, "meta": header["meta"]}
+            "first_ns": scanned.first_ns, "last_ns": scanned.last_ns, "gaps": scanned.gaps, "meta": header["meta"],
+            **_rates(scanned.samples, scanned.first_ns, scanned.last_ns,
+                     [g for g in scanned.gaps if scanned.first_ns is not None
+                      and scanned.first_ns < g["t_ns"] <= scanned.last_ns])}
     if recovered:
         info["recovered"] = recovered
     utc = header["meta"].get("time_base") == "utc"
@@ -480,9 +483,22 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise _storage_error(exc, target) from None
+    finally:
+        # pyarrow's allocator keeps what the conversion used; a daemon converting a segment an
+        # hour for weeks would otherwise hold its peak for ever
+        pa.default_memory_pool().release_unused()
     path.unlink()
     fsync_directory(target.parent)
     return target
+
+
+def _rates(samples: int, first_ns: int | None, last_ns: int | None, gaps: list[dict]) -> dict:
+    """The rates over a stretch of samples (a segment, a range read): delivered (samples received per
+    second) and device (with the samples its gap records say were lost), None if it spans no time."""
+    span = (last_ns - first_ns) / NS if first_ns is not None and last_ns is not None else 0.0
+    missing = sum(g["samples"] for g in gaps if g["samples"] > 0)
+    return {"delivered_rate": (samples - 1) / span if span > 0 else None,
+            "device_rate": (samples - 1 + missing) / span if span > 0 else None}
 
 
 def write_segment_csv(parquet_path: Path) -> Path:
@@ -773,6 +789,9 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
             gaps.append({"index": index, "missing": g["samples"], "cause": g["cause"],
                          "seconds": g.get("seconds"), "segment": part.path.name})
     meta = dict(parts[0].info["meta"])
+    # over what was read: the gap records between its first and last sample
+    meta.update(_rates(total, origin_ns, origin_ns + int(round(float(t[-1]) * NS)),
+                       [{"samples": g["missing"]} for g in gaps if 0 < g["index"] < total]))
     meta.update(scale=scale, units=units, gaps=gaps, time_origin=float(ns_to_seconds([origin_ns])[0]),
                 time_origin_ns=origin_ns, segments=list(dict.fromkeys(p.path.name for p, _, _, _ in plan)),
                 source=str(path))

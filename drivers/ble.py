@@ -255,6 +255,9 @@ class BleDriver(FirmwareDriver):
             self._stop_loop()
 
 
+BLE_SIM_FAULTS = frozenset({"reorder", "disconnect_at", "outage", "refuse_connects"})
+
+
 class BleSimDriver(BleDriver):
     scheme = "ble-sim"
     description = "the BLE driver on a fake bleak client to simulated firmware (no radio; demos and tests)"
@@ -274,9 +277,7 @@ class BleSimDriver(BleDriver):
         from accelrig.sim.firmware import SimBleClient
         from accelrig_drivers.serial import firmware_from_url
 
-        self.firmware, own = firmware_from_url(
-            self.url, P.SAMPLES_PER_BLE_FRAME, {"reorder", "disconnect_at", "outage", "refuse_connects"})
-        self._sim_options = own
+        self.firmware, _ = firmware_from_url(self.url, P.SAMPLES_PER_BLE_FRAME, BLE_SIM_FAULTS)
         faults = self.firmware.faults
         faults.reorder = self.url.get_float("reorder", 0.0, low=0.0, high=1.0)
         text = self.url.get_str("disconnect_at", "")
@@ -302,4 +303,6 @@ class BleSimDriver(BleDriver):
         return info
 
     def _link_options(self) -> set[str]:
-        return super()._link_options() | self._sim_options
+        from accelrig_drivers.serial import sim_firmware_options
+
+        return super()._link_options() | sim_firmware_options(self.url, BLE_SIM_FAULTS)

@@ -36,9 +36,12 @@ class ReplayDriver(Driver):
         self._seq = 0
         self._loops = 0
 
+    def known_options(self) -> set[str]:
+        return {"pace", "units", "rate", "block", "loop", "start", "stop"}
+
     def open(self) -> DeviceInfo:
         url = self.url
-        url.check_known({"pace", "units", "rate", "block", "loop", "start", "stop"})
+        url.check_known(self.known_options())
         if not url.target:
             raise DeviceError("replay:// needs a file", "e.g. replay://run.csv")
         self.pace = url.get_choice("pace", ("realtime", "fast"), "realtime")

@@ -126,18 +126,30 @@ class SerialDriver(FirmwareDriver):
 SIM_FAULT_OPTIONS = {"drop", "corrupt", "garbage", "stall_at", "stall_for", "cal_fault"}
 
 
-def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: set[str] = frozenset()):
-    """Build (SimFirmware, own options) from a *-sim:// URL, reusing the sim:// option parser."""
-    from accelrig.sim.firmware import LinkFaults, SimFirmware
+def _shared_sim_options(url: DeviceURL) -> set[str]:
+    """The sim:// options a *-sim:// URL passes to the simulated device (its rig named by the target)."""
     from accelrig.sim.rigs import RIGS
-    from accelrig_drivers.sim import SENSOR_OPTIONS, build_device
+    from accelrig_drivers.sim import SENSOR_OPTIONS
 
     rig_cls = RIGS.get(url.target)
     if rig_cls is None:
         raise DeviceError(f"unknown simulated rig {url.target!r} in {url.raw!r}",
                           f"available: {', '.join(sorted(RIGS))}")
     # options that mean the same as for sim:// go to its parser; rate and range the host asks for
-    shared = (SENSOR_OPTIONS - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
+    return (SENSOR_OPTIONS - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
+
+
+def sim_firmware_options(url: DeviceURL, extra_faults: set[str] = frozenset()) -> set[str]:
+    """The options of a *-sim:// URL besides the link's (``firmware_from_url`` takes them)."""
+    return _shared_sim_options(url) | SIM_FAULT_OPTIONS | set(extra_faults) | {"pace"}
+
+
+def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: set[str] = frozenset()):
+    """Build (SimFirmware, own options) from a *-sim:// URL, reusing the sim:// option parser."""
+    from accelrig.sim.firmware import LinkFaults, SimFirmware
+    from accelrig_drivers.sim import build_device
+
+    shared = _shared_sim_options(url)
     sim_url = DeviceURL(url.raw, "sim", url.target, {k: v for k, v in url.params.items() if k in shared})
     device, _ = build_device(sim_url)
     faults = LinkFaults(
@@ -155,7 +167,7 @@ def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: 
         serial_number=f"SIM-{url.target}-{device.seed}", max_samples_per_frame=max_samples_per_frame,
         faults=faults,
     )
-    return firmware, shared | SIM_FAULT_OPTIONS | extra_faults | {"pace"}
+    return firmware, sim_firmware_options(url, extra_faults)
 
 
 class SerialSimDriver(SerialDriver):
@@ -175,13 +187,13 @@ class SerialSimDriver(SerialDriver):
         return [f"serial-sim://{name}" for name in sorted(RIGS)]
 
     def open(self):
-        self.firmware, self._sim_options = firmware_from_url(self.url, 255)
+        self.firmware, _ = firmware_from_url(self.url, 255)
         info = super().open()
         info.truth = self.firmware.truth()
         return info
 
     def _link_options(self) -> set[str]:
-        return super()._link_options() | self._sim_options
+        return super()._link_options() | sim_firmware_options(self.url)
 
     def _transport_open(self) -> str:
         from accelrig.sim.firmware import PtyFirmware

@@ -38,15 +38,21 @@ SENSOR_OPTIONS = {
 }
 
 
-def build_device(url) -> tuple[SimDevice, str]:
-    """Build the SimDevice an URL describes; returns (device, pace)."""
+def sim_options(url) -> set[str]:
+    """The options of a sim:// URL: the sensor's and its rig's (the target names the rig)."""
     rig_cls = RIGS.get(url.target)
     if rig_cls is None:
         raise DeviceError(
             f"unknown simulated rig {url.target!r} in {url.raw!r}",
             f"available: {', '.join('sim://' + r for r in sorted(RIGS))}",
         )
-    url.check_known(SENSOR_OPTIONS | set(rig_cls.options))
+    return SENSOR_OPTIONS | set(rig_cls.options)
+
+
+def build_device(url) -> tuple[SimDevice, str]:
+    """Build the SimDevice an URL describes; returns (device, pace)."""
+    url.check_known(sim_options(url))   # unknown rig or option: refused here
+    rig_cls = RIGS[url.target]
     seed = url.get_int("seed", 0, low=0)
     pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
     rate = url.get_rate(200.0)
@@ -84,6 +90,9 @@ class SimDriver(Driver):
     @classmethod
     def discover(cls) -> list[str]:
         return [f"sim://{name}" for name in sorted(RIGS)]
+
+    def known_options(self) -> set[str]:
+        return sim_options(self.url)
 
     def open(self) -> DeviceInfo:
         self.device, self.pace = build_device(self.url)

@@ -89,7 +89,8 @@ def check_accounting(directory: Path, rate: float, slack: float = 0.6) -> tuple[
     dt = np.diff(rec.t)
     odd = set((np.flatnonzero(np.abs(dt * rate - 1) > slack) + 1).tolist())
     explained = {g["index"] for g in gaps}
-    assert odd <= explained, (sorted(odd - explained)[:5], gaps[:5])
+    unexplained = sorted(odd - explained)
+    assert not unexplained, ([(i, round(float(dt[i - 1] * rate), 3)) for i in unexplained[:5]], gaps[:5])
     assert np.all(dt > 0)
     return gaps, total
 
@@ -140,15 +141,14 @@ def test_faults_reload_and_term(tmp_path):
     gaps, _ = check_accounting(out / "disc", 200)
     disconnects = [g for g in gaps if g["cause"].startswith("disconnected")]
     assert disconnects and all(g["seconds"] > 0 for g in disconnects)
-    # The firmware link times whole frames of 64 samples; its clock steps by about a period when its
-    # host alignment switches on or off (the simulated firmware's clock runs ~480 ppm from the host's,
-    # near its 500 ppm limit), so a lost frame (64 periods) is what must be explained there.
-    gaps, total = check_accounting(out / "ser", 500, slack=2.0)
+    # The simulated firmware's clock runs ~480 ppm from the host's, near the link's 500 ppm limit for
+    # host alignment, which a loaded host switches on and off: the times must stay continuous anyway.
+    gaps, total = check_accounting(out / "ser", 500)
     assert total["missing"] > 0 and any(g["cause"].startswith("frames lost on the link") for g in gaps)
     assert any(g["cause"] == "not recording: restarted: its configuration changed" for g in gaps)
     gaps, total = check_accounting(out / "fifo", 1000)
     assert total["missing"] > 0 and any(g["cause"].startswith("FIFO overflow") for g in gaps)
-    gaps, _ = check_accounting(out / "stall", 200, slack=2.0)
+    gaps, _ = check_accounting(out / "stall", 200)
     assert any(g["cause"].startswith("stalled: no data for 1.5 s") for g in gaps)
     check_accounting(out / "late", 200)
     stops = [e for e in journal(out / "stall") if e["event"] == "stop"]

@@ -97,6 +97,24 @@ def test_daemon_check_cli_says_valid_or_one_line(tmp_path):
     assert result.returncode == 9 and "no such file" in result.stderr
 
 
+@pytest.mark.parametrize("url, option", [("sim://still?sed=1", "sed"), ("serial-sim://still?corupt=0.1", "corupt"),
+                                         ("i2c-sim://mpu9250?rig=still&rat=1000", "rat"),
+                                         ("ble-sim://still?reorder=0.1&outtage=2", "outtage"),
+                                         ("serial:///dev/ttyACM0?bauds=9600", "bauds")])
+def test_a_mistyped_url_option_is_refused_by_check_and_at_start_in_one_line(tmp_path, url, option):
+    # a typo is not a device that does not answer: refused, naming the device and the option, never retried
+    path = tmp_path / "d.yaml"
+    path.write_text(yaml.safe_dump({"output": "out", "devices": [{"url": "sim://still", "name": "ok"},
+                                                                 {"url": url, "name": "typo"}]}))
+    for command in (["daemon", "check", str(path)], ["daemon", "--config", str(path)]):
+        result = cli(*command)
+        assert result.returncode == 9, result.stderr
+        assert result.stderr.count("\n") == 1
+        assert "devices[1].url" in result.stderr and f"unknown option(s) {option}" in result.stderr
+        assert "'typo'" in result.stderr
+    assert not (tmp_path / "out" / "ok").exists()   # nothing started
+
+
 def test_committed_schema_is_the_generated_one_and_agrees_with_the_validator():
     committed = json.loads((REPO / "profiles" / "daemon-config-v1.json").read_text())
     assert committed == json_schema(), "regenerate with: python profiles/make_examples.py --schema-only"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from accelrig.acquisition.chips.icm20948 import ICM20948  # noqa: E402
+from accelrig.acquisition.chips.stream import MAX_SLEW, RATE_TOLERANCE  # noqa: E402
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402
 from accelrig.acquisition.recorder import record  # noqa: E402
@@ -236,3 +237,37 @@ def test_every_simulated_rig_is_reachable_through_the_emulated_chip(rig_name):
     # The chip sampled the rig when the driver says it did (rig time 0 is the emulated power-on).
     expected = rig.specific_force(t)
     assert np.max(np.abs(acc - expected)) < 0.02 + 0.05 * np.max(np.abs(expected))
+
+
+@pytest.mark.parametrize("chip, rate, jitter", [("mpu9250", 1000, 0.0005), ("icm20948", 1125, 0.003)])
+def test_overflows_under_stalled_reads_keep_times_continuous_and_every_sample_accounted(chip, rate, jitter):
+    # A host that keeps stalling (a loaded machine): every stall overflows the FIFO.  Each
+    # overflow must be one gap of the samples really lost, sized in whole periods, and the
+    # times between gaps one period apart, however few polls a stretch between resets has.
+    driver, emulator, clock = open_driver(f"rate={rate}", chip=chip, jitter=jitter, seed=5)
+    stream = driver.stream
+    stream.start()
+    produced_before = emulator.samples_taken - len(emulator.fifo) // 6     # index of the first frame kept
+    blocks = collect(driver, clock, 2.0)
+    rng = np.random.default_rng(1)
+    stalls = 40
+    for _ in range(stalls):
+        clock.sleep(rng.uniform(0.1, 0.6))           # the reader is late: the FIFO overflows
+        blocks.extend(collect(driver, clock, rng.uniform(0.03, 0.3)))   # a few polls, then the next stall
+    blocks.extend(collect(driver, clock, 1.0))
+    assert stream.overflows == stalls
+    gaps = [b.gap_before for b in blocks]
+    assert sum(g != 0 for g in gaps) == stalls and min(gaps) >= 0   # every gap sized (none unknown)
+    # exact accounting: every sample the chip took since was delivered, is in a gap, or is still in the FIFO
+    produced = emulator.samples_taken - len(emulator.fifo) // 6 - produced_before
+    assert sum(b.n for b in blocks) + sum(gaps) == produced
+    assert all(b.counter == a.counter + a.n + b.gap_before for a, b in pairwise(blocks))
+    # continuity: one measured period between samples, (gap + 1) periods across a gap; within the
+    # rate tolerance while the first second measures the rate, within 2 % (the slew) after it
+    period = 1.0 / driver.delivered_rate
+    t = np.concatenate([b.t for b in blocks])
+    expected = np.concatenate([np.r_[g + 1, np.ones(b.n - 1)] for b, g in zip(blocks, gaps, strict=True)])[1:]
+    deviation = np.abs(np.diff(t) / period - expected)
+    settled = t[1:] > t[0] + 1.0
+    assert np.max(deviation) < RATE_TOLERANCE + MAX_SLEW + 0.01
+    assert np.max(deviation[settled]) < 0.02

@@ -117,11 +117,34 @@ def test_gaps_the_link_reported_are_recorded_where_they_happened(tmp_path):
                  "-o", str(out)]) == 0
     rec = load_recording(out, units="counts")
     gaps = rec.meta["gaps"]
-    assert len(gaps) > 20 and {g["cause"] for g in gaps} == {"device/link"}
+    assert len(gaps) > 20 and {g["cause"] for g in gaps} == {"samples lost by the device or link"}
     # every jump in the sample times is a gap record at that index, of the size the jump says
     step = np.median(np.diff(rec.t))
     jumps = np.flatnonzero(np.diff(rec.t) > 1.5 * step) + 1
     assert [g["index"] for g in gaps] == jumps.tolist()
     sizes = np.rint(np.diff(rec.t)[jumps - 1] / step).astype(int) - 1
     assert [g["missing"] for g in gaps] == sizes.tolist()
+    # each record's duration is its missing samples' (the time between its neighbours less one period)
+    assert all(g["seconds"] == pytest.approx(g["missing"] * step, rel=0.01) for g in gaps)
+    # the rates over what was read: nominal, delivered (received) and device (with the gap records' samples)
+    assert rec.meta["nominal_rate"] == 1000.0
+    assert rec.meta["device_rate"] == pytest.approx(1000 * 1.004, rel=1e-3)
+    assert rec.meta["delivered_rate"] == pytest.approx(rec.meta["device_rate"] * len(rec)
+                                                       / (len(rec) + sum(g["missing"] for g in gaps)), rel=1e-3)
     assert len(rec) + sum(g["missing"] for g in gaps) == pytest.approx(20 * 1000 * 1.004, abs=60)
+
+
+def test_a_csv_or_npz_too_long_for_memory_is_refused_up_front_or_stops_at_the_limit(tmp_path, capsys, monkeypatch):
+    import accelrig.commands.record as record_command
+
+    out = tmp_path / "long.csv"
+    code = main(["record", "sim://still?seed=1&pace=fast&rate=2048", "--seconds", "3600", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code != 0 and "do not fit a .csv file" in err and "-o DIR" in err
+    assert not out.exists() and not list(tmp_path.iterdir())   # nothing left behind
+    # open-ended (until Ctrl+C): stops at the limit, keeps what it took, says why
+    monkeypatch.setattr(record_command, "IN_MEMORY_SAMPLES", 5000)
+    out = tmp_path / "capped.npz"
+    assert main(["record", "sim://still?seed=1&pace=fast&rate=2048", "-o", str(out)]) == 0
+    assert len(load_recording(out)) == 5000
+    assert "stopped at 5000 samples, the most a .npz file holds" in capsys.readouterr().err

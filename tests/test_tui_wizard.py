@@ -134,6 +134,9 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
         assert wizard.recorder.samples > 500
         assert f"{wizard.recorder.samples} captured samples are kept" in alarm
         assert not isinstance(app.screen, ResultsScreen)
+        # the capture streamed to disk segments as it arrived (memory bounded however long it runs)
+        assert wizard.recorder.writer.samples_written == wizard.recorder.samples
+        assert list((tmp_path / "captures").glob("mean-*/*.seg")), list(tmp_path.rglob("*"))
         # write the kept data
         await pilot.press("w")
         await pilot.pause(0.2)

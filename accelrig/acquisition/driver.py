@@ -86,6 +86,17 @@ class Driver(abc.ABC):
         """URLs of devices this driver can find right now (may be empty)."""
         return []
 
+    def known_options(self) -> set[str] | None:
+        """The URL options this driver understands (None: it checks them only when it opens)."""
+        return None
+
+    def check_url(self) -> None:
+        """Refuse, without opening anything, a URL with an option this driver does not know: a typo is
+        a mistake to correct, not a device to keep reconnecting to (the daemon checks this at start)."""
+        known = self.known_options()
+        if known is not None:
+            self.url.check_known(known)
+
     @abc.abstractmethod
     def open(self) -> DeviceInfo:
         """Connect and configure the device; return what it is."""

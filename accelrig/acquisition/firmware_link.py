@@ -72,6 +72,9 @@ class FirmwareDriver(Driver):
     def _link_options(self) -> set[str]:
         return set(LINK_OPTIONS)
 
+    def known_options(self) -> set[str]:
+        return self._link_options()
+
     def open(self) -> DeviceInfo:
         url = self.url
         url.check_known(self._link_options())
@@ -225,12 +228,12 @@ class FirmwareDriver(Driver):
             self._block_seq += 1
 
         for frame, first, gap in placed:
+            if gap != 0:
+                emit()   # before a restart forgets the old counter
+                run = []
             if gap == -1:
                 clock.restart()
             clock.observe(first, frame.counts.shape[0], frame.device_time_us * 1e-6, host_time)
-            if gap != 0:
-                emit()
-                run = []
             run.append((frame, first, gap))
         emit()
         self.info.delivered_rate = clock.delivered_rate

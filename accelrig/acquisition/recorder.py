@@ -8,10 +8,16 @@ and number missing) and never papered over.  Attached to a Session
 (``Recorder.attach``) the reader is lossless: the pump waits for it rather
 than overwrite samples it has not taken.
 
-Taken samples are kept in memory (``_keep``), or, given a
-``segments.SegmentWriter``, streamed to disk segments instead: memory stays
-bounded whatever the duration, and the times are anchored to UTC (host clock
-at the first chunk, stated in the segments' ``time_anchor``).
+Taken samples are kept in memory (``_keep``), or, given a writer, streamed
+instead: memory stays bounded whatever the duration.  ``_stream`` is the one
+place chunks and the gaps in them become writer calls (``write`` for each run
+of samples, ``gap`` at each gap, with its cause and duration), for
+``accelrig record -o DIR``, the TUI's captures and the daemon alike.  The
+writer is a ``segments.SegmentWriter`` or anything with its ``write`` and
+``gap`` (the daemon's device, which adds its own bookkeeping around one).
+Times go to it in UTC: the chunk's own (``utc_times``, a driver that maps
+them itself) or anchored to the host clock at the first chunk (stated in the
+segments' ``time_anchor``).
 """
 
 from __future__ import annotations
@@ -34,6 +40,15 @@ if TYPE_CHECKING:
     from accelrig.segments import SegmentWriter
 
 
+def gap_cause(info: DeviceInfo) -> str:
+    """Why a gap the driver reported happened, in words: where a driver of this kind loses samples."""
+    if info.driver in ("i2c", "i2c-sim"):
+        return "FIFO overflow (samples lost in the chip before they were read)"
+    if info.link_stats is not None:
+        return "frames lost on the link (corrupt or dropped)"
+    return "samples lost by the device or link"
+
+
 class Recorder:
     """Every sample one reader delivers, from the first ``poll()`` on.
 
@@ -44,12 +59,15 @@ class Recorder:
     """
 
     def __init__(self, info: DeviceInfo, reader: Reader, session: Session | None = None,
-                 writer: SegmentWriter | None = None):
+                 writer: SegmentWriter | None = None, utc_times: bool = False):
         self.info = info
         self.reader = reader
         self.session = session
         self.writer = writer                # streams to disk instead of keeping in memory
+        self.utc_times = utc_times          # chunk times are UTC seconds already
+        self.gap_cause = gap_cause(info)
         self._utc_offset: int | None = None   # UTC epoch ns minus device time ns, set at the first chunk
+        self._last_ns: int | None = None      # UTC ns of the last sample streamed
         self._lock = threading.Lock()  # poll() on one thread, recording() on another (the TUI's fit worker)
         self._counts: list[np.ndarray] = []
         self._t: list[np.ndarray] = []
@@ -96,14 +114,15 @@ class Recorder:
 
     def _keep(self, chunk: Chunk) -> None:
         with self._lock:
-            if chunk.lost:  # cannot happen on a lossless reader, but never hide it
+            if self.writer is not None:
+                self._stream(chunk)    # the gap records go to the writer, not to memory
+            elif chunk.lost:  # cannot happen on a lossless reader, but never hide it
                 self._gaps.append({"index": self.samples, "missing": chunk.lost, "cause": "reader overrun"})
             for pos, missing in chunk.gaps:
-                self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": "device/link"})
+                if self.writer is None:
+                    self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": self.gap_cause})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
-            if self.writer is not None:
-                self._stream(chunk)
             if not chunk.n:
                 return
             if self._t0 is None:
@@ -118,26 +137,34 @@ class Recorder:
             self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
 
     def _stream(self, chunk: Chunk) -> None:
-        """Write a chunk to the segment writer, each gap record at its place; times in UTC."""
-        from accelrig.segments import to_ns
+        """Write a chunk to the writer: each run of samples, and each gap record at its place with its
+        cause and duration (from the samples either side, less one period); times in UTC."""
+        from accelrig.segments import NS, to_ns
 
         w = self.writer
-        if self._utc_offset is None and chunk.n:
-            now = time.time_ns()
-            # in integer ns: float64 epoch seconds would round the device's times to 0.24 us
-            self._utc_offset = now - int(to_ns(chunk.t[-1:])[0])   # the chunk's last sample arrived just now
-            w.meta["time_anchor"] = {"method": "host UTC clock when the first chunk arrived",
-                                     "utc_ns": now, "device_time": float(chunk.t[-1])}
-        t = to_ns(chunk.t) + (self._utc_offset or 0)
+        if self.utc_times:
+            t = to_ns(chunk.t)
+        else:
+            if self._utc_offset is None and chunk.n:
+                now = time.time_ns()
+                # in integer ns: float64 epoch seconds would round the device's times to 0.24 us
+                self._utc_offset = now - int(to_ns(chunk.t[-1:])[0])   # the chunk's last sample arrived just now
+                w.meta["time_anchor"] = {"method": "host UTC clock when the first chunk arrived",
+                                         "utc_ns": now, "device_time": float(chunk.t[-1])}
+            t = to_ns(chunk.t) + (self._utc_offset or 0)
         if chunk.lost:
             w.gap(t[0] if chunk.n else time.time_ns(), chunk.lost, "reader overrun")
         start = 0
         for pos, missing in [*chunk.gaps, (chunk.n, None)]:
             if pos > start:
                 w.write(t[start:pos], chunk.counts[start:pos],
-                        {name: values[start:pos] for name, values in chunk.channels.items()})
+                        {name: values[start:pos] for name, values in chunk.channels.items()} or None)
+                self._last_ns = int(t[pos - 1])
             if missing is not None:
-                w.gap(t[pos] if pos < chunk.n else time.time_ns(), missing, "device/link")
+                at = int(t[pos]) if pos < chunk.n else time.time_ns()
+                seconds = ((at - self._last_ns) / NS - 1.0 / self.info.nominal_rate
+                           if self._last_ns is not None and pos < chunk.n else None)
+                w.gap(at, missing, self.gap_cause, seconds)
             start = pos
 
     def close(self) -> None:
@@ -146,11 +173,14 @@ class Recorder:
             self.session.release(self.reader)
 
     def recording(self, units: str = "m/s^2") -> Recording:
-        """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts"."""
+        """Everything taken so far; ``units`` "m/s^2" (counts x nominal scale) or "counts".
+
+        A recorder streaming to a SegmentWriter reads its segments back (the
+        open one up to its last complete block): memory is spent only when asked.
+        """
         with self._lock:
             if self.writer is not None:
-                raise DeviceError(f"this recorder streamed {self.info.url} to {self.writer.directory}",
-                                  "read it back with accelrig.recording.load_recording")
+                return self._read_back(units)
             if not self.samples:
                 raise DeviceError(f"{self.info.url} delivered no samples")
             counts = np.concatenate(self._counts)
@@ -162,6 +192,19 @@ class Recorder:
         if self.session is not None and self.session.interrupted:
             meta["interrupted"] = self.session.interrupted
         return Recording(t, acc, units, channels, meta)
+
+    def _read_back(self, units: str) -> Recording:
+        from accelrig.recording import read_segments
+
+        directory = getattr(self.writer, "directory", None)
+        if directory is None:
+            raise DeviceError(f"this recorder streamed {self.info.url} to a writer that cannot be read back")
+        if not self.samples:
+            raise DeviceError(f"{self.info.url} delivered no samples")
+        rec = read_segments(directory, units="counts" if units == "counts" else None)
+        if self.session is not None and self.session.interrupted:
+            rec.meta["interrupted"] = self.session.interrupted
+        return rec
 
     def take_until(self, pull: Callable[[], bool], seconds: float | None = None, samples: int | None = None,
                    on_progress: Callable[[Recorder], None] | None = None, progress_interval: float = 0.25) -> None:
@@ -210,6 +253,20 @@ def record(
 
     recorder.take_until(pull, seconds, samples, on_progress, progress_interval)
     return recorder.recording(units)
+
+
+def streaming_writer(info: DeviceInfo, directory, **options) -> SegmentWriter:
+    """The SegmentWriter a Recorder streams a device into (``record -o``, the TUI's captures): the
+    device's metadata as a recording states it, UTC times, segments named after the device's identity;
+    ``options`` go to SegmentWriter (rotation, csv copies)."""
+    import re
+
+    from accelrig.segments import SegmentWriter
+
+    meta = recording_meta(info, np.zeros(0), [], 0)
+    meta.update(time_base="utc", delivered_rate=None, device_rate=None)
+    stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
+    return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels, **options)
 
 
 def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: int) -> dict:

@@ -6,9 +6,13 @@ period on the device's clock (firmware timestamp jitter averages out), and a
 second line through (device timestamp, host receive time) gives how fast
 the device clock runs against the host's.  Sample k then sits at
 
-    t_k = host_anchor + ratio * period * (k - k_anchor)
+    t_k = t_j + ratio * period * (k - j)
 
-on the host's monotonic clock.  A crystal is good to far better than
+on the host's monotonic clock, j the last sample timed (the first one at the
+arrival of its frame, less the frame's length), pulled toward the line
+through the first sample with today's estimates by at most ``MAX_SLEW`` of
+each step: a better estimate, or host alignment switching on or off, never
+makes the timeline jump between blocks, and it still ends on the line.  A crystal is good to far better than
 ``max_drift`` (500 ppm); a fitted ratio outside that says the frames are not
 arriving in real time (an emulated run fed as fast as the host reads, or a
 device that buffered) and the device clock is then used alone, which
@@ -18,6 +22,11 @@ device that buffered) and the device clock is then used alone, which
 from __future__ import annotations
 
 import numpy as np
+
+# The most a timeline may be pulled toward a better estimate, as a fraction of the time it
+# covers: consecutive samples stay within 1 % of the period apart (a sample clock's own
+# tolerance), where a jump of a fraction of a period would look like a lost sample.
+MAX_SLEW = 0.01
 
 
 class RunningLine:
@@ -72,6 +81,7 @@ class StreamClock:
         self._anchor_counter: int | None = None
         self._anchor_host = 0.0
         self._last_t: float | None = None
+        self._last_counter: int | None = None   # the counter of the sample at _last_t (None: re-anchor)
 
     def restart(self) -> None:
         """The device restarted (its counter and clock went back): re-anchor at the next frame."""
@@ -118,8 +128,18 @@ class StreamClock:
             self._anchor_host = anchor
 
     def times(self, counter: int, n: int) -> np.ndarray:
-        k = np.arange(counter, counter + n, dtype=float) - self._anchor_counter
-        t = self._anchor_host + self.ratio * self.period * k
+        step = self.ratio * self.period
+        k = np.arange(counter, counter + n, dtype=float)
+        if self._last_counter is None:
+            t = self._anchor_host + step * (k - self._anchor_counter)
+        elif n:
+            elapsed = k - self._last_counter
+            t = self._last_t + step * elapsed
+            error = self._anchor_host + step * (k[-1] - self._anchor_counter) - t[-1]
+            limit = MAX_SLEW * step * elapsed[-1]
+            t += min(max(error, -limit), limit) * (elapsed / elapsed[-1])
+        else:
+            t = np.empty(0)
         if n:
-            self._last_t = float(t[-1])
+            self._last_t, self._last_counter = float(t[-1]), counter + n - 1
         return t

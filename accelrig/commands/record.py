@@ -7,7 +7,6 @@ taken so far.
 
 from __future__ import annotations
 
-import re
 import signal
 import sys
 import time
@@ -16,6 +15,10 @@ from pathlib import Path
 from accelrig.errors import DataError, DeviceError
 
 SINGLE_FILE_SUFFIXES = (".csv", ".npz", ".parquet")
+# A .csv or .npz output is assembled in memory at the end (about 40 bytes a sample while it
+# is built); beyond this many samples (17 min at 2048 Hz, under 100 MB) it is refused up
+# front, or an open-ended recording stops there: a folder of segments holds any length.
+IN_MEMORY_SAMPLES = 1 << 21
 
 
 def register(sub, groups) -> None:
@@ -31,8 +34,9 @@ def register(sub, groups) -> None:
                         "or the end of a finite source)")
     length.add_argument("--samples", type=int, help="number of samples to record")
     p.add_argument("-o", "--output", required=True,
-                   help="a directory (Parquet segments, rotated; any duration), or one file: .parquet, "
-                   ".csv interchange or .npz native (assembled at the end, so they must fit in memory)")
+                   help="a directory (Parquet segments, rotated; any duration), or one file: .parquet "
+                   "(any duration), .csv interchange or .npz native (assembled in memory at the end: at most "
+                   f"{IN_MEMORY_SAMPLES} samples, 17 min at 2048 Hz)")
     p.add_argument("--units", choices=("m/s2", "counts"), default="m/s2",
                    help="units of ax, ay, az in a .csv or .npz output (default m/s2); segments always hold "
                    "int16 counts and the scale")
@@ -47,9 +51,8 @@ def register(sub, groups) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
 
-    from accelrig.acquisition.recorder import Recorder, recording_meta
+    from accelrig.acquisition.recorder import Recorder, streaming_writer
     from accelrig.acquisition.session import Session, State
     from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
@@ -87,16 +90,29 @@ def run(args) -> int:
         sys.stderr.flush()
 
     def make_writer(info) -> SegmentWriter:
-        meta = recording_meta(info, np.zeros(0), [], 0)
-        meta.update(time_base="utc", delivered_rate=None, device_rate=None)
-        stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
-        return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels,
-                             segment_seconds=float("inf") if single else args.segment_minutes * 60.0,
-                             segment_bytes=float("inf") if single else args.segment_mb * 2**20,
-                             csv=args.csv_copies and not single)
+        return streaming_writer(info, directory,
+                                segment_seconds=float("inf") if single else args.segment_minutes * 60.0,
+                                segment_bytes=float("inf") if single else args.segment_mb * 2**20,
+                                csv=args.csv_copies and not single)
 
     session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile, writer=make_writer)
     recorder, writer = session.recorder, session.recorder.writer
+    in_memory = single and output.suffix.lower() != ".parquet"
+    limit = args.samples
+    if in_memory:
+        wanted = args.samples if args.seconds is None else args.seconds * session.info.nominal_rate
+        if wanted is not None and wanted > IN_MEMORY_SAMPLES:
+            session.stop()
+            recorder.close()
+            for path in writer.close():
+                path.unlink()
+            directory.rmdir()
+            raise DataError(f"{output}: {wanted:.0f} samples do not fit a {output.suffix} file, which is built in "
+                            f"memory (at most {IN_MEMORY_SAMPLES} samples, "
+                            f"{IN_MEMORY_SAMPLES / session.info.nominal_rate / 60:.0f} min at this rate)",
+                            "record into a folder of segments (-o DIR) or a .parquet file: any length, read by "
+                            "every accelrig command and by numpy/pandas through pyarrow")
+        limit = min(limit or IN_MEMORY_SAMPLES, IN_MEMORY_SAMPLES)
 
     def pull() -> bool:
         """Give the pump a moment; a device that went away ends the recording with what was taken."""
@@ -107,7 +123,7 @@ def run(args) -> int:
     stopped_by = None
     try:
         try:
-            recorder.take_until(pull, args.seconds, args.samples, progress if show else None)
+            recorder.take_until(pull, args.seconds, limit, progress if show else None)
         except KeyboardInterrupt:
             stopped_by = "Ctrl+C"
     finally:
@@ -131,6 +147,9 @@ def run(args) -> int:
         _assemble(finished, directory, output, args.units, session.info, recorder, loss)
     if session.interrupted:
         raise DeviceError(f"the device went away ({session.interrupted}); kept {kept} in {output}")
+    if in_memory and args.samples is None and args.seconds is None and recorder.samples >= IN_MEMORY_SAMPLES:
+        print(f"accelrig record: stopped at {IN_MEMORY_SAMPLES} samples, the most a {output.suffix} file holds; "
+              f"kept {kept} in {output} (record into a folder, -o DIR, for longer)", file=sys.stderr)
     if stopped_by:
         print(f"accelrig record: stopped by {stopped_by}; kept {kept} in {output}", file=sys.stderr)
         # Ctrl+C is how an open-ended recording ends; cutting a requested length short is not success

@@ -285,20 +285,17 @@ def check_output_writable(directory: Path) -> None:
 def check_config(config: DaemonConfig) -> list[str]:
     """What the structure alone cannot say, without opening any device; returns notes for the operator.
 
-    Raises ConfigError naming the field: a URL whose scheme no driver handles,
+    Raises ConfigError naming the field: a URL whose scheme no driver handles or with
+    an option its driver does not know (``check_urls``, also at start and on reload),
     a profile file that does not load.  An output directory that cannot be
     written is refused too (the daemon refuses it at start).
     """
-    from accelrig.acquisition.driver import driver_for
     from accelrig.profiles.io import load_profile
     from accelrig.profiles.store import ProfileStore
 
     notes = []
+    check_urls(config)
     for device in config.devices:
-        try:
-            driver_for(device.url)
-        except AccelrigError as exc:
-            raise ConfigError(f"{device.field('url')}: {exc}") from None
         path = device.profile_path
         if path is not None:
             try:
@@ -313,6 +310,18 @@ def check_config(config: DaemonConfig) -> list[str]:
         notes.append(check_mqtt(config.mqtt))
     check_output_writable(config.output)
     return notes
+
+
+def check_urls(config: DaemonConfig) -> None:
+    """Every device's URL: a scheme some driver handles and only options that driver knows (a typo would
+    otherwise be retried for ever as a device that does not answer).  ConfigError naming the device."""
+    from accelrig.acquisition.driver import driver_for
+
+    for device in config.devices:
+        try:
+            driver_for(device.url).check_url()
+        except AccelrigError as exc:
+            raise ConfigError(f"{device.field('url')}: {exc} (device {device.name!r})") from None
 
 
 def check_mqtt(mqtt: MqttConfig) -> str:

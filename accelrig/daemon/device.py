@@ -7,8 +7,11 @@ A DeviceRunner owns one thread that keeps its device recorded:
   configured profile's offsets (``flash: true``) on **every** connect (offset
   registers are volatile), choose the profile (store, path or none), start the
   Session's pump with one lossless reader;
-* stream: every ``POLL`` seconds write what arrived to the connection's
-  SegmentWriter (raw counts, and calibrated channels when asked);
+* stream: every ``POLL`` seconds the connection's Recorder (the one path from
+  chunks and their gaps to writer calls, shared with ``accelrig record``)
+  hands what arrived to this runner's ``write`` and ``gap``, which add the
+  daemon's care (calibrated channels when asked, the publisher, a full disk,
+  the journal) around the connection's SegmentWriter;
 * faults: a device error, a stall (no data for ``stall_seconds``) or a failed
   connect closes the connection's writer and reconnects after an exponential
   backoff; the time without data becomes a gap record with its cause and
@@ -41,6 +44,7 @@ import numpy as np
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
+from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
 from accelrig.daemon.clock import UtcClock
 from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
@@ -328,7 +332,8 @@ class DeviceRunner:
             self._profile = self._choose_profile(info)
             flashed = self._flash(driver) if self.device.flash else None
             self._open_writer(info, driver.clock, flashed)
-            reader = session.reader(from_oldest=True, lossless=True)
+            recorder = Recorder(info, session.reader(from_oldest=True, lossless=True), session, writer=self,
+                                utc_times=True)
             session.start()
         except ProfileError as exc:
             session.stop()
@@ -338,7 +343,7 @@ class DeviceRunner:
             session.stop()
             self._close_writer()
             raise
-        self.session, self.info, self._reader = session, info, reader
+        self.session, self.info, self._recorder = session, info, recorder
         self.counts.connects += 1
         self._journal("connect", connection=self.counts.connects, url=info.url, identity=info.identity,
                       nominal_rate=info.nominal_rate, profile=self._profile_reference(), flashed=flashed,
@@ -413,6 +418,7 @@ class DeviceRunner:
         meta = {
             "device": device,
             "name": self.device.name,
+            "nominal_rate": info.nominal_rate,
             "connection": self.counts.connects + 1,
             "time_base": "utc",
             "clock": clock.describe(),
@@ -485,7 +491,7 @@ class DeviceRunner:
                 self._drain()             # what the pump took before it stopped
             except Exception as exc:
                 reason = self._internal_error(exc)
-            session.release(self._reader)
+            self._recorder.close()
             clock = session.driver.clock
             self.measured_rate = clock.measured_rate or self.measured_rate
             self._journal("disconnect", reason=reason or (self.stop_reason if self._stop.is_set() else self.state), clock=clock.describe(),
@@ -498,55 +504,32 @@ class DeviceRunner:
         return streamed, reason
 
     def _drain(self) -> int:
-        """Write everything the reader holds; returns the samples taken."""
-        chunk = self._reader.read()
-        self.session.notify_read()
-        if chunk.lost:  # impossible on a lossless reader; never hidden
-            self._write_gap(float(chunk.t[0]) if chunk.n else time.time(), chunk.lost, "reader overrun", None)
-        if not chunk.n:
-            return 0
-        self.counts.delivered += chunk.n
-        cuts = [pos for pos, _ in chunk.gaps]
-        bounds = [0] + [c for c in cuts if c > 0] + [chunk.n]
-        gaps = dict(chunk.gaps)
-        for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
-            if start in gaps:
-                self._device_gap(chunk.t, start, gaps[start])
-            if stop > start:
-                self._write(chunk, start, stop)
-        self.last_sample_utc = float(chunk.t[-1])
+        """Write everything the reader holds (through the Recorder into ``write`` and ``gap``);
+        returns the samples taken."""
+        chunk = self._recorder.poll()
+        if chunk.n:
+            self.counts.delivered += chunk.n
+            self.last_sample_utc = float(chunk.t[-1])
         return chunk.n
 
-    def _device_gap(self, t: np.ndarray, pos: int, missing: int) -> None:
-        """A gap the driver reported before sample ``pos`` of a chunk."""
-        if missing > 0:
-            self.counts.missing += missing
-        before = float(t[pos - 1]) if pos > 0 else self.last_sample_utc
-        seconds = float(t[pos]) - before - 1.0 / self.info.nominal_rate if before is not None else None
-        self._write_gap(float(t[pos]), missing, self._link_gap_cause(), seconds)
+    # the Recorder's writer: write() and gap(), times in UTC ns
+    def write(self, t_ns: np.ndarray, counts: np.ndarray, channels: dict | None) -> None:
+        """One run of samples: to the segments (calibrated channels added), or counted as dropped."""
+        from accelrig.segments import ns_to_seconds
 
-    def _link_gap_cause(self) -> str:
-        info = self.info
-        if info.driver in ("i2c", "i2c-sim"):
-            return "FIFO overflow (samples lost in the chip before they were read)"
-        if info.link_stats is not None:
-            return "frames lost on the link (corrupt or dropped)"
-        return "samples lost by the device or link"
-
-    def _write(self, chunk, start: int, stop: int) -> None:
-        t = chunk.t[start:stop]
-        n = stop - start
+        t = ns_to_seconds(t_ns)
+        n = counts.shape[0]
         if self._pending is not None:
             p = self._pending
             self._pending = None
             seconds = float(t[0]) - p.since_utc if p.since_utc is not None else None
-            self._write_gap(float(t[0]), p.samples, p.cause, seconds)
+            self._write_gap(int(t_ns[0]), p.samples, p.cause, seconds)
         full = self._disk_full
         if full is not None and time.monotonic() < full["next_try"]:
             self._drop(t, n)    # not yet time to try again
             return
         if self.publisher is not None:
-            self.publisher.block(t, chunk.counts[start:stop])
+            self.publisher.block(t, counts)
         try:
             if full is not None:
                 seconds = float(t[0]) - full["since"]
@@ -558,12 +541,18 @@ class DeviceRunner:
                 self._set("streaming", None)
                 self.log(f"{self.device.name}: writing again after {full['cause']} "
                          f"({full['samples']} samples dropped over {seconds:.1f} s)")
-            self.writer.write(t, chunk.counts[start:stop], self._channels(chunk, start, stop))
+            self.writer.write(t_ns, counts, self._channels(t, counts, channels))
             self.counts.written += n
         except StorageFull as exc:
             self._drop(t, n, "disk full", str(exc), tried=True)
         except StorageError as exc:   # an I/O error: the same care, its own cause
             self._drop(t, n, "write failed", str(exc), tried=True)
+
+    def gap(self, t_ns: int, samples: int, cause: str, seconds: float | None = None) -> None:
+        """A gap the driver reported (or a reader overrun, which a lossless reader never has)."""
+        if samples > 0 and cause != "reader overrun":
+            self.counts.missing += samples
+        self._write_gap(int(t_ns), samples, cause, seconds)
 
     def _drop(self, t: np.ndarray, n: int, cause: str = "", error: str | None = None, tried: bool = False) -> None:
         """Samples delivered that cannot be written: counted, and one gap record once writing resumes."""
@@ -577,26 +566,28 @@ class DeviceRunner:
         if tried:
             self._disk_full["next_try"] = time.monotonic() + DISK_RETRY
 
-    def _channels(self, chunk, start: int, stop: int) -> dict[str, np.ndarray] | None:
+    def _channels(self, t: np.ndarray, counts: np.ndarray, channels: dict | None) -> dict[str, np.ndarray] | None:
         from accelrig.acquisition.ringbuffer import Chunk
         from accelrig.profiles.apply import calibrated
 
-        out = {name: values[start:stop] for name, values in chunk.channels.items()}
+        out = dict(channels or {})
         if self.device.output == "calibrated":
-            part = Chunk(chunk.first_index + start, chunk.counts[start:stop], chunk.t[start:stop], chunk.scale)
             device = {"hardware_bias_removed": self.info.hardware_bias_removed}
-            cal = calibrated(part, self._profile, self.device.uncertainty, device=device)
+            cal = calibrated(Chunk(0, counts, t, self.info.scale), self._profile, self.device.uncertainty,
+                             device=device)
             out.update({name: cal.acc[:, i] for i, name in enumerate(CALIBRATED_CHANNELS)})
             if self.device.uncertainty:
                 out.update({name: cal.uncertainty[:, i] for i, name in enumerate(UNCERTAINTY_CHANNELS)})
         return out or None
 
-    def _write_gap(self, at: float, samples: int, cause: str, seconds: float | None) -> None:
+    def _write_gap(self, at_ns: int, samples: int, cause: str, seconds: float | None) -> None:
+        """A gap record before the sample at ``at_ns`` (UTC ns: exactly that sample's time, which places it)."""
+        at = at_ns / 1e9
         self._journal("gap", cause=cause, samples=samples, at=utc_text(at), seconds=seconds)
         if self.publisher is not None:
             self.publisher.gap(at, samples, cause, seconds)
         try:
-            self.writer.gap(at, samples, cause, seconds)
+            self.writer.gap(at_ns, samples, cause, seconds)
             self.counts.gaps += 1
         except StorageError as exc:
             # the record could not be written; the journal has it, the disk-full gap will follow

@@ -23,7 +23,7 @@ import threading
 import time
 from pathlib import Path
 
-from accelrig.daemon.config import DaemonConfig, check_mqtt, check_output_writable, load_config
+from accelrig.daemon.config import DaemonConfig, check_mqtt, check_output_writable, check_urls, load_config
 from accelrig.daemon.device import DeviceRunner
 from accelrig.daemon.notify import notify, watchdog_interval
 from accelrig.daemon.status import StatusServer, mqtt_summary
@@ -49,6 +49,7 @@ class Daemon:
     def __init__(self, config_path: str | os.PathLike):
         self.config_path = Path(config_path)
         self.config = load_config(self.config_path)
+        check_urls(self.config)
         check_output_writable(self.config.output)
         if self.config.mqtt is not None:
             check_mqtt(self.config.mqtt)
@@ -134,6 +135,7 @@ class Daemon:
     def reload(self) -> None:
         try:
             new = load_config(self.config_path)
+            check_urls(new)
             check_output_writable(new.output)
             if new.mqtt is not None:
                 check_mqtt(new.mqtt)

@@ -193,7 +193,9 @@ class AccelChip(abc.ABC):
         """Stream (overwrite) mode, accelerometer only, reset, enable."""
 
     @abc.abstractmethod
-    def fifo_reset(self) -> None: ...
+    def fifo_reset(self) -> float:
+        """Empty the FIFO; returns the host time just after the write from which it keeps frames again
+        (its first frame is taken within one period after that), before any read-back."""
 
     @abc.abstractmethod
     def fifo_overflowed(self) -> bool:

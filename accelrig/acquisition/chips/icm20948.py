@@ -101,12 +101,18 @@ class ICM20948(AccelChip):
         _ = self.regs.int_status_2    # clear a stale overflow flag (read clears)
         self.regs.user_fifo_en = 1
 
-    def fifo_reset(self) -> None:
+    def fifo_reset(self) -> float:
         # Assert then de-assert (the datasheet's sequence).  The assert is not
-        # read back (the register may clear itself); the de-assert is.
+        # read back (the register may clear itself); the de-assert is, after
+        # the time is taken: frames are kept again from the de-assert on.
         field = ICM20948Registers.fifo_rst
         self.accessor.write(field.bank, field.reg, bytes([FIFO_RESET_ALL]))
-        self.regs.fifo_rst = 0
+        self.accessor.write(field.bank, field.reg, bytes([0]))
+        restarted = self.clock.now()
+        back = self.regs.fifo_rst
+        if back != 0:
+            raise field._mismatch(self, 0, back)
+        return restarted
 
     def fifo_overflowed(self) -> bool:
         return bool(self.regs.int_status_2 & 0x1F)

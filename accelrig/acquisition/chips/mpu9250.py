@@ -100,8 +100,9 @@ class MPU9250(AccelChip):
         _ = self.regs.int_status      # clear a stale overflow flag (read clears)
         self.regs.user_fifo_en = 1
 
-    def fifo_reset(self) -> None:
-        self.regs.user_fifo_rst = 1
+    def fifo_reset(self) -> float:
+        self.regs.user_fifo_rst = 1   # self-clearing: not read back
+        return self.clock.now()
 
     def fifo_overflowed(self) -> bool:
         return bool(self.regs.int_status & FIFO_OFLOW_INT)

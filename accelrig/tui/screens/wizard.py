@@ -36,6 +36,7 @@ what an action needs), ``not_ready_text`` and ``result_screen``.
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 from textual import work
@@ -45,7 +46,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
 
-from accelrig.acquisition.recorder import Recorder
+from accelrig.acquisition.recorder import Recorder, streaming_writer
 from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.procedures.contract import Event, Procedure
@@ -286,8 +287,7 @@ class ProcedureWizard(Screen):
             self.set_instruction(f"cannot start: {exc}", "bold red")
             return
         self._generation += 1
-        if self.recorder is not None:
-            self.recorder.close()
+        self.close_recorder()
         self.procedure = procedure
         self.recorder = None
         self._actions = []
@@ -306,11 +306,20 @@ class ProcedureWizard(Screen):
             self.app.session.stop()
         self.open_device(self._generation)
 
+    def capture_directory(self) -> Path:
+        """Where this run's capture streams (one folder per start): OUTPUT/captures/NAME-UTC."""
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        return Path(self.app.output_dir) / "captures" / f"{self.capture_name}-{stamp}-{self._generation}"
+
     @work(thread=True, exclusive=True, group="wizard-open")
     def open_device(self, generation: int) -> None:
+        # The capture streams to disk segments as it arrives (bounded memory however long the
+        # procedure runs); results and 'w' read it back.
+        directory = self.capture_directory()
         try:
             session = Session.open_and_start(self.url, self.app.buffer_seconds, record=True,
-                                             prepare=flash_url_profile)
+                                             prepare=flash_url_profile,
+                                             writer=lambda info: streaming_writer(info, directory))
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
@@ -320,7 +329,7 @@ class ProcedureWizard(Screen):
         self.session, self.recorder = session, session.recorder
         self.app.use_session(session)
         if generation != self._generation:   # restarted meanwhile: this stream is the old one's
-            self.recorder.close()
+            self.close_recorder()
             return
         self.set_instruction(self.opening_instruction())
         if self._timer is None:
@@ -555,9 +564,18 @@ class ProcedureWizard(Screen):
                                                                  "Leave", "Stay")):
                 return
         self._generation += 1   # whatever is still running reports to nobody
-        if self.recorder is not None:
-            self.recorder.close()
+        self.close_recorder()
         self.app.pop_screen()
+
+    def close_recorder(self) -> None:
+        """Release the stream and finish the capture's segments (they stay on disk, under captures/)."""
+        if self.recorder is None:
+            return
+        self.recorder.close()
+        try:
+            self.recorder.writer.close()
+        except AccelrigError as exc:   # a full disk: the open segment stays readable as it is
+            self.log_event(f"capture segments not finished: {exc}", "yellow")
 
     def action_write_capture(self) -> None:
         self.write_flow()
