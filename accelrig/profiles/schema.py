@@ -48,6 +48,7 @@ SCHEMA_VERSION = 1
 # identity; a factor of 2 either way is another unit or another device, not a calibration.  g: on Earth.
 GAIN_BAND = (0.5, 2.0)
 G_BAND = (9.76, 9.84)
+G_MAX = 16 * 9.80665        # even a stated off-Earth g must be one a supported chip can read (+-16 g)
 SCHEMA_ID = "https://accelrig.invalid/profiles/schema-v1.json"
 
 
@@ -120,6 +121,9 @@ PROFILE_V1 = Object(
                 "method": Field(String(min_length=1, description="estimator used")),
                 "model": Field(String(description="sensor model fitted")),
                 "g": Field(Number(exclusive_minimum=0, description="local gravity used, m/s^2")),
+                "g_outside_earth": optional(String(min_length=1, description=(
+                    "why g lies outside 9.76 .. 9.84 m/s^2 (a centrifuge, another body, a deliberate "
+                    "reference): its presence is what accepts such a g"))),
                 "settings": Field(Plain(mapping=True, description="the method's settings")),
                 "correction": Field(CORRECTION),
                 "parameters": Field(Object(
@@ -230,8 +234,12 @@ def cross_checks(data: dict) -> None:
              f"{GAIN_BAND[0]:g} .. {GAIN_BAND[1]:g}: raw is in m/s^2 at the nominal scale, so C is near the identity")
     _check_positive_semidefinite(cov, "calibration.correction.covariance")
     g = data["calibration"]["g"]
-    if not G_BAND[0] <= g <= G_BAND[1]:
-        fail("calibration.g", f"{g!r} m/s^2 is not gravity on Earth ({G_BAND[0]:g} .. {G_BAND[1]:g} m/s^2)")
+    if g > G_MAX:
+        fail("calibration.g", f"{g!r} m/s^2 is beyond the full scale of every supported chip (16 g): "
+             "was it given in other units?")
+    if not G_BAND[0] <= g <= G_BAND[1] and not data["calibration"].get("g_outside_earth"):
+        fail("calibration.g", f"{g!r} m/s^2 is not gravity on Earth ({G_BAND[0]:g} .. {G_BAND[1]:g} m/s^2): "
+             "if it is meant (a centrifuge, another body), say why in calibration.g_outside_earth")
 
     cal = data["calibration"]
     for name, est in cal["parameters"].items():

@@ -84,6 +84,14 @@ def test_implausible_record_lengths_are_refused(flag, value, cause, guarded, tmp
     assert snapshot(tmp_path) == before
 
 
+def test_a_g_off_earth_is_accepted_when_the_profile_says_why(guarded, tmp_path):
+    """The band is the rule on Earth; a profile that states why its g lies outside (a centrifuge) passes."""
+    path = tmp_path / "p.yaml"
+    path.write_text(_profile_with(lambda d: d["calibration"].update(g=19.6, g_outside_earth="centrifuge at 2 g")))
+    result = guarded("profile", "validate", path)
+    assert result.returncode == 0, result.stderr
+
+
 @pytest.mark.parametrize("argv, cause", [
     (("calibrate", "wheel", "{rec}", "--radius", "0.28", "--method", "paper", "--bootstrap", "1000000"),
      "--bootstrap 1e\\+06 is out of range: it must be >= 5 and <= 1000"),
@@ -135,8 +143,12 @@ PROFILE_CASES = {
     "C = 0.01 I": (_scale_c(0.01), "gains .* outside the plausible 0.5 .. 2"),
     "C = 100 I": (_scale_c(100.0), "gains .* outside the plausible"),
     "covariance not PSD": (_not_psd, "not positive semi-definite"),
-    "g = 1e300": (lambda d: d["calibration"].update(g=1e300), "calibration.g: .* not gravity on Earth"),
-    "g = 9.7": (lambda d: d["calibration"].update(g=9.7), "calibration.g"),
+    "g = 1e300": (lambda d: d["calibration"].update(g=1e300), "calibration.g: .* beyond the full scale"),
+    "g = 1e300 with a reason": (lambda d: d["calibration"].update(g=1e300, g_outside_earth="centrifuge"),
+                                "calibration.g: .* other units"),
+    "g = 9.7 with an empty reason": (lambda d: d["calibration"].update(g=9.7, g_outside_earth=""),
+                                     "calibration.g_outside_earth"),
+    "g = 9.7": (lambda d: d["calibration"].update(g=9.7), "calibration.g: .* not gravity on Earth.*g_outside_earth"),
     "g = 1": (lambda d: d["calibration"].update(g=1.0), "calibration.g"),
 }
 
