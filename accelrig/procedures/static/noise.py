@@ -75,15 +75,26 @@ class StillNoise:
         root = np.sqrt(self.tau)
         return np.outer(root, root)
 
+    @property
+    def short_correlated(self) -> bool:
+        """Correlated at lags within a pose (tau material on some axis), as opposed to slow noise only."""
+        return any(w.correlated for w in self.axes)
+
     def describe(self) -> str:
         taus = "/".join(f"{w.tau:.1f}" for w in self.axes)
         if not self.correlated:
             return f"white within the poses (integrated autocorrelation time x/y/z {taus} samples)"
-        slow = (f"; the halves of the poses differ {np.sqrt(self.slow_factor):.1f}x more than that predicts "
-                "(noise slower than a pose: 1/f, a wander), which widens it too" if self.slow_factor > 1 else "")
+        slow = (f"the halves of the poses differ {np.sqrt(self.slow_factor):.1f}x more than "
+                f"{'that' if self.short_correlated else 'white noise'} predicts (noise slower than a pose: "
+                "1/f, a wander)")
+        widened = f"{np.sqrt(self.tau.max()):.1f}x the white-noise u"
+        if not self.short_correlated:
+            return (f"white at short lags (integrated autocorrelation time x/y/z {taus} samples), but {slow}: "
+                    f"each pose mean's u is widened to {widened}")
         return (f"correlated in time within the poses (integrated autocorrelation time x/y/z {taus} samples, "
                 f"lag-1 autocorrelation {'/'.join(f'{w.lag1:.2f}' for w in self.axes)}): each pose mean's u "
-                f"is from the effective sample count n / tau{slow}: {np.sqrt(self.tau.max()):.1f}x the white-noise u")
+                f"is from the effective sample count n / tau{'; ' + slow + ', which widens it too' if self.slow_factor > 1 else ''}"
+                f": {widened}")
 
     def to_dict(self) -> dict:
         return {"correlated": self.correlated, "sd": self.sd.tolist(), "slow_factor": self.slow_factor,

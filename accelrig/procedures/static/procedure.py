@@ -397,7 +397,9 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         cov = np.asarray(cov) + np.outer(d, d)
         uncertainty = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     if noise.correlated and model not in MODELS:
-        source += "; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
+        source += ("; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
+                   if noise.short_correlated else
+                   f"; each pose mean's u widened {np.sqrt(noise.slow_factor):.1f}x for noise slower than a pose")
     warnings += noise.warnings
     quality = {
         "residual_rms": float(np.sqrt(np.mean(all_res**2))),
