@@ -51,9 +51,50 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
     assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
-    assert kinds[-1] == "complete" and events[-1].kind == "ready"
+    # six faces are enough to compute; the guided sequence asks for one face of each axis again (+x twice
+    # before the six were in is no drift check: it is not far apart in time)
+    assert kinds[-1] == "again" and events[-1].kind == "instruction"
+    assert messages[-1].startswith("all six faces captured: now put +z, +x and +y down once more")
     assert proc.faces["n_done"] == 6 and proc.faces["n_poses"] == 7
-    assert proc.progress == 1.0 and proc.done
+    assert proc.progress == 1.0 and proc.done and not proc.complete
+
+
+def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y,-z,+x", seed=4)
+    proc = StaticProcedure(rec.rate)
+    events = proc.feed(rec) + proc.finish()
+    again = [e.message for e in events if e.data["kind"] == "again"]
+    assert again[0].startswith("all six faces captured: now put +z, +x and +y down")
+    assert again[-1].startswith("drift check: now put +y down once more")   # -z counted for z, +x for x
+    assert proc.faces["again_done"] == ["-z", "+x"] and proc.faces["again_missing"] == ["+y"]
+    assert proc.done and not proc.complete
+    result = proc.result()
+    assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "z"]
+    unchecked = [w for w in result.warnings if w.startswith("offset drift not checked")]
+    assert len(unchecked) == 1 and unchecked[0].startswith("offset drift not checked along y: no face of that axis")
+
+    rec, _, _ = _record("sim://static", seed=4)   # the rig's default is the wizard's whole sequence
+    proc = StaticProcedure(rec.rate)
+    events = proc.feed(rec) + proc.finish()
+    assert events[-1].data["kind"] == "complete" and proc.complete
+    result = proc.result()
+    assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "y", "z"]
+    assert not any("drift not checked" in w for w in result.warnings)
+
+
+def test_faces_held_once_say_drift_was_not_checked_and_how_much_could_hide():
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y", seed=5)
+    result = calibrate_static(rec)
+    drift = result.quality["noise"]["drift"]
+    assert drift["checked_axes"] == [] and drift["unchecked"]["axes"] == ["x", "y", "z"]
+    warning = next(w for w in result.warnings if w.startswith("offset drift not checked along x, y and z"))
+    # the shift that could hide is the unseen rate times the distance of an axis's face pair from the middle:
+    # the first pair (z) and the last (y) are about a third of the run away, the middle pair (x) nearly none
+    shift = np.array(drift["unchecked"]["offset_shift"])
+    span = drift["unchecked"]["span_s"]
+    rate = np.array(drift["unchecked"]["unseen_rate"])
+    assert shift[0] < 0.2 * shift[2] and shift[2] == pytest.approx(rate[2] * span / 3, rel=0.25)
+    assert f"{shift.max():.2g} m/s^2" in warning
 
 
 def test_progress_during_a_pose_and_redo():
@@ -173,8 +214,9 @@ def test_created_from_the_declared_settings_and_the_device_facts():
 
 
 def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
-    """Live, the sixth face counts once captured (held for ``hold`` s): the wizard computes without
-    waiting for the operator to lift it, and the result holds that pose as far as it was seen."""
+    """Live, the last face of the sequence (the sixth face, or here the last hold again of the drift
+    check) counts once captured (held for ``hold`` s): the wizard computes without waiting for the
+    operator to lift it, and the result holds that pose as far as it was seen."""
     rec, rig, sensor = _record("sim://static?hold=8", seed=12)
     last = rig.truth()["poses"][-1]
     proc = StaticProcedure.create(
@@ -182,13 +224,13 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
     events = []
     for k in range(0, len(rec), 50):
         events += proc.feed(rec.slice(k, k + 50))
-        if proc.done:
+        if proc.complete:
             break
-    assert proc.done and proc.progress == 1.0 and events[-1].kind == "ready"
-    assert len(proc.poses) == 5 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
+    assert proc.done and proc.complete and proc.progress == 1.0 and events[-1].kind == "ready"
+    assert len(proc.poses) == 8 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
     assert rec.t[k] < last["stop"] - 1.0   # stopped well before the operator lifted it
     live = proc.result()
-    assert live.quality["n_poses"] == 6 and live.settings["faces"][-1] == last["face"]
+    assert live.quality["n_poses"] == 9 and live.settings["faces"][-1] == last["face"]
     batch = calibrate_static(rec)
     u = batch.correction.bias_uncertainty
     assert np.all(np.abs(live.correction.bias - batch.correction.bias) < 3 * u)

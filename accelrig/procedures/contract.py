@@ -13,6 +13,8 @@ metadata dict: rate, range_g, scale, channels, identity, ...).  Then:
     finish() -> events         the source ended: close what is in progress
     progress                   0..1 towards enough data
     done                       enough data: ``result()`` may be called
+    complete                   the guided sequence is through (a face computes on its own); ``done``
+                               unless the procedure asks for more than the minimum (static: the drift check)
     result()                   the estimate: a CalibrationResult (accelrig.result), with its
                                uncertainty, warnings and arrays to plot
 
@@ -93,6 +95,11 @@ class Procedure(abc.ABC):
     @abc.abstractmethod
     def done(self) -> bool:
         """Enough data for ``result()``."""
+
+    @property
+    def complete(self) -> bool:
+        """The guided sequence is through: what a face waits for before computing on its own."""
+        return self.done
 
     @abc.abstractmethod
     def result(self):

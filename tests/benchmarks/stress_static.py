@@ -26,6 +26,9 @@ TILT = 0.1
 # 1/f noise with its corner (where it equals the white density, SIGMA / sqrt(RATE / 2)) at 1 Hz: a poor MEMS
 # part (Allan floor about 3.5 mm/s^2); the MPU-9250's corner is nearer 0.01 Hz.
 FLICKER = 0.003
+# The other rows follow the wizard's sequence (the rig's default: six faces, then one of each axis
+# again); these hold each face once, as a recording made without the wizard may.
+SIX_ONCE = ("+z", "-z", "+x", "-x", "+y", "-y")
 
 
 def _run(seed: int, sensor_options: dict | None = None, rig_options: dict | None = None,
@@ -91,7 +94,10 @@ CONDITIONS = [
     Condition("static", "local g 9.81, --g 9.81", lambda s: _run(s, rig_g=9.81, values={"g": 9.81})),
     Condition("static", "drift 0.01 m/s^2 over the run", lambda s: _run(s, drift_total=0.01),
               refusal_must_say=("drift",)),
-    Condition("static", "drift 0.01, ends on the first face", lambda s: _run(
+    Condition("static", "white, every face held once", lambda s: _run(s, rig_options={"order": SIX_ONCE})),
+    Condition("static", "drift 0.01, every face held once", lambda s: _run(
+        s, drift_total=0.01, rig_options={"order": SIX_ONCE}), refusal_must_say=("drift",)),
+    Condition("static", "drift 0.01, ends on the first face only", lambda s: _run(
         s, drift_total=0.01, rig_options={"order": ("+z", "-z", "+x", "-x", "+y", "-y", "+z")}),
               refusal_must_say=("drift",)),
     Condition("static", "hand tilt 1 deg", lambda s: _run(s, rig_options={"tilt_deg": 1.0},

@@ -28,7 +28,12 @@ drift         an offset that moves during the run is invisible in one pose's mea
               flatness) against its noise.  Either one significant at 1 % is a warning naming what was
               seen; the revisit also enters the fits' lack-of-fit test, which widens u by the scatter.
               A drift slower than the within-pose trends can resolve is caught only by a revisit:
-              the docs tell the operator to end on the face they began with.
+              with every face held once a slow drift of the offset is indistinguishable from the
+              faces' tilts (each axis's offset is its own face pair's, at that pair's time), and the
+              trend within a pose is about 5x too coarse to bound it at the offsets' precision, whatever
+              the hold length (both scale alike).  Such a run is calibrated, with a warning that says
+              drift was not checked and how large a drift could go unseen (``_unchecked``); the
+              wizard asks the operator to end on the face they began with, and the docs say why.
 """
 
 from __future__ import annotations
@@ -118,6 +123,7 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
     _revisits(noise, samples, times, faces, g, flatness_deg)
+    _unchecked(noise, times, faces)
     return noise
 
 
@@ -184,24 +190,37 @@ def _trend(noise: StillNoise, samples, times) -> None:
 
 
 def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: float) -> None:
-    """A face held twice: the change of its mean along gravity between the first and the last hold."""
+    """A face held twice: the change of its mean along gravity between the first and the last hold.
+
+    A tilt of either hold shortens the reading along gravity by g (1 - cos theta) ~ g |theta|^2 / 2, where
+    theta is the hold's tilt (a 2-vector).  The two holds' tilt difference d = theta_b - theta_a is
+    measured (the cross-axis change over g, precise to 1e-4 rad); only theta_a is unknown, with sd s per
+    component (the stated flatness).  Then |theta_b|^2 - |theta_a|^2 = |d|^2 + 2 theta_a . d: the
+    change expected from the tilts is g |d|^2 / 2 towards zero, with sd g s |d|.  Conditioning on the
+    measured d keeps the test normal and exact at its level: two holds placed alike are compared tightly,
+    two placed differently loosely (the unconditional allowance, Laplace-tailed, raised false alarms)."""
     found = []
     tau = noise.tau_any
+    s = np.radians(flatness_deg)
     for face in dict.fromkeys(f for f in faces if f is not None):
         idx = [k for k, f in enumerate(faces) if f == face]
         if len(idx) < 2:
             continue
         a, b = idx[0], idx[-1]
         axis = AXES.index(face[1])
-        change = float(samples[b][:, axis].mean() - samples[a][:, axis].mean())
+        mean_a, mean_b = samples[a].mean(axis=0), samples[b].mean(axis=0)
+        cross = [k for k in range(3) if k != axis]
+        d = (mean_b[cross] - mean_a[cross]) / g
+        # the reading along gravity is about -+g: its size shrinks with the tilt, so the tilt's expected
+        # change moves it towards zero by g |d|^2 / 2
+        towards_zero = -np.sign(mean_a[axis]) * g * float(d @ d) / 2.0
+        change = float(mean_b[axis] - mean_a[axis]) - towards_zero
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[a]) + 1 / len(samples[b]))
-        # a tilt of either hold shortens the gravity component by g (1 - cos theta) ~ g theta^2 / 2:
-        # with each of two components of sd s, theta^2 / 2 has mean and sd s^2 (exponential)
-        s2 = np.radians(flatness_deg) ** 2
-        var += 2 * (g * s2) ** 2
+        var += (g * s) ** 2 * float(d @ d)
         z = change / np.sqrt(var)
         found.append({"face": face, "first": float(times[a].mean()), "last": float(times[b].mean()),
-                      "change": change, "u": float(np.sqrt(var)), "z": float(z)})
+                      "change": change, "tilt_change_deg": float(np.degrees(np.sqrt(d @ d))),
+                      "u": float(np.sqrt(var)), "z": float(z)})
     if not found:
         return
     noise.drift["revisits"] = found
@@ -216,3 +235,37 @@ def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: 
             f"along {worst['face'][1]} at t = {worst['last']:.0f} s against t = {worst['first']:.0f} s "
             f"({abs(worst['z']):.1f} u, {span:.0f} s apart): warming up? The uncertainties include the "
             "scatter this causes; let the sensor settle powered and calibrate again for the best result")
+
+
+def _unchecked(noise: StillNoise, times, faces) -> None:
+    """Axes whose faces were each held once: say that their drift was not checked, and how much could hide.
+
+    A revisit checks the drift of its own axis only (along the other two a tilt of the two holds looks the
+    same).  The offset of axis k comes from the poses of its two faces, so it is the offset at their mean
+    time; the result stands for the middle of the run.  A drift rate up to 2 u of the pooled within-pose
+    trend goes unseen and shifts offset k by that rate times the distance of its face pair from the middle."""
+    checked = sorted({r["face"][1] for r in noise.drift.get("revisits", [])})
+    noise.drift["checked_axes"] = checked
+    if not faces or any(f is None for f in faces) or "trend" not in noise.drift:
+        return
+    unchecked = [k for k, axis in enumerate(AXES) if axis not in checked]
+    if not unchecked:
+        return
+    counts = np.array([len(t) for t in times], dtype=float)
+    centres = np.array([float(np.mean(t)) for t in times])
+    middle = float(np.average(centres, weights=counts))
+    span = float(max(t[-1] for t in times) - min(t[0] for t in times))
+    unseen_rate = 2.0 * np.asarray(noise.drift["trend"]["u"])
+    shift = np.zeros(3)
+    for k in unchecked:
+        pair = [i for i, f in enumerate(faces) if f[1] == AXES[k]]
+        shift[k] = unseen_rate[k] * abs(float(np.average(centres[pair], weights=counts[pair])) - middle)
+    names = ", ".join(AXES[k] for k in unchecked[:-1]) + (" and " if len(unchecked) > 1 else "") + AXES[unchecked[-1]]
+    noise.drift["unchecked"] = {"axes": [AXES[k] for k in unchecked], "unseen_rate": unseen_rate.tolist(),
+                                "span_s": span, "offset_shift": shift.tolist()}
+    noise.warnings.append(
+        f"offset drift not checked along {names}: no face of {'that axis' if len(unchecked) == 1 else 'those axes'} "
+        f"was held twice, and held once a slow drift looks like the faces' tilt. A drift the within-pose trends "
+        f"would miss (up to {float(unseen_rate[unchecked].max()) * span:.2g} m/s^2 over the {span:.0f} s run) "
+        f"would shift the offsets by up to {float(shift.max()):.2g} m/s^2. After the six faces put one face of "
+        "each axis down again (the wizard asks for it) to check")

@@ -2,8 +2,14 @@
 
 ``PoseDetector`` takes the raw stream in pieces of any size and says what the
 operator should be told as contract ``Event``s; the specific happening is in
-``event.data``: ``kind`` (hold_still, already_done, captured, progress,
+``event.data``: ``kind`` (hold_still, already_done, captured, progress, again,
 complete, too_short, moved, not_flat, saturated, redo), ``face`` and ``time``.
+
+The guided sequence: the six faces in any order, then one face of each axis
+again (``again``): a face held twice, far apart in time, is the only check of a
+slow offset drift (``noise.py`` says why), and each axis needs its own.  Six faces
+are enough to compute (``faces_done``); the sequence is complete with the three
+holds again (``axes_again``).
 Fed a whole recording or the same samples in chunks it finds the same poses.
 
 Detection works on RAW data in m/s^2 (never on calibrated data: the
@@ -56,6 +62,7 @@ _CHI2_1_MEDIAN = 0.4549364   # median of chi^2 with 1 dof: median(d^2) = 0.455 v
 # The detector's own kinds of happening, as the contract's kinds of event (data["kind"] keeps the own one).
 EVENT_KIND = {
     "start": "instruction", "hold_still": "instruction", "already_done": "instruction", "redo": "instruction",
+    "again": "instruction",
     "captured": "captured", "progress": "progress", "complete": "ready",
     "too_short": "problem", "moved": "problem", "not_flat": "problem", "saturated": "problem",
 }
@@ -174,6 +181,38 @@ class PoseDetector:
         done = set(self.faces_done)
         return [f for f in FACES if f not in done]
 
+    def _flat_faces(self) -> list[str]:
+        """The faces of the usable flat poses in the order held (the one held now once captured)."""
+        faces = [p.face for p in self.poses if p.angle_deg <= self.face_tolerance_deg]
+        return faces + ([self._seg_face] if self._held_captured and self._seg_flat else [])
+
+    @property
+    def axes_again(self) -> dict[str, str]:
+        """The drift check: per axis, the face held again after all six faces were done (axis -> face)."""
+        seen: set[str] = set()
+        again: dict[str, str] = {}
+        for face in self._flat_faces():
+            if len(seen) == len(FACES):
+                again.setdefault(face[1], face)
+            seen.add(face)
+        return again
+
+    @property
+    def again_missing(self) -> list[str]:
+        """The faces to hold again for the drift check: per axis not yet checked, the face first held on it."""
+        again = self.axes_again
+        first: dict[str, str] = {}
+        for face in self._flat_faces():
+            first.setdefault(face[1], face)
+        # in the order the operator first held them (each face's two holds about equally far apart)
+        return [face for face in first.values() if face[1] not in again] + [
+            f"+{axis}" for axis in AXES if axis not in again and axis not in first]
+
+    @property
+    def complete(self) -> bool:
+        """The guided sequence is through: six faces, then one face of each axis again."""
+        return not self.missing_faces and not self.again_missing
+
     @property
     def state(self) -> dict:
         """Where the operator stands, for a display (the face grid)."""
@@ -183,6 +222,8 @@ class PoseDetector:
             "n_done": len(self.faces_done),
             "n_poses": len(self.poses) + self._held_captured,
             "missing": self.missing_faces,
+            "again_done": list(self.axes_again.values()),
+            "again_missing": self.again_missing,
             "current_face": self._seg_face if self._still and self._seg_flat else None,
             "still": self._still,
             "hold_fraction": min(held / self.hold, 1.0),
@@ -386,11 +427,20 @@ class PoseDetector:
         return f"{face} down" if flat else f"still pose (nearest {face})"
 
     def _count_events(self, now: float) -> list[Event]:
-        """How many faces are done, after a capture; and 'complete' at six."""
+        """How many faces are done, after a capture; then the faces to hold again; 'complete' at the end."""
         n = len(self.faces_done)
         events = [pose_event("progress", f"{n} of 6", now, progress=n / len(FACES))]
-        if n == len(FACES):
-            events.append(pose_event("complete", "all six faces captured", now, progress=1.0))
+        if n < len(FACES):
+            return events
+        again = self.again_missing
+        if not again:
+            events.append(pose_event("complete", "all six faces captured, and each axis held again", now, progress=1.0))
+        else:
+            names = ", ".join(again[:-1]) + (" and " if len(again) > 1 else "") + again[-1]
+            events.append(pose_event(
+                "again", f"{'all six faces captured' if len(again) == 3 else 'drift check'}: now put {names} down "
+                "once more (either face of each axis will do): it checks that the offsets did not drift. "
+                "c computes without it", now))
         return events
 
     def _check(self, pose: Pose) -> tuple[str, str] | None:

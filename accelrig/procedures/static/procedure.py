@@ -9,7 +9,8 @@ the same poses whichever way it is processed.
     proc.feed(chunk) -> events      contract Events; data["kind"]: hold_still, captured, moved, ...
     proc.act("redo", face="+x")     forget a face to take it again
     proc.finish()                   the data ended: close the pose in progress
-    proc.progress, proc.done        faces done / 6; all six in
+    proc.progress, proc.done        faces done / 6; all six in (enough to compute)
+    proc.complete                   the guided sequence is through: six faces, then one of each axis again
     proc.faces                      the face grid's details (done, held, hold fraction, ...)
     proc.result()                   the CalibrationResult (model and method from the settings)
 
@@ -161,6 +162,13 @@ class StaticProcedure(Procedure):
         if self.any_orientation:
             return self.orientations["n_distinct"] >= MULTI_MIN_DISTINCT
         return not self.missing_faces
+
+    @property
+    def complete(self) -> bool:
+        """The guided sequence is through: six faces and one of each axis again (the drift check)."""
+        if self.any_orientation:
+            return self.done
+        return self.detector.complete
 
     @property
     def orientations(self) -> dict:

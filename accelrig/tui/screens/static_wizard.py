@@ -1,7 +1,8 @@
 """The static six-face wizard: the generic wizard on accelrig.procedures.static.procedure.StaticProcedure.
 
 What it adds to the generic wizard: the face grid (which faces are done,
-which one is held, with its progress, and a suggestion for the next), the
+which one is held, with its progress, and a suggestion for the next; after the six, the faces to
+hold once more for the drift check), the
 held pose's own progress bar, r for the procedure's 'redo' (asking which
 face), and 'still missing: ...' when c is pressed early.  Settings, events
 ('hold still', 'motion detected', 'captured'), the fit in a worker and the
@@ -89,8 +90,11 @@ class StaticWizard(ProcedureWizard):
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
+        elif faces["again_missing"]:
+            state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
+                     "(either face of each axis), or c to compute without it")
         else:
-            state = "[green]all six faces done[/]: c computes again, r takes a face again"
+            state = "[green]all six faces done, drift checked[/]: c computes again, r takes a face again"
         self.query_one("#pose-state", Static).update(
             f"{state}   faces {faces['n_done']}/6   poses {faces['n_poses']}")
 

@@ -390,7 +390,9 @@ class ProcedureWizard(Screen):
                         called = True
                 except AccelrigError as exc:
                     error = str(exc)
-            done = procedure.done
+            # computes on its own once the guided sequence is through, or with enough data once the source
+            # ended (a finite replay): nothing more will come
+            done = procedure.complete or (procedure.done and self.source_ended)
         self.app.call_from_thread(self._pumped, generation, notes, events, called, bool(actions), error, done)
 
     def _pumped(self, generation: int, notes, events, called: bool, acted: bool, error: str | None,

@@ -1,4 +1,4 @@
-"""Six face cells: done, being held (with its progress), or still to do."""
+"""Six face cells: done, being held (with its progress), still to do, or (after the six) to hold again."""
 
 from __future__ import annotations
 
@@ -20,15 +20,21 @@ class FaceGrid(Horizontal):
         done = set(progress["faces_done"])
         current = progress["current_face"] if progress["still"] else None
         missing = progress["missing"]
-        suggested = missing[0] if missing and current not in missing else None
+        again_done = set(progress.get("again_done", ()))
+        again_missing = progress.get("again_missing", [])
+        # the next face: a missing one, then (six done) one to hold again for the drift check
+        todo = missing or again_missing
+        suggested = todo[0] if todo and current not in todo else None
         for face in FACES:
             cell = self.query_one(f"#face-{face.replace('+', 'p').replace('-', 'm')}", Static)
             if face == current:
                 state = f"holding {progress['hold_fraction']:.0%}"
-            elif face in done:
-                state = "✓ done"
             elif face == suggested:
-                state = "next"
+                state = "next" if missing else "again next"
+            elif face in again_done:
+                state = "✓✓ twice"
+            elif face in done:
+                state = "✓ · again" if not missing and face in again_missing else "✓ done"
             else:
                 state = "to do"
             cell.update(f"[b]{face} down[/b]\n{state}")
