@@ -249,7 +249,9 @@ class StaticProcedure(Procedure):
                                     "ljung_box_p": [w.p_value if w else None for w in pose_noise]}
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
-        return build_result(poses, stats, rows, model, self.method, settings, noise)
+        if not np.any(noise.drift_rate_u > 0):
+            return build_result(poses, stats, rows, model, self.method, settings, noise)
+        return _referred_to_middle(poses, stats, rows, model, self.method, settings, noise)
 
     def _require_six_faces(self, present: set[str]) -> None:
         missing = [f for f in FACES if f not in present]
@@ -326,13 +328,54 @@ def _units(name: str) -> str:
     return "rad" if name.startswith("angle") else "m/s^2" if name[0] in "ob" else "1"
 
 
+def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
+                        settings: dict, noise: StillNoise) -> CalibrationResult:
+    """The fit on pose means referred to the middle of the run with the drift rate the revisits measured.
+
+    Each pose mean m_i becomes m_i - r (t_i - t_mid) (t_i the pose's centre, t_mid the count-weighted mean of
+    the centres: the time the offsets stand for).  The rate's u enters the result's covariance through the
+    fit's sensitivity to it, by refitting with each measured axis's rate moved by its u (the fits are linear
+    enough in the means over such a step): cov += sum_k d_k d_k^T."""
+    centres = np.array([float(np.mean(p.t)) for p in poses])
+    middle = float(np.average(centres, weights=[len(p.t) for p in poses]))
+
+    def fit(rate: np.ndarray) -> CalibrationResult:
+        shift = np.outer(centres - middle, rate)
+        referred = [PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)]
+        return build_result(poses, referred, rows, model, method, settings, noise,
+                            means=[p.mean - d for p, d in zip(poses, shift, strict=True)])
+
+    moved = [fit(noise.drift_rate + np.eye(3)[k] * noise.drift_rate_u[k])
+             for k in range(3) if noise.drift_rate_u[k] > 0]
+    base = fit(noise.drift_rate)   # last: build_result writes the rows' residuals
+    values = np.array([e.value for e in base.parameters.values()])
+    corr_values = np.concatenate([base.correction.matrix.ravel(), base.correction.bias])
+    cov, corr_cov = np.array(base.covariance, dtype=float), np.array(base.correction.covariance, dtype=float)
+    for other in moved:
+        d = np.array([e.value for e in other.parameters.values()]) - values
+        dc = np.concatenate([other.correction.matrix.ravel(), other.correction.bias]) - corr_values
+        cov += np.outer(d, d)
+        corr_cov += np.outer(dc, dc)
+    base.covariance = cov
+    base.correction = Correction(base.correction.matrix, base.correction.bias, corr_cov)
+    base.parameters = {n: Estimate(e.value, float(np.sqrt(max(cov[k, k], 0.0))), e.unit)
+                       for k, (n, e) in enumerate(base.parameters.items())}
+    axes = [a for a, u in zip("xyz", noise.drift_rate_u, strict=True) if u > 0]
+    base.quality["uncertainty_source"] += (f"; pose means referred to the middle of the run (t = {middle:.1f} s) "
+                                           f"with the drift rate measured on {', '.join(axes)} by faces held again")
+    base.quality["drift_referred_to"] = middle
+    return base
+
+
 def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
-                 settings: dict, noise: StillNoise) -> CalibrationResult:
+                 settings: dict, noise: StillNoise, means: list[np.ndarray] | None = None) -> CalibrationResult:
     """Fit ``model`` (exact-face paper / affine, six-face, multi-position) and package the CalibrationResult.
 
-    ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order."""
+    ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order;
+    ``means`` the pose means to fit when not the poses' own (referred to the middle of the run)."""
     g = settings["g"]
-    data = PoseData([s.face for s in stats], [p.mean for p in poses], [len(p.samples) for p in poses],
+    data = PoseData([s.face for s in stats], means if means is not None else [p.mean for p in poses],
+                    [len(p.samples) for p in poses],
                     [p.within_ss for p in poses], g)
     warnings = []
     if model in MODELS:
