@@ -47,7 +47,8 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert wizard.recorder.reader.lost_total == 0
         verification = app.screen.verification.details
         assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
-        assert app.screen.query_one("#steps").row_count == 3
+        screen = app.screen
+        await wait_for(pilot, lambda: screen.query_one("#steps").row_count == 3)   # filled once mounted
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
         radius = app.screen.verification.parameters["radius"]
         truth = app.session.info.truth["rig"]

@@ -31,8 +31,10 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, StaticWizard)
         assert wizard.procedure.faces_done == ["+x", "-x", "+y", "-y", "+z", "-z"]
+        assert wizard.procedure.complete   # computed on its own after the drift check (one face per axis again)
         assert wizard.recorder.reader.lost_total == 0
         results = app.screen
+        assert "drift not checked" not in str(results.query_one("#results-warnings").render())
         await wait_for(pilot, lambda: results.profile is not None)
         assert results.query_one("#parameters").row_count == len(results.result.parameters)
 
@@ -87,7 +89,8 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await pilot.press("k", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
+        # nine holds through the emulated bus (six faces, three again): slower than the plain simulator
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=90)
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
         driver = app.session.driver
@@ -105,3 +108,22 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await wait_for(pilot, lambda: "verified" in status(app))
         assert "written and verified" in status(app)
         assert driver.chip.read_offset_words() != before
+
+
+@async_test
+async def test_a_source_that_ends_after_six_faces_computes_without_the_drift_check_and_the_results_say_so(tmp_path):
+    # the scripted rig holds each face once and ends: with six faces in and nothing more to come, the wizard
+    # computes (live it would wait for the drift check, or c) and the results screen shows the warning first
+    app = AccelrigApp(device="sim://static?seed=4&pace=fast&order=+z,-z,+x,-x,+y,-y&hold=3", refresh_interval=0.05,
+                      profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=90)
+        wizard = app.screen_stack[-2]
+        assert wizard.procedure.done and not wizard.procedure.complete and wizard.source_ended
+        shown = str(app.screen.query_one("#results-warnings").render())
+        assert "offset drift not checked along x, y and z" in shown

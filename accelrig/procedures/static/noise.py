@@ -27,9 +27,10 @@ drift         an offset that moves during the run is invisible in one pose's mea
               means along gravity (a tilt changes it only to second order, covered by the stated
               measured tilt difference) against its noise.  Either one significant at 1 % is a warning
               naming what was seen.  The revisits also measure the drift rate of their axes: the
-              procedure refers every pose mean to the middle of the run with it, whether significant or
-              not (a correction only when significant would leave the drift just below the test's reach
-              as a bias of up to 2 u), and propagates the rate's u into the result's.
+              procedure (which has a first fit's calibration to make the magnitudes tilt-free) refers
+              every pose mean to the middle of the run with it, whether significant or not (a
+              correction only when significant would leave the drift just below the test's reach as a
+              bias of up to 2 u), and propagates the rate's u into the result's.
               A drift slower than the within-pose trends can resolve is caught only by a revisit:
               with every face held once a slow drift of the offset is indistinguishable from the
               faces' tilts (each axis's offset is its own face pair's, at that pair's time), and the
@@ -67,7 +68,8 @@ class StillNoise:
     slow_factor: float = 1.0              # > 1 when pose halves disagree beyond tau (slower noise)
     wander_var: float = 0.0               # additive per-pose variance between poses from that slow noise
     # the offset's drift rate per raw axis (m/s^2 per s) measured by faces held again, and its u; u = 0 on an
-    # axis without such a face (not measured: the rate there is 0 by assumption, and warned)
+    # axis without such a face (not measured: the rate there is 0 by assumption, and warned).  Set by the
+    # procedure (``procedure._drift_rates``), which measures it from a first fit's calibrated magnitudes
     drift_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_rate_u: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -225,23 +227,13 @@ def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: 
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[a]) + 1 / len(samples[b]))
         var += (g * s) ** 2 * float(d @ d) + 2.0 * noise.wander_var   # the two means' slow noise (1/f) too
         z = change / np.sqrt(var)
-        found.append({"face": face, "first": float(times[a].mean()), "last": float(times[b].mean()),
+        found.append({"face": face, "first_pose": a, "last_pose": b,
+                      "first": float(times[a].mean()), "last": float(times[b].mean()),
                       "change": change, "tilt_change_deg": float(np.degrees(np.sqrt(d @ d))),
                       "u": float(np.sqrt(var)), "z": float(z)})
     if not found:
         return
     noise.drift["revisits"] = found
-    # the rate per axis: each face held again measures its own axis's (inverse-variance mean when both faces
-    # of an axis were); the procedure refers every pose mean to the middle of the run with it
-    for k, axis in enumerate(AXES):
-        on_axis = [f for f in found if f["face"][1] == axis]
-        if on_axis:
-            weights = np.array([(f["last"] - f["first"]) ** 2 / f["u"] ** 2 for f in on_axis])
-            rates = np.array([f["change"] / (f["last"] - f["first"]) for f in on_axis])
-            noise.drift_rate[k] = float(np.sum(weights * rates) / np.sum(weights))
-            noise.drift_rate_u[k] = float(1.0 / np.sqrt(np.sum(weights)))
-    noise.drift["rate"] = noise.drift_rate.tolist()
-    noise.drift["rate_u"] = noise.drift_rate_u.tolist()
     chi2 = float(sum(f["z"] ** 2 for f in found))
     p = float(chi2_dist.sf(chi2, len(found)))
     noise.drift["revisit_p_value"] = p

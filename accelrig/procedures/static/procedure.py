@@ -39,7 +39,7 @@ from accelrig.estimation.gravity_fit import (
     fit_multiposition,
     fit_six_face,
 )
-from accelrig.geometry import FACES
+from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
 from accelrig.procedures.static.noise import StillNoise, still_noise
@@ -249,8 +249,9 @@ class StaticProcedure(Procedure):
                                     "ljung_box_p": [w.p_value if w else None for w in pose_noise]}
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
-        if not np.any(noise.drift_rate_u > 0):
-            return build_result(poses, stats, rows, model, self.method, settings, noise)
+        result = build_result(poses, stats, rows, model, self.method, settings, noise)
+        if not _drift_rates(noise, poses, result.correction):
+            return result
         return _referred_to_middle(poses, stats, rows, model, self.method, settings, noise)
 
     def _require_six_faces(self, present: set[str]) -> None:
@@ -328,42 +329,125 @@ def _units(name: str) -> str:
     return "rad" if name.startswith("angle") else "m/s^2" if name[0] in "ob" else "1"
 
 
+def _drift_rates(noise: StillNoise, poses: list[Pose], first: Correction) -> bool:
+    """Each raw offset's drift rate from the faces held again (``noise.drift["revisits"]``); False if none.
+
+    Measured on the calibrated magnitudes of a first, drift-free fit: |C (m - b)| is g whatever the tilt,
+    so the two holds' difference is the offset's change alone (projected on the direction of gravity, the
+    face's axis), without the hand's tilt, which the raw reading along gravity carries at second order
+    (1 degree: up to 0.01 m/s^2).  The u: the two means' noise along that axis (n / tau) and the slow-noise
+    wander between poses."""
+    revisits = noise.drift.get("revisits") or []
+    if not revisits:
+        return False
+    tau = noise.tau_any
+    weights, rates = [[] for _ in range(3)], [[] for _ in range(3)]
+    for r in revisits:
+        k = AXES.index(r["face"][1])
+        a, b = poses[r["first_pose"]], poses[r["last_pose"]]
+        g_a, g_b = first.apply(a.mean), first.apply(b.mean)
+        # d|C (m - b)| / d o_k: how the magnitude moves per unit of raw offset k, about -+1 for -+k down
+        sensitivity = float(g_a @ -first.matrix[:, k]) / float(np.linalg.norm(g_a))
+        change = (float(np.linalg.norm(g_b)) - float(np.linalg.norm(g_a))) / sensitivity
+        var = noise.sd[k] ** 2 * tau[k] * (1 / len(a.samples) + 1 / len(b.samples)) + 2.0 * noise.wander_var
+        span = r["last"] - r["first"]
+        r["offset_change"], r["offset_change_u"] = change, float(np.sqrt(var))
+        weights[k].append(span**2 / var)
+        rates[k].append(change / span)
+    for k in range(3):
+        if weights[k]:
+            w = np.array(weights[k])
+            noise.drift_rate[k] = float(np.sum(w * np.array(rates[k])) / np.sum(w))
+            noise.drift_rate_u[k] = float(1.0 / np.sqrt(np.sum(w)))
+    noise.drift["rate"] = noise.drift_rate.tolist()
+    noise.drift["rate_u"] = noise.drift_rate_u.tolist()
+    return True
+
+
 def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
                         settings: dict, noise: StillNoise) -> CalibrationResult:
-    """The fit on pose means referred to the middle of the run with the drift rate the revisits measured.
+    """The fit on pose means referred to the middle of the run, the drift rates of the axes held again fitted.
 
     Each pose mean m_i becomes m_i - r (t_i - t_mid) (t_i the pose's centre, t_mid the count-weighted mean of
-    the centres: the time the offsets stand for).  The rate's u enters the result's covariance through the
-    fit's sensitivity to it, by refitting with each measured axis's rate moved by its u (the fits are linear
-    enough in the means over such a step): cov += sum_k d_k d_k^T."""
+    the centres: the time the offsets stand for).  r is the model's own: the rates that minimise the fit's
+    lack of fit (its chi^2 as a function of r, profiled over the other parameters: a quadratic from 1 + m(m+3)/2
+    fits about the revisits' estimate ``_drift_rates``, m the axes measured); cov(r) = 2 H^-1 (H the chi^2's
+    Hessian).  A rate taken from the revisits alone would disagree with the fit's tilts and misalignment and
+    show as lack of fit.  The rate's u enters the result's covariance through the fit's sensitivity to it
+    (central differences of the same fits): cov += J cov(r) J^T.  The revisits' degrees of freedom go into
+    the rates, so the lack-of-fit test has that many fewer."""
     centres = np.array([float(np.mean(p.t)) for p in poses])
     middle = float(np.average(centres, weights=[len(p.t) for p in poses]))
 
-    def fit(rate: np.ndarray) -> CalibrationResult:
+    def referred(rate: np.ndarray) -> tuple[list[PoseStats], list[np.ndarray]]:
         shift = np.outer(centres - middle, rate)
-        referred = [PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)]
-        return build_result(poses, referred, rows, model, method, settings, noise,
-                            means=[p.mean - d for p, d in zip(poses, shift, strict=True)])
+        return ([PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)],
+                [p.mean - d for p, d in zip(poses, shift, strict=True)])
 
-    moved = [fit(noise.drift_rate + np.eye(3)[k] * noise.drift_rate_u[k])
-             for k in range(3) if noise.drift_rate_u[k] > 0]
-    base = fit(noise.drift_rate)   # last: build_result writes the rows' residuals
-    values = np.array([e.value for e in base.parameters.values()])
-    corr_values = np.concatenate([base.correction.matrix.ravel(), base.correction.bias])
-    cov, corr_cov = np.array(base.covariance, dtype=float), np.array(base.correction.covariance, dtype=float)
-    for other in moved:
-        d = np.array([e.value for e in other.parameters.values()]) - values
-        dc = np.concatenate([other.correction.matrix.ravel(), other.correction.bias]) - corr_values
-        cov += np.outer(d, d)
-        corr_cov += np.outer(dc, dc)
+    def fit(rate: np.ndarray) -> tuple[float, np.ndarray]:
+        """The model's lack of fit (chi^2, no inflation: only its shape in r counts) and its reported parameters
+        then C and b, as ``build_result`` fits them."""
+        referred_stats, means = referred(rate)
+        if model in MODELS:
+            data = PoseData([s.face for s in stats], means, [len(p.samples) for p in poses],
+                            [p.within_ss for p in poses], settings["g"])
+            f = fit_model(data, model, method if model == "paper" else "vp")
+            chi2 = f.chi2 / (float(np.mean(noise.tau)) if noise.correlated else 1.0)
+            values, corr = f.values, f.correction
+        else:
+            f = fit_six_face(referred_stats, "paper", settings["pose_flatness_deg"], settings["g"],
+                             inflation="none", wander_var=noise.wander_var)
+            chi2, values, corr = float(f.chi2_before), f.values, f.correction
+        return chi2, np.concatenate([values, corr.matrix.ravel(), corr.bias])
+
+    axes = [k for k in range(3) if noise.drift_rate_u[k] > 0]
+    m = len(axes)
+    start, steps = noise.drift_rate.copy(), 2.0 * noise.drift_rate_u[axes]
+    unit = np.eye(3)[axes] * steps[:, None]          # (m, 3): one step per measured axis
+    at = {(): fit(start)}
+    for i in range(m):
+        at[("+", i)], at[("-", i)] = fit(start + unit[i]), fit(start - unit[i])
+        for j in range(i):
+            at[("+", i, j)] = fit(start + unit[i] + unit[j])
+    chi2 = {key: c for key, (c, _) in at.items()}
+    c0 = chi2[()]
+    grad = np.array([(chi2[("+", i)] - chi2[("-", i)]) / 2.0 for i in range(m)])
+    hess = np.zeros((m, m))
+    for i in range(m):
+        hess[i, i] = chi2[("+", i)] + chi2[("-", i)] - 2.0 * c0
+        for j in range(i):
+            hess[i, j] = hess[j, i] = chi2[("+", i, j)] - chi2[("+", i)] - chi2[("+", j)] + c0
+    # in units of the steps; a chi^2 that does not curve upward in every direction is not a profile to trust:
+    # then the revisits' own estimate and u stand
+    eigenvalues = np.linalg.eigvalsh(hess) if m else np.zeros(0)
+    if m and np.all(eigenvalues > 1e-9 * max(float(np.max(np.abs(eigenvalues))), 1e-300)):
+        inv = np.linalg.inv(hess)
+        rate = start.copy()
+        rate[axes] = start[axes] - steps * (inv @ grad)
+        rate_cov = 2.0 * np.outer(steps, steps) * inv
+    else:
+        rate, rate_cov = start, np.diag(noise.drift_rate_u[axes] ** 2)
+    noise.drift_rate = rate
+    noise.drift_rate_u = np.zeros(3)
+    noise.drift_rate_u[axes] = np.sqrt(np.clip(np.diag(rate_cov), 0.0, None))
+    noise.drift["rate"], noise.drift["rate_u"] = noise.drift_rate.tolist(), noise.drift_rate_u.tolist()
+    noise.drift["rate_from"] = "fit" if rate is not start else "revisits"
+    jac = np.column_stack([(at[("+", i)][1] - at[("-", i)][1]) / (2.0 * steps[i]) for i in range(m)])
+    referred_stats, means = referred(rate)
+    base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means)
+    extra = jac @ rate_cov @ jac.T
+    n_par = len(base.parameters)
+    cov = np.array(base.covariance, dtype=float) + extra[:n_par, :n_par]
+    corr_cov = np.array(base.correction.covariance, dtype=float) + extra[n_par:, n_par:]
     base.covariance = cov
     base.correction = Correction(base.correction.matrix, base.correction.bias, corr_cov)
     base.parameters = {n: Estimate(e.value, float(np.sqrt(max(cov[k, k], 0.0))), e.unit)
                        for k, (n, e) in enumerate(base.parameters.items())}
-    axes = [a for a, u in zip("xyz", noise.drift_rate_u, strict=True) if u > 0]
+    names = ", ".join(AXES[k] for k in axes)
     base.quality["uncertainty_source"] += (f"; pose means referred to the middle of the run (t = {middle:.1f} s) "
-                                           f"with the drift rate measured on {', '.join(axes)} by faces held again")
+                                           f"with the offset drift rate on {names} fitted (faces held again)")
     base.quality["drift_referred_to"] = middle
+    base.quality["dof"] = int(base.quality["dof"]) - m
     return base
 
 

@@ -265,18 +265,20 @@ class ResultsScreen(Screen):
             yield Static(f"[b]{r.procedure}[/b]  method {r.method}  model {r.model}", id="results-title")
             yield Static("s saves the profile" + (", f flashes it to the device" if can_flash(self.session) else "")
                          + ", n shows the next plot, c writes the certificate", id="results-status")
+            # warnings first: what the operator must read before saving (the quality figures follow the plot)
+            yield Static(self.warnings_text(), id="results-warnings")
             if r.correction is not None:
                 yield Label("[b]Correction[/b] a = C (raw − b), b in m/s², u at k = 1 (what the profile applies)")
                 yield DataTable(id="correction", show_cursor=False, zebra_stripes=True)
             yield Label("[b]Parameters[/b] as the method estimates them (the sensor's view: gain, offset, ...), "
                         "u at k = 1")
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
+            with Vertical(id="plot-box"):
+                yield LinePlot("", id="result-plot")
             yield Static(self.quality_text(), id="quality")
             for key, _ in self.quality_tables():
                 yield Label(f"[b]{key}[/b]")
                 yield DataTable(id=f"quality-{key}", show_cursor=False, classes="quality-table")
-            with Vertical(id="plot-box"):
-                yield LinePlot("", id="result-plot")
         yield Footer()
 
     def on_mount(self) -> None:
@@ -326,10 +328,13 @@ class ResultsScreen(Screen):
                     continue  # a table or a nested structure
                 if numbers.size <= 12:
                     parts.append(f"{key} [" + ", ".join(f"{v:.3g}" for v in numbers) + "]")
-        text = "[b]Quality:[/b] " + ("   ".join(parts) if parts else "none reported")
-        for warning in self.result.warnings:
-            text += f"\n[yellow]warning:[/] {warning}"
-        return text
+        return "[b]Quality:[/b] " + ("   ".join(parts) if parts else "none reported")
+
+    def warnings_text(self) -> str:
+        """The result's warnings, one per line (or that there are none)."""
+        if not self.result.warnings:
+            return "[green]no warnings[/]"
+        return "\n".join(f"[yellow]warning:[/] {warning}" for warning in self.result.warnings)
 
     def quality_tables(self) -> list[tuple[str, list[dict]]]:
         """Quality entries that are lists of rows (e.g. per face): shown as tables."""
