@@ -40,8 +40,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as _sps
 from scipy.fft import next_fast_len as _next_fast_len
+
+from accelrig.estimation import distributions as _sps
 
 ALPHA = 0.01                 # false alarm rate of each test
 MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
