@@ -52,9 +52,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import signal, stats
+from scipy import signal
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, fit_sines_known_frequency, interpolated_dft_frequency
 from accelrig.geometry import AXES, parse_axis
@@ -566,7 +567,7 @@ def phase_wander(t: np.ndarray, y: np.ndarray, frequency: float, segments: int =
     coef, *_ = np.linalg.lstsq(design, phases / sds, rcond=None)
     deviation = phases - (design * sds[:, None]) @ coef
     chi2 = float(np.sum((deviation / sds) ** 2))
-    return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(stats.chi2.sf(chi2, k - 2)),
+    return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(chi2_dist.sf(chi2, k - 2)),
             "max_deviation_rad": float(np.max(np.abs(deviation))), "deviation_rad": deviation.tolist(),
             "uncertainty_rad": sds.tolist()}
 
