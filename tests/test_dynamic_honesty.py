@@ -171,6 +171,12 @@ def test_rotary_steady_loss_is_refused_with_its_size_and_a_slow_clock_is_not():
     assert test.quality["sample_timing"]["jumps"]["judged_share"] > 0.3
     assert not any("lost" in w for w in test.warnings)
 
+    # a wrong --nominal-rate (4 % low) with nothing lost: the warning says no samples were lost
+    wrong = NOMINAL * 0.96
+    rec.t = np.arange(len(rec)) / wrong
+    test = analyse_test(rec, enc, "x", "y", wrong, setup=SETUP)
+    assert [w for w in test.warnings if "off the nominal" in w and "no samples were lost" in w]
+
 
 def test_rotary_gaps_from_the_gap_list_are_placed_and_the_sensitivity_holds():
     rec, enc, truth = rotary_run(2)

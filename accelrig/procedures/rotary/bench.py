@@ -412,7 +412,7 @@ def analyse_test(
         )
     if abs(fs / nominal_rate - 1) > RATE_OFF_LIMIT:
         judged = (timing or {}).get("jumps", {}).get("judged_share", 0.0)
-        cause = ("no sample steps off the grid were seen (" f"{judged:.0%} of the record steep enough to show one), so "
+        cause = (f"no sample steps off the grid were seen ({judged:.0%} of the record steep enough to show one), so "
                  "no samples were lost: check --nominal-rate" if judged > 0 else
                  "the signal is too flat for lost samples to show, so a steady loss cannot be told from the clock: "
                  "check --nominal-rate and the link")
