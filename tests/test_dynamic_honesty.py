@@ -148,6 +148,36 @@ def test_rotary_samples_lost_without_a_trace_are_refused_naming_the_cause():
         analyse_test(lose(rec), enc, "x", "y", NOMINAL, setup=SETUP)
 
 
+def test_rotary_steady_loss_is_refused_with_its_size_and_a_slow_clock_is_not():
+    """Every 20th sample lost passes for a 5 % slow clock by rate alone; the steps between samples
+    tell them apart.  A clock 0.4 % slow with nothing lost keeps its rate and gets no loss message."""
+    rec, enc, _ = rotary_run(5)
+    keep = np.arange(len(rec)) % 20 != 7
+    steady = Recording(np.arange(keep.sum()) / NOMINAL, rec.acc[keep], rec.units, {}, dict(rec.meta))
+    with pytest.raises(CalibrationError, match="samples were lost without a trace") as refused:
+        analyse_test(steady, enc, "x", "y", NOMINAL, setup=SETUP)
+    size = float(str(refused.value).split("about ")[1].split(" samples")[0])
+    assert 0.8 * (~keep).sum() < size < 1.25 * (~keep).sum()
+
+    rng = np.random.default_rng(6)
+    sensor = paper_sensor(rng, noise_sd=0.03, rate=NOMINAL)
+    rig = RotaryRig(frequency=8.0, amplitude_deg=13.0, duration=SECONDS, phase=1.0)
+    clock = SimClock(NOMINAL, -0.004, 0.0)
+    slow = simulate(rig, sensor, clock, seconds=SECONDS, seed=6, units="counts")
+    slow.channels, slow.t = {}, np.arange(len(slow)) / NOMINAL
+    test = analyse_test(slow, EncoderLog(**encoder_samples(rig, SECONDS, 1000.0)), "x", "y", NOMINAL, setup=SETUP)
+    assert abs(test.sample_rate.value - clock.true_rate) < 4 * test.sample_rate.uncertainty
+    assert test.quality["sample_timing"]["jumps"]["steps"] == 0
+    assert test.quality["sample_timing"]["jumps"]["judged_share"] > 0.3
+    assert not any("lost" in w for w in test.warnings)
+
+    # a wrong --nominal-rate (4 % low) with nothing lost: the warning says no samples were lost
+    wrong = NOMINAL * 0.96
+    rec.t = np.arange(len(rec)) / wrong
+    test = analyse_test(rec, enc, "x", "y", wrong, setup=SETUP)
+    assert [w for w in test.warnings if "off the nominal" in w and "no samples were lost" in w]
+
+
 def test_rotary_gaps_from_the_gap_list_are_placed_and_the_sensitivity_holds():
     rec, enc, truth = rotary_run(2)
     test = analyse_test(lose(rec, gap_list=True), enc, "x", "y", NOMINAL, setup=SETUP)

@@ -84,9 +84,17 @@ def _run_campaign(args) -> int:
     from accelrig.procedures.rotary.campaign import report_markdown, run_campaign, write_report
     from accelrig.result import to_json
 
+    losses = []   # heavy link loss per test: in the report, and said on stderr as the single test says it
+
+    def on_test(test, result):
+        progress.step(f"test {test.index + 1} done: {test.label}")
+        if result.quality.get("link_loss"):
+            losses.append(f"test {test.index} ({test.label}): {result.quality['link_loss']}")
+
     with Progress(f"analysing the campaign {args.campaign}") as progress:
-        report = run_campaign(args.campaign, on_test=lambda test, _: progress.step(
-            f"test {test.index + 1} done: {test.label}"))
+        report = run_campaign(args.campaign, on_test=on_test)
+    for loss in losses:   # after the progress line is gone
+        print(f"accelrig: warning: {loss}", file=sys.stderr)
     if args.output:
         write_report(report, args.output, overwrite=args.force, inputs=[args.campaign])
     if args.json:

@@ -53,10 +53,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation.crb import propagate_covariance, unidentifiable_direction
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.geometry import AXES, FACES, face_down_direction, rotation_xyz, rotation_xyz_derivatives
 from accelrig.result import Correction
 from accelrig.units import STANDARD_GRAVITY
@@ -673,9 +673,9 @@ def _tilt_statistic_null(jac: np.ndarray, n_t: int) -> tuple[float, float, float
 def _student_variance_factor(dof: float) -> float:
     """(k_t / 2)^2: how much a variance estimated with ``dof`` degrees of freedom is widened so that +-2u
     keeps the normal +-2 sd coverage (95.45 %): k_t the Student t quantile at that coverage."""
-    from scipy.stats import norm, t
+    from accelrig.estimation.distributions import normal_cdf, student_t_quantile
 
-    return float((t.ppf(norm.cdf(2.0), dof) / 2.0) ** 2) if dof > 0 else 1.0
+    return float((student_t_quantile(normal_cdf(2.0), dof) / 2.0) ** 2) if dof > 0 else 1.0
 
 
 def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequence[str], counts, sigma: float,

@@ -40,8 +40,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as _sps
 from scipy.fft import next_fast_len as _next_fast_len
+
+from accelrig.estimation import distributions as _sps
 
 ALPHA = 0.01                 # false alarm rate of each test
 MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
@@ -379,15 +380,18 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"AR({noise.order}) spectral sandwich")
 
 
-def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray):
+def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray,
+                       tested: Whiteness | None = None):
     """The policy in one call: (covariance, how it was made, Whiteness) for a least-squares fit.
 
     ``white`` is the fit's white-noise covariance sigma^2 (J'J)^-1, returned as it is when the
     residuals pass as white.  Correlated residuals: the batch-means sandwich when the record
     holds MIN_BLOCKS blocks of BLOCK_PER_TAU tau, else the AR-spectrum sandwich.  Rows of
-    ``jacobian`` and ``residuals`` are in time order, one instant each.
+    ``jacobian`` and ``residuals`` are in time order, one instant each.  ``tested``: the
+    residuals' ``whiteness`` when the caller has it already (a tall fit tests first and builds
+    its Jacobian only when the noise is correlated).
     """
-    w = whiteness(residuals)
+    w = tested if tested is not None else whiteness(residuals)
     if not w.correlated:
         return white, "white noise: sigma^2 (J'J)^-1", w
     jacobian = np.asarray(jacobian, dtype=float)

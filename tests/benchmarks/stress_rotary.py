@@ -56,19 +56,30 @@ def _lose(rec: Recording, rng: np.random.Generator, share: float, burst: int, tr
     return Recording(t, rec.acc[keep], rec.units, {k: v[keep] for k, v in rec.channels.items()}, meta)
 
 
-def _run(seed: int, sensor_options: dict | None = None, loss: tuple | None = None) -> Outcome:
+def _lose_every(rec: Recording, every: int) -> Recording:
+    """Drop every ``every``-th sample (a steady link loss), without a trace: times k / nominal rate."""
+    keep = np.arange(len(rec)) % every != every - 1
+    return Recording(np.arange(int(keep.sum())) / NOMINAL_RATE, rec.acc[keep], rec.units,
+                     {k: v[keep] for k, v in rec.channels.items()}, dict(rec.meta))
+
+
+def _run(seed: int, sensor_options: dict | None = None, loss: tuple | None = None, every: int | None = None,
+         clock_error: float | None = None) -> Outcome:
     rng = np.random.default_rng(seed)
     frequency, amplitude = PAPER_PLAN[rng.integers(len(PAPER_PLAN))]
     sensor = paper_sensor(rng, noise_sd=NOISE_SD, rate=NOMINAL_RATE)
     for name, value in (sensor_options or {}).items():
         setattr(sensor, name, value)
-    clock = SimClock(NOMINAL_RATE, float(rng.uniform(0.002, 0.005)) * rng.choice([-1, 1]), 0.0)
+    drawn = float(rng.uniform(0.002, 0.005)) * rng.choice([-1, 1])
+    clock = SimClock(NOMINAL_RATE, drawn if clock_error is None else clock_error, 0.0)
     rig = RotaryRig(radius=0.170, frequency=frequency, amplitude_deg=amplitude, duration=SECONDS,
                     phase=float(rng.uniform(-np.pi, np.pi)))
     rec = simulate(rig, sensor, clock, seconds=SECONDS, seed=int(rng.integers(2**31)), units="counts")
     truth = true_sensitivity(rec.meta["truth"])
     if loss is not None:
         rec = _lose(rec, rng, *loss)
+    elif every is not None:
+        rec = _lose_every(rec, every)
     else:
         rec.t = np.arange(len(rec)) / NOMINAL_RATE   # a file without timestamps
     rec.channels = {}
@@ -80,7 +91,7 @@ def _run(seed: int, sensor_options: dict | None = None, loss: tuple | None = Non
     except AccelrigError as exc:
         outcome.refused = str(exc)
         return outcome
-    if loss is None or loss[2:]:
+    if (loss is None or loss[2:]) and every is None:
         outcome.errors["rate"] = test.sample_rate.value - clock.true_rate
         outcome.u["rate"] = test.sample_rate.uncertainty
     for axis, s in test.sensitivity.items():
@@ -102,4 +113,7 @@ CONDITIONS = [
               refusal_must_say=("lost", "missing")),
     Condition("rotary", "5 % lost, scattered, with timestamps", lambda s: _run(s, loss=(0.05, 1, "times")),
               refusal_must_say=("lost", "missing")),
+    Condition("rotary", "every 20th sample lost (steady), no timestamps", lambda s: _run(s, every=20),
+              refusal_must_say=("lost", "missing")),
+    Condition("rotary", "clock 0.4 % slow, nothing lost", lambda s: _run(s, clock_error=-0.004)),
 ]

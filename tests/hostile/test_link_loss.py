@@ -57,3 +57,22 @@ def test_a_rotary_test_from_a_lossy_recording_carries_the_warning_and_places_the
     assert any("the link lost" in w for w in warnings)
     # the gaps are placed on the sample grid (from the recorder's gap list), not closed up
     assert any("are missing in" in w and "gap list" in w for w in warnings)
+
+
+def test_a_rotary_campaign_with_a_lossy_test_says_so_on_stderr_and_in_the_report(cli, tmp_path):
+    lossy, clean = tmp_path / "lossy.csv", tmp_path / "clean.csv"
+    for out, drop in ((lossy, "&drop=0.2"), (clean, "")):
+        assert cli("record", f"sim://rotary?seed=3&pace=fast&rate=1660&range=8&seconds=8&block=64{drop}",
+                   "--units", "counts", "-o", out).returncode == 0
+    campaign = tmp_path / "campaign.yaml"
+    campaign.write_text(
+        "name: loss\nnominal_rate: 1660\nunits: counts\nradius: 0.170\ntests:\n"
+        "  - {sensor: S1, mems: clean.csv, tangential: x, radial: y, label: clean}\n"
+        "  - {sensor: S1, mems: lossy.csv, tangential: x, radial: y, label: lossy}\n")
+    result = cli("calibrate", "rotary", "--campaign", campaign, "--json")
+    assert result.returncode == 0, result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.startswith("accelrig: warning:")]
+    assert len(lines) == 1 and lines[0].startswith("accelrig: warning: test 1 (lossy): the link lost ")
+    tests = json.loads(result.stdout)["details"]["tests"]
+    assert any("the link lost" in w for w in tests[1]["warnings"])
+    assert not any("the link lost" in w for w in tests[0]["warnings"])

@@ -34,9 +34,12 @@ Processing, as the paper and with its known weaknesses made explicit:
    residuals checked for whiteness (estimation.residuals: correlated noise
    gets the sandwich covariance, and the warnings say so).
    Before stage 3 the sample timing is checked: a record that lost samples
-   without a trace (its phase in sample index jumps) is refused; gaps the
-   record knows of (the recorder's gap list, or its timestamps) are placed on
-   the sample grid and only real samples enter the fits.
+   without a trace is refused, however they were lost (the residual steps by
+   whole sample periods between consecutive samples, or the phase in sample
+   index wanders); a clock that is merely slow or fast spaces every sample
+   alike and passes.  Gaps the record knows of (the recorder's gap list, or
+   its timestamps) are placed on the sample grid and only real samples enter
+   the fits.
 5. Sensitivity in counts per m/s^2: tangential axis from the f component,
    radial axis from the 2f component; the DC of the radial axis is reported
    and not used (it carries the offset and the bench's tilt, as the paper found).
@@ -49,9 +52,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import signal, stats
+from scipy import signal
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, fit_sines_known_frequency, interpolated_dft_frequency
 from accelrig.geometry import AXES, parse_axis
@@ -382,7 +386,7 @@ def analyse_test(
     else:
         # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
         fs_for_filter = nominal_rate
-    timing = check_sample_timing(index, real[:, i_t], rate_fit.frequency if rate_fit else nu_peak, source)
+    timing = check_sample_timing(index, real[:, i_t], rate_fit.frequency if rate_fit else nu_peak, source, rate_fit)
     sos, filtered, seg, periods = filter_and_trim(counts, i_t, f, fs_for_filter, setup.filter_cutoff,  # 3
                                                   nominal_rate, source)
     if rate_method == "scan":
@@ -407,10 +411,14 @@ def analyse_test(
             f"{RADIAL_F_LIMIT} m/s^2 at 49 m/s^2 tangential): check the sensor's alignment on the disk"
         )
     if abs(fs / nominal_rate - 1) > RATE_OFF_LIMIT:
+        judged = (timing or {}).get("jumps", {}).get("judged_share", 0.0)
+        cause = (f"no sample steps off the grid were seen ({judged:.0%} of the record steep enough to show one), so "
+                 "no samples were lost: check --nominal-rate" if judged > 0 else
+                 "the signal is too flat for lost samples to show, so a steady loss cannot be told from the clock: "
+                 "check --nominal-rate and the link")
         warnings.append(
             f"the sample rate found, {fs:.1f} Hz, is {100 * (fs / nominal_rate - 1):+.1f} % off the nominal "
-            f"{nominal_rate:g} Hz: beyond what a MEMS clock drifts. Check --nominal-rate; if samples were lost at a "
-            "steady pace the sensitivity still holds, but this is not the device's rate"
+            f"{nominal_rate:g} Hz: beyond what a MEMS clock drifts; {cause}"
         )
     up_counts = amplitudes[AXES[i_up]].dc
     quality = {
@@ -559,24 +567,49 @@ def phase_wander(t: np.ndarray, y: np.ndarray, frequency: float, segments: int =
     coef, *_ = np.linalg.lstsq(design, phases / sds, rcond=None)
     deviation = phases - (design * sds[:, None]) @ coef
     chi2 = float(np.sum((deviation / sds) ** 2))
-    return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(stats.chi2.sf(chi2, k - 2)),
+    return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(chi2_dist.sf(chi2, k - 2)),
             "max_deviation_rad": float(np.max(np.abs(deviation))), "deviation_rad": deviation.tolist(),
             "uncertainty_rad": sds.tolist()}
 
 
-def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, source: str) -> dict | None:
+def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, source: str,
+                        fit: SineFit | None = None) -> dict | None:
     """Refuse a record whose samples do not follow one another (samples lost without a trace).
 
     The tangential axis is a steady sine in the sample index only if every sample is where the
-    index says.  A lost sample shifts the rest of the record by one period of the sample clock, a
-    phase step of 2 pi nu: over a record the phase then wanders far beyond its uncertainty and the
-    amplitude of a whole-record fit shrinks (5 % scattered loss: about -4 % to -14 % sensitivity).
+    index says.  A lost sample shifts the rest of the record by one period of the sample clock:
+    the residual of a whole-record fit steps by the signal's change over one sample there
+    (``sample_jumps``: scattered, burst or steady loss alike), and over a record the phase wanders
+    far beyond its uncertainty (``phase_wander``: losses where the signal is too flat for a step
+    to show).  5 % scattered loss: about -4 % to -14 % sensitivity; steady loss keeps the
+    sensitivity but the rate found is not the device's.  ``fit``: a whole-record sine fit at
+    ``positions`` (the rate fit), made here at ``nu`` when not given.
     """
+    if fit is None:
+        fit = fit_sine(positions, y_t, frequency=nu, harmonics=HARMONICS, fit_frequency=False)
+    jumps = sample_jumps(positions, fit)
+    n = positions.size
+    if jumps["steps"]:
+        lost, repeated = jumps["lost"], jumps["repeated"]
+        what = " and ".join(part for part in (f"{lost} lost" if lost else "", f"{repeated} repeated"
+                                               if repeated else "") if part)
+        estimate = jumps["estimated_off_grid"]
+        raise CalibrationError(
+            f"{source}: samples were lost without a trace: the sample count does not match the motion. Between "
+            f"consecutive samples the tangential axis steps by a whole sample period {jumps['steps']} times ({what}), "
+            f"seen where the signal is steep enough ({jumps['judged_share']:.0%} of the record): about "
+            f"{estimate:.0f} samples ({estimate / (n + estimate):.2%}) off the sample grid over the whole record. "
+            "Lost samples at a steady pace would pass for a slow clock and give a rate that is not the device's; "
+            "scattered ones move the sensitivity",
+            "record the MEMS with its timestamps or its recorder's gap list (accelrig record keeps both) so the "
+            "gaps can be placed, or re-record over a steady link",
+        )
     wander = phase_wander(positions, y_t, nu)
     if wander is None:
-        return None
+        return {"jumps": jumps}
     samples = wander["max_deviation_rad"] / (2 * np.pi * nu)
     wander["max_deviation_samples"] = float(samples)
+    wander["jumps"] = jumps
     if wander["p_value"] < TIMING_FALSE_ALARM and samples > 1.0:
         raise CalibrationError(
             f"{source}: samples were lost without a trace: the sample count does not match the motion. Counted "
@@ -588,6 +621,63 @@ def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, sourc
             "gaps can be placed, or re-record over a steady link",
         )
     return wander
+
+
+# Sample jumps: a sample lost (or repeated) between two recorded ones moves the rest of the record by
+# a whole sample period, so the residual of a whole-record sine fit steps by the signal's own change
+# over one sample, m times for m samples.  Only where the signal is steep enough can a step be told
+# from the noise: JUMP_VISIBLE (in sd of the residual differences) for a sample to be judged,
+# JUMP_THRESHOLD for a difference to count as a step, JUMP_MATCH for it to match a whole number of
+# samples.  White noise crosses 5 sd in about 6e-7 of the differences and must then also match a
+# whole sample: far below one false step per record.
+JUMP_VISIBLE = 10.0
+JUMP_THRESHOLD = 5.0
+JUMP_MATCH = 3.0
+
+
+def sample_jumps(positions: np.ndarray, fit: SineFit) -> dict:
+    """Steps of whole sample periods between consecutive recorded samples (lost or repeated samples).
+
+    Works whatever the pattern of loss (scattered, in bursts or at a steady pace, which no phase
+    or rate test can tell from a slow clock: a clock that runs slow spaces every sample alike, a
+    record that drops every k-th sample does not).  ``fit`` is a whole-record sine fit at the
+    record's own cycles per sample, at ``positions``.  Returns the steps found (with their size
+    in samples), how many recorded samples were steep enough to judge, and an estimate of the
+    samples lost or repeated over the whole record.
+    """
+    d = np.diff(fit.residuals)
+    slope = np.diff(fit.fitted) / np.diff(positions)          # the signal's change over one sample
+    scale = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    out = {"judged_share": 0.0, "steps": 0, "samples_in_steps": 0, "lost": 0, "repeated": 0,
+           "estimated_off_grid": 0.0, "difference_sd": scale}
+    if not scale > 0:
+        return out
+    visible = np.abs(slope) > JUMP_VISIBLE * scale
+    out["judged_share"] = float(np.mean(visible))
+    if not visible.any():
+        return out
+    candidates = np.flatnonzero(visible & (np.abs(d) > JUMP_THRESHOLD * scale))
+    # a step of m samples at k + 1 changes the residual by model(p + m) - model(p), p = positions[k + 1]
+    sizes = np.zeros(candidates.size)
+    p_next = positions[candidates + 1]
+    first_guess = np.round(d[candidates] / slope[candidates])
+    for m in (first_guess - 1, first_guess, first_guess + 1):
+        expected = fit.model(p_next + m) - fit.model(p_next)
+        match = (m != 0) & (sizes == 0) & (np.abs(d[candidates] - expected) < JUMP_MATCH * scale)
+        sizes[match] = m[match]
+    steps, sizes = candidates[sizes != 0], sizes[sizes != 0]
+    # one bad sample (a spike) steps up and straight back down: not a lost sample
+    spike = np.zeros(steps.size, dtype=bool)
+    pair = (np.diff(steps) == 1) & (sizes[1:] == -sizes[:-1])
+    spike[1:] |= pair
+    spike[:-1] |= pair
+    sizes = sizes[~spike]
+    out["steps"] = int(sizes.size)
+    out["samples_in_steps"] = int(np.sum(np.abs(sizes)))
+    out["lost"] = int(np.sum(sizes[sizes > 0]))
+    out["repeated"] = int(-np.sum(sizes[sizes < 0]))
+    out["estimated_off_grid"] = float(out["samples_in_steps"] / out["judged_share"])
+    return out
 
 
 def overlapping_encoder(mems: Recording, encoder: EncoderLog, n: int, nominal_rate: float) -> EncoderLog:

@@ -195,6 +195,7 @@ def run_test(test: CampaignTest) -> RotaryTest:
                               o["frequency"], o["rate_method"], test.setup)
         if (loss := loss_warning(mems)) is not None:   # heavy link loss: in the test's (and the report's) warnings
             result.warnings.append(loss)
+            result.quality["link_loss"] = loss         # for the command to say on stderr
         return result
     except AccelrigError as exc:
         # name the test: in a campaign of 50 files "not found on the tangential axis" alone is no help

@@ -39,10 +39,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation import crb_covariance, propagate_covariance, separable_jacobian, varpro
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.geometry import AXES, FACES, parse_axis, rotation_xyz, rotation_xyz_derivatives
 from accelrig.procedures.static.settings import METHODS, MODELS
 from accelrig.result import Correction

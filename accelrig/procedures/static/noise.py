@@ -45,8 +45,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.residuals import ALPHA, Whiteness, pooled_whiteness, whiteness
 from accelrig.geometry import AXES
 

@@ -24,9 +24,9 @@ Every still pose found is reported with its fate (``details["poses"]``).
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.gravity_fit import (
     CHI2_ALPHA,
     DISTINCT_DEG,
