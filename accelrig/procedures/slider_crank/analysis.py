@@ -73,6 +73,27 @@ SPEED_SPREAD = 0.005
 LOF_WARN = 1.15
 LOF_REFUSE = 4.0
 MIN_STEP_CYCLES = 2.0
+# A step's radius is flagged outside the caliper radius +- clearance by a test at this family-wise level
+# over the steps judged (Sidak: each step at 1 - (1 - alpha)^(1/m)): with five sound steps at k = 2 one
+# falls outside by chance in a fifth of runs, a warning an operator would learn to ignore.
+CLEARANCE_ALPHA = 0.05
+
+
+def step_name(index: int, label: str) -> str:
+    """How every message names a step: 1-based, as the operator counts ("step 2 (run.csv)"); a live step's
+    label is already "step N"."""
+    return label if label.startswith("step ") else f"step {index + 1} ({label})"
+
+
+def clearance_k(steps_judged: int) -> float:
+    """Coverage factor of the per-step clearance test: two-sided, family-wise CLEARANCE_ALPHA over the steps."""
+    per_step = 1.0 - (1.0 - CLEARANCE_ALPHA) ** (1.0 / max(steps_judged, 1))
+    return float(stats.norm.isf(per_step / 2))
+
+
+def outside_clearance(radius: Estimate, crank_radius: float, clearance: float, k: float) -> bool:
+    """|r - r_caliper| beyond the clearance by more than k u(r)."""
+    return bool(abs(radius.value - crank_radius) > clearance + k * radius.uncertainty)
 
 
 @dataclass
@@ -115,6 +136,11 @@ class StepResult:
     speed_order: int = 1           # order of the crank-angle profile fitted (1: constant speed)
     residual_checks: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # what the residual checks found, for the warnings
+    clearance_k: float = 0.0       # the coverage factor within_clearance was judged at
+
+    @property
+    def where(self) -> str:
+        return step_name(self.index, self.label)
 
     def to_json_dict(self) -> dict:
         return {
@@ -135,6 +161,7 @@ class StepResult:
             "ratio": self.ratio.to_dict(),
             "radius_m": self.radius_m.to_dict(),
             "within_clearance": self.within_clearance,
+            "clearance_k": self.clearance_k,
             "backlash": self.backlash,
             "play_m": self.play_m,
             "radius_play_uncertainty_m": self.radius_play_uncertainty_m,
@@ -394,8 +421,7 @@ def analyse_step(
     harmonics: int = DEFAULT_HARMONICS,
 ) -> StepResult:
     """Analyse one step's calibrated samples (t in s, acc (n, 3) in m/s^2)."""
-    # 1-based, as every message to the operator; a live step's label is already "step N"
-    where = label if label.startswith("step ") else f"step {index + 1} ({label})"
+    where = step_name(index, label)
     if acc.shape[0] < MIN_STEP_SAMPLES:
         raise DataError(f"{where}: only {acc.shape[0]} samples", f"record at least {MIN_STEP_SAMPLES} per step")
     if not (np.all(np.isfinite(acc)) and np.all(np.isfinite(t))):
@@ -464,8 +490,9 @@ def analyse_step(
     # measured / model first harmonic = A_1 / (r_caliper omega^2) = radius / r_caliper
     ratio = radius / crank_radius
     u_ratio = u_radius / crank_radius
-    # consistent with the caliper radius +- clearance at k = 2
-    within = bool(abs(radius - crank_radius) <= clearance + 2 * u_radius)
+    # consistent with the caliper radius +- clearance (one step; verify_steps judges again over all steps)
+    k_one = clearance_k(1)
+    within = not outside_clearance(Estimate(radius, u_radius, "m"), crank_radius, clearance, k_one)
 
     # peak of the slider's motion (first h harmonics, knocks excluded) with its
     # uncertainty (GUM propagation through the max)
@@ -495,6 +522,7 @@ def analyse_step(
         ratio=Estimate(float(ratio), u_ratio, "1"),
         radius_m=Estimate(float(radius), u_radius, "m"),
         within_clearance=within,
+        clearance_k=k_one,
         backlash=backlash,
         play_m=float(play),
         radius_play_uncertainty_m=float(u_play),
@@ -536,7 +564,7 @@ def check_neighbours(steps: list[StepResult]) -> None:
         limit = NEIGHBOUR_FACTOR * spacing + (spacing if i in (0, len(steps) - 1) else 0.0)
         if abs(f[i] - expected) > limit:
             raise DataError(
-                f"step {step.index} ({step.label}): dominant frequency {f[i]:.3f} Hz disagrees with its neighbours "
+                f"{step.where}: dominant frequency {f[i]:.3f} Hz disagrees with its neighbours "
                 f"({', '.join(f'{v:.3f}' for v in neighbours)} Hz) far more than the steps differ ({spacing:.3f} Hz)",
                 "wrong file, or the stand was not running the intended speed: drop or re-record that step",
             )
@@ -579,6 +607,16 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     if not any(s.motor_limited for s in steps):
         return None
     return float(max(s.frequency_hz.value for s in steps))
+
+
+def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: float) -> None:
+    """Flag each step the motor followed whose radius is outside the caliper radius +- clearance, by one
+    test at CLEARANCE_ALPHA family-wise over those steps (the verdict, on their mean, is a test of its own)."""
+    judged = [s for s in steps if not s.motor_limited]
+    k = clearance_k(len(judged))
+    for s in judged:
+        s.within_clearance = not outside_clearance(s.radius_m, crank_radius, clearance, k)
+        s.clearance_k = k
 
 
 def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[int]]:
@@ -632,22 +670,23 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
     for s in steps:
         if not s.within_clearance and not s.motor_limited:
             warnings.append(
-                f"step {s.index} ({s.label}): radius {s.radius_m.value * 1e3:.4f} +- "
-                f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
+                f"{s.where}: radius {s.radius_m.value * 1e3:.4f} +- {s.radius_m.uncertainty * 1e3:.4f} mm is "
+                f"outside the caliper radius +- clearance (k = {s.clearance_k:.2f}: a {100 * CLEARANCE_ALPHA:g} % "
+                "test over all steps judged)"
             )
         if s.backlash:
-            warnings.append(f"step {s.index} ({s.label}): backlash (play taken up at the dead centres): a phase-locked "
+            warnings.append(f"{s.where}: backlash (play taken up at the dead centres): a phase-locked "
                             f"residual of up to {s.knock_peak:.2g} m/s^2 there; the play's share is in u(radius)")
         if s.speed_unsteady:
-            warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz "
+            warnings.append(f"{s.where}: the speed wandered by {s.speed_spread_hz:.3g} Hz "
                             f"({100 * s.speed_spread_hz / s.frequency_hz.value:.1f} %) within the record: followed by "
                             f"a speed profile of order {s.speed_order}, u widened accordingly")
         warnings.extend(s.notes)
     if rolloff is not None:
-        limited = [s.index for s in steps if s.motor_limited]
+        limited = ", ".join(s.where for s in steps if s.motor_limited)
         warnings.append(
-            f"the motor tops out near {rolloff:.2f} Hz: steps {limited} did not run the intended steady speed "
-            "and are left out of the radius"
+            f"the motor tops out near {rolloff:.2f} Hz: {limited} did not run the intended steady speed "
+            "(left out of the radius)"
         )
     return warnings
 
@@ -678,6 +717,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         raise DataError("no steps were captured", "capture at least two motor speed steps")
     check_neighbours(steps)
     rolloff = mark_rolloff(steps)
+    judge_clearance(steps, crank_radius, clearance)
     radius, chi2, dof, used = combine_radius(steps)
     verdict, reason = verdict_for(radius, crank_radius, clearance, len(used))
     geometry = {"crank_radius_m": crank_radius, "rod_length_m": rod_length, "lambda": crank_radius / rod_length,
