@@ -99,6 +99,11 @@ def test_play_without_ringing_is_seen_at_the_dead_centres_and_budgeted():
     assert any("backlash (play taken up at the dead centres)" in w for w in result.warnings)
     _, clean = crank(seed=4)
     assert not any(s["backlash"] for s in clean.details["steps"])
+    # the take-up is deterministic, not noise: the speed's u stays near what the noise allows (it was
+    # 3-13 times that, the folded template's leftover counted as noise) and still covers the truth
+    for played, plain in zip(steps, clean.details["steps"], strict=True):
+        assert played["frequency_hz"]["uncertainty"] < 2.5 * plain["frequency_hz"]["uncertainty"]
+        assert abs(played["frequency_hz"]["value"] - rig.steps[played["index"]]) < 3 * played["frequency_hz"]["uncertainty"]
 
 
 def test_the_simulated_play_is_continuous_and_dwells():

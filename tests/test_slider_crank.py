@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,8 +15,10 @@ from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
 from accelrig.errors import CalibrationError, DataError, DeviceError
 from accelrig.estimation.sinefit import fit_sine
+from accelrig.procedures.slider_crank.analysis import judge_clearance
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure, verify_slider_crank
 from accelrig.recording import Recording, save_recording
+from accelrig.result import Estimate
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs import RIGS
 from accelrig.sim.rigs.slider_crank import KNOCK_DAMPING, KNOCK_FREQUENCY, KNOCK_RISE, STEP, SliderCrankRig
@@ -286,7 +290,7 @@ def test_a_step_far_off_its_neighbours_is_named():
     steps = [run(SliderCrankRig(steps=[f], settle=0.0), seed=i) for i, f in enumerate([4.0, 6.0, 8.0])]
     bogus = run(SliderCrankRig(steps=[30.0], settle=0.0, max_speed=40.0, radius=0.001), seed=9)
     recordings = [("a.csv", steps[0]), ("b.csv", steps[1]), ("wrong.csv", bogus), ("c.csv", steps[2])]
-    with pytest.raises(DataError, match=r"step 2 \(wrong.csv\): dominant frequency 30\.\d+ Hz disagrees"):
+    with pytest.raises(DataError, match=r"step 3 \(wrong.csv\): dominant frequency 30\.\d+ Hz disagrees"):
         verify_slider_crank(recordings, RADIUS, ROD)
 
 
@@ -446,3 +450,38 @@ def test_end_to_end_static_calibration_then_verification_under_motion(tmp_path, 
     # the raw sensor's gain error along the motion shows in the radius; the calibration removes it
     assert raw["verdict"] == "does not hold"
     assert abs(calibrated["radius_m"]["value"] - RADIUS) < abs(raw["radius_m"]["value"] - RADIUS) / 10
+
+
+def test_every_message_numbers_the_steps_from_one(tmp_path, capsys):
+    # backlash warns on every step, the 13 Hz step is beyond the motor: each message names its step
+    path = tmp_path / "run.csv"
+    save_recording(run(SliderCrankRig(steps=[3.0, 6.0, 9.0, 13.0], backlash=0.0001), seed=3), path)
+    main(["verify", "slider-crank", str(path), "--crank-radius", "0.00635", "--rod-length", "0.0353"])
+    out = capsys.readouterr().out
+    named = re.findall(r"step (\d+) \(\S*run\.csv step (\d+)\)", out)
+    assert len(named) >= 5 and all(a == b for a, b in named), named
+    assert {a for a, _ in named} == {"1", "2", "3", "4"}
+    assert re.search(r"step 4 \(\S*run\.csv step 4\) did not run the intended steady speed", out)
+    rows = [line.split("|")[1].strip() for line in out.splitlines() if re.match(r"\| \d+ \|", line)]
+    assert rows == ["1", "2", "3", "4"]
+    assert "over steps 1, 2, 3," in out
+
+
+def test_the_clearance_flag_is_a_five_percent_test_over_all_steps():
+    rig = SliderCrankRig(steps=[4.0], settle=0.0)
+    one = verify_slider_crank([("sim", run(rig))], RADIUS, ROD).details
+    assert one["steps"][0]["clearance_k"] == pytest.approx(1.96, abs=0.01)   # one step: the usual 95 %
+    step = SliderCrankProcedure(live_values(None), {})
+    step.add_step(run(rig), "step 1")
+    template = step.steps[0]
+    rng = np.random.default_rng(5)
+    u = 1e-6
+    alarms = []
+    for _ in range(400):   # five sound steps, each radius off by its own noise
+        steps = [replace(template, index=i, radius_m=Estimate(RADIUS + u * rng.standard_normal(), u, "m"))
+                 for i in range(5)]
+        judge_clearance(steps, RADIUS, 0.0)
+        alarms.append(not all(s.within_clearance for s in steps))
+    # family-wise 5 %: 400 runs give 20 +- 4.4 alarms (k = 2 per step would give about 90)
+    assert 8 <= sum(alarms) <= 34
+    assert steps[0].clearance_k == pytest.approx(2.57, abs=0.01)

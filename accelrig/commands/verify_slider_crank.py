@@ -95,7 +95,7 @@ def format_report(result) -> str:
         motor = "limited" if s["motor_limited"] else "ok"
         angles = ",".join(f"{a:.1f}" for a in s["axis_angles_deg"])
         lines.append(
-            f"| {s['index']} | {s['frequency_hz']['value']:.5f} | {s['frequency_hz']['uncertainty']:.2g} | "
+            f"| {s['index'] + 1} | {s['frequency_hz']['value']:.5f} | {s['frequency_hz']['uncertainty']:.2g} | "
             f"{s['fft_peak_hz']:.2f} | {s['amplitude']['value']:.4f} | {s['model_amplitude']:.4f} | "
             f"{s['ratio']['value']:.5f} +- {s['ratio']['uncertainty']:.5f} | "
             f"{s['radius_m']['value'] * 1e3:.4f} | {s['radius_m']['uncertainty'] * 1e3:.4f} | "
@@ -105,7 +105,7 @@ def format_report(result) -> str:
     r = result.parameters["radius"]
     lines.append(
         f"radius from the motion: {r.value * 1e3:.4f} +- {r.uncertainty * 1e3:.4f} mm (k = 1) over steps "
-        f"{v['used_steps']}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof"
+        f"{', '.join(str(i + 1) for i in v['used_steps'])}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof"
     )
     lines.append(
         "motor roll-off: " + (f"tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else "none seen")

@@ -327,15 +327,9 @@ class ARNoise:
         return float(self.spectrum(np.array([2 * np.pi * cycles_per_sample]))[0] / marginal)
 
 
-def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER) -> ARNoise:
-    """AR model of a residual series: Levinson-Durbin on its autocovariance, order by AIC (<= max_order)."""
-    r = np.asarray(residuals, dtype=float).ravel()
-    n = r.size
-    max_order = int(min(max_order, max(n // 10, 0)))
-    var = float(np.mean((r - r.mean()) ** 2))
-    if var <= 0 or max_order == 0:
-        return ARNoise(np.zeros(0), var)
-    acov = autocorrelation(r, max_order) * var
+def _levinson_aic(acov: np.ndarray, n: int, max_order: int) -> ARNoise:
+    """AR model from autocovariances acov[0..max_order] of n samples: Levinson-Durbin, order by AIC."""
+    var = float(acov[0])
     best = (n * np.log(var), np.zeros(0), var)
     a = np.zeros(0)
     error = var
@@ -351,6 +345,56 @@ def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER) -> ARNo
     return ARNoise(best[1], float(best[2]))
 
 
+def _projection_shortfall(noise: ARNoise, basis: np.ndarray, max_lag: int) -> np.ndarray:
+    """What projecting noise of spectrum ``noise`` off the orthonormal columns ``basis`` (n, p) takes out of its
+    autocovariance, lags 0..max_lag (the biased, 1/n estimate): E[e_t e_t+k - r_t r_t+k] summed over t, / n.
+
+    r = (I - H) e with H = Q Q', so E[r r'] = Sigma - H Sigma - Sigma H + H Sigma H.  Sigma Q is a Toeplitz
+    product, done as a circular convolution on 2n or more points (the AR spectrum sampled there).
+    """
+    n = basis.shape[0]
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    spectrum = noise.spectrum(2 * np.pi * np.arange(size // 2 + 1) / size)
+    sigma_q = np.fft.irfft(spectrum[:, None] * np.fft.rfft(basis, size, axis=0), size, axis=0)[:n]
+    q_c = basis @ (basis.T @ sigma_q)
+    shortfall = np.empty(max_lag + 1)
+    for k in range(max_lag + 1):
+        shortfall[k] = (np.sum(basis[: n - k] * sigma_q[k:]) + np.sum(sigma_q[: n - k] * basis[k:])
+                        - np.sum(q_c[: n - k] * basis[k:]))
+    return shortfall / n
+
+
+def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER, jacobian: np.ndarray | None = None) -> ARNoise:
+    """AR model of a residual series: Levinson-Durbin on its autocovariance, order by AIC (<= max_order).
+
+    With ``jacobian`` (the fit's, rows in time order, one instant each), the autocovariance is first
+    corrected for what the fit took out of the noise.  Residuals are the noise with its projection on
+    the fit's columns removed, and that projection is largest where the columns live: for a sine fit
+    in coloured noise, at the sine's frequency, the very part of the spectrum that sets the sine's u.
+    Left alone, a 1-s slider-crank step under AR(1) noise with rho = 0.9 loses about 8 % of the
+    residual variance there and the sandwich's u comes out 10 % small (measured).  The shortfall is
+    computed under the model and added back (two passes); for white noise it is the familiar
+    n / (n - p) degrees-of-freedom correction.
+    """
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    max_order = int(min(max_order, max(n // 10, 0)))
+    var = float(np.mean((r - r.mean()) ** 2))
+    if var <= 0 or max_order == 0:
+        return ARNoise(np.zeros(0), var)
+    acov = autocorrelation(r, max_order) * var
+    noise = _levinson_aic(acov, n, max_order)
+    if jacobian is None:
+        return noise
+    # the residuals' own mean is removed above: the constant is part of what was projected off
+    columns = np.column_stack([np.ones(n), np.asarray(jacobian, dtype=float).reshape(n, -1)])
+    u, s, _ = np.linalg.svd(columns, full_matrices=False)
+    basis = u[:, s > s[0] * 1e-10]
+    for _ in range(2):
+        noise = _levinson_aic(acov + _projection_shortfall(noise, basis, max_order), n, max_order)
+    return noise
+
+
 def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, residuals: np.ndarray,
                            noise: ARNoise | None = None) -> Sandwich:
     """Sandwich covariance with the middle matrix J' Sigma J from an AR model of the residuals.
@@ -363,7 +407,7 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     Rows of ``jacobian`` are in time order, one instant each, uniformly sampled.
     """
     jacobian = np.asarray(jacobian, dtype=float)
-    noise = noise or ar_noise_model(residuals)
+    noise = noise or ar_noise_model(residuals, jacobian=jacobian)
     n = jacobian.shape[0]
     size = 1 << int(np.ceil(np.log2(2 * n)))
     spectrum_j = np.fft.rfft(jacobian, size, axis=0)

@@ -73,6 +73,27 @@ SPEED_SPREAD = 0.005
 LOF_WARN = 1.15
 LOF_REFUSE = 4.0
 MIN_STEP_CYCLES = 2.0
+# A step's radius is flagged outside the caliper radius +- clearance by a test at this family-wise level
+# over the steps judged (Sidak: each step at 1 - (1 - alpha)^(1/m)): with five sound steps at k = 2 one
+# falls outside by chance in a fifth of runs, a warning an operator would learn to ignore.
+CLEARANCE_ALPHA = 0.05
+
+
+def step_name(index: int, label: str) -> str:
+    """How every message names a step: 1-based, as the operator counts ("step 2 (run.csv)"); a live step's
+    label is already "step N"."""
+    return label if label.startswith("step ") else f"step {index + 1} ({label})"
+
+
+def clearance_k(steps_judged: int) -> float:
+    """Coverage factor of the per-step clearance test: two-sided, family-wise CLEARANCE_ALPHA over the steps."""
+    per_step = 1.0 - (1.0 - CLEARANCE_ALPHA) ** (1.0 / max(steps_judged, 1))
+    return float(stats.norm.isf(per_step / 2))
+
+
+def outside_clearance(radius: Estimate, crank_radius: float, clearance: float, k: float) -> bool:
+    """|r - r_caliper| beyond the clearance by more than k u(r)."""
+    return bool(abs(radius.value - crank_radius) > clearance + k * radius.uncertainty)
 
 
 @dataclass
@@ -115,6 +136,11 @@ class StepResult:
     speed_order: int = 1           # order of the crank-angle profile fitted (1: constant speed)
     residual_checks: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # what the residual checks found, for the warnings
+    clearance_k: float = 0.0       # the coverage factor within_clearance was judged at
+
+    @property
+    def where(self) -> str:
+        return step_name(self.index, self.label)
 
     def to_json_dict(self) -> dict:
         return {
@@ -135,6 +161,7 @@ class StepResult:
             "ratio": self.ratio.to_dict(),
             "radius_m": self.radius_m.to_dict(),
             "within_clearance": self.within_clearance,
+            "clearance_k": self.clearance_k,
             "backlash": self.backlash,
             "play_m": self.play_m,
             "radius_play_uncertainty_m": self.radius_play_uncertainty_m,
@@ -228,10 +255,12 @@ def fold_residuals(t, residuals, frequency, phase1, samples_per_bin: float = 2.0
 
 def _phase_locked_template(t, residuals, frequency, phase1):
     """The residuals' crank-angle-folded mean at each sample, and the number of bins it used."""
-    _, means, counts = fold_residuals(t, residuals, frequency, phase1, samples_per_bin=1.0)
+    centres, means, counts = fold_residuals(t, residuals, frequency, phase1, samples_per_bin=1.0)
     theta = np.mod(2 * np.pi * frequency * t + phase1, 2 * np.pi)
-    idx = np.minimum((theta / (2 * np.pi) * means.size).astype(int), means.size - 1)
-    return means[idx], int(np.count_nonzero(counts))
+    filled = counts > 0
+    # interpolated between bin centres, not a staircase: a take-up sharper than a bin moves within its bin
+    # from cycle to cycle, and a staircase leaves that in the residuals
+    return np.interp(theta, centres[filled], means[filled], period=2 * np.pi), int(np.count_nonzero(counts))
 
 
 def _noise_only_covariance(t, fit: SineFit) -> SineFit:
@@ -250,7 +279,8 @@ def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     dof = cleaned.size - fit.covariance.shape[0] - bins
     if dof <= 0:
         return fit
-    scale = float(np.sqrt(cleaned @ cleaned / dof)) / fit.residual_sd
+    share = quiet_noise_share(t, cleaned, fit.frequency, float(fit.phase[0]))
+    scale = float(np.sqrt(share * (cleaned @ cleaned) / dof)) / fit.residual_sd
     if not np.isfinite(scale) or scale >= 1:
         return fit
     return replace(
@@ -263,21 +293,42 @@ def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     )
 
 
-def detect_backlash(t, residuals, frequency, phase1, noise_sd):
-    """Knocks at the dead centres: (detected, peak phase-locked residual, p-value).
+def dead_centre_window(theta: np.ndarray, frequency: float) -> np.ndarray:
+    """Crank angles (first-harmonic phase, rad) near a dead centre, where play shows.
 
     The first harmonic A cos(theta) has its extremes, the dead centres, at
     theta = 0 and pi.  A knock starts there and rings for some ms: the window is
     from 2 % of a cycle before to min(25 % of a cycle, 30 ms) after each.
     """
-    centres, means, counts = fold_residuals(t, residuals, frequency, phase1)
-    period = 1.0 / frequency
-    after = min(0.25, 0.030 / period) * 2 * np.pi
+    after = min(0.25, 0.030 * frequency) * 2 * np.pi
     before = 0.02 * 2 * np.pi
-    near = np.zeros(centres.size, dtype=bool)
+    near = np.zeros(np.shape(theta), dtype=bool)
     for dead_centre in (0.0, np.pi):
-        delta = np.angle(np.exp(1j * (centres - dead_centre)))
+        delta = np.angle(np.exp(1j * (np.asarray(theta) - dead_centre)))
         near |= (delta >= -before) & (delta <= after)
+    return near
+
+
+def quiet_noise_share(t, cleaned, frequency, phase1) -> float:
+    """Noise variance away from the dead centres over the variance of all ``cleaned`` residuals, at most 1.
+
+    With play, the residuals minus their crank-angle-folded mean still hold what the fold cannot follow
+    (a take-up sharper than a sample shifts from cycle to cycle within its bin): at 10 Hz with 50 um of
+    play, 13 times the noise sd, all of it at the dead centres.  It is deterministic, not noise: the
+    part of the cycle away from them measures the noise (white or coloured, its marginal variance).
+    """
+    theta = np.mod(2 * np.pi * frequency * t + phase1, 2 * np.pi)
+    quiet = ~dead_centre_window(theta, frequency)
+    total = float(cleaned @ cleaned)
+    if quiet.sum() < 0.2 * cleaned.size or total <= 0:
+        return 1.0
+    return float(min((cleaned[quiet] @ cleaned[quiet]) / quiet.sum() / (total / cleaned.size), 1.0))
+
+
+def detect_backlash(t, residuals, frequency, phase1, noise_sd):
+    """Knocks at the dead centres (``dead_centre_window``): (detected, peak phase-locked residual, p-value)."""
+    centres, means, counts = fold_residuals(t, residuals, frequency, phase1)
+    near = dead_centre_window(centres, frequency)
     if noise_sd <= 0 or near.sum() == 0 or (~near).sum() == 0:
         return False, 0.0, 1.0
     z2 = counts * means**2 / noise_sd**2  # chi-square(1) per bin under noise alone
@@ -315,15 +366,19 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
     """
     resid = motion.residuals
     dof = resid.size - motion.n_parameters
+    share = 1.0
     if knocked is not None:
         template, bins = _phase_locked_template(t, resid, knocked.frequency, float(knocked.phase[0]))
         resid = resid - template
         dof -= bins
+        share = quiet_noise_share(t, resid, knocked.frequency, float(knocked.phase[0]))
     dof = max(dof, 1)
-    sigma2 = float(resid @ resid) / dof
+    sigma2 = share * float(resid @ resid) / dof
     normal = motion.jacobian.T @ motion.jacobian
     white = sigma2 * np.linalg.pinv(normal)
     cov, method, w = checked_covariance(motion.jacobian, resid, white)
+    if share < 1.0 and w.correlated:
+        cov = cov * share   # the sandwich's middle matrix held the take-up's leftover too
     notes: list[str] = []
     lof = None
     if w.correlated:
@@ -394,8 +449,7 @@ def analyse_step(
     harmonics: int = DEFAULT_HARMONICS,
 ) -> StepResult:
     """Analyse one step's calibrated samples (t in s, acc (n, 3) in m/s^2)."""
-    # 1-based, as every message to the operator; a live step's label is already "step N"
-    where = label if label.startswith("step ") else f"step {index + 1} ({label})"
+    where = step_name(index, label)
     if acc.shape[0] < MIN_STEP_SAMPLES:
         raise DataError(f"{where}: only {acc.shape[0]} samples", f"record at least {MIN_STEP_SAMPLES} per step")
     if not (np.all(np.isfinite(acc)) and np.all(np.isfinite(t))):
@@ -429,7 +483,14 @@ def analyse_step(
 
     # The radius and the mean speed from the crank-angle model (motion_fit): identical to the sine
     # fit when the motor runs steadily, and still right (with a wider u) when its speed wanders.
-    motion = fit_crank_motion(t, y, fit.frequency, fit.harmonics)
+    if backlash:
+        # The take-up's signature reaches far above the fitted harmonics; over a record that is not a whole
+        # number of cycles it leaks into the speed (50 um of play: the mean speed off by 2-3 u at 8-10 Hz).
+        # It is phase-locked: the folded residual of the sine fit, removed before the crank-motion fit.
+        signature, _ = _phase_locked_template(t, fit.residuals, fit.frequency, float(fit.phase[0]))
+        motion = fit_crank_motion(t, y - signature, fit.frequency, fit.harmonics)
+    else:
+        motion = fit_crank_motion(t, y, fit.frequency, fit.harmonics)
     f, grad_f = motion.mean_frequency_gradient()
     radius, grad_r = motion.radius_gradient()
     checks = motion_checks(where, t, y, motion, fit if backlash else None)
@@ -454,8 +515,12 @@ def analyse_step(
         # third is the play's.  For play of size b taken up at the dead centres
         # (a square wave of +-b/2) the third harmonic of the displacement is
         # 2b/(3 pi) and the first 2b/pi; the first adds to the slider's motion
-        # with a phase set by how late the play is taken up, unknown here.
-        # Type B: rectangular within +-(first harmonic of the play).
+        # with a phase set by how late the play is taken up.  Only its in-phase
+        # part moves the radius, (2b/pi) sin(delta) for a take-up delta after
+        # the dead centre; delta read from where the phase-locked residual's
+        # energy arrives undercovered (50 % at 8-10 Hz with 20 um of play: the
+        # pick-up's shape matters, not only its place), so the bound stays the
+        # whole first harmonic.  Type B: rectangular within +-2b/pi.
         third = float(fit.amplitude[2]) / (9 * omega2)
         play = 1.5 * np.pi * third
         u_play = 3 * third / np.sqrt(3)
@@ -464,8 +529,9 @@ def analyse_step(
     # measured / model first harmonic = A_1 / (r_caliper omega^2) = radius / r_caliper
     ratio = radius / crank_radius
     u_ratio = u_radius / crank_radius
-    # consistent with the caliper radius +- clearance at k = 2
-    within = bool(abs(radius - crank_radius) <= clearance + 2 * u_radius)
+    # consistent with the caliper radius +- clearance (one step; verify_steps judges again over all steps)
+    k_one = clearance_k(1)
+    within = not outside_clearance(Estimate(radius, u_radius, "m"), crank_radius, clearance, k_one)
 
     # peak of the slider's motion (first h harmonics, knocks excluded) with its
     # uncertainty (GUM propagation through the max)
@@ -495,6 +561,7 @@ def analyse_step(
         ratio=Estimate(float(ratio), u_ratio, "1"),
         radius_m=Estimate(float(radius), u_radius, "m"),
         within_clearance=within,
+        clearance_k=k_one,
         backlash=backlash,
         play_m=float(play),
         radius_play_uncertainty_m=float(u_play),
@@ -536,7 +603,7 @@ def check_neighbours(steps: list[StepResult]) -> None:
         limit = NEIGHBOUR_FACTOR * spacing + (spacing if i in (0, len(steps) - 1) else 0.0)
         if abs(f[i] - expected) > limit:
             raise DataError(
-                f"step {step.index} ({step.label}): dominant frequency {f[i]:.3f} Hz disagrees with its neighbours "
+                f"{step.where}: dominant frequency {f[i]:.3f} Hz disagrees with its neighbours "
                 f"({', '.join(f'{v:.3f}' for v in neighbours)} Hz) far more than the steps differ ({spacing:.3f} Hz)",
                 "wrong file, or the stand was not running the intended speed: drop or re-record that step",
             )
@@ -579,6 +646,16 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     if not any(s.motor_limited for s in steps):
         return None
     return float(max(s.frequency_hz.value for s in steps))
+
+
+def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: float) -> None:
+    """Flag each step the motor followed whose radius is outside the caliper radius +- clearance, by one
+    test at CLEARANCE_ALPHA family-wise over those steps (the verdict, on their mean, is a test of its own)."""
+    judged = [s for s in steps if not s.motor_limited]
+    k = clearance_k(len(judged))
+    for s in judged:
+        s.within_clearance = not outside_clearance(s.radius_m, crank_radius, clearance, k)
+        s.clearance_k = k
 
 
 def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[int]]:
@@ -632,22 +709,23 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
     for s in steps:
         if not s.within_clearance and not s.motor_limited:
             warnings.append(
-                f"step {s.index} ({s.label}): radius {s.radius_m.value * 1e3:.4f} +- "
-                f"{s.radius_m.uncertainty * 1e3:.4f} mm is outside the clearance bounds (k = 2)"
+                f"{s.where}: radius {s.radius_m.value * 1e3:.4f} +- {s.radius_m.uncertainty * 1e3:.4f} mm is "
+                f"outside the caliper radius +- clearance (k = {s.clearance_k:.2f}: a {100 * CLEARANCE_ALPHA:g} % "
+                "test over all steps judged)"
             )
         if s.backlash:
-            warnings.append(f"step {s.index} ({s.label}): backlash (play taken up at the dead centres): a phase-locked "
+            warnings.append(f"{s.where}: backlash (play taken up at the dead centres): a phase-locked "
                             f"residual of up to {s.knock_peak:.2g} m/s^2 there; the play's share is in u(radius)")
         if s.speed_unsteady:
-            warnings.append(f"step {s.index} ({s.label}): the speed wandered by {s.speed_spread_hz:.3g} Hz "
+            warnings.append(f"{s.where}: the speed wandered by {s.speed_spread_hz:.3g} Hz "
                             f"({100 * s.speed_spread_hz / s.frequency_hz.value:.1f} %) within the record: followed by "
                             f"a speed profile of order {s.speed_order}, u widened accordingly")
         warnings.extend(s.notes)
     if rolloff is not None:
-        limited = [s.index for s in steps if s.motor_limited]
+        limited = ", ".join(s.where for s in steps if s.motor_limited)
         warnings.append(
-            f"the motor tops out near {rolloff:.2f} Hz: steps {limited} did not run the intended steady speed "
-            "and are left out of the radius"
+            f"the motor tops out near {rolloff:.2f} Hz: {limited} did not run the intended steady speed "
+            "(left out of the radius)"
         )
     return warnings
 
@@ -678,6 +756,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         raise DataError("no steps were captured", "capture at least two motor speed steps")
     check_neighbours(steps)
     rolloff = mark_rolloff(steps)
+    judge_clearance(steps, crank_radius, clearance)
     radius, chi2, dof, used = combine_radius(steps)
     verdict, reason = verdict_for(radius, crank_radius, clearance, len(used))
     geometry = {"crank_radius_m": crank_radius, "rod_length_m": rod_length, "lambda": crank_radius / rod_length,
