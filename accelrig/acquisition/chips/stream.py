@@ -66,8 +66,11 @@ class FifoStream:
         self.plan = plan
         self.scale = scale
         capacity_frames = chip.spec.fifo_capacity // FRAME_BYTES
-        # Poll well before the FIFO fills (about 42 ms at 2 kHz, 19 ms at 4.5 kHz).
-        self.poll_interval = poll_interval or min(0.010, 0.4 * capacity_frames / plan.chip_rate)
+        # Poll when the FIFO is a third full (every 7.1 ms at 4 kHz, 6.3 ms at 4.5 kHz): a poll
+        # may then come two thirds of a fill late (a loaded host) before frames are lost.  At
+        # least every 10 ms at low rates, as before: the gap after an overflow is placed from
+        # the first poll after the reset, and is exact in the tests at that interval.
+        self.poll_interval = poll_interval or min(0.010, capacity_frames / plan.chip_rate / 3)
         self.fit = CounterClockFit(plan.chip_rate)
         self.resampler = RationalResampler(plan.up, plan.down)
         self.notes: list[str] = []
