@@ -11,7 +11,8 @@ Options:
     profile=PATH            a device profile whose bias is written to the chip's offset
                             registers on every open (they are volatile: lost at power-off);
                             loaded and written by accelrig.profiles.flash.flash_url_profile
-    poll=S                  FIFO poll interval (default 10 ms or less: 40 % of a FIFO fill)
+    poll=S                  FIFO poll interval (default a third of a FIFO fill, at most 10 ms);
+                            a read polls for about 50 ms and delivers one block per gapless run
 
 Example: ``i2c://1/0x68?chip=icm20948&range=4&rate=2048``.  The bus is opened
 with smbus2 (``pip install 'accelrig[i2c]'``); tests and ``i2c-sim://`` hand

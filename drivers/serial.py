@@ -8,6 +8,8 @@ Options:
     range=G         full scale +-G: 2, 4 (default), 8, 16
     frame=N         samples per DATA frame (default 64, at most what the device allows)
     stall=S         seconds without data before the device counts as stalled (default 2)
+While streaming, the port is read at most every 50 ms (sooner when more than 1 KB
+would wait in its buffer), so a wake-up takes several frames.
     command_timeout=S   wait for a reply before retrying a command (default 0.5)
 
 serial-sim://RIG: the same driver talking through a pseudo-terminal to the
@@ -23,6 +25,7 @@ rate_error, jitter, noise, truth, and the rig's), and:
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -35,6 +38,11 @@ DEFAULT_BAUD = 921600
 SERIAL_FRAME_SAMPLES = 64
 # bits per byte on a UART (start + 8 data + stop) and the COBS overhead bound
 _BITS_PER_BYTE = 10
+# While streaming, reads are at least READ_EVERY s apart, so a wake-up handles what a few
+# frames brought rather than one frame (64 samples every 31 ms at 2048 Hz) -- but never
+# more than READ_AHEAD_BYTES wait in the port's buffer (the kernel's tty buffer is 4 KB).
+READ_EVERY = 0.05
+READ_AHEAD_BYTES = 1024
 
 
 def _import_serial():
@@ -51,6 +59,8 @@ class SerialDriver(FirmwareDriver):
         super().__init__(url)
         self._port = None
         self.parser = P.FrameParser(self.stats)
+        self._read_every = READ_EVERY
+        self._last_read = 0.0
 
     @classmethod
     def discover(cls) -> list[str]:
@@ -82,11 +92,33 @@ class SerialDriver(FirmwareDriver):
         self._port.reset_input_buffer()
         return f"{port} at {self.baud} baud"
 
-    def _check_bandwidth(self, config: P.LinkConfig) -> None:
+    @staticmethod
+    def _bytes_per_second(config: P.LinkConfig) -> float:
+        """Bytes a stream takes on the wire at most."""
         n = config.samples_per_frame
         # worst-case COBS adds one byte per 254, plus code byte and delimiter
         frame_bytes = P.DATA_HEADER_SIZE + P.SAMPLE_SIZE * n + P.CRC_SIZE + 2 + (P.DATA_HEADER_SIZE + 6 * n) // 254
-        need = config.rate / n * frame_bytes * _BITS_PER_BYTE
+        return config.rate / n * frame_bytes
+
+    def open(self):
+        info = super().open()
+        self._read_every = min(READ_EVERY, READ_AHEAD_BYTES / self._bytes_per_second(self.config))
+        return info
+
+    def read(self, timeout: float = 0.1):
+        if self.streaming and timeout > self._read_every:
+            wait = self._last_read + self._read_every - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            # one timeout for every paced read: pyserial reconfigures the tty when it changes
+            timeout -= self._read_every
+        blocks = super().read(timeout)
+        self._last_read = time.monotonic()
+        return blocks
+
+    def _check_bandwidth(self, config: P.LinkConfig) -> None:
+        n = config.samples_per_frame
+        need = self._bytes_per_second(config) * _BITS_PER_BYTE
         if need > 0.9 * self.baud:
             raise DeviceError(
                 f"{config.rate:g} Hz in frames of {n} needs {need:,.0f} baud; baud={self.baud} is too slow",
@@ -190,6 +222,8 @@ class SerialSimDriver(SerialDriver):
         self.firmware, _ = firmware_from_url(self.url, 255)
         info = super().open()
         info.truth = self.firmware.truth()
+        if self.server.pace == "fast":
+            self._read_every = 0.0   # the emulated clock advances as fast as the host drains the pty
         return info
 
     def _link_options(self) -> set[str]:

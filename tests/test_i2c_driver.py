@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from accelrig.acquisition.chips.icm20948 import ICM20948  # noqa: E402
-from accelrig.acquisition.chips.stream import MAX_SLEW, RATE_TOLERANCE  # noqa: E402
+from accelrig.acquisition.chips.stream import DELIVER_EVERY, MAX_SLEW, RATE_TOLERANCE  # noqa: E402
 from accelrig.acquisition.chips.timing import EmulatedClock  # noqa: E402
 from accelrig.acquisition.driver import driver_for  # noqa: E402
 from accelrig.acquisition.recorder import record  # noqa: E402
@@ -271,3 +271,33 @@ def test_overflows_under_stalled_reads_keep_times_continuous_and_every_sample_ac
     settled = t[1:] > t[0] + 1.0
     assert np.max(deviation) < RATE_TOLERANCE + MAX_SLEW + 0.01
     assert np.max(deviation[settled]) < 0.02
+
+
+def test_a_read_joins_its_polls_into_one_block_and_an_error_comes_after_their_samples():
+    driver, emulator, clock = open_driver("rate=2048&range=16", rig=RampRig(), sensor=ideal_16g())
+    collect(driver, clock, 1.0)                          # the rate measured, the filter filled
+    stream = driver.stream
+    one_poll = 2048 * stream.poll_interval                # about 15 samples: 7.1 ms at 2048 Hz
+    polls = round(DELIVER_EVERY / stream.poll_interval)
+    start = clock.now()
+    blocks = driver.read(timeout=0.1)
+    assert len(blocks) == 1 and blocks[0].gap_before == 0
+    assert (polls - 1) * stream.poll_interval < clock.now() - start < polls * stream.poll_interval + 0.005
+    assert abs(blocks[0].n - polls * one_poll) < one_poll  # every poll's samples, in one block
+    # The bus fails on the third poll of the next read: the two polls' samples still arrive...
+    failing, calls = emulator.read, []
+
+    def read_then_fail(length):
+        calls.append(length)
+        if len(calls) > 6:                              # 3 register reads per poll
+            raise OSError(121, "Remote I/O error")
+        return failing(length)
+
+    emulator.read = read_then_fail
+    last = blocks[-1]
+    blocks = driver.read(timeout=0.1)
+    assert len(blocks) == 1 and blocks[0].counter == last.counter + last.n
+    assert abs(blocks[0].n - 2 * one_poll) < one_poll
+    # ...and the next read raises the error, naming the register that failed.
+    with pytest.raises(DeviceError, match="failed: .*Remote I/O error"):
+        driver.read(timeout=0.1)

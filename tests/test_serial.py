@@ -15,7 +15,7 @@ from accelrig.acquisition.recorder import record
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError, MissingExtraError
 from accelrig.sim.firmware import PtyFirmware, deliverable_rate
-from accelrig_drivers.serial import SerialDriver, firmware_from_url
+from accelrig_drivers.serial import READ_EVERY, SerialDriver, firmware_from_url
 
 
 def make_firmware(options="seed=3", max_n=255):
@@ -161,6 +161,22 @@ def test_wall_clock_pace_for_demos():
     assert time.monotonic() - start >= 0.55  # it really took the time
     assert len(rec) == pytest.approx(0.6 * true_rate, abs=2)
     assert rec.meta["gaps"] == []
+
+
+def test_a_streaming_read_takes_several_frames_per_wake_up():
+    # 2048 Hz in frames of 64 is a frame every 31 ms: reads paced at READ_EVERY (50 ms) take
+    # what arrived meanwhile from the port's buffer, and lose nothing.
+    with driver_for("serial-sim://still?seed=4&rate=2048") as driver:
+        assert driver._read_every == READ_EVERY
+        reads, blocks = 0, []
+        end = time.monotonic() + 1.5
+        while time.monotonic() < end:
+            blocks += driver.read(timeout=0.1)
+            reads += 1
+    n = sum(b.n for b in blocks)
+    assert n >= 1.2 * 2049 and all(b.gap_before == 0 for b in blocks)
+    assert all(b.counter == a.counter + a.n for a, b in zip(blocks, blocks[1:], strict=False))
+    assert reads <= 1.5 / READ_EVERY + 2 < n / 64          # fewer reads than frames
 
 
 def _fd_is_open(fd):

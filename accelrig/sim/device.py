@@ -3,8 +3,9 @@
 Used by the sim:// driver and directly by tests and benchmarks (``simulate``).
 Everything is deterministic for a seed: the rig's script, the sensor truth and
 the noise come from separate generators spawned from that seed, so changing
-how the stream is cut into blocks changes nothing but the noise draw order
-within the fixed block size.
+how the stream is cut into blocks changes nothing for white noise (coloured
+noise draws in the order of the chunks computed, LOOKAHEAD samples or a
+larger block at a time).
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from accelrig.acquisition.block import Block
 from accelrig.recording import Recording
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel, SimClock
+
+# Samples computed per call of the rig and sensor model by a streaming device (see SimDevice._take).
+LOOKAHEAD = 512
 
 
 @dataclass
@@ -60,6 +64,10 @@ class SimDevice:
         self.seq = 0              # next block sequence number
         self._pending_gap = 0
         self.total_samples = None if rig.duration is None else int(np.floor(rig.duration * clock.true_rate))
+        self._response_t = sensor.response_matrix.T   # the part does not change while it streams
+        # samples computed ahead (see _take): true times, reported times, counts, channels
+        self._ahead: tuple = (np.empty(0), np.empty(0), np.empty((0, 3), dtype=np.int16), {})
+        self._ahead_first = 0
 
     @property
     def exhausted(self) -> bool:
@@ -82,10 +90,7 @@ class SimDevice:
         if self.total_samples is not None:
             n = min(n, self.total_samples - self.counter)
         first = self.counter
-        true_t, reported_t = self.clock.times(first, n, self._clock_rng)
-        force = self.rig.specific_force(true_t)
-        counts = self.sensor.sense(force, self._noise_rng, self.clock.true_rate, true_t)
-        channels = self.rig.channels(true_t)
+        true_t, reported_t, counts, channels = self._take(first, n)
         self.counter += n
         seq = self.seq
         self.seq += 1
@@ -103,6 +108,39 @@ class SimDevice:
             gap_before=gap,
             channels={k: np.asarray(v, dtype=float) for k, v in channels.items()},
         )
+
+    def _take(self, first: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+        """Samples first .. first+n-1: (true times, reported times, counts, channels), copies.
+
+        They are computed ``LOOKAHEAD`` at a time (a frame of a few dozen samples costs the
+        rig and sensor model nearly what a few hundred do) and handed out in order; the
+        clock's jitter and the white noise are drawn sample after sample either way, so the
+        stream is the one block-by-block generation gives.  Samples skipped (the counter
+        moved on while nobody listened) are dropped with what was computed for them.
+        """
+        ahead = self._ahead
+        offset = first - self._ahead_first
+        if not 0 <= offset <= len(ahead[0]):
+            ahead, offset = (np.empty(0), np.empty(0), np.empty((0, 3), dtype=np.int16), {}), 0
+        if offset + n > len(ahead[0]):
+            kept = [a[offset:] for a in ahead[:3]]
+            start = first + len(kept[0])
+            m = max(n - len(kept[0]), LOOKAHEAD)
+            if self.total_samples is not None:
+                m = max(min(m, self.total_samples - start), 0)
+            true_t, reported_t = self.clock.times(start, m, self._clock_rng)
+            counts = self.sensor.sense(self.rig.specific_force(true_t), self._noise_rng, self.clock.true_rate,
+                                       true_t, self._response_t)
+            channels = self.rig.channels(true_t)
+            kept_channels = {k: v[offset:] for k, v in ahead[3].items()} if len(kept[0]) else {}
+            ahead = (np.concatenate([kept[0], true_t]), np.concatenate([kept[1], reported_t]),
+                     np.concatenate([kept[2], counts]),
+                     {k: np.concatenate([kept_channels[k], np.asarray(v, dtype=float)]) if k in kept_channels
+                      else np.asarray(v, dtype=float) for k, v in channels.items()})
+            self._ahead, self._ahead_first, offset = ahead, first, 0
+        part = slice(offset, offset + n)
+        return (ahead[0][part].copy(), ahead[1][part].copy(), ahead[2][part].copy(),
+                {k: v[part].copy() for k, v in ahead[3].items()})
 
     def truth(self) -> dict:
         return {

@@ -44,6 +44,12 @@ BOOT_US = 2_500_000  # device timer value when the simulated sensor took sample 
 TIMER_HZ = 1_000_000  # the firmware paces samples with a 1 MHz timer: rates are 1e6 / integer
 
 
+# PtyFirmware in realtime pace: how late after a frame is full it wakes to send it (so the
+# sample that completes it is surely due), and the longest it sleeps while streaming.
+FRAME_WAKE_MARGIN = 0.0002
+MAX_WAIT = 0.05
+
+
 def deliverable_rate(requested: float) -> float:
     """Nearest rate a 1 MHz timer can pace (2048 Hz -> 1e6/488 = 2049.18 Hz)."""
     return TIMER_HZ / max(round(TIMER_HZ / requested), 1)
@@ -226,6 +232,14 @@ class SimFirmware:
                 self.sent_frames += 1
             return bodies
 
+    def seconds_to_next_frame(self, device_time: float) -> float:
+        """Device seconds from ``device_time`` until the next DATA frame is full (inf when not streaming)."""
+        with self._lock:
+            if not self.streaming:
+                return math.inf
+            d = self.device
+            return (d.counter + self.config.samples_per_frame) / d.clock.true_rate - device_time
+
     def wire_bytes(self, body: bytes) -> bytes:
         """A body as it leaves on the serial wire, with the injected wire faults."""
         frame = bytearray(P.cobs_encode(body) + b"\x00")
@@ -342,7 +356,11 @@ class PtyFirmware:
         try:
             while not self._stop.is_set():
                 if self.pace == "realtime":
-                    self._serve_commands(0.005)
+                    # Wake when the next frame is full, as the firmware sends it (a command
+                    # wakes the select at once); idle, every 5 ms, so the samples taken
+                    # before a START are skipped to within 5 ms of it.
+                    wait = fw.seconds_to_next_frame(time.monotonic() - t0) + FRAME_WAKE_MARGIN
+                    self._serve_commands(min(max(wait, 0.0), 0.005 if math.isinf(wait) else MAX_WAIT))
                     self.device_time = time.monotonic() - t0
                 else:
                     self._serve_commands(0.0 if fw.streaming else 0.01)

@@ -115,13 +115,15 @@ class SensorModel:
         return Correction(np.linalg.inv(self.response_matrix), self.offset.copy(), np.zeros((12, 12)))
 
     def sense(self, force: np.ndarray, rng: np.random.Generator, rate: float,
-              t: np.ndarray | None = None) -> np.ndarray:
+              t: np.ndarray | None = None, response_t: np.ndarray | None = None) -> np.ndarray:
         """True specific force (n, 3) in m/s^2 -> int16 counts, with noise, quantisation, clipping.
 
         Successive calls continue one noise process (the coloured parts keep their state);
-        ``t`` (true sample times, s) is needed only when ``drift_rate`` is set.
+        ``t`` (true sample times, s) is needed only when ``drift_rate`` is set.  ``response_t``:
+        ``response_matrix.T`` if the caller keeps it (a device streaming small blocks
+        would otherwise rebuild it, trigonometry and all, for every block).
         """
-        raw = force @ self.response_matrix.T + self.offset
+        raw = force @ (self.response_matrix.T if response_t is None else response_t) + self.offset
         if np.any(self.drift_rate != 0):
             if t is None:
                 raise ValueError("a drifting offset needs the sample times")

@@ -4,7 +4,9 @@
 
 Part 1, CPU per device by driver: for each of sim, serial-sim, i2c-sim, a daemon with 8
 devices of that kind runs ``--kind-seconds``; CPU (user + system, from /proc) of the daemon
-process over the run, divided by 8, in % of one core.  The simulators (firmware on a pty,
+process over the run, divided by 8, in % of one core, and the samples lost (FIFO overflow,
+lost frames, all in gap records) in % of all: a starved daemon polls less, so its CPU
+reads low while its loss grows.  The simulators (firmware on a pty,
 register-level chips) run inside the daemon's process, so their cost is counted too.
 
 Part 2, soak: one daemon with 8 devices (3 sim, 3 serial-sim, 2 i2c-sim) for ``--seconds``,
@@ -81,6 +83,16 @@ def run_daemon(devices: list[dict], seconds: float, work: Path, segment_seconds:
     return cpu, rss, rc, out
 
 
+def lost_percent(out: Path) -> float:
+    """Samples the devices reported missing (FIFO overflow, lost frames: in gap records), in % of all."""
+    delivered = missing = 0
+    for journal in out.glob("*/journal.jsonl"):
+        events = [json.loads(x) for x in journal.read_text().splitlines()]
+        stop = [e for e in events if e["event"] == "stop"][-1]["counts"]
+        delivered, missing = delivered + stop["delivered"], missing + stop["missing"]
+    return 100.0 * missing / max(delivered + missing, 1)
+
+
 def loss_table(out: Path) -> list[str]:
     from accelrig.recording import read_segments
     from accelrig.segments import segment_files
@@ -106,12 +118,13 @@ def main() -> int:
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print("\nCPU per device, 8 devices at 2048 Hz in one daemon")
-    print(f"{'driver':12} {'CPU/device %':>12} {'target %':>9} {'daemon RSS MB':>14}")
+    print(f"{'driver':12} {'CPU/device %':>12} {'target %':>9} {'daemon RSS MB':>14} {'lost %':>7}")
     for kind, target in (("sim", 3.0), ("serial-sim", 3.0), ("i2c-sim", 6.0)):
         with tempfile.TemporaryDirectory() as tmp:
             devices = [{"name": f"{kind.replace('-', '')}{i}", "url": URLS[kind].format(i=i)} for i in range(8)]
-            cpu, rss, rc, _ = run_daemon(devices, args.kind_seconds, Path(tmp))
-            print(f"{kind:12} {100 * cpu / 8:>12.2f} {target:>9.1f} {rss[-1][1]:>14.1f}   (exit {rc})")
+            cpu, rss, rc, out = run_daemon(devices, args.kind_seconds, Path(tmp))
+            print(f"{kind:12} {100 * cpu / 8:>12.2f} {target:>9.1f} {rss[-1][1]:>14.1f} {lost_percent(out):>7.2f}"
+                  f"   (exit {rc})")
     kinds = ["sim"] * 3 + ["serial-sim"] * 3 + ["i2c-sim"] * 2
     devices = [{"name": f"{k.replace('-', '')}{i}", "url": URLS[k].format(i=i)} for i, k in enumerate(kinds)]
     with tempfile.TemporaryDirectory() as tmp:

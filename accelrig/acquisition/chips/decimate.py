@@ -44,8 +44,9 @@ class RationalResampler:
             numtaps = k * self.up
             cutoff = (1.0 + passband) / 2.0 * out_nyquist
             h = signal.firwin(numtaps, cutoff, window=("kaiser", beta)) * self.up
-            # Phase p uses taps h[p], h[p + L], ...: row p, column m multiplies x[n0 - m].
-            self._poly = h.reshape(k, self.up).T.copy()
+            # Phase p uses taps h[p], h[p + L], ...: row p, column m multiplies x[n0 - m];
+            # kept reversed, column i multiplies x[n0 - (k - 1) + i] (a window read forwards).
+            self._poly = h.reshape(k, self.up).T[:, ::-1].copy()
             self.taps_per_phase = k
             self.delay = (numtaps - 1) / 2.0           # in upsampled samples
         self.reset()
@@ -78,9 +79,13 @@ class RationalResampler:
         p = j * self.down
         n0 = p // self.up
         phase = p % self.up
-        idx = (n0 - self._consumed)[:, None] - np.arange(k)[None, :]
-        taps = self._poly[phase]                        # (m, k)
-        y = np.einsum("mk,mkc->mc", taps, hist[idx])
+        # Every window of k consecutive inputs, as a strided view (no copy): window s is
+        # hist[s:s + k].  Output j reads the window ending at its n0.
+        hist = np.ascontiguousarray(hist)
+        row, col = hist.strides
+        windows = np.ndarray((len(hist) - k + 1, k, hist.shape[1]), dtype=hist.dtype, buffer=hist,
+                             strides=(row, row, col))
+        y = np.matmul(self._poly[phase][:, None, :], windows[n0 - self._consumed - (k - 1)])[:, 0, :]
         positions = (p - self.delay) / self.up
         self._next_out = j_last + 1
         # Keep only what the next output still needs.

@@ -1,7 +1,10 @@
 """Polling a chip's FIFO into Blocks: burst reads, overflow handling, timing, resampling.
 
 Every poll: read the overflow status (reading clears it), read FIFO_COUNT,
-burst-read the whole frames with one I2C_RDWR transaction.  An overflow (the
+burst-read the whole frames with one I2C_RDWR transaction.  A read polls for
+``DELIVER_EVERY`` s and delivers one Block per run of samples with no gap in it
+(the polls' samples joined), so what lies downstream works per 50 ms, not per
+poll.  An overflow (the
 status bit, or a count that is not whole frames: in overwrite mode the FIFO
 loses frame alignment) resets the FIFO; the next block carries the gap.
 
@@ -50,6 +53,8 @@ SLEW_AFTER_POLLS = 10
 # at the default poll interval (the envelope tightens as period / polls; a rate error of
 # 1e-5, what the regression reaches within seconds, moves it by 1 % of a period over 1000).
 BOUND_POLLS = 96
+# Seconds of samples a read delivers (several polls), as sim:// does in realtime pace.
+DELIVER_EVERY = 0.05
 
 
 class FifoStream:
@@ -61,8 +66,11 @@ class FifoStream:
         self.plan = plan
         self.scale = scale
         capacity_frames = chip.spec.fifo_capacity // FRAME_BYTES
-        # Poll well before the FIFO fills (about 42 ms at 2 kHz, 19 ms at 4.5 kHz).
-        self.poll_interval = poll_interval or min(0.010, 0.4 * capacity_frames / plan.chip_rate)
+        # Poll when the FIFO is a third full (every 7.1 ms at 4 kHz, 6.3 ms at 4.5 kHz): a poll
+        # may then come two thirds of a fill late (a loaded host) before frames are lost.  At
+        # least every 10 ms at low rates, as before: the gap after an overflow is placed from
+        # the first poll after the reset, and is exact in the tests at that interval.
+        self.poll_interval = poll_interval or min(0.010, capacity_frames / plan.chip_rate / 3)
         self.fit = CounterClockFit(plan.chip_rate)
         self.resampler = RationalResampler(plan.up, plan.down)
         self.notes: list[str] = []
@@ -89,6 +97,7 @@ class FifoStream:
         self._bound_end = np.zeros(BOUND_POLLS)
         self._bound_count = 0
         self._next_poll = 0.0
+        self._error: Exception | None = None   # raised by the next read (see read)
         self._started = 0.0
         self.started = False
 
@@ -110,17 +119,64 @@ class FifoStream:
         self._next_poll = self.clock.now() + self.poll_interval
 
     def read(self, timeout: float) -> list[Block]:
-        """Wait for the next poll (at most ``timeout`` s) and poll."""
-        wait = self._next_poll - self.clock.now()
-        if wait > timeout:
-            self.clock.sleep(timeout)
-            return []
-        self.clock.sleep(wait)
-        # A late poll is not made up for: the next one is an interval after this one.
-        self._next_poll = max(self._next_poll + self.poll_interval, self.clock.now())
-        return self.poll()
+        """Poll at the poll interval for about ``DELIVER_EVERY`` s (at most ``timeout`` s) and
+        deliver what those polls read: one Block per run of samples with no gap in it.
+
+        A block per poll would cost everything downstream (ring buffer, time mapping,
+        writer) a hundred times a second per device for a dozen samples each.  An error
+        in a later poll is raised by the next read, after the samples already read.
+        """
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
+        clock = self.clock
+        end = clock.now() + timeout
+        polls = max(1, round(DELIVER_EVERY / self.poll_interval))
+        parts: list[tuple] = []
+        for _ in range(polls):
+            now = clock.now()
+            wait = self._next_poll - now
+            if wait > end - now:
+                if not parts:
+                    clock.sleep(end - now)
+                break
+            clock.sleep(wait)
+            # A late poll is not made up for: the next one is an interval after this one.
+            self._next_poll = max(self._next_poll + self.poll_interval, clock.now())
+            try:
+                part = self._poll()
+            except Exception as exc:
+                if not parts:
+                    raise
+                self._error = exc
+                break
+            if part is not None:
+                parts.append(part)
+        return self._blocks(parts)
 
     def poll(self) -> list[Block]:
+        """Poll the FIFO once: at most one Block."""
+        part = self._poll()
+        return self._blocks([part] if part is not None else [])
+
+    def _blocks(self, parts: list[tuple]) -> list[Block]:
+        """Blocks from polls' (counter, counts, times, gap, host time): one per run with no gap."""
+        blocks = []
+        run: list[tuple] = []
+        for part in [*parts, None]:
+            if run and (part is None or part[3] != 0):
+                counts = run[0][1] if len(run) == 1 else np.concatenate([p[1] for p in run])
+                t = run[0][2] if len(run) == 1 else np.concatenate([p[2] for p in run])
+                blocks.append(Block(seq=self._seq, counter=run[0][0], host_time=run[-1][4], counts=counts,
+                                    scale=self.scale, t=t, gap_before=run[0][3]))
+                self._seq += 1
+                run = []
+            if part is not None:
+                run.append(part)
+        return blocks
+
+    def _poll(self) -> tuple | None:
+        """One poll: (counter, counts, times, gap before, host time) of the samples it yields, or None."""
         chip = self.chip
         overflowed = chip.fifo_overflowed()
         count_start = self.clock.now()
@@ -143,12 +199,12 @@ class FifoStream:
             # have raised the flag again: that overflow is already dealt with.
             chip.fifo_overflowed()
             self._restart_segment(before, after)
-            return []
+            return None
         frames = count // FRAME_BYTES
         if frames == 0:
             if self._fit_offset is not None:
                 self.fit.add(self._fit_offset + self._segment_frames, count_time)
-            return []
+            return None
         data = chip.fifo_read(frames * FRAME_BYTES)
         counts_in = np.frombuffer(data, dtype=">i2").reshape(frames, 3)
         first = self._segment_frames
@@ -168,8 +224,8 @@ class FifoStream:
         else:
             y, positions = self.resampler.process(counts_in)
             if len(y) == 0:
-                return []
-            out = np.clip(np.rint(y), -32768, 32767).astype(np.int16)
+                return None
+            out = np.rint(y, out=y).clip(-32768, 32767, out=y).astype(np.int16)
         t = self._times(positions)
         gap = 0
         if self._pending_gap:
@@ -182,12 +238,10 @@ class FifoStream:
                 gap = int(round((t[0] - self._last_time) * self.delivered_rate)) - 1
                 gap = gap if gap >= 0 else -1   # a negative size would be nonsense: say unknown
             self._counter += max(gap, 0)
-        block = Block(seq=self._seq, counter=self._counter, host_time=count_time, counts=out,
-                      scale=self.scale, t=t, gap_before=gap)
-        self._seq += 1
+        counter = self._counter
         self._counter += len(out)
         self._last_time = float(t[-1])
-        return [block]
+        return counter, out, t, gap, count_time
 
     def _timeline_period(self) -> float:
         """The measured input period, kept within the rate check's tolerance of the planned one
@@ -261,7 +315,7 @@ class FifoStream:
         """
         n = min(self._bound_count, BOUND_POLLS)
         k, end = self._bound_k[:n], self._bound_end[:n]
-        return float(np.min(end + b * (index - k))) - b / (n + 1)
+        return float((end + b * (index - k)).min()) - b / (n + 1)
 
     def _restart_segment(self, before: float, after: float) -> None:
         """After a FIFO reset (or the start), between host times ``before`` and ``after``."""

@@ -10,6 +10,13 @@ dropped), interrupt status cleared on read, and offset registers holding a
 per-part factory trim with the reserved bit 0, added to the output in
 hardware, reloaded at reset and power-up (written values are lost).
 
+Samples are computed ahead of the sample clock, ``LOOKAHEAD`` at a time (the
+rig, the sensor model and the noise cost per call far more than per sample),
+and enter the data registers and the FIFO only when their time comes: what
+the host can read at any moment is what the part would hold.  The offset
+registers and the range act when a sample is taken, so a write applies from
+the next sample on, as in the part.
+
 Not modelled: the DLPF frequency response (the rigs' signals are far below
 it), gyroscope and magnetometer, I2C master, interrupts pins, self-test.
 """
@@ -26,6 +33,9 @@ from accelrig.sim.sensor import SensorModel
 from accelrig.units import scale_for_range
 
 Addr = tuple[int, int]  # (bank, register)
+
+# Samples sensed per call of the rig and sensor model (0.25 s at 4 kHz).
+LOOKAHEAD = 1024
 
 
 @dataclass(frozen=True)
@@ -104,6 +114,7 @@ class ChipEmulator:
         self._next_tick: float | None = None
         self._period: float | None = None
         self._latest = np.zeros(3, dtype=np.int16)
+        self._forget_ahead()
         self._retime()
 
     # -- configuration as the chip sees it (per chip) --------------------------
@@ -141,6 +152,8 @@ class ChipEmulator:
         for value in data:
             self._write_register(self.pointer, value)
             self.pointer = (self.pointer + 1) & 0x7F
+        # the samples not yet taken are converted again under the registers as they are now
+        self._ahead_counts = self._ahead_bytes = None
         self._retime()
 
     def _read_register(self, reg: int) -> int:
@@ -188,6 +201,7 @@ class ChipEmulator:
         if self._period != period or self._next_tick is None:
             self._period = period
             self._next_tick = self.clock.now() + period
+            self._forget_ahead()
 
     def advance(self) -> None:
         """Take every sample due by now: data registers, data-ready flag, FIFO."""
@@ -197,30 +211,56 @@ class ChipEmulator:
         if now < self._next_tick:
             return
         n = int((now - self._next_tick) // self._period) + 1
-        times = self._next_tick + np.arange(n) * self._period
+        start = self._ahead_pos
+        if start + n > len(self._ahead_raw):
+            self._sense_ahead(n)
+            start = 0
+        stop = start + n
+        self._ahead_pos = stop
         self._next_tick += n * self._period
-        counts = self._sense(times)
+        if self._ahead_bytes is None:
+            self._convert_ahead()
         self.samples_taken += n
-        self._latest = counts[-1].copy()
+        self._latest = self._ahead_counts[stop - 1]
         (bank, reg), mask = self.layout.data_ready_flag
         self.regs[bank][reg] |= mask
         if self.fifo_enabled():
-            self._push_fifo(counts.astype(">i2").tobytes(), n)
+            self._push_fifo(self._ahead_bytes[6 * start:6 * stop], n)
 
-    def _sense(self, times: np.ndarray) -> np.ndarray:
+    def _forget_ahead(self) -> None:
+        """Drop the samples computed ahead (the sample clock restarted or changed its period)."""
+        self._ahead_raw = np.empty((0, 3))
+        self._ahead_pos = 0
+        self._ahead_counts = self._ahead_bytes = None
+
+    def _sense_ahead(self, n: int) -> None:
+        """Compute the next max(n, LOOKAHEAD) samples from the next tick on (keeping those not yet taken)."""
+        kept = self._ahead_raw[self._ahead_pos:]
+        m = max(n, LOOKAHEAD)
+        first = self._next_tick + len(kept) * self._period
+        fresh = self._sense_raw(first + np.arange(m) * self._period)
+        self._ahead_raw = np.concatenate([kept, fresh]) if len(kept) else fresh
+        self._ahead_pos = 0
+        self._ahead_counts = self._ahead_bytes = None
+
+    def _sense_raw(self, times: np.ndarray) -> np.ndarray:
+        """The sensor's output at ``times`` with the factory trim in place, m/s^2 (n, 3)."""
         s = self.sensor
         force = self.rig.specific_force(times - self.t_origin)
+        raw = force @ self._response_t + s.offset
+        if np.any(s.drift_rate != 0):
+            raw = raw + (times - self.t_origin)[:, None] * s.drift_rate
+        return raw + s.noise(raw.shape[0], self._noise_rng, 1.0 / self._period)
+
+    def _convert_ahead(self) -> None:
+        """Counts of the samples ahead under the offset registers and range set now."""
         # The offset registers add (register - factory trim) steps to the output:
         # with the factory trim in place the output bias is sensor.offset.
         held = np.array([offset_value(self._offset_word(axis)) for axis in range(3)])
-        raw = force @ self._response_t + s.offset + (held - self._trim) * OFFSET_STEP
-        rate = 1.0 / self._period
-        if np.any(s.drift_rate != 0):
-            raw = raw + (times - self.t_origin)[:, None] * s.drift_rate
-        raw = raw + s.noise(raw.shape[0], self._noise_rng, rate)
-        counts = np.rint(raw / scale_for_range(self.range_g()))
+        counts = np.rint((self._ahead_raw + (held - self._trim) * OFFSET_STEP) / scale_for_range(self.range_g()))
         np.clip(counts, -32768, 32767, out=counts)
-        return counts.astype(np.int16)
+        self._ahead_counts = counts.astype(np.int16)
+        self._ahead_bytes = self._ahead_counts.astype(">i2").tobytes()
 
     def _offset_word(self, axis: int) -> int:
         bank, reg = self.layout.offsets[axis]
