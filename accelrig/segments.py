@@ -449,12 +449,16 @@ class Finisher:
 
     def __init__(self, log: Callable[[str], None] | None = None):
         self.log = log
-        _prepare_pyarrow()
         self._queue: deque[SegmentWriter] = deque()
         self._wake = threading.Condition()
         self._closed = False
+        self._prepared = threading.Event()
+        self._failed: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="accelrig segment finisher", daemon=True)
         self._thread.start()
+        self._prepared.wait()
+        if self._failed is not None:   # pyarrow missing or broken: said at start, not at the first rotation
+            raise self._failed
 
     def submit(self, writer: SegmentWriter) -> None:
         with self._wake:
@@ -472,6 +476,13 @@ class Finisher:
         return not self._thread.is_alive()
 
     def _run(self) -> None:
+        try:
+            _prepare_pyarrow()   # in this thread: its own first-use memory (malloc arena) shows at start too
+        except BaseException as exc:
+            self._failed = exc
+            return
+        finally:
+            self._prepared.set()
         while True:
             with self._wake:
                 while not self._queue and not self._closed:
@@ -553,9 +564,10 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
         tmp.unlink(missing_ok=True)
         raise _storage_error(exc, target) from None
     finally:
-        # malloc keeps what the conversion freed; a daemon converting a segment an hour for
-        # weeks would otherwise hold its peak for ever
+        # malloc keeps what the conversion freed (and pyarrow's own pool the little it still takes
+        # from it); a daemon converting a segment an hour for weeks would otherwise hold its peak
         pa.system_memory_pool().release_unused()
+        pa.default_memory_pool().release_unused()
     path.unlink()
     fsync_directory(target.parent)
     return target
