@@ -3,7 +3,7 @@
 API (stable: ``accelrig record`` and the daemon build on it)
 
 ``SegmentWriter(directory, *, stem, meta, scale, channels=(), segment_seconds=3600.0,
-segment_bytes=256 MiB, csv=False, fsync_seconds=5.0)``
+segment_bytes=256 MiB, csv=False, fsync_seconds=5.0, finisher=None)``
     ``.write(t, counts, channels=None)``  one block: ``t`` float64 seconds in the caller's time base
         (UTC epoch seconds in ``record`` and the daemon; int64 is taken as nanoseconds),
         ``counts`` int16 (n, 3), ``channels`` {name: float64 (n,)} for the names given at creation.
@@ -14,6 +14,14 @@ segment_bytes=256 MiB, csv=False, fsync_seconds=5.0)``
     Disk full (ENOSPC, EDQUOT) raises ``accelrig.errors.StorageFull`` and leaves the writer
     consistent: the block is either wholly in the open segment or not at all, so the caller can
     count it as a "disk full" gap and call ``write`` again later.
+    A rotated segment is finished (turned into Parquet) in ``write``'s thread, or, with a
+    ``finisher``, by that Finisher's thread; ``close`` finishes what is left in the caller's thread.
+``Finisher(log=None)``  one thread that finishes the segments rotated by any number of writers,
+    one at a time (the daemon's devices share one): a device's loop never waits for a
+    conversion, and the conversions' memory is one segment's row group, not one per device.
+    Creating it pays pyarrow's one-time costs (import, lazily built tables: about 50 MB of
+    resident memory) at once, so they show at start rather than at the first rotation.
+    ``.close(timeout)`` stops the thread.
 ``recover(directory) -> list[RecoveryReport]``  finishes segments a crash (kill -9, power cut)
     left open, up to their last complete block, each report saying what was lost.
 ``read_arrays(path, start=None, stop=None, stem=None, units="m/s^2")``  the arrays of a segment
@@ -46,8 +54,11 @@ import json
 import os
 import re
 import struct
+import threading
 import time
 import zlib
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -236,7 +247,8 @@ class SegmentWriter:
 
     def __init__(self, directory: str | os.PathLike, *, stem: str, meta: dict, scale: float,
                  channels: tuple[str, ...] | list[str] = (), segment_seconds: float = 3600.0,
-                 segment_bytes: int = 256 * 2**20, csv: bool = False, fsync_seconds: float = 5.0):
+                 segment_bytes: int = 256 * 2**20, csv: bool = False, fsync_seconds: float = 5.0,
+                 finisher: Finisher | None = None):
         if not STEM_PATTERN.fullmatch(stem):
             raise DataError(f"segment name {stem!r} must be letters, digits, '-' or '_', starting with a letter "
                             "or digit")
@@ -263,6 +275,9 @@ class SegmentWriter:
         self.segment_bytes = int(min(segment_bytes, 2**62))
         self.csv = csv
         self.fsync_seconds = fsync_seconds
+        self.finisher = finisher
+        self._pending_lock = threading.Lock()   # pending and _finished (the finisher's thread changes them)
+        self._finishing = threading.Lock()      # held while one of this writer's segments is converted
         self._index = _next_index(self.directory, stem)
         self._fd: int | None = None
         self.open_path: Path | None = None
@@ -333,6 +348,9 @@ class SegmentWriter:
         if (self._seg_first_ns is not None and t_ns - self._seg_first_ns >= self.segment_ns) \
                 or self._size >= self.segment_bytes:
             self._close_open()
+            if self.finisher is not None:
+                self.finisher.submit(self)
+                return
             try:
                 self._finish_pending()
             except StorageFull:
@@ -400,14 +418,84 @@ class SegmentWriter:
         except OSError:
             pass  # the data are in the page cache; finishing reads them back and syncs the result
         os.close(fd)
-        self.pending.append(path)
+        with self._pending_lock:
+            self.pending.append(path)
 
     def _finish_pending(self) -> None:
-        while self.pending:
-            finished = finish_segment(self.pending[0], csv=self.csv)   # StorageFull: stays pending
-            self.pending.pop(0)
-            if finished is not None:
-                self._finished.append(finished)
+        """Finish the closed segments, oldest first (in this thread; one of the writer's segments at a
+        time, whichever thread asks: ``close`` waits for a conversion the finisher has begun)."""
+        with self._finishing:
+            while True:
+                with self._pending_lock:
+                    if not self.pending:
+                        return
+                    path = self.pending[0]
+                finished = finish_segment(path, csv=self.csv)   # StorageFull: stays pending
+                with self._pending_lock:
+                    self.pending.pop(0)
+                    if finished is not None:
+                        self._finished.append(finished)
+
+
+class Finisher:
+    """One thread finishing the segments that writers rotate, one conversion at a time.
+
+    Writers built with ``finisher=`` hand it their closed segments instead of converting them in
+    the thread that writes, so acquisition never waits for pyarrow, and however many writers
+    rotate at the same moment, one conversion's memory is in use.  A conversion that fails (a
+    full disk) leaves the segment pending, complete and readable; the writer's next rotation
+    or its ``close`` tries again.
+    """
+
+    def __init__(self, log: Callable[[str], None] | None = None):
+        self.log = log
+        self._queue: deque[SegmentWriter] = deque()
+        self._wake = threading.Condition()
+        self._closed = False
+        self._prepared = threading.Event()
+        self._failed: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="accelrig segment finisher", daemon=True)
+        self._thread.start()
+        self._prepared.wait()
+        if self._failed is not None:   # pyarrow missing or broken: said at start, not at the first rotation
+            raise self._failed
+
+    def submit(self, writer: SegmentWriter) -> None:
+        with self._wake:
+            if writer not in self._queue:
+                self._queue.append(writer)
+            self._wake.notify()
+
+    def close(self, timeout: float | None = None) -> bool:
+        """Stop the thread after the conversion under way (what is queued stays pending in its
+        writer, whose ``close`` finishes it); True when the thread has ended."""
+        with self._wake:
+            self._closed = True
+            self._wake.notify()
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def _run(self) -> None:
+        try:
+            _prepare_pyarrow()   # in this thread: its own first-use memory (malloc arena) shows at start too
+        except BaseException as exc:
+            self._failed = exc
+            return
+        finally:
+            self._prepared.set()
+        while True:
+            with self._wake:
+                while not self._queue and not self._closed:
+                    self._wake.wait()
+                if self._closed:
+                    return
+                writer = self._queue.popleft()
+            try:
+                writer._finish_pending()
+            except Exception as exc:   # a full disk, an I/O error, or a bug: the segment stays pending
+                if self.log is not None:
+                    self.log(f"{writer.stem}: a rotated segment is not finished yet ({exc}); it stays readable "
+                             "as it is and is tried again at the next rotation or at close")
 
 
 def _write_all(fd: int, data: bytes) -> None:
@@ -440,7 +528,6 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
     StorageFull and leaves the open segment as it was.
     """
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     path = Path(path)
     scanned = scan(path)
@@ -457,20 +544,13 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
                       and scanned.first_ns < g["t_ns"] <= scanned.last_ns])}
     if recovered:
         info["recovered"] = recovered
-    utc = header["meta"].get("time_base") == "utc"
-    fields = [pa.field("time", pa.timestamp("ns", tz="UTC" if utc else None)),
-              *(pa.field(a, pa.int16()) for a in ("ax", "ay", "az")), *(pa.field(c, pa.float64()) for c in names)]
-    schema = pa.schema(fields, metadata={META_KEY: to_json(info, indent=None, sort_keys=True).encode()})
+    schema = _schema(header["meta"].get("time_base") == "utc", names, info)
     target = path.with_suffix(FINISHED_SUFFIX)
     tmp = target.with_name(f".{target.name}.tmp")
     try:
-        with pq.ParquetWriter(tmp, schema, compression="zstd", use_dictionary=["ax", "ay", "az"],
-                              column_encoding={"time": "DELTA_BINARY_PACKED"}, write_statistics=["time"]) as out:
-            for lo in range(0, scanned.samples, ROW_GROUP):
-                t_ns, counts, chans = _read_scanned(scanned, lo, min(lo + ROW_GROUP, scanned.samples))
-                columns = [pa.array(t_ns, type=fields[0].type), *(pa.array(counts[:, k]) for k in range(3)),
-                           *(pa.array(c) for c in chans)]
-                out.write_table(pa.Table.from_arrays(columns, schema=schema))
+        with _parquet_writer(tmp, schema) as out:
+            for lo in range(0, scanned.samples, ROW_GROUP):   # one row group in memory at a time
+                out.write_table(_table(schema, *_read_scanned(scanned, lo, min(lo + ROW_GROUP, scanned.samples))))
         fd = os.open(tmp, os.O_RDONLY)
         try:
             os.fsync(fd)
@@ -484,12 +564,58 @@ def finish_segment(path: str | os.PathLike, csv: bool = False, recovered: dict |
         tmp.unlink(missing_ok=True)
         raise _storage_error(exc, target) from None
     finally:
-        # pyarrow's allocator keeps what the conversion used; a daemon converting a segment an
-        # hour for weeks would otherwise hold its peak for ever
+        # malloc keeps what the conversion freed (and pyarrow's own pool the little it still takes
+        # from it); a daemon converting a segment an hour for weeks would otherwise hold its peak
+        pa.system_memory_pool().release_unused()
         pa.default_memory_pool().release_unused()
     path.unlink()
     fsync_directory(target.parent)
     return target
+
+
+def _schema(utc: bool, names: list[str], info: dict):
+    import pyarrow as pa
+
+    fields = [pa.field("time", pa.timestamp("ns", tz="UTC" if utc else None)),
+              *(pa.field(a, pa.int16()) for a in ("ax", "ay", "az")), *(pa.field(c, pa.float64()) for c in names)]
+    return pa.schema(fields, metadata={META_KEY: to_json(info, indent=None, sort_keys=True).encode()})
+
+
+# Conversions allocate from the C library's malloc, not pyarrow's default pool (mimalloc in
+# pyarrow 26), which kept 7-9 MB more resident after each device's first conversion in the
+# 8-device soak; malloc's freed memory goes back through malloc_trim (release_unused).
+
+
+def _parquet_writer(sink, schema):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    return pq.ParquetWriter(sink, schema, compression="zstd", use_dictionary=["ax", "ay", "az"],
+                            column_encoding={"time": "DELTA_BINARY_PACKED"}, write_statistics=["time"],
+                            memory_pool=pa.system_memory_pool())
+
+
+def _table(schema, t_ns: np.ndarray, counts: np.ndarray, chans: list[np.ndarray]):
+    """One row group's table: times (ns), counts (n, 3), the channels in the schema's order."""
+    import pyarrow as pa
+
+    pool = pa.system_memory_pool()
+    columns = [pa.array(t_ns, type=schema.field("time").type, memory_pool=pool),
+               *(pa.array(counts[:, k], memory_pool=pool) for k in range(3)),
+               *(pa.array(c, memory_pool=pool) for c in chans)]
+    return pa.Table.from_arrays(columns, schema=schema)
+
+
+def _prepare_pyarrow() -> None:
+    """Import pyarrow and finish a small segment in memory: its one-time costs (the import, the
+    tables its conversions build at first use, the Parquet writer's code read from disk: about
+    50 MB resident, measured with pyarrow 26) are paid now, not at the first rotation."""
+    import pyarrow as pa
+
+    schema = _schema(True, [], {})
+    with _parquet_writer(pa.BufferOutputStream(), schema) as out:
+        out.write_table(_table(schema, np.arange(64, dtype=np.int64), np.zeros((64, 3), np.int16), []))
+    pa.system_memory_pool().release_unused()
 
 
 def _rates(samples: int, first_ns: int | None, last_ns: int | None, gaps: list[dict]) -> dict:

@@ -374,3 +374,79 @@ def test_recover_removes_a_segment_torn_while_being_created_and_leaves_a_foreign
         "dev.000001.seg: left alone: " + str(reports[1].problem).split(": ", 1)[1]]
     assert "not an accelrig open segment" in str(reports[1])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dev.000001.seg"]
+
+
+def _parquet_contents(path: Path):
+    """What a finished segment holds: its columns and the accelrig metadata (file names aside)."""
+    table = pq.read_table(path)
+    return {name: table.column(name).to_pylist() for name in table.column_names}, \
+        json.loads(table.schema.metadata[b"accelrig"])
+
+
+def test_a_shared_finisher_converts_rotations_one_at_a_time_off_the_writing_thread(tmp_path, monkeypatch):
+    """Three writers rotating together: every rotation is converted by the finisher's thread, never two
+    at once, and the files are the same as a writer converting in its own thread makes."""
+    import threading
+
+    real = segments.finish_segment
+    seen = {"threads": [], "running": 0, "most": 0}
+    lock = threading.Lock()
+
+    def watched(path, **kw):
+        with lock:
+            seen["running"] += 1
+            seen["most"] = max(seen["most"], seen["running"])
+            seen["threads"].append(threading.current_thread().name)
+        try:
+            time.sleep(0.02)   # long enough for an overlap to show if conversions ran side by side
+            return real(path, **kw)
+        finally:
+            with lock:
+                seen["running"] -= 1
+
+    monkeypatch.setattr(segments, "finish_segment", watched)
+    finisher = segments.Finisher()
+    writers = [SegmentWriter(tmp_path / f"d{k}", stem=f"d{k}", meta={"k": k}, scale=0.001, channels=("theta",),
+                             segment_seconds=0.25, finisher=finisher) for k in range(3)]
+    for i in range(40):                  # 1.25 s: each writer rotates 4 times
+        for w in writers:
+            write_blocks(w, range(i, i + 1), jitter=False)
+    deadline = time.monotonic() + 20
+    while any(w.pending for w in writers) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert seen["most"] == 1 and seen["threads"] == ["accelrig segment finisher"] * 12
+    for w in writers:                    # close finishes the open segment in the caller's thread
+        w.close()
+    assert finisher.close(5.0)
+    assert len(seen["threads"]) == 15 and all(w.segments_finished == 5 and not w.pending for w in writers)
+    monkeypatch.setattr(segments, "finish_segment", real)
+    with SegmentWriter(tmp_path / "own", stem="d0", meta={"k": 0}, scale=0.001, channels=("theta",),
+                       segment_seconds=0.25) as own:
+        write_blocks(own, range(40), jitter=False)
+    ours, theirs = sorted((tmp_path / "own").glob("*.parquet")), sorted((tmp_path / "d0").glob("*.parquet"))
+    assert [p.name for p in ours] == [p.name for p in theirs]
+    assert [_parquet_contents(p) for p in ours] == [_parquet_contents(p) for p in theirs]
+
+
+def test_a_rotation_the_finisher_cannot_finish_stays_pending_until_close(tmp_path, monkeypatch):
+    real = pq.ParquetWriter.write_table
+
+    def full(self, table, *a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    lines = []
+    finisher = segments.Finisher(lines.append)
+    w = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001, segment_seconds=1.0, finisher=finisher)
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    write_blocks(w, range(50), jitter=False)       # rotates at 1 s: the finisher meets a full disk
+    deadline = time.monotonic() + 10
+    while not lines and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert "dev: a rotated segment is not finished yet" in lines[0] and "disk is full" in lines[0]
+    assert len(w.pending) == 1 and w.samples_written == 50 * 64
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", real)
+    assert len(w.close()) == 2 and not w.pending
+    assert finisher.close(5.0)
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".parquet", ".parquet"]
+    np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])

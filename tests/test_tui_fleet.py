@@ -94,8 +94,25 @@ async def test_m_on_the_live_screen_asks_for_the_broker_and_a_refusal_is_shown(b
         await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen))
         screen = app.screen
         await wait_for(pilot, lambda: "refused" in str(screen.query_one("#fleet-title").render()), timeout=15)
+        # a login the m key cannot give: said, with the options that give one, and not asked again in vain
+        await wait_for(pilot, lambda: "asks for a login" in str(screen.query_one("#fleet-title").render()))
+        title = str(screen.query_one("#fleet-title").render())
+        assert f"accelrig tui --broker {broker.url} --username NAME --password-file FILE" in title
+        await pilot.pause(1.5)   # refreshed again: no new connection
+        assert screen.watcher is None and not screen.connecting and "not tried again" in title
         await pilot.press("escape")
         await wait_for(pilot, lambda: not isinstance(app.screen, FleetScreen))
+
+
+@async_test
+async def test_a_refused_login_from_the_command_line_is_said_and_not_retried(broker):
+    app = AccelrigApp(fleet=FleetOptions(broker.url, username=COLLECTOR_USER, password="wrong"),
+                      refresh_interval=0.05)
+    async with app.run_test(size=(120, 30)) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
+                       and "not tried again" in str(app.screen.query_one("#fleet-title").render()), timeout=15)
+        title = str(app.screen.query_one("#fleet-title").render())
+        assert "refused the connection" in title and "the user name and password given were refused" in title
 
 
 @async_test

@@ -89,3 +89,19 @@ def test_static_results_120x40(snap_compare):
         await pilot.pause(0.3)
 
     assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(120, 40), run_before=show)
+
+
+def test_fleet_without_a_broker_80x24(snap_compare):
+    """The fleet screen when nothing listens at the broker's address (port 1: no service there)."""
+    from accelrig.tui.screens.fleet import FleetOptions
+
+    async def refused(pilot):
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 15
+        while "refused" not in str(pilot.app.screen.query_one("#fleet-title").render()):
+            assert loop.time() < deadline, "the refusal was not shown"
+            await pilot.pause(0.05)
+        await pilot.pause(0.2)
+
+    assert snap_compare(AccelrigApp(fleet=FleetOptions("mqtt://127.0.0.1:1"), refresh_interval=0.05),
+                        terminal_size=(80, 24), run_before=refused)

@@ -237,3 +237,27 @@ async def test_an_action_after_the_results_resumes_feeding_from_the_live_stream(
         second = app.screen
         await wait_for(pilot, lambda: second.query_one("#parameters").row_count == 3)   # drawn before the app ends
         await pilot.pause(0.2)
+
+
+@async_test
+async def test_an_open_that_was_superseded_closes_its_own_stream_and_leaves_the_wizards(tmp_path):
+    """A device opened for an earlier start that reports after the current one: its capture is
+    finished on disk and its session stopped; the wizard keeps its recorder and the app its session."""
+    from accelrig.acquisition.recorder import streaming_writer
+    from accelrig.acquisition.session import Session
+
+    app = AccelrigApp(device="sim://still?seed=14", refresh_interval=0.05,
+                      profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=600)
+        await wait_for(pilot, lambda: wizard.recorder is not None and wizard.recorder.samples > 0)
+        current, live = wizard.recorder, app.session
+        stale = Session.open_and_start("sim://still?seed=15", 1, record=True,
+                                       writer=lambda info: streaming_writer(info, tmp_path / "stale"))
+        await wait_for(pilot, lambda: stale.recorder.poll().n and stale.recorder.samples > 0)
+        wizard._opened(wizard._generation - 1, stale)
+        assert wizard.recorder is current and wizard.session is live and app.session is live
+        assert stale.stats().state == State.STOPPED and live.stats().state == State.STREAMING
+        assert list((tmp_path / "stale").glob("*.parquet")) and not list((tmp_path / "stale").glob("*.seg"))
+        samples = current.samples
+        await wait_for(pilot, lambda: current.samples > samples)   # the wizard's own stream goes on

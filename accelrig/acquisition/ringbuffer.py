@@ -66,9 +66,11 @@ class RingBuffer:
         self.capacity = int(capacity)
         self.scale = float(scale)
         self.channel_names = tuple(channel_names)
-        self._counts = np.zeros((self.capacity, 3), dtype=np.int16)
-        self._t = np.zeros(self.capacity, dtype=float)
-        self._channels = {name: np.zeros(self.capacity, dtype=float) for name in self.channel_names}
+        # np.full writes every slot now (np.zeros' pages would become resident only as the ring
+        # first fills): a process that runs for weeks shows its whole size from the start
+        self._counts = np.full((self.capacity, 3), 0, dtype=np.int16)
+        self._t = np.full(self.capacity, 0.0)
+        self._channels = {name: np.full(self.capacity, 0.0) for name in self.channel_names}
         self._head = 0       # samples completely written
         self._reserved = 0   # samples whose slots the producer has started to overwrite
         self._gap_index: list[int] = []   # index of the sample following each gap

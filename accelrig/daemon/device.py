@@ -135,10 +135,11 @@ class PendingGap:
 
 
 class DeviceRunner:
-    def __init__(self, device: DeviceConfig, config: DaemonConfig, log):
+    def __init__(self, device: DeviceConfig, config: DaemonConfig, log, finisher=None):
         self.device = device
         self.config = config
         self.log = log                       # log(line): one status/event line for the operator
+        self.finisher = finisher             # segments.Finisher shared by the daemon's devices (None: this thread)
         self.directory = Path(config.output) / device.name
         self.counts = Counts()
         self.state = "starting"
@@ -435,7 +436,7 @@ class DeviceRunner:
         self.writer = SegmentWriter(
             self.directory, stem=self.device.name, meta=meta, scale=info.scale, channels=self._channel_names(info),
             segment_seconds=self.config.segment_seconds,
-            segment_bytes=int(self.config.segment_megabytes * 1e6), csv=self.device.csv,
+            segment_bytes=int(self.config.segment_megabytes * 1e6), csv=self.device.csv, finisher=self.finisher,
         )
         if self.publisher is not None:
             ref = meta["profile"]

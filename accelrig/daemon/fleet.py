@@ -34,12 +34,14 @@ class FleetWatcher:
         self.devices: dict[tuple[str, str], dict] = {}
         self.connected = False
         self.refused: str | None = None
+        self.login_refused = False        # refused for its login: reconnecting with it is in vain
         self.error: str | None = None
         self.last_message = time.monotonic()
 
     def _on_connect(self, client, userdata, flags, reason, properties=None):
         if getattr(reason, "is_failure", False):
             self.refused = self.error = wire.connect_error(self.parsed, reason)
+            self.login_refused = wire.login_refused(reason)
             return
         self.connected, self.error = True, None
         client.subscribe([(wire.topic(self.prefix, self.site or "+", "+", "status"), 1),

@@ -225,6 +225,12 @@ def make_client(client_id: str, broker: Broker, username: str | None, password: 
     return client
 
 
+def login_refused(reason) -> bool:
+    """A refused CONNECT that a login would change (bad user name or password, not authorised):
+    asking again with the same login is in vain."""
+    return getattr(reason, "value", reason) in (4, 5, 134, 135)   # MQTT 3.1.1 codes, and paho's v5 style
+
+
 def connect_error(broker: Broker, reason) -> str:
     """One line for a refused CONNECT (paho's reason code, v3 or v5 style)."""
     value = getattr(reason, "value", reason)

@@ -43,6 +43,7 @@ class FleetScreen(Screen):
         self.watcher = None
         self.connect_error: str | None = None
         self.connecting = False       # a connect is under way (an unanswered address can take long)
+        self.login_needed = False     # the broker refused the login: not tried again (it would be in vain)
         self.table_rows: list[dict] = []
 
     def compose(self) -> ComposeResult:
@@ -104,10 +105,13 @@ class FleetScreen(Screen):
         from accelrig.daemon.fleet import NO_DEVICES, cells, rows
 
         title = self.query_one("#fleet-title", Static)
+        if self.watcher is not None and self.watcher.login_refused:
+            self.refuse_login()
         if self.watcher is None:
             if self.connect_error is not None:
                 self.show_error()
-                self.start_connect()
+                if not self.login_needed:
+                    self.start_connect()
             return
         self.table_rows = rows(self.watcher.snapshot(), recalibrate_days=self.options.recalibrate_days)
         state = "[green]connected[/]" if self.watcher.connected else f"[red]{escape(self.watcher.error or 'not connected')}[/]"
@@ -127,9 +131,26 @@ class FleetScreen(Screen):
     def where(self) -> str:
         return escape(self.options.broker) + (f", site {escape(self.options.site)}" if self.options.site else "")
 
+    def refuse_login(self) -> None:
+        """The broker wants another login: stop asking (paho would retry with the same one for ever)
+        and say how to give one."""
+        watcher, self.watcher = self.watcher, None
+        watcher.close()
+        self.login_needed = True
+        self.connect_error = watcher.refused
+
     def show_error(self) -> None:
-        self.query_one("#fleet-title", Static).update(
-            f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/] (trying again every {self.interval:g} s)")
+        title = self.query_one("#fleet-title", Static)
+        if not self.login_needed:
+            title.update(f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/] "
+                         f"(trying again every {self.interval:g} s)")
+            return
+        given = ("the user name and password given were refused" if self.options.username
+                 else "the broker asks for a login")
+        title.update(f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/]\n"
+                     f"{given}; not tried again.  Quit and start with:  accelrig tui --broker "
+                     f"{escape(self.options.broker)} --username NAME --password-file FILE  (or --password-env "
+                     "VARIABLE; --ca-file CA.pem for mqtts://)")
 
     def on_unmount(self) -> None:
         if self.watcher is not None:

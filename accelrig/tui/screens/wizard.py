@@ -326,11 +326,14 @@ class ProcedureWizard(Screen):
         self.app.call_from_thread(self._opened, generation, session)
 
     def _opened(self, generation: int, session: Session) -> None:
+        if generation != self._generation:
+            # restarted or left while it opened: this stream is no one's; its capture is finished
+            # on disk and the device released, and the wizard's own stream stays untouched
+            self.close_recorder(session.recorder)
+            session.stop()
+            return
         self.session, self.recorder = session, session.recorder
         self.app.use_session(session)
-        if generation != self._generation:   # restarted meanwhile: this stream is the old one's
-            self.close_recorder()
-            return
         self.set_instruction(self.opening_instruction())
         if self._timer is None:
             self._timer = self.set_interval(self.app.refresh_interval, self.tick)
@@ -569,13 +572,15 @@ class ProcedureWizard(Screen):
         self.close_recorder()
         self.app.pop_screen()
 
-    def close_recorder(self) -> None:
-        """Release the stream and finish the capture's segments (they stay on disk, under captures/)."""
-        if self.recorder is None:
+    def close_recorder(self, recorder: Recorder | None = None) -> None:
+        """Release the stream (the wizard's, or ``recorder``) and finish the capture's segments (they
+        stay on disk, under captures/)."""
+        recorder = self.recorder if recorder is None else recorder
+        if recorder is None:
             return
-        self.recorder.close()
+        recorder.close()
         try:
-            self.recorder.writer.close()
+            recorder.writer.close()
         except AccelrigError as exc:   # a full disk: the open segment stays readable as it is
             self.log_event(f"capture segments not finished: {exc}", "yellow")
 
