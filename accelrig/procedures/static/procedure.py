@@ -447,7 +447,11 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     base.quality["uncertainty_source"] += (f"; pose means referred to the middle of the run (t = {middle:.1f} s) "
                                            f"with the offset drift rate on {names} fitted (faces held again)")
     base.quality["drift_referred_to"] = middle
-    base.quality["dof"] = int(base.quality["dof"]) - m
+    # the revisits' degrees of freedom went into the rates: the lack-of-fit test has m fewer (none left with
+    # the wizard's sequence of six faces and three again)
+    dof = int(base.quality["dof"]) - m
+    base.quality["dof"] = dof
+    base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 
 
