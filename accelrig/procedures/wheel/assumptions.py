@@ -187,8 +187,8 @@ def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_sc
     scores = np.zeros((k_blocks, p + q))
     for part in chunks(n):
         model, jac = model_and_jacobian(t[part], state, free, time_scale, g)
-        along = jac if reference is state else model_and_jacobian(t[part], reference, free, time_scale, g)[1]
-        added = _extra_columns(t[part], reference, along[:, :, 0], time_scale)
+        along = jac[:, :, 0] if reference is state else _phase_direction(t[part], reference, g)
+        added = _extra_columns(t[part], reference, along, time_scale)
         rest = v[part] - model - added @ extra
         if residuals is not None:
             residuals[part] = rest
@@ -201,10 +201,18 @@ def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_sc
     return normal, scores
 
 
+def _phase_direction(t, state: WheelState, g: float) -> np.ndarray:
+    """dv/dtheta (n, 3): how the model moves with the wheel angle (the gravity term of eq. 1 turned)."""
+    theta = phase(t, state.theta0, state.omega)[0]
+    ga = g * np.sin(state.tilt)
+    bench = np.stack([-ga * np.sin(theta), ga * np.cos(theta), np.zeros(t.size)], axis=1)
+    return (bench @ state.rotation.T) * state.gain
+
+
 # Taking structure in is itself a fit (the found structure moves the phase law by more than the
 # linearisation of one step holds): Gauss-Newton until no parameter moves by more than this share of its
 # sd, at most TAKE_IN_ITERATIONS passes.
-TAKE_IN_TOLERANCE = 1e-3
+TAKE_IN_TOLERANCE = 1e-2
 TAKE_IN_ITERATIONS = 20
 
 
@@ -218,20 +226,21 @@ def _take_in(t, v, state: WheelState, free: FreeSet, time_scale: float, g: float
     extra = np.zeros(q)
     moved = state
     for _ in range(TAKE_IN_ITERATIONS):
-        normal, scores = _pass(t, v, moved, state, free, time_scale, g, weight, extra, t.size)
+        # each pass also leaves the residuals of the state it was made at: once the next step is below the
+        # tolerance, that state is the answer and its residuals are already in place
+        normal, scores = _pass(t, v, moved, state, free, time_scale, g, weight, extra, t.size, residuals)
         matrix = normal.sum(axis=0)[np.ix_(keep, keep)]
         step = np.linalg.pinv(matrix) @ scores.sum(axis=0)[keep]
-        moved = unpack(pack(moved, free, time_scale) + step[:p], free, time_scale, moved)
-        extra[taken] += step[p:]
         if np.max(np.abs(step) * np.sqrt(np.diag(matrix))) < TAKE_IN_TOLERANCE:
             break
+        moved = unpack(pack(moved, free, time_scale) + step[:p], free, time_scale, moved)
+        extra[taken] += step[p:]
     else:
         raise CalibrationError(
             f"the wheel did not follow the model's smooth speed law, and the model with the structure found "
             f"did not settle in {TAKE_IN_ITERATIONS} iterations",
             "balance the wheel (an unbalanced wheel speeds up and slows down once per turn), check its bearing, "
             "and record a free coast-down without touching it")
-    _pass(t, v, moved, state, free, time_scale, g, weight, extra, t.size, residuals)
     return moved, extra
 
 
