@@ -289,6 +289,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
              for i in range(part.start, part.stop)]
     keep = list(range(p)) + [p + i for i in taken]
     moved, extra_step = state, np.zeros(q)
+    before = (correlated, scores_all[:, keep], block)
     if taken:
         moved, extra_step = _take_in(t, v, state, free, time_scale, g, weight, taken, residuals)
         # judge the noise on what is left once the structure is in: the structure itself is no noise
@@ -301,6 +302,13 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     block_scores = scores_all[:, keep]
     if correlated:
         sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(full, block_scores, block, full_inv)
+        if taken and before[0]:
+            # Correlated before and after: slow noise and slow structure look alike (a 1/f wander passes for a
+            # drift), so what was taken in may be noise.  The sandwich from the residuals before it was taken
+            # in counts it as noise; the wider of the two is kept.
+            other = _widest_sandwich(full, before[1], before[2], full_inv)
+            if np.mean(np.diag(other[0]) / np.diag(full_inv)) > np.mean(np.diag(sandwich) / np.diag(full_inv)):
+                sandwich, block_used, blocks_used, extrapolation = other
         cov = sandwich[:p, :p]
         worst = max(white, key=lambda w: w.tau)
         source = (f"batch-means sandwich over {blocks_used} blocks of {block_used} samples: the residuals are "
