@@ -7,6 +7,7 @@ import pytest
 
 from accelrig.estimation.residuals import (
     ar_sandwich_covariance,
+    autocorrelation,
     block_scores,
     difference_noise_variance,
     lack_of_fit,
@@ -135,3 +136,34 @@ def test_the_ar_sandwich_gives_back_what_the_fit_took_out_of_the_noise():
         ratios.append(np.sqrt(np.diag(cov)) / exact)
     mean = np.mean(ratios, axis=0)
     assert np.all((mean > 0.95) & (mean < 1.05)), mean
+
+
+def test_blockwise_autocorrelation_equals_the_direct_sums(monkeypatch):
+    # blocks shorter than the lags asked for, and a short last block: every pair x_i x_(i+k) counted once
+    from accelrig.estimation import residuals
+
+    rng = np.random.default_rng(11)
+    x = np.cumsum(rng.standard_normal(203)) * 0.1 + rng.standard_normal(203)
+    centred = x - x.mean()
+    direct = np.array([centred[: x.size - k] @ centred[k:] for k in range(150)]) / (centred @ centred)
+    monkeypatch.setattr(residuals, "AUTOCORRELATION_BLOCK", 17)
+    assert np.allclose(autocorrelation(x, 149), direct, atol=1e-12)
+    monkeypatch.setattr(residuals, "AUTOCORRELATION_BLOCK", 1000)
+    assert np.allclose(autocorrelation(x, 149), direct, atol=1e-12)
+
+
+def test_whiteness_reads_tau_from_the_first_lags_only_when_the_window_is_there(monkeypatch):
+    # a long memory (rho 0.999, tau ~ 2000) needs lags beyond the first few thousand: the doubling finds them
+    from accelrig.estimation import residuals
+
+    rng = np.random.default_rng(12)
+    e = rng.standard_normal(60000)
+    x = np.empty_like(e)
+    x[0] = e[0]
+    for i in range(1, e.size):
+        x[i] = 0.999 * x[i - 1] + e[i]
+    full = residuals.integrated_time(autocorrelation(x, x.size // 4))
+    monkeypatch.setattr(residuals, "SOKAL_FIRST_LAGS", 64)
+    w = whiteness(x)
+    assert (w.tau, w.window) == pytest.approx(full)
+    assert w.window > 64

@@ -86,7 +86,10 @@ def test_an_unbalanced_wheel_is_seen_and_taken_in():
     assert any("did not follow the model's smooth speed law" in w for w in result.warnings)
     assert result.quality["residual_checks"]["speed_law_test"]["significant"]
     assert "speed swings" in result.quality["uncertainty"]
-    assert np.all(np.abs(z_scores(result)) < 5)
+    # taken in fully (fitted with the model, not one linearised step), the structure leaves white residuals:
+    # it is not mistaken for correlated noise, and the gains and offsets lose its bias
+    assert result.quality["residual_checks"]["noise"] == "white"
+    assert np.all(np.abs(z_scores(result)) < 3)
 
 
 def test_a_grossly_unbalanced_wheel_is_refused_with_the_cause():

@@ -49,18 +49,35 @@ MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change
 SOKAL_WINDOW = 5.0           # window M >= c tau (Sokal 1997): bias of tau below e^-c
 MIN_BLOCKS = 20              # batch means need this many blocks for a usable middle matrix
 BLOCK_PER_TAU = 20           # block length in units of tau: the batch-means bias ~ tau / block
+SOKAL_FIRST_LAGS = 4096      # lags first computed for tau (more only while Sokal's window is not reached)
+
+
+# Series longer than this are correlated block by block: the memory then grows with the lags asked
+# for, not with the series (a block and the max_lag samples after it at a time).
+AUTOCORRELATION_BLOCK = 65536
 
 
 def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
-    """Sample autocorrelation rho_0..rho_max_lag of a 1-D series, mean removed (FFT, O(n log n))."""
-    x = np.asarray(x, dtype=float).ravel()
-    x = x - x.mean()
+    """Sample autocorrelation rho_0..rho_max_lag of a 1-D series, mean removed (FFT, O(n log n)).
+
+    A long series is summed block by block (each block against itself and the max_lag samples
+    after it), so the working memory is O(block + max_lag) and no mean-removed copy of the whole
+    series is made; the sums are the same as those of one transform of the whole series."""
+    x = np.asarray(x, dtype=float)
+    x = x.ravel() if x.ndim != 1 else x
     n = x.size
     max_lag = int(min(max_lag, n - 1))
-    # n + max_lag points of zero padding keep the circular wrap off every lag asked for
-    size = _next_fast_len(n + max_lag)
-    spectrum = np.fft.rfft(x, size)
-    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1]
+    mean = float(np.mean(x))
+    acov = np.zeros(max_lag + 1)
+    for lo in range(0, n, AUTOCORRELATION_BLOCK):
+        block = x[lo:lo + AUTOCORRELATION_BLOCK] - mean
+        after = x[lo:lo + AUTOCORRELATION_BLOCK + max_lag] - mean
+        # the lags -block.size .. -1 wrap round to the top of the transform: block.size + max_lag + 1
+        # points (and room for the whole correlation) keep them off every lag asked for
+        size = _next_fast_len(block.size + max(after.size, max_lag + 1))
+        spectrum = np.conj(np.fft.rfft(block, size))
+        spectrum *= np.fft.rfft(after, size)
+        acov += np.fft.irfft(spectrum, size)[: max_lag + 1]
     if acov[0] <= 0:
         return np.concatenate([[1.0], np.zeros(max_lag)])
     return acov / acov[0]
@@ -123,13 +140,22 @@ def whiteness(residuals: np.ndarray, lags: int | None = None) -> Whiteness:
     ``lags`` for Ljung-Box defaults to min(20, n/5) (Box-Jenkins' usual choice);
     tau is computed with up to n/4 lags.
     """
-    r = np.asarray(residuals, dtype=float).ravel()
+    r = np.asarray(residuals, dtype=float)
+    r = r.ravel() if r.ndim != 1 else r      # a column of an (n, k) array is used in place, not copied
     n = r.size
     if n < 10:
         raise ValueError(f"a whiteness test needs at least 10 residuals, got {n}")
     lags = int(lags or max(1, min(20, n // 5)))
-    rho = autocorrelation(r, max(lags, n // 4))
-    tau, window = integrated_time(rho)
+    # Sokal's window is looked for over up to n/4 lags; the lags are doubled from a few thousand only
+    # while no window qualifies (noise with a long memory), so a short correlation costs no O(n) lags
+    max_lag = max(lags, n // 4)
+    reach = min(max_lag, max(lags, SOKAL_FIRST_LAGS))
+    while True:
+        rho = autocorrelation(r, reach)
+        tau, window = integrated_time(rho)
+        if window >= SOKAL_WINDOW * tau or reach >= max_lag:
+            break
+        reach = min(2 * reach, max_lag)
     k = np.arange(1, lags + 1)
     q = float(n * (n + 2) * np.sum(rho[1: lags + 1] ** 2 / (n - k)))
     p = float(_sps.chi2.sf(q, lags))

@@ -15,6 +15,7 @@ friction, so the tables are independent draws).  Prints Markdown tables.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import subprocess
@@ -235,9 +236,33 @@ def long_recording(seconds: float, seed: int = 0):
     return simulate(rig, sensor, SimClock(RATE), seconds=seconds, seed=seed)
 
 
+def _rss_mb() -> tuple[float, float]:
+    """(resident MB now, peak resident MB since the last reset) of this process (Linux /proc)."""
+    fields = {}
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(("VmRSS", "VmHWM")):
+                name, value = line.split(":")
+                fields[name] = int(value.split()[0]) / 1024
+    return fields.get("VmRSS", float("nan")), fields.get("VmHWM", float("nan"))
+
+
+def _reset_peak_rss() -> None:
+    """Start the peak resident size afresh (Linux: writing 5 to clear_refs resets VmHWM)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as refs:
+            refs.write("5")
+    except OSError:
+        pass
+
+
 def one_length(seconds: float, method: str, memory: bool = True) -> dict:
-    """Whole command path (calibrate_wheel) on one record: CPU, wall, then peak traced memory in a second run."""
+    """Whole command path (calibrate_wheel) on one record: CPU, wall and the peak resident size above what
+    the process held with the recording loaded, then peak traced memory in a second run."""
     rec = long_recording(seconds)
+    gc.collect()
+    _reset_peak_rss()
+    rss_before, _ = _rss_mb()
 
     def run():
         if method == "four-steps":        # the paper's steps alone, no uncertainties (run_paper)
@@ -249,7 +274,8 @@ def one_length(seconds: float, method: str, memory: bool = True) -> dict:
     gain, u_gain = run()
     out = {"seconds": seconds, "samples": int(rec.t.size), "method": method,
            "cpu_s": time.process_time() - cpu, "wall_s": time.perf_counter() - start,
-           "gain": list(map(float, gain)), "u_gain": list(map(float, u_gain))}
+           "gain": list(map(float, gain)), "u_gain": list(map(float, u_gain)),
+           "rss_peak_mb": _rss_mb()[1] - rss_before}
     out["peak_mb"] = float("nan")
     if memory:
         tracemalloc.start()
@@ -264,8 +290,9 @@ def benchmark_lengths(lengths: list[float], methods: list[str], memory_methods: 
     """Each length and method in a fresh process (memory and caches of one do not blur the next)."""
     print("\n### Time and peak memory by record length (200 Hz, noise 0.08 m/s^2, one thread; "
           "whole calibrate_wheel: checks, start, fit, uncertainties)\n")
-    print("| record | samples | method | CPU s | wall s | peak traced memory MB | data MB | gain u (x, y, z) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| record | samples | method | CPU s | wall s | peak traced memory MB | peak RSS above the data MB "
+          "| data MB | gain u (x, y, z) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for seconds in lengths:
         for method in methods:
             command = [sys.executable, __file__, "--one-length", str(seconds), "--method", method]
@@ -278,7 +305,7 @@ def benchmark_lengths(lengths: list[float], methods: list[str], memory_methods: 
             r = json.loads(proc.stdout.strip().splitlines()[-1])
             peak = "-" if np.isnan(r["peak_mb"]) else f"{r['peak_mb']:.0f}"
             print(f"| {seconds:g} s | {r['samples']} | {method} | {r['cpu_s']:.1f} | {r['wall_s']:.1f} "
-                  f"| {peak} | {r['data_mb']:.0f} | {' '.join(f'{u:.2g}' for u in r['u_gain'])} |",
+                  f"| {peak} | {r['rss_peak_mb']:.0f} | {r['data_mb']:.0f} | {' '.join(f'{u:.2g}' for u in r['u_gain'])} |",
                   flush=True)
     print("\njoint: the default method, whole (capture checks, closed-form start, chunked fit, residual checks, "
           "covariance); four-steps: the paper's steps A-D alone (capture checks included, no uncertainties); "

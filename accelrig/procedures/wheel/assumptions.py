@@ -16,10 +16,13 @@ there:
   such a structure.  Found: a warning with its size; beyond MAX_SYSTEMATIC of the noise,
   a refusal.
 * **Offset drift** (a warming sensor): a score test of a linear drift of each axis'
-  offset.  Found: the fit takes the drift in (one Gauss-Newton step of the model with
-  three drift terms, which is exact for a model linear in them), u comes from that
-  larger model, the offsets reported are the run's mean, and a warning says how much
-  the offsets moved.
+  offset.  Found: the fit takes the drift in, u comes from that larger model, the offsets
+  reported are the run's mean, and a warning says how much the offsets moved.
+
+Structure found is taken in by fitting the model and the added regressors together
+(Gauss-Newton from the fit's estimate until it settles: one linearised step is not enough,
+an imbalance moves the phase law by more than its linearisation holds).  The noise is then
+judged again on what is left, so a structure taken in is not mistaken for correlated noise.
 
 A score test needs no refit: at the fit's optimum J^T W r = 0, the statistic is
 g' V^-1 g with g = X^T W r and V the variance of g once the fitted parameters are
@@ -34,14 +37,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats as _sps
 
+from accelrig.errors import CalibrationError
 from accelrig.estimation.residuals import ALPHA, MIN_BLOCKS, Whiteness, sandwich_covariance, whiteness_by_column
 from accelrig.procedures.wheel.fit import chunks
-from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, phase
+from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, pack, phase, unpack
 from accelrig.units import STANDARD_GRAVITY
 
 HARMONICS = 2          # wheel-angle harmonics 1..HARMONICS of the per-turn structure
 AMPLITUDE_DEGREE = 1   # their amplitude may change linearly over the run (the speed changes)
-SLOW_DEGREES = (5, 6, 7)  # Legendre degrees in time beyond the phase law's quartic
+SLOW_DEGREES = (5, 6, 7)
+# The angle-locked columns scale as 1 / w^2; below this share of the starting speed they stop growing
+# (a wheel that slow is about to stop, and the stop check cuts the rest off).
+LOWEST_SPEED_SHARE = 0.1  # Legendre degrees in time beyond the phase law's quartic
 # Refuse when the structure the model misses is larger than this share of the noise sd (rms):
 # the estimates are then off by many times their u whatever u is made of.
 MAX_SYSTEMATIC = 0.5
@@ -79,9 +86,9 @@ class Checks:
     drift: ScoreTest | None
     covariance_internal: np.ndarray      # what u is computed from, internal parameters
     source: str                          # one line: how u was computed and why
-    step: np.ndarray | None = None                # internal-parameter change taking found structure in
+    state: WheelState | None = None               # the estimate (moved when structure was taken in)
     drift_per_axis: np.ndarray | None = None      # offset change over the run, m/s^2
-    extra_step: np.ndarray | None = None          # coefficients of the added regressors taken in
+    extra: np.ndarray | None = None               # coefficients of the added regressors taken in
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
@@ -115,10 +122,15 @@ def _extra_columns(t, state: WheelState, jac_theta: np.ndarray, time_scale: floa
     def perturbation(d, d1, d2):
         columns.append(jac_theta * d[:, None] + radial * d1[:, None] + tangential[None, :] * d2[:, None])
 
+    # A torque locked to the wheel angle (an unbalanced mass: gravity's pull along the tilted rim) has a
+    # steady size, so the angle it moves the wheel by shrinks as 1 / w^2 while the wheel slows (from
+    # d'' = torque); scaled to the speed at the start so the columns stay of order one.
+    speed_sq = np.maximum(rate**2, LOWEST_SPEED_SHARE**2 * state.omega[0] ** 2)
+    locked = state.omega[0] ** 2 / speed_sq
     for k in range(1, HARMONICS + 1):
         c, s_ = np.cos(k * theta), np.sin(k * theta)
         for deg in range(AMPLITUDE_DEGREE + 1):
-            amp = np.polynomial.legendre.legval(tau, [0] * deg + [1])
+            amp = np.polynomial.legendre.legval(tau, [0] * deg + [1]) * locked / k**2
             # the amplitude changes slowly: its own derivatives are left out
             perturbation(amp * c, -amp * k * rate * s_, -amp * (k * k * rate**2 * c + k * accel * s_))
             perturbation(amp * s_, amp * k * rate * c, amp * (-k * k * rate**2 * s_ + k * accel * c))
@@ -133,16 +145,6 @@ def _extra_columns(t, state: WheelState, jac_theta: np.ndarray, time_scale: floa
     for k in range(3):
         drift[:, k, k] = tau
     return np.concatenate([along, drift], axis=2)
-
-
-def taken_in(t, state: WheelState, free: FreeSet, time_scale: float, extra_step: np.ndarray,
-             g: float = STANDARD_GRAVITY) -> np.ndarray:
-    """The structure the checks took into the model, (n, 3) m/s^2: X extra_step."""
-    out = np.empty((t.size, 3))
-    for part in chunks(t.size):
-        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
-        out[part] = _extra_columns(t[part], state, jac[:, :, 0], time_scale) @ extra_step
-    return out
 
 
 N_SPEED_LAW = 2 * HARMONICS * (AMPLITUDE_DEGREE + 1) + len(SLOW_DEGREES)
@@ -166,35 +168,107 @@ def _score_test(name, g, s_white, block_scores, use_blocks, n_values) -> tuple[S
     return ScoreTest(name, stat, q, float(_sps.chi2.sf(stat, q)), systematic, "white"), coef
 
 
-def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeSet, time_scale: float,
-                    weight: np.ndarray, residuals: np.ndarray, g: float = STANDARD_GRAVITY) -> Checks:
-    """Whiteness, the speed-law and drift score tests, and the covariance u is to come from."""
-    white = whiteness_by_column(residuals)
-    correlated = any(w.correlated for w in white)
-    period = float(np.median(np.diff(t)))
-    # blocks start at a quarter of the batch-means length the integrated time asks for: the ladder of
-    # doublings in _widest_sandwich then shows whether the variance levels off (short memory) or not
-    block = (max(1, max(w.block_length() for w in white) // 4) if correlated
-             else max(1, int(round(1.0 / period))))
+def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_scale: float, g: float,
+          weight: np.ndarray, extra: np.ndarray, block: int,
+          residuals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One chunked pass over the record for the model at ``state`` plus the added regressors (built at
+    ``reference``, the fit's own estimate, where they were tested) with coefficients ``extra`` (q,).
+
+    Returns the per-axis normal matrices of the model's columns and the regressors together,
+    (3, p + q, p + q), and the weighted scores summed over blocks of ``block`` instants, (K, p + q) (a
+    short last block of less than half a block joins the previous one).  ``residuals``, when given, is
+    filled with v - model - regressors."""
     n, p = t.size, free.size
+    q = N_SPEED_LAW + 3
     k_blocks = max(1, n // block)
     if n - k_blocks * block >= block / 2:
         k_blocks += 1
-    q = N_SPEED_LAW + 3
-    a, b, c = np.zeros((p, p)), np.zeros((p, q)), np.zeros((q, q))
-    js, xs = np.zeros((k_blocks, p)), np.zeros((k_blocks, q))
+    normal = np.zeros((3, p + q, p + q))
+    scores = np.zeros((k_blocks, p + q))
     for part in chunks(n):
-        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
-        jw = jac * weight[None, :, None]
-        xw = _extra_columns(t[part], state, jac[:, :, 0], time_scale) * weight[None, :, None]
-        rw = residuals[part] * weight
-        jf, xf = jw.reshape(-1, p), xw.reshape(-1, q)
-        a += jf.T @ jf
-        b += jf.T @ xf
-        c += xf.T @ xf
+        model, jac = model_and_jacobian(t[part], state, free, time_scale, g)
+        along = jac[:, :, 0] if reference is state else _phase_direction(t[part], reference, g)
+        added = _extra_columns(t[part], reference, along, time_scale)
+        rest = v[part] - model - added @ extra
+        if residuals is not None:
+            residuals[part] = rest
+        columns = np.concatenate([jac, added], axis=2)
+        columns *= weight[None, :, None]
+        for k in range(3):
+            normal[k] += columns[:, k, :].T @ columns[:, k, :]
         index = np.minimum(np.arange(part.start, part.stop) // block, k_blocks - 1)
-        np.add.at(js, index, np.einsum("nkp,nk->np", jw, rw))
-        np.add.at(xs, index, np.einsum("nkq,nk->nq", xw, rw))
+        np.add.at(scores, index, np.einsum("nkp,nk->np", columns, rest * weight))
+    return normal, scores
+
+
+def _phase_direction(t, state: WheelState, g: float) -> np.ndarray:
+    """dv/dtheta (n, 3): how the model moves with the wheel angle (the gravity term of eq. 1 turned)."""
+    theta = phase(t, state.theta0, state.omega)[0]
+    ga = g * np.sin(state.tilt)
+    bench = np.stack([-ga * np.sin(theta), ga * np.cos(theta), np.zeros(t.size)], axis=1)
+    return (bench @ state.rotation.T) * state.gain
+
+
+# Taking structure in is itself a fit (the found structure moves the phase law by more than the
+# linearisation of one step holds): Gauss-Newton until no parameter moves by more than this share of its
+# sd, at most TAKE_IN_ITERATIONS passes.
+TAKE_IN_TOLERANCE = 1e-2
+TAKE_IN_ITERATIONS = 20
+
+
+def _take_in(t, v, state: WheelState, free: FreeSet, time_scale: float, g: float, weight: np.ndarray,
+             taken: list[int], residuals: np.ndarray) -> tuple[WheelState, np.ndarray]:
+    """Fit the model together with the added regressors ``taken`` (indices into the q regressors, built at
+    the fit's estimate ``state``); ``residuals`` is overwritten with what is left.  Returns the moved state
+    and the regressors' coefficients (q,)."""
+    p, q = free.size, N_SPEED_LAW + 3
+    keep = list(range(p)) + [p + i for i in taken]
+    extra = np.zeros(q)
+    moved = state
+    for _ in range(TAKE_IN_ITERATIONS):
+        # each pass also leaves the residuals of the state it was made at: once the next step is below the
+        # tolerance, that state is the answer and its residuals are already in place
+        normal, scores = _pass(t, v, moved, state, free, time_scale, g, weight, extra, t.size, residuals)
+        matrix = normal.sum(axis=0)[np.ix_(keep, keep)]
+        step = np.linalg.pinv(matrix) @ scores.sum(axis=0)[keep]
+        if np.max(np.abs(step) * np.sqrt(np.diag(matrix))) < TAKE_IN_TOLERANCE:
+            break
+        moved = unpack(pack(moved, free, time_scale) + step[:p], free, time_scale, moved)
+        extra[taken] += step[p:]
+    else:
+        raise CalibrationError(
+            f"the wheel did not follow the model's smooth speed law, and the model with the structure found "
+            f"did not settle in {TAKE_IN_ITERATIONS} iterations",
+            "balance the wheel (an unbalanced wheel speeds up and slows down once per turn), check its bearing, "
+            "and record a free coast-down without touching it")
+    return moved, extra
+
+
+def _block_for(white: list[Whiteness], correlated: bool, period: float) -> int:
+    """Blocks start at a quarter of the batch-means length the integrated time asks for: the ladder of
+    doublings in _widest_sandwich then shows whether the variance levels off (short memory) or not."""
+    if correlated:
+        return max(1, max(w.block_length() for w in white) // 4)
+    return max(1, int(round(1.0 / period)))
+
+
+def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeSet, time_scale: float,
+                    weight: np.ndarray, residuals: np.ndarray, g: float = STANDARD_GRAVITY) -> Checks:
+    """Whiteness, the speed-law and drift score tests, and the covariance u is to come from.
+
+    When a test finds structure, the model takes it in: ``Checks.state`` is the moved estimate and
+    ``residuals`` is overwritten with what is left after it (the record's one residual array), and the
+    noise is judged again on those -- an imbalance the fit missed is no correlated noise once taken in."""
+    white = whiteness_by_column(residuals)
+    correlated = any(w.correlated for w in white)
+    period = float(np.median(np.diff(t)))
+    block = _block_for(white, correlated, period)
+    n, p = t.size, free.size
+    q = N_SPEED_LAW + 3
+    normal, scores_all = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(q), block)
+    full_normal = normal.sum(axis=0)
+    a, b, c = full_normal[:p, :p], full_normal[:p, p:], full_normal[p:, p:]
+    js, xs = scores_all[:, :p], scores_all[:, p:]
     a_inv = np.linalg.pinv(a)
     projection = b.T @ a_inv                           # q x p: the part of X the fit absorbs
     schur = c - projection @ b
@@ -209,19 +283,32 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     drift, _ = _score_test("offset drift", g_all[dr], schur[dr, dr], test_scores[:, dr], use_blocks, 3 * n)
 
     notes = []
-    # Structure found is taken into the model (one Gauss-Newton step from the optimum, where
-    # J^T W r = 0: exact for terms the model is linear in), so the estimates lose its bias and u
-    # grows by what it costs to tell it from the parameters.
+    # Structure found is taken into the model (the model and the regressors fitted together), so the
+    # estimates lose its bias and u grows by what it costs to tell it from the parameters.
     taken = [i for test, part in ((speed_law, law), (drift, dr)) if test.significant
              for i in range(part.start, part.stop)]
-    full = np.block([[a, b[:, taken]], [b[:, taken].T, c[np.ix_(taken, taken)]]])
+    keep = list(range(p)) + [p + i for i in taken]
+    moved, extra_step = state, np.zeros(q)
+    before = (correlated, scores_all[:, keep], block)
+    if taken:
+        moved, extra_step = _take_in(t, v, state, free, time_scale, g, weight, taken, residuals)
+        # judge the noise on what is left once the structure is in: the structure itself is no noise
+        white = whiteness_by_column(residuals)
+        correlated = any(w.correlated for w in white)
+        block = _block_for(white, correlated, period)
+        normal, scores_all = _pass(t, v, moved, state, free, time_scale, g, weight, extra_step, block)
+    full = normal.sum(axis=0)[np.ix_(keep, keep)]
     full_inv = np.linalg.pinv(full)
-    step = full_inv @ np.concatenate([js.sum(axis=0), xs[:, taken].sum(axis=0)])
-    extra_step = np.zeros(q)
-    extra_step[taken] = step[p:]
-    if use_blocks:
-        sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(
-            full, np.concatenate([js, xs[:, taken]], axis=1), block, full_inv)
+    block_scores = scores_all[:, keep]
+    if correlated:
+        sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(full, block_scores, block, full_inv)
+        if taken and before[0]:
+            # Correlated before and after: slow noise and slow structure look alike (a 1/f wander passes for a
+            # drift), so what was taken in may be noise.  The sandwich from the residuals before it was taken
+            # in counts it as noise; the wider of the two is kept.
+            other = _widest_sandwich(full, before[1], before[2], full_inv)
+            if np.mean(np.diag(other[0]) / np.diag(full_inv)) > np.mean(np.diag(sandwich) / np.diag(full_inv)):
+                sandwich, block_used, blocks_used, extrapolation = other
         cov = sandwich[:p, :p]
         worst = max(white, key=lambda w: w.tau)
         source = (f"batch-means sandwich over {blocks_used} blocks of {block_used} samples: the residuals are "
@@ -237,6 +324,15 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         elif blocks_used < MIN_BLOCKS:
             notes.append(f"the noise is correlated over {block_used} samples: only {blocks_used} independent "
                          "blocks in the record, too few to pin the uncertainty down; record longer")
+    elif taken:
+        # white around the larger model: its covariance, with each axis' noise as left after the structure
+        # (the fit weighted the axes by their sd with the structure still in the residuals)
+        dof = residuals.size - len(keep)
+        ratio = np.sum((residuals * weight) ** 2, axis=0) / (dof / 3)
+        middle = np.einsum("k,kij->ij", ratio, normal[:, keep][:, :, keep])
+        cov = (full_inv @ middle @ full_inv)[:p, :p]
+        block_used, blocks_used = None, None
+        source = "covariance of the joint maximum-likelihood fit with the structure found (residuals white)"
     else:
         cov = full_inv[:p, :p]
         block_used, blocks_used = None, None     # white: no batch means
@@ -246,10 +342,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
                                    (drift, "a linear offset drift per axis")) if test.significant]
         source += "; the model takes in " + " and ".join(names)
     drift_per_axis = 2.0 * extra_step[dr] if drift.significant else None    # tau runs -1 .. 1
-    checks = Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source,
-                    step[:p] if taken else None, drift_per_axis, notes)
-    checks.extra_step = extra_step if taken else None
-    return checks
+    return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
+                  drift_per_axis, extra_step if taken else None, notes)
 
 
 def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:

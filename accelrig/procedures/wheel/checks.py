@@ -31,6 +31,8 @@ REST_WINDOW_S = 1.0
 REST_SCATTER = 3.0
 MIN_REST_S = 2.0
 MIN_REST_SHARE = 0.02
+SURVEY_CHUNK = 65536      # samples the survey reads at a time
+NOISE_INSTANTS = 1 << 18  # the noise look uses at most this many second differences, spread over the run
 
 
 @dataclass
@@ -63,11 +65,19 @@ class WheelSurvey:
 def noise_sd(acc: np.ndarray) -> float:
     """White-noise sd per sample from second differences (a slow signal cancels; var(d2) = 6 sigma^2).
 
-    Median absolute deviation, so a few jumps do not count as noise.
+    Median absolute deviation, so a few jumps do not count as noise.  A record longer than
+    NOISE_INSTANTS is looked at every k-th instant, evenly over the run: the sd is then known to
+    0.2 % already, and the look costs no (n, 3) array of differences.
     """
-    if acc.shape[0] < 5:
+    n = acc.shape[0]
+    if n < 5:
         return 0.0
-    d2 = np.diff(acc, n=2, axis=0)
+    stride = max(1, -(-(n - 2) // NOISE_INSTANTS))
+    if stride == 1:
+        d2 = np.diff(acc, n=2, axis=0)
+    else:
+        i = np.arange(0, n - 2, stride)
+        d2 = acc[i] - 2.0 * acc[i + 1] + acc[i + 2]
     mad = robust_sd(d2, axis=0)
     return float(np.sqrt(np.mean(mad**2) / 6.0))
 
@@ -103,8 +113,12 @@ def saturation(acc: np.ndarray, meta: dict) -> dict:
     return out
 
 
-def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = STANDARD_GRAVITY) -> WheelSurvey:
-    """The quick look: noise, wheel axis, turns, speeds, gravity modulation, timestamps, saturation."""
+def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = STANDARD_GRAVITY,
+           keep_angle: bool = True) -> WheelSurvey:
+    """The quick look: noise, wheel axis, turns, speeds, gravity modulation, timestamps, saturation.
+
+    The record is read chunk by chunk (SURVEY_CHUNK samples): beyond the input, the look holds
+    the wheel angle per sample only when ``keep_angle`` (the live speed trace draws it)."""
     t = np.asarray(t, dtype=float)
     acc = np.asarray(acc, dtype=float)
     n = t.size
@@ -112,31 +126,107 @@ def survey(t: np.ndarray, acc: np.ndarray, meta: dict | None = None, g: float = 
         raise DataError(f"the recording holds {n} samples; a wheel calibration needs a run of many turns")
     period, gaps, missing, jitter = timestamp_figures(t)
     sigma = noise_sd(acc)
-    centred = acc - acc.mean(axis=0)
-    _, vecs = np.linalg.eigh(centred.T @ centred)
+    mean = acc.mean(axis=0)
+    scatter = np.zeros((3, 3))
+    for part in _survey_chunks(n):
+        centred = acc[part] - mean
+        scatter += centred.T @ centred
+    _, vecs = np.linalg.eigh(scatter)
     axis = vecs[:, 0]                       # least variance: the wheel axis seen by the sensor (step A)
-    plane = centred @ vecs[:, 1:]           # gravity turns in this plane
-    tau = (t - t[0]) / max(t[-1] - t[0], 1e-9) * 2 - 1
+    span = max(t[-1] - t[0], 1e-9)
+
+    def tau(part: slice) -> np.ndarray:
+        return (t[part] - t[0]) / span * 2 - 1
+
+    def plane(part: slice) -> np.ndarray:   # gravity turns in this plane
+        return (acc[part] - mean) @ vecs[:, 1:]
+
     # Gravity amplitude: remove the centripetal drift closely (degree 6: r w^2 under the cubic law).
-    amplitude = float(np.sqrt(max(np.sum(_detrend(tau, plane, DETREND_DEGREE).var(axis=0)) - 2 * sigma**2, 0.0)))
+    steep = _legendre_fit(tau, plane, n, DETREND_DEGREE)
+    total, total_sq = np.zeros(2), np.zeros(2)
+    for part in _survey_chunks(n):
+        rest = plane(part) - np.polynomial.legendre.legvander(tau(part), DETREND_DEGREE) @ steep
+        total += rest.sum(axis=0)
+        total_sq += np.einsum("nk,nk->k", rest, rest)
+    variance = total_sq / n - (total / n) ** 2
+    amplitude = float(np.sqrt(max(np.sum(variance) - 2 * sigma**2, 0.0)))
     # Turns: the angle of the gravity vector in the plane.  Only the circle's centre has to stay
     # inside it, so a gentle detrend (degree 2) does, and it keeps the few slow turns of a weak
     # spin; a 0.1 s moving average keeps noise from adding spurious wraps.
     width = max(1, int(round(0.1 / period)))
     kernel = np.ones(width) / width
-    gentle = _detrend(tau, plane, 2)
-    smooth = np.column_stack([np.convolve(gentle[:, k], kernel, mode="same") for k in range(2)])
-    angle = np.unwrap(np.arctan2(smooth[:, 1], smooth[:, 0]))
-    duration = float(t[-1] - t[0])
-    turns = float(abs(angle[-1] - angle[0]) / (2 * np.pi))
+    gentle = _legendre_fit(tau, plane, n, 2)
+    angle = np.empty(n) if keep_angle else None
     tenth = max(n // 10, 2)
-    speed_start = _slope(t[:tenth], angle[:tenth])
-    speed_end = _slope(t[-tenth:], angle[-tenth:])
+    head, tail = _SlopeSums(0, tenth), _SlopeSums(n - tenth, n)
+    first = last = 0.0
+    for part in _survey_chunks(n):
+        # the moving average of this chunk sees ``width`` samples beyond each of its ends (zeros beyond the
+        # record's, as np.convolve's "same" mode): the same values as one pass over the whole record
+        lo, hi = max(part.start - width, 0), min(part.stop + width, n)
+        wide = slice(lo, hi)
+        flat = plane(wide) - np.polynomial.legendre.legvander(tau(wide), 2) @ gentle
+        smooth = [np.convolve(flat[:, k], kernel, mode="same")[part.start - lo:part.stop - lo] for k in range(2)]
+        raw = np.arctan2(smooth[1], smooth[0])
+        # unwrapped as one series: the chunk continues from the last unwrapped angle of the one before
+        piece = np.unwrap(np.concatenate([[last], raw]))[1:] if part.start else np.unwrap(raw)
+        if part.start == 0:
+            first = float(piece[0])
+        last = float(piece[-1])
+        if angle is not None:
+            angle[part] = piece
+        head.add(part, t, piece)
+        tail.add(part, t, piece)
+    duration = float(t[-1] - t[0])
+    turns = float(abs(last - first) / (2 * np.pi))
     return WheelSurvey(
         n_samples=n, duration=duration, period=period, noise_sd=sigma, axis=axis, turns=turns,
-        gravity_amplitude=amplitude, speed_start=abs(speed_start), speed_end=abs(speed_end),
+        gravity_amplitude=amplitude, speed_start=abs(head.slope()), speed_end=abs(tail.slope()),
         gaps=gaps, missing=missing, jitter=jitter, saturated=saturation(acc, meta or {}), angle=angle,
     )
+
+
+def _survey_chunks(n: int, size: int | None = None):
+    size = size or SURVEY_CHUNK
+    for lo in range(0, n, size):
+        yield slice(lo, min(lo + size, n))
+
+
+def _legendre_fit(tau, y, n: int, degree: int) -> np.ndarray:
+    """Least-squares Legendre coefficients (degree + 1, k) of y(part) in tau(part), normal equations
+    summed chunk by chunk (Legendre columns on [-1, 1] keep them well conditioned)."""
+    normal = np.zeros((degree + 1, degree + 1))
+    rhs = None
+    for part in _survey_chunks(n):
+        basis = np.polynomial.legendre.legvander(tau(part), degree)
+        normal += basis.T @ basis
+        rhs = basis.T @ y(part) if rhs is None else rhs + basis.T @ y(part)
+    return np.linalg.lstsq(normal, rhs, rcond=None)[0]
+
+
+class _SlopeSums:
+    """Least-squares slope of y over t for the samples lo .. hi - 1, summed as chunks pass by (each sum
+    taken about the first sample of the range, which keeps the sums free of cancellation)."""
+
+    def __init__(self, lo: int, hi: int):
+        self.lo, self.hi = lo, hi
+        self.origin: tuple[float, float] | None = None
+        self.sums = np.zeros(5)            # count, sum x, sum y, sum x^2, sum x y
+
+    def add(self, part: slice, t: np.ndarray, y: np.ndarray) -> None:
+        lo, hi = max(self.lo, part.start), min(self.hi, part.stop)
+        if hi <= lo:
+            return
+        x, yy = t[lo:hi], y[lo - part.start:hi - part.start]
+        if self.origin is None:
+            self.origin = (float(x[0]), float(yy[0]))
+        x, yy = x - self.origin[0], yy - self.origin[1]
+        self.sums += [x.size, x.sum(), yy.sum(), x @ x, x @ yy]
+
+    def slope(self) -> float:
+        count, sx, sy, sxx, sxy = self.sums
+        denom = sxx - sx * sx / count if count else 0.0
+        return float((sxy - sx * sy / count) / denom) if denom > 0 else 0.0
 
 
 def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
@@ -175,28 +265,6 @@ def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarra
     crossings = np.interp(marks, swept, t)
     span = crossings[2:] - crossings[:-2]
     return 0.5 * (crossings[2:] + crossings[:-2]), 2 * np.pi / span
-
-
-def _detrend(tau: np.ndarray, y: np.ndarray, degree: int, chunk: int = 65536) -> np.ndarray:
-    """y minus its least-squares Legendre polynomial in tau; normal equations in chunks, so a long
-    record costs no (n, degree) basis at once (Legendre columns on [-1, 1] keep them well conditioned)."""
-    normal = np.zeros((degree + 1, degree + 1))
-    rhs = np.zeros((degree + 1,) + y.shape[1:])
-    for lo in range(0, tau.size, chunk):
-        basis = np.polynomial.legendre.legvander(tau[lo:lo + chunk], degree)
-        normal += basis.T @ basis
-        rhs += basis.T @ y[lo:lo + chunk]
-    coef = np.linalg.lstsq(normal, rhs, rcond=None)[0]
-    out = np.empty_like(y, dtype=float)
-    for lo in range(0, tau.size, chunk):
-        out[lo:lo + chunk] = y[lo:lo + chunk] - np.polynomial.legendre.legvander(tau[lo:lo + chunk], degree) @ coef
-    return out
-
-
-def _slope(t: np.ndarray, y: np.ndarray) -> float:
-    tc = t - t.mean()
-    denom = float(tc @ tc)
-    return float(tc @ (y - y.mean()) / denom) if denom > 0 else 0.0
 
 
 def check_capture(s: WheelSurvey, radius: float | None, g: float = STANDARD_GRAVITY) -> list[str]:

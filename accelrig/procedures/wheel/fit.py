@@ -122,11 +122,24 @@ def score_blocks(t, v, state, free, time_scale, g, weight, block: int) -> np.nda
 
 
 def weighted_cost(t, v, state, g, weight) -> float:
-    cost = 0.0
+    return float(np.sum(axis_sums_of_squares(t, v, state, g) * weight**2))
+
+
+def axis_sums_of_squares(t, v, state, g) -> np.ndarray:
+    """Sum of squared residuals of each axis, (3,), chunk by chunk (no residual array)."""
+    out = np.zeros(3)
     for part in chunks(t.size):
-        res = (v[part] - predict(t[part], state, g)) * weight
-        cost += float(np.sum(res * res))
-    return cost
+        res = v[part] - predict(t[part], state, g)
+        out += np.einsum("nk,nk->k", res, res)
+    return out
+
+
+def residuals(t, v, state, g) -> np.ndarray:
+    """v - model, (n, 3), filled chunk by chunk: the model's temporaries never span the record."""
+    out = np.empty((t.size, 3))
+    for part in chunks(t.size):
+        out[part] = v[part] - predict(t[part], state, g)
+    return out
 
 
 def _levenberg_marquardt(t, v, state, free, time_scale, g, weight, cost_tolerance=COST_TOLERANCE):
@@ -191,9 +204,8 @@ def joint_fit(t: np.ndarray, v: np.ndarray, start: WheelState, free: FreeSet,
     # this first pass only needs the residuals' sd per axis (to 0.1 %): a loose tolerance
     state, it1, _ = _levenberg_marquardt(t, v, start, free, time_scale, g, weight, cost_tolerance=1e-6)
     # per-axis noise sd from the residuals, then the weighted (ML) refinement
-    resid = v - predict(t, state, g)
-    dof = resid.size - free.size
-    sigma = np.sqrt(np.sum(resid**2, axis=0) / (dof / 3))
+    dof = 3 * t.size - free.size
+    sigma = np.sqrt(axis_sums_of_squares(t, v, state, g) / (dof / 3))
     weight = 1.0 / sigma
     state, it2, converged = _levenberg_marquardt(t, v, state, free, time_scale, g, weight)
     if not converged:
@@ -207,7 +219,7 @@ def joint_fit(t: np.ndarray, v: np.ndarray, start: WheelState, free: FreeSet,
         raise CalibrationError("the joint fit ended at gains of mixed sign",
                                "the data do not look like a tilted wheel; check the recording") from None
     _, a, _ = normal_equations(t, v, state, free, time_scale, g, weight)
-    resid = v - predict(t, state, g)
+    resid = residuals(t, v, state, g)
     try:
         cov_internal = normal_covariance(a, free.names)
     except CalibrationError as exc:

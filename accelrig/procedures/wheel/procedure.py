@@ -18,7 +18,7 @@ import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.procedures.contract import Event, Procedure
-from accelrig.procedures.wheel.assumptions import MAX_SYSTEMATIC, Checks, check_residuals, taken_in
+from accelrig.procedures.wheel.assumptions import MAX_SYSTEMATIC, Checks, check_residuals
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     WheelSurvey,
@@ -31,14 +31,16 @@ from accelrig.procedures.wheel.checks import (
 from accelrig.procedures.wheel.fit import (
     MOUNTING_HINT,
     ROTATION_NAMES,
+    chunks,
     free_set,
     joint_fit,
     reported_names,
     reported_values,
     reporting_map,
+    residuals,
     wheel_crb,
 )
-from accelrig.procedures.wheel.model import pack, phase, predict, unpack
+from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
 from accelrig.procedures.wheel.start import joint_start
@@ -92,7 +94,7 @@ def calibrate_wheel(
     tilt = None if tilt_deg is None else float(np.deg2rad(tilt_deg))
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording)
-    look = survey(t, v, recording.meta, g)
+    look = survey(t, v, recording.meta, g, keep_angle=False)
     stop = stopped_at(t, v, look.noise_sd, look.period)
     rest_note = None
     if stop is not None:
@@ -103,7 +105,7 @@ def calibrate_wheel(
                      f"it ({np.count_nonzero(kept)} of {t.size} samples); the {t[-1] - stop:.1f} s at rest hold no "
                      f"rotation (give --stop {stop:.1f} to calibrate from the spin alone without this warning)")
         t, v, gap_times = t[kept], v[kept], gap_times[gap_times < stop]
-        look = survey(t, v, recording.meta, g)
+        look = survey(t, v, recording.meta, g, keep_angle=False)
     warnings = check_capture(look, radius, g)
     if rest_note:
         warnings.insert(0, rest_note)
@@ -114,12 +116,9 @@ def calibrate_wheel(
         state, sigma, resid = fit.state, fit.sigma, fit.residuals
         checks = check_residuals(t, v, state, free, fit.time_scale, 1.0 / sigma, resid, g)
         warnings.extend(_assumption_warnings(checks, sigma))
-        if checks.step is not None:
-            # the structure the checks found and took in: the estimates move by its step, the residuals
-            # are what is left after it (in the frame of the fit's own state, where it was found)
-            structure = taken_in(t, state, free, fit.time_scale, checks.extra_step, g)
-            state = unpack(pack(state, free, fit.time_scale) + checks.step, free, fit.time_scale, state)
-            resid = v - predict(t, state, g) - structure
+        # the structure the checks found and took in: the estimates moved by its step, and ``resid`` (the
+        # one residual array) now holds what is left after it
+        state = checks.state
         m = reporting_map(state, free, fit.time_scale)
         cov = m @ checks.covariance_internal @ m.T
         quality = {"iterations": fit.iterations, "residual_checks": checks.to_dict()}
@@ -127,8 +126,8 @@ def calibrate_wheel(
     else:
         steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
         state = steps.state
-        resid = v - predict(t, state, g)
-        sigma = np.sqrt(np.mean(resid**2, axis=0))
+        resid = residuals(t, v, state, g)
+        sigma = np.sqrt(np.einsum("nk,nk->k", resid, resid) / t.size)
         cov = _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, bootstrap, seed,
                                on_progress)
         crb = wheel_crb(t, state, free, sigma, g)
@@ -246,7 +245,7 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
     speed_resid = steps.speed_samples - np.abs(speed_fit)
     quality = dict(quality)
     quality.update({
-        "residual_rms": float(np.sqrt(np.mean(resid**2))),
+        "residual_rms": float(np.sqrt(np.einsum("nk,nk->", resid, resid) / resid.size)),
         "noise_sd": sigma.tolist(),
         "n_samples": int(t.size),
         "duration_s": float(t[-1]),
@@ -263,7 +262,9 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
         "cross_axis_sd": float(cross_axis_sd),
     }
     # the wheel's fitted angle, wrapped to one turn: residuals against it show a pattern tied to the rotation
-    angle_deg = np.mod(np.rad2deg(phase(t, state.theta0, state.omega)[0]), 360.0)
+    angle_deg = np.empty(t.size)
+    for part in chunks(t.size):
+        angle_deg[part] = np.mod(np.rad2deg(phase(t[part], state.theta0, state.omega)[0]), 360.0)
     arrays = {
         "t": t, "residuals": resid, "angle_deg": angle_deg,
         "speed_time": steps.speed_time, "speed_samples": steps.speed_samples,
