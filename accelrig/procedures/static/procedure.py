@@ -397,7 +397,9 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         else:
             f = fit_six_face(referred_stats, "paper", settings["pose_flatness_deg"], settings["g"],
                              inflation="none", wander_var=noise.wander_var)
-            chi2, values, corr = float(f.chi2_before), f.values, f.correction
+            # chi2 with the slow-noise wander as the fit weighs the poses (chi2_before leaves it out, for
+            # the repeatability decision): the rates' u must carry the wander the poses carry
+            chi2, values, corr = float(f.chi2), f.values, f.correction
         return chi2, np.concatenate([values, corr.matrix.ravel(), corr.bias])
 
     axes = [k for k in range(3) if noise.drift_rate_u[k] > 0]
