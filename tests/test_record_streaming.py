@@ -71,7 +71,11 @@ def test_record_to_a_directory_rotates_and_reads_back_exactly(tmp_path):
     assert main(["record", "sim://still?seed=1&pace=fast&rate=2048", "--seconds", "150",
                  "--segment-minutes", "1", "-o", str(out)]) == 0
     files = sorted(out.glob("*.parquet"))
-    assert len(files) == 3 and all(f.name.startswith("sim-random-1.") for f in files)
+    # a segment closes at the first block after its minute: at pace=fast a block can hold many seconds (the
+    # simulator outruns the reader on a busy machine), so 150 s make three segments, or two long ones
+    assert len(files) in (2, 3) and all(f.name.startswith("sim-random-1.") for f in files)
+    first = load_recording(files[0], units="counts")
+    assert first.duration >= 60.0 - 1 / 2048
     info = json.loads(pq.ParquetFile(files[0]).schema_arrow.metadata[b"accelrig"])
     assert info["meta"]["device"].startswith("sim://still") and info["meta"]["time_base"] == "utc"
     assert info["units"] == "counts" and info["scale"] > 0
