@@ -67,6 +67,7 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     assert again[0].startswith("all six faces captured: now put +z, +x and +y down")
     assert again[-1].startswith("drift check: now put +y down once more")   # -z counted for z, +x for x
     assert proc.faces["again_done"] == ["-z", "+x"] and proc.faces["again_missing"] == ["+y"]
+    assert "hold still: -z down again (the drift check)" in [e.message for e in events]
     assert proc.done and not proc.complete
     result = proc.result()
     assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "z"]

@@ -337,6 +337,8 @@ class PoseDetector:
             if not self._seg_flat:
                 events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
                                          "multi-position model; for six faces put one face flat on the table", now))
+            elif not self.missing_faces and face[1] not in self.axes_again:
+                events.append(pose_event("hold_still", f"hold still: {face} down again (the drift check)", now, face))
             elif face in self.faces_done:
                 events.append(pose_event("already_done", f"{face} already done (holding it adds data)", now, face))
             else:
