@@ -17,6 +17,16 @@ def status(app):
     return str(app.screen.query_one("#results-status").render())
 
 
+async def default_settings_to_results(app, pilot, timeout=40.0):
+    """The operator's keys from the live view to the results: k, the first wizard (static), its settings as
+    they are; the wizard computes on its own."""
+    await wait_for(pilot, lambda: app.session is not None)
+    await pilot.press("k", "enter")
+    await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+    await pilot.press("enter")
+    await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=timeout)
+
+
 @async_test
 async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05, profile_dir=tmp_path)
@@ -85,12 +95,8 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
     app = AccelrigApp(device="i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3", refresh_interval=0.05,
                       profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
-        await pilot.press("enter")
         # nine holds through the emulated bus (six faces, three again): slower than the plain simulator
-        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=90)
+        await default_settings_to_results(app, pilot, timeout=90)
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
         driver = app.session.driver
@@ -117,12 +123,7 @@ async def test_a_source_that_ends_after_six_faces_computes_without_the_drift_che
     app = AccelrigApp(device="sim://static?seed=4&pace=fast&order=+z,-z,+x,-x,+y,-y&hold=3", refresh_interval=0.05,
                       profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k")
-        await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
-        await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=90)
+        await default_settings_to_results(app, pilot, timeout=90)
         wizard = app.screen_stack[-2]
         assert wizard.procedure.done and not wizard.procedure.complete and wizard.source_ended
         shown = str(app.screen.query_one("#results-warnings").render())
