@@ -119,11 +119,13 @@ async def test_a_refused_login_from_the_command_line_is_said_and_not_retried(bro
 async def test_a_broker_that_is_not_there_is_said_and_tried_again_one_connect_at_a_time(tmp_path):
     from mqtt_support import free_port
 
-    app = AccelrigApp(fleet=FleetOptions(f"mqtt://127.0.0.1:{free_port()}"), refresh_interval=0.05)
+    url = f"mqtt://127.0.0.1:{free_port()}"
+    app = AccelrigApp(fleet=FleetOptions(url), refresh_interval=0.05)
     async with app.run_test(size=(120, 30)) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
                        and "cannot connect" in str(app.screen.query_one("#fleet-title").render()), timeout=15)
         screen = app.screen
+        assert str(screen.query_one("#fleet-title").render()).count(url) == 1   # named once, not again in the error
         await pilot.pause(2.5)   # refreshed twice more: tried again, never two connects at once
         assert "trying again" in str(screen.query_one("#fleet-title").render())
         running = [w for w in app.workers if w.group == "fleet-connect" and not w.is_finished]

@@ -114,7 +114,8 @@ class FleetScreen(Screen):
                     self.start_connect()
             return
         self.table_rows = rows(self.watcher.snapshot(), recalibrate_days=self.options.recalibrate_days)
-        state = "[green]connected[/]" if self.watcher.connected else f"[red]{escape(self.watcher.error or 'not connected')}[/]"
+        state = ("[green]connected[/]" if self.watcher.connected
+                 else f"[red]{escape(self.said(self.watcher.error or 'not connected'))}[/]")
         title.update(f"fleet at {self.where}: {state}, {len(self.table_rows)} devices (read-only; r refreshes, "
                      "escape goes back)")
         table = self.query_one("#fleet-devices", DataTable)
@@ -126,6 +127,15 @@ class FleetScreen(Screen):
             f"[yellow]offline:[/] {escape(', '.join(offline))} (the broker's last will: the daemon went away)"
             if offline else "")
         self.query_one("#fleet-note", Static).update(note)
+
+    def said(self, message: str) -> str:
+        """A watcher's message without the broker it starts with: the title already names it once."""
+        from accelrig.daemon.wire import parse_broker
+
+        for name in (str(parse_broker(self.options.broker)), self.options.broker):
+            if message.startswith(name):
+                return message[len(name):].lstrip(": ")
+        return message
 
     @property
     def where(self) -> str:
@@ -142,12 +152,12 @@ class FleetScreen(Screen):
     def show_error(self) -> None:
         title = self.query_one("#fleet-title", Static)
         if not self.login_needed:
-            title.update(f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/] "
+            title.update(f"[red]fleet at {self.where}: {escape(self.said(self.connect_error or ''))}[/] "
                          f"(trying again every {self.interval:g} s)")
             return
         given = ("the user name and password given were refused" if self.options.username
                  else "the broker asks for a login")
-        title.update(f"[red]fleet at {self.where}: {escape(self.connect_error or '')}[/]\n"
+        title.update(f"[red]fleet at {self.where}: {escape(self.said(self.connect_error or ''))}[/]\n"
                      f"{given}; not tried again.  Quit and start with:  accelrig tui --broker "
                      f"{escape(self.options.broker)} --username NAME --password-file FILE  (or --password-env "
                      "VARIABLE; --ca-file CA.pem for mqtts://)")
