@@ -28,6 +28,7 @@ from accelrig.estimation.gravity_fit import (
     six_face_crb,
     upper_gauge,
 )
+from accelrig.geometry import face_down_direction
 from accelrig.procedures.static.procedure import detect_poses
 from accelrig.recording import load_recording
 
@@ -160,6 +161,34 @@ def test_six_face_flatness_zero_is_exact_face_and_tilts_do_not_bias_offsets():
     assert exact.model == "exact-face paper" and exact.tilts_deg.max() == 0
     crb = six_face_crb("paper", c_true, b_true, bench.FACE_LIST, bench.N, bench.SIGMA, 0.0, params=paper)
     assert np.allclose(np.sqrt(np.diag(crb))[9:], exact.correction.bias_uncertainty, rtol=0.05)
+
+
+def test_six_face_bound_with_drift_rates_matches_the_linear_model_written_out():
+    """The drift rates as nuisance columns: with exact faces the affine model is linear, raw = K f + o + r (t - t0),
+    so the offsets' bound is the o block of sigma^2 (X^T W X)^-1 with X written out here; fitting a rate costs its
+    axis precision and leaves an axis without one as it was."""
+    faces = ["+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y"]
+    counts = np.array([800, 700, 800, 900, 800, 750, 800, 820, 790], dtype=float)
+    times = np.array([2, 8, 13, 19, 24, 29, 35, 41, 46], dtype=float)
+    sigma, g, axes = 0.05, 9.81, [0, 2]
+    rows, weights = [], []
+    for face, n, t in zip(faces, counts, times, strict=True):
+        f = -g * face_down_direction(face)
+        for j in range(3):
+            row = np.zeros(12 + len(axes))
+            row[3 * j:3 * j + 3], row[9 + j] = f, 1.0
+            if j in axes:
+                row[12 + axes.index(j)] = t - np.average(times, weights=counts)
+            rows.append(row)
+            weights.append(n / sigma**2)
+    x = np.array(rows)
+    expected = np.linalg.inv(x.T @ (np.array(weights)[:, None] * x))[9:12, 9:12]
+    bound = six_face_crb("affine", np.eye(3), np.zeros(3), faces, counts, sigma, 0.0, g,
+                         drift_times=times, drift_axes=axes)
+    assert np.allclose(bound[9:, 9:], expected, rtol=1e-6)
+    without = six_face_crb("affine", np.eye(3), np.zeros(3), faces, counts, sigma, 0.0, g)
+    assert np.all(np.diag(bound)[[9, 11]] > 1.001 * np.diag(without)[[9, 11]])
+    assert np.isclose(bound[10, 10], without[10, 10], rtol=1e-9)   # y's rate is not fitted
 
 
 @pytest.mark.parametrize("scenario, models", [

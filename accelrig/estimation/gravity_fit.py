@@ -680,7 +680,8 @@ def _student_variance_factor(dof: float) -> float:
 
 def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequence[str], counts, sigma: float,
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 params: np.ndarray | None = None, draws: int = 0, seed: int = 0) -> np.ndarray:
+                 params: np.ndarray | None = None, draws: int = 0, seed: int = 0,
+                 drift_times=None, drift_axes: Sequence[int] = ()) -> np.ndarray:
     """Bound (12 x 12, correction order) of a planned six-face run with the flatness prior.
 
     The hybrid CRB: the inverse of the data information at zero tilt plus the prior information of the
@@ -690,6 +691,9 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     difference of a face pair and its shear (docs/static-tilt-notes.md), which no first-order bound shows.
     With flatness 0 it is the plain CRB.
     ``params`` gives the paper model's parameters (else derived from ``matrix``, ``bias`` with zero angles).
+    ``drift_times``, ``drift_axes``: the poses' centre times (s) and the raw axes (0-2) whose offset drifts at
+    an unknown constant rate, nuisance parameters as the static procedure fits them for the axes held twice
+    (the offsets then stand for the count-weighted mean of the times, as there).
     """
     m = _Model(model)
     counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(faces),))
@@ -701,9 +705,15 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
     rng = np.random.default_rng(seed)
     samples = [np.zeros(n_t)] if n_t == 0 or draws == 0 else [tau * rng.standard_normal(n_t) for _ in range(draws)]
-    info = np.zeros((m.size + n_t, m.size + n_t))
+    drift = np.zeros((3 * len(faces) + n_t, len(drift_axes)))
+    if len(drift_axes):
+        # pose i's mean on axis k gains r_k (t_i - t_mid); the residual is whitened by sqrt(n) / sigma
+        times = np.asarray(drift_times, dtype=float)
+        for c, k in enumerate(drift_axes):
+            drift[k:3 * len(faces):3, c] = -np.sqrt(counts) / sigma * (times - np.average(times, weights=counts))
+    info = np.zeros((m.size + n_t + drift.shape[1],) * 2)
     for t in samples:
-        jac = system(np.concatenate([p, t]))[1]
+        jac = np.hstack([system(np.concatenate([p, t]))[1], drift])
         info += jac.T @ jac / len(samples)
     cov = np.linalg.inv(info)[:m.size, :m.size]
     return propagate_covariance(m.to_correction, p, cov)[1]
