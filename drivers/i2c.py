@@ -12,7 +12,9 @@ Options:
                             registers on every open (they are volatile: lost at power-off);
                             loaded and written by accelrig.profiles.flash.flash_url_profile
     poll=S                  FIFO poll interval (default a third of a FIFO fill, at most 10 ms);
-                            a read polls for about 50 ms and delivers one block per gapless run
+                            a read polls for about 50 ms (each poll: overflow status, count,
+                            one burst of the whole frames) and then resamples and times its
+                            frames at once, one block per gapless run
 
 Example: ``i2c://1/0x68?chip=icm20948&range=4&rate=2048``.  The bus is opened
 with smbus2 (``pip install 'accelrig[i2c]'``); tests and ``i2c-sim://`` hand

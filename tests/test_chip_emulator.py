@@ -66,6 +66,16 @@ def test_rdwr_fills_read_messages_in_place_and_limits_length():
     assert err.value.errno == errno.EINVAL
 
 
+def test_rdwr_refuses_a_read_before_the_last_message_like_i2c_bcm2835():
+    # status and count in one transaction would save a syscall per poll, and fail on a Raspberry Pi
+    bus, _, _ = make(MPU9250Emulator)
+    status_then_count = (i2c_msg.write(ADDR, [0x3A]), i2c_msg.read(ADDR, 1),
+                         i2c_msg.write(ADDR, [0x72]), i2c_msg.read(ADDR, 2))
+    with pytest.raises(OSError) as err:
+        bus.i2c_rdwr(*status_then_count)
+    assert err.value.errno == errno.EOPNOTSUPP
+
+
 def test_icm_banks_and_sleep_after_reset():
     bus, chip, _ = make(ICM20948Emulator)
     assert bus.read_byte_data(ADDR, 0x06) == 0x41          # asleep after power-up

@@ -48,6 +48,7 @@ class RegisterAccessor:
         self.msg_class = msg_class
         self.label = label or f"I2C device 0x{address:02x}"
         self._bank: int | None = None  # unknown until selected
+        self._burst_messages: dict[int, tuple] = {}   # register -> (write, read) messages, reused
 
     # -- banks ---------------------------------------------------------------
     def forget_bank(self) -> None:
@@ -63,11 +64,11 @@ class RegisterAccessor:
             return
         reg, shift = self.bank_select
         value = bank << shift
-        self._call("write", reg, lambda: self.bus.write_byte_data(self.address, reg, value))
+        self._call("write", reg, self.bus.write_byte_data, self.address, reg, value)
         if self._bank is None:
             # First selection after open/reset: check the bank register exists
             # and holds what we wrote (cheap, and catches a wrong chip early).
-            back = self._call("read", reg, lambda: self.bus.read_byte_data(self.address, reg))
+            back = self._call("read", reg, self.bus.read_byte_data, self.address, reg)
             if back != value:
                 raise DeviceError(
                     f"{self.label}: bank select register 0x{reg:02x} reads 0x{back:02x} after writing 0x{value:02x}",
@@ -80,41 +81,49 @@ class RegisterAccessor:
         """Read ``length`` consecutive registers (or a FIFO port) starting at ``reg``."""
         self.select(bank)
         if length == 1:
-            return bytes([self._call("read", reg, lambda: self.bus.read_byte_data(self.address, reg))])
+            return bytes([self._call("read", reg, self.bus.read_byte_data, self.address, reg)])
         if length <= SMBUS_BLOCK_MAX:
-            data = self._call("read", reg, lambda: self.bus.read_i2c_block_data(self.address, reg, length))
-            return bytes(data)
+            return bytes(self._call("read", reg, self.bus.read_i2c_block_data, self.address, reg, length))
         return self.burst_read(bank, reg, length)
 
     def burst_read(self, bank: int, reg: int, length: int) -> bytes:
-        """One combined write-register/read-N transaction (I2C_RDWR), beyond the 32-byte SMBus limit."""
+        """One combined write-register/read-N transaction (I2C_RDWR), beyond the 32-byte SMBus limit.
+
+        A FIFO is read this way a hundred times a second: the two messages are made
+        once per register and reused (the read message's buffer holds the most one
+        transaction may carry; its length is set per transfer).
+        """
         if self.msg_class is None:
             raise DeviceError(f"{self.label}: a burst read needs smbus2's i2c_msg (install accelrig[i2c])")
         self.select(bank)
-        out = bytearray()
+        messages = self._burst_messages.get(reg)
+        if messages is None:
+            messages = self._burst_messages[reg] = (self.msg_class.write(self.address, [reg]),
+                                                    self.msg_class.read(self.address, I2C_RDWR_MAX))
+        write, read = messages
+        chunks = []
         while length > 0:
             take = min(length, I2C_RDWR_MAX)
-            write = self.msg_class.write(self.address, [reg])
-            read = self.msg_class.read(self.address, take)
-            self._call("burst read", reg, lambda write=write, read=read: self.bus.i2c_rdwr(write, read))
+            read.len = take
+            self._call("burst read", reg, self.bus.i2c_rdwr, write, read)
             chunk = bytes(read)
             if len(chunk) != take:
                 raise DeviceError(f"{self.label}: burst read of {take} bytes at 0x{reg:02x} returned {len(chunk)}")
-            out += chunk
+            chunks.append(chunk)
             length -= take
-        return bytes(out)
+        return chunks[0] if len(chunks) == 1 else b"".join(chunks)
 
     def write(self, bank: int, reg: int, data: bytes) -> None:
         self.select(bank)
         data = bytes(data)
         if len(data) == 1:
-            self._call("write", reg, lambda: self.bus.write_byte_data(self.address, reg, data[0]))
+            self._call("write", reg, self.bus.write_byte_data, self.address, reg, data[0])
         else:
-            self._call("write", reg, lambda: self.bus.write_i2c_block_data(self.address, reg, list(data)))
+            self._call("write", reg, self.bus.write_i2c_block_data, self.address, reg, list(data))
 
-    def _call(self, what: str, reg: int, fn):
+    def _call(self, what: str, reg: int, fn, *args):
         try:
-            return fn()
+            return fn(*args)
         except OSError as exc:
             raise DeviceError(
                 f"{self.label}: {what} of register 0x{reg:02x} failed: {exc}",

@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import sys
@@ -80,6 +81,10 @@ class Daemon:
             self._start_metrics()
             log(f"started (pid {os.getpid()}), config {self.config_path}, output {self.config.output}, "
                 f"{len(self.config.devices)} device(s), status socket {self.config.status_socket}")
+            # What is loaded by now (numpy, scipy, pyarrow, the drivers: some 100 000 objects) stays
+            # for the daemon's life: out of the cyclic collector's sight, a full collection takes
+            # 0.1 ms instead of about 100 ms, during which no device is read (an I2C FIFO holds 21 ms).
+            gc.freeze()
             for device in self.config.devices:
                 self._start(device)
             self._loop()

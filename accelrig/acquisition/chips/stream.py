@@ -4,7 +4,12 @@ Every poll: read the overflow status (reading clears it), read FIFO_COUNT,
 burst-read the whole frames with one I2C_RDWR transaction.  A read polls for
 ``DELIVER_EVERY`` s and delivers one Block per run of samples with no gap in it
 (the polls' samples joined), so what lies downstream works per 50 ms, not per
-poll.  An overflow (the
+poll.  A poll does only its bus transfers and the bookkeeping that needs the
+moment of its count: the frames are resampled and timed once per run, at the
+end of the read (or before a FIFO reset), which costs per call far more than
+per sample and gives the same samples however the stream is cut.  So each
+poll holds the interpreter for a short while, and the polls of many devices
+in one process come when they are due.  An overflow (the
 status bit, or a count that is not whole frames: in overwrite mode the FIFO
 loses frame alignment) resets the FIFO; the next block carries the gap.
 
@@ -96,6 +101,9 @@ class FifoStream:
         self._bound_k = np.zeros(BOUND_POLLS)
         self._bound_end = np.zeros(BOUND_POLLS)
         self._bound_count = 0
+        self._run: list[bytes] = []    # FIFO bytes read since the last _finish_run (whole frames)
+        self._run_first = 0            # their first frame's index since the last reset
+        self._run_time = 0.0           # host time of the count of the newest poll among them
         self._next_poll = 0.0
         self._error: Exception | None = None   # raised by the next read (see read)
         self._started = 0.0
@@ -137,27 +145,29 @@ class FifoStream:
             now = clock.now()
             wait = self._next_poll - now
             if wait > end - now:
-                if not parts:
+                if not self._run and not parts:
                     clock.sleep(end - now)
                 break
             clock.sleep(wait)
             # A late poll is not made up for: the next one is an interval after this one.
             self._next_poll = max(self._next_poll + self.poll_interval, clock.now())
             try:
-                part = self._poll()
+                self._poll(parts)
             except Exception as exc:
+                self._finish_run(parts)
                 if not parts:
                     raise
                 self._error = exc
                 break
-            if part is not None:
-                parts.append(part)
+        self._finish_run(parts)
         return self._blocks(parts)
 
     def poll(self) -> list[Block]:
-        """Poll the FIFO once: at most one Block."""
-        part = self._poll()
-        return self._blocks([part] if part is not None else [])
+        """Poll the FIFO once: at most one Block (after a FIFO reset, none)."""
+        parts: list[tuple] = []
+        self._poll(parts)
+        self._finish_run(parts)
+        return self._blocks(parts)
 
     def _blocks(self, parts: list[tuple]) -> list[Block]:
         """Blocks from polls' (counter, counts, times, gap, host time): one per run with no gap."""
@@ -175,56 +185,83 @@ class FifoStream:
                 run.append(part)
         return blocks
 
-    def _poll(self) -> tuple | None:
-        """One poll: (counter, counts, times, gap before, host time) of the samples it yields, or None."""
+    def _poll(self, parts: list[tuple]) -> None:
+        """One poll: the whole frames in the FIFO join the run being read (see ``_finish_run``).
+
+        Only the bus transfers and the bookkeeping that needs the moment of the
+        count happen here, so a poll holds the interpreter briefly (eight devices
+        share it); resampling and sample times are done once per run.  An overflow
+        finishes the run into ``parts`` before the FIFO is reset.
+        """
         chip = self.chip
+        clock = self.clock
         overflowed = chip.fifo_overflowed()
-        count_start = self.clock.now()
+        count_start = clock.now()
         count = chip.fifo_count()
         # The chip latches the count during the read transaction: take the time
         # after it, not before (before would place every sample a transfer early).
-        count_time = self.clock.now()
-        self.max_fifo_count = max(self.max_fifo_count, count)
-        if count > chip.spec.fifo_capacity and not any("FIFO_COUNT" in n for n in self.notes):
-            self.notes.append(
-                f"FIFO_COUNT reached {count} bytes, more than the {chip.spec.fifo_capacity} B the datasheet "
-                f"figure used here: this part has a larger FIFO (harmless; polling is sized for the smaller one)"
-            )
+        count_time = clock.now()
+        if count > self.max_fifo_count:
+            self.max_fifo_count = count
+            if count > chip.spec.fifo_capacity and not any("FIFO_COUNT" in n for n in self.notes):
+                self.notes.append(
+                    f"FIFO_COUNT reached {count} bytes, more than the {chip.spec.fifo_capacity} B the datasheet "
+                    f"figure used here: this part has a larger FIFO (harmless; polling is sized for the smaller one)"
+                )
         if overflowed or count % FRAME_BYTES:
             # Overwrite mode lost frames and frame alignment: discard, reset, mark a gap.
             self.overflows += 1
-            before = self.clock.now()
+            self._finish_run(parts)
+            before = clock.now()
             after = chip.fifo_reset()
             # Frames kept arriving between the status read and the reset and may
             # have raised the flag again: that overflow is already dealt with.
             chip.fifo_overflowed()
             self._restart_segment(before, after)
-            return None
+            return
         frames = count // FRAME_BYTES
         if frames == 0:
             if self._fit_offset is not None:
                 self.fit.add(self._fit_offset + self._segment_frames, count_time)
-            return None
+            return
         data = chip.fifo_read(frames * FRAME_BYTES)
-        counts_in = np.frombuffer(data, dtype=">i2").reshape(frames, 3)
-        first = self._segment_frames
+        if not self._run:
+            self._run_first = self._segment_frames
+        self._run.append(data)
+        self._run_time = count_time
         self._segment_frames += frames
         self.frames_read += frames
         if self._fit_offset is None:
             self._place_first_frame(count_start, count_time)
-        self.fit.add(self._fit_offset + self._segment_frames, count_time)
+        newest = self._fit_offset + self._segment_frames
+        self.fit.add(newest, count_time)
         slot = self._bound_count % BOUND_POLLS
-        self._bound_k[slot] = self._fit_offset + self._segment_frames - 1
+        self._bound_k[slot] = newest - 1
         self._bound_end[slot] = count_time
         self._bound_count += 1
-        self._check_rate()
+        if count_time - self._started >= RATE_CHECK_AFTER:
+            self._check_rate()
+
+    def _finish_run(self, parts: list[tuple]) -> None:
+        """Resample and time the frames read since the last call (all from one FIFO segment) and append
+        (counter, counts, times, gap before, host time of the newest poll) to ``parts`` if they yield samples.
+
+        Once per read rather than per poll: the filter and the timeline cost per
+        call far more than per sample, and their output does not depend on how
+        the stream is cut.
+        """
+        if not self._run:
+            return
+        data = self._run[0] if len(self._run) == 1 else b"".join(self._run)
+        self._run = []
+        counts_in = np.frombuffer(data, dtype=">i2").reshape(-1, 3)
         if self.resampler.passthrough:
             out = counts_in.astype(np.int16)
-            positions = np.arange(first, first + frames, dtype=float)
+            positions = np.arange(self._run_first, self._run_first + len(out), dtype=float)
         else:
             y, positions = self.resampler.process(counts_in)
             if len(y) == 0:
-                return None
+                return
             out = np.rint(y, out=y).clip(-32768, 32767, out=y).astype(np.int16)
         t = self._times(positions)
         gap = 0
@@ -241,7 +278,7 @@ class FifoStream:
         counter = self._counter
         self._counter += len(out)
         self._last_time = float(t[-1])
-        return counter, out, t, gap, count_time
+        parts.append((counter, out, t, gap, self._run_time))
 
     def _timeline_period(self) -> float:
         """The measured input period, kept within the rate check's tolerance of the planned one
@@ -331,8 +368,6 @@ class FifoStream:
         self._pending_gap = True
 
     def _check_rate(self) -> None:
-        if self.clock.now() - self._started < RATE_CHECK_AFTER:
-            return
         measured = self.fit.rate
         if abs(measured / self.plan.chip_rate - 1.0) > RATE_TOLERANCE:
             raise DeviceError(

@@ -4,8 +4,11 @@ It behaves as the kernel and smbus2 do where a driver could get it wrong:
 ``read_i2c_block_data`` / ``write_i2c_block_data`` refuse more than 32 bytes
 (ValueError, as smbus2 raises), ``i2c_rdwr`` fills read messages in place with
 ``ctypes.memmove`` into ``msg.buf`` (as the kernel's I2C_RDWR ioctl does) and
-refuses messages over 8192 bytes or more than 42 messages (EINVAL), and an
-address nobody answers gives OSError EREMOTEIO (errno 121).  Each transfer
+refuses messages over 8192 bytes or more than 42 messages (EINVAL), a read
+message anywhere but last (EOPNOTSUPP, as the Raspberry Pi's i2c-bcm2835
+adapter refuses it: a driver that combines, say, two register reads in one
+transaction would fail on the most common host), and an address nobody
+answers gives OSError EREMOTEIO (errno 121).  Each transfer
 spends its duration at the bus clock on the shared time source, so bus load is
 visible in the driver's timing.
 """
@@ -70,6 +73,8 @@ class EmulatedBus:
         self._check_open()
         if len(i2c_msgs) > I2C_RDWR_MAX_MSGS or any(m.len > I2C_RDWR_MAX_LEN for m in i2c_msgs):
             raise OSError(errno.EINVAL, "Invalid argument")
+        if any(m.flags & I2C_M_RD for m in i2c_msgs[:-1]):
+            raise OSError(errno.EOPNOTSUPP, "Operation not supported (only the last message may be a read)")
         for msg in i2c_msgs:
             dev = self._device(msg.addr)
             if msg.flags & I2C_M_RD:
