@@ -7,6 +7,7 @@ taken so far.
 
 from __future__ import annotations
 
+import gc
 import signal
 import sys
 import time
@@ -96,6 +97,9 @@ def run(args) -> int:
                                 csv=args.csv_copies and not single)
 
     session = Session.open_and_start(args.url, record=True, prepare=flash_url_profile, writer=make_writer)
+    # as the daemon does: what is loaded by now stays for the whole recording; out of the cyclic collector's
+    # sight a full collection takes about 1 ms instead of 100, during which the device is not read
+    gc.freeze()
     recorder, writer = session.recorder, session.recorder.writer
     in_memory = single and output.suffix.lower() != ".parquet"
     limit = args.samples
