@@ -516,6 +516,7 @@ class PooledNoise:
     p_values: np.ndarray     # per fit: F test of that level against 1 (one-sided, too much residual)
     dof: np.ndarray          # per fit: effective degrees of freedom of its residual power
     pooled: np.ndarray       # per fit: did it inform the pooled spectrum (False: its level stood out)
+    stands_out: np.ndarray   # per fit: its level above warn_ratio^2 and significant (warn: the model misses it)
 
     def for_fit(self, i: int) -> BandNoise:
         return self.noise.scaled(float(self.levels[i]))
@@ -613,13 +614,15 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
     Each fit keeps a level of its own, its residual power over what the pooled spectrum predicts for it
     (a step that shakes more, or a model that misses the motion, shows there).  A level above
     ``warn_ratio``^2 and significant at ``alpha`` (F test, effective dof from the expected power's spread
-    over frequency) leaves that fit out of the pool, which is then found again from the others.
+    over frequency) leaves that fit out of the pool (the worst first, one at a time, while two remain),
+    which is then found again from the others; ``pooled`` says which fits the spectrum rests on.
     """
     shortest = min(np.asarray(r).size for _, r in fits)
     edges = pool_band_edges(shortest)
     moments = [_band_moments(j, r, edges) for j, r in fits]
+    width = np.diff(edges)
     pooled = np.ones(len(fits), dtype=bool)
-    for _ in range(2):
+    for _ in range(len(fits)):
         observed = sum(mo[0] for mo, keep in zip(moments, pooled, strict=True) if keep)
         expected = sum(mo[1] for mo, keep in zip(moments, pooled, strict=True) if keep)
         bare = sum(mo[2] for mo, keep in zip(moments, pooled, strict=True) if keep)
@@ -631,7 +634,6 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
             neighbours = [full[c] for c in (b - 1, b + 1) if 0 <= c < full.size and seen[c]]
             full[b] = max(neighbours) if neighbours else float(np.max(levels, initial=0.0))
         own, dof = np.empty(len(fits)), np.empty(len(fits))
-        width = np.diff(edges)
         for i, (obs, exp_, _bare, dof_fit) in enumerate(moments):
             predicted = exp_ @ full
             own[i] = float(obs.sum() / predicted.sum()) if predicted.sum() > 0 else 1.0
@@ -639,10 +641,13 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
             # unevenly over frequency has fewer dof than the n - p of white residuals
             spread = float(np.sum(predicted**2 / width)) / (dof_fit * predicted.sum() ** 2)
             dof[i] = float(np.clip(2.0 / spread, 1.0, dof_fit)) if spread > 0 else float(dof_fit)
-        pool_dof = float(sum(d for d, keep in zip(dof, pooled, strict=True) if keep))
-        p_values = np.array([float(_sps.f.sf(level, d, max(pool_dof, 1.0))) for level, d in zip(own, dof, strict=True)])
-        outliers = (own > warn_ratio**2) & (p_values < alpha)
-        if not outliers.any() or outliers.all() or np.array_equal(pooled, ~outliers):
+        pool_dof = max(float(dof[pooled].sum()), 1.0)
+        p_values = np.array([float(_sps.f.sf(level, d, pool_dof)) for level, d in zip(own, dof, strict=True)])
+        # the worst step that stands out leaves the pool, one at a time (it would inflate the reference the
+        # others are judged by), while at least two remain
+        stands_out = pooled & (own > warn_ratio**2) & (p_values < alpha)
+        if not stands_out.any() or pooled.sum() <= 2:
             break
-        pooled = ~outliers
-    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled)
+        pooled[int(np.argmax(np.where(stands_out, own, -np.inf)))] = False
+    stands_out = (own > warn_ratio**2) & (p_values < alpha)
+    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out)

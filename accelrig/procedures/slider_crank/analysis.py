@@ -657,17 +657,22 @@ def pool_noise(steps: list[StepResult]) -> None:
     bands from every step's residuals (each step's projection accounted for), and a level per step
     (a step that shook more keeps its own level).  Every step whose residuals were found correlated gets
     the sandwich with that spectrum at its level: batch means over blocks of a few correlation times
-    (milliseconds under 1/f noise) see the slow noise no better than the step's own AR model.  A step whose residual power
-    stands out from the pool (a motion the model misses; correlated residuals get no other lack-of-fit
-    test) is left out of the pool, keeps its own level, and is warned.  Steps with backlash (their
-    phase-locked template removed) and steps at another sampling rate are not pooled.  Replaces the
-    revised steps in ``steps``.
+    (milliseconds under 1/f noise) see the slow noise no better than the step's own AR model.  A step
+    whose residual power stands out from the pool (a motion the model misses; correlated residuals get
+    no other lack-of-fit test) keeps its own level, is warned, and is left out of the pool while two
+    others remain.  Steps with backlash (their phase-locked template removed) and steps at another
+    sampling rate are not pooled.  Replaces the revised steps in ``steps``.
     """
     eligible = [i for i, s in enumerate(steps) if s.state is not None and s.checks is not None and not s.backlash]
-    groups: dict[int, list[int]] = {}
-    for i in eligible:
-        groups.setdefault(int(round(np.log(steps[i].state.rate) / 0.005)), []).append(i)   # rates within 0.5 %
-    for members in groups.values():
+    groups: list[list[int]] = []
+    for i in eligible:   # one sampling rate per group (within 0.5 %): the spectrum is per sample
+        rate = steps[i].state.rate
+        group = next((g for g in groups if abs(steps[g[0]].state.rate / rate - 1.0) < 0.005), None)
+        if group is None:
+            groups.append([i])
+        else:
+            group.append(i)
+    for members in groups:
         if len(members) < 2 or not any(steps[i].checks.correlated for i in members):
             continue
         model = pooled_noise_model([(steps[i].state.motion.jacobian, steps[i].state.motion.residuals)
@@ -683,10 +688,11 @@ def pool_noise(steps: list[StepResult]) -> None:
             level, p_value = float(model.levels[k]), float(model.p_values[k])
             method = f"{noise.label} spectral sandwich over {int(model.pooled.sum())} steps"
             notes = [f"{step.where}: {checks.tested.describe()}; u from the {method}"]
-            if not model.pooled[k]:
+            if model.stands_out[k]:
                 notes.append(f"{step.where}: its residuals hold {np.sqrt(level):.2f}x the noise the other steps show "
                              f"(F test p = {p_value:.1g}): the motion differs from the model here, or this step "
-                             "shook more; left out of the pooled noise, its u from its own level")
+                             "shook more; its u is from its own level"
+                             + ("" if model.pooled[k] else ", and it is left out of the pooled noise"))
             seen = noise.seen
             pooled = {"steps": int(model.pooled.sum()), "level": level, "p_value": p_value,
                       "dof": float(model.dof[k]), "in_pool": bool(model.pooled[k]),
