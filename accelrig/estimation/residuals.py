@@ -484,6 +484,7 @@ def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.nd
 # ---------------------------------------------------------------- one sensor, several short fits: a pooled spectrum
 
 POOL_BAND_GROWTH = 1.25      # band edges grow geometrically by this factor once wider than a record's resolution
+POOL_BAND_WIDTH = 2.0        # the narrowest band, in units of a record's resolution 1 / n
 POOL_SEEN = 0.2              # a band is seen when at least this share of its noise survives the fits' projections
 
 
@@ -517,6 +518,7 @@ class PooledNoise:
     dof: np.ndarray          # per fit: effective degrees of freedom of its residual power
     pooled: np.ndarray       # per fit: did it inform the pooled spectrum (False: its level stood out)
     stands_out: np.ndarray   # per fit: its level above warn_ratio^2 and significant (warn: the model misses it)
+    ar_p_value: float        # chi-square test of one AR model of all pooled residuals against their band powers
 
     def for_fit(self, i: int) -> BandNoise:
         return self.noise.scaled(float(self.levels[i]))
@@ -529,7 +531,7 @@ def _band_index(edges: np.ndarray, cycles: np.ndarray) -> np.ndarray:
 def pool_band_edges(shortest: int) -> np.ndarray:
     """Band edges (cycles per sample) for a pooled spectrum of records at least ``shortest`` samples long: as
     wide as a record's resolution (1 / shortest) at low frequencies, growing by POOL_BAND_GROWTH above."""
-    width = 1.0 / shortest
+    width = POOL_BAND_WIDTH / shortest
     edges = [0.0]
     while edges[-1] < 0.5:
         edges.append(edges[-1] + max(width, (POOL_BAND_GROWTH - 1.0) * edges[-1]))
@@ -650,4 +652,44 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
             break
         pooled[int(np.argmax(np.where(stands_out, own, -np.inf)))] = False
     stands_out = (own > warn_ratio**2) & (p_values < alpha)
-    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out)
+    kept = [fit for fit, keep in zip(fits, pooled, strict=True) if keep]
+    ar_p = _ar_band_test(kept, [mo for mo, keep in zip(moments, pooled, strict=True) if keep], edges, seen)
+    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out, ar_p)
+
+
+def _ar_band_test(fits, moments, edges: np.ndarray, seen: np.ndarray) -> float:
+    """p-value of one AR model of all the fits' residuals (their autocovariances summed, each fit's
+    projection shortfall added back, as ar_noise_model) against the residual power they show per band.
+
+    A smooth AR spectrum is precise where it is right (white, AR-like noise: two or three parameters
+    from every sample), the bands are unbiased but each rests on a few seconds of data; a caller keeps
+    the AR model unless this test rejects it."""
+    n_total = sum(np.asarray(r).size for _, r in fits)
+    max_order = int(min(AR_MAX_ORDER, max(min(np.asarray(r).size for _, r in fits) // 10, 1)))
+    acov = np.zeros(max_order + 1)
+    bases = []
+    for jacobian, residuals in fits:
+        r = np.asarray(residuals, dtype=float).ravel()
+        acov += autocorrelation(r, max_order) * float(np.mean((r - r.mean()) ** 2)) * r.size
+        columns = np.column_stack([np.ones(r.size), np.asarray(jacobian, dtype=float).reshape(r.size, -1)])
+        u, sv, _ = np.linalg.svd(columns, full_matrices=False)
+        bases.append((r.size, u[:, sv > sv[0] * 1e-10]))
+    acov /= n_total
+    noise = _levinson_aic(acov, n_total, max_order)
+    for _ in range(2):
+        shortfall = sum(_projection_shortfall(noise, basis, max_order) * n for n, basis in bases) / n_total
+        noise = _levinson_aic(acov + shortfall, n_total, max_order)
+    grid = np.linspace(0.0, 0.5, 8193)
+    band = _band_index(edges, grid)
+    density = np.bincount(band, noise.spectrum(2 * np.pi * grid), edges.size - 1)
+    levels = density / np.maximum(np.bincount(band, minlength=edges.size - 1), 1)
+    width = np.diff(edges)
+    observed = sum(mo[0] for mo in moments)
+    expected = np.zeros(edges.size - 1)
+    variance = np.zeros(edges.size - 1)
+    for _obs, exp_, _bare, dof_fit in moments:
+        mine = exp_ @ levels
+        expected += mine
+        variance += mine**2 / np.maximum(dof_fit * width, 1.0)   # n w complex ordinates per band
+    chi2 = float(np.sum((observed - expected)[seen] ** 2 / np.maximum(variance[seen], 1e-300)))
+    return float(_sps.chi2.sf(chi2, int(seen.sum())))

@@ -84,6 +84,10 @@ MIN_STEP_CYCLES = 2.0
 # over the steps judged (Sidak: each step at 1 - (1 - alpha)^(1/m)): with five sound steps at k = 2 one
 # falls outside by chance in a fifth of runs, a warning an operator would learn to ignore.
 CLEARANCE_ALPHA = 0.05
+# One AR model of all steps' residuals is kept unless a test rejects it at this level (pool_noise): a wrong
+# smooth model halves a slow step's u under 1/f noise, the pooled bands only make it scatter, so the test
+# errs towards the bands.
+POOL_AR_ALPHA = 0.05
 
 
 def step_name(index: int, label: str) -> str:
@@ -673,32 +677,45 @@ def pool_noise(steps: list[StepResult]) -> None:
         else:
             group.append(i)
     for members in groups:
-        if len(members) < 2 or not any(steps[i].checks.correlated for i in members):
+        if len(members) < 2:
             continue
         model = pooled_noise_model([(steps[i].state.motion.jacobian, steps[i].state.motion.residuals)
                                     for i in members], warn_ratio=LOF_WARN)
+        # one smooth AR model explains every step's residuals (white, AR-like noise): each step's own u
+        # stands, resting on a model fitted to all its samples.  Otherwise (1/f: the rise at a slow step's
+        # own frequency is what its residuals cannot show) every step takes the pooled bands, a step
+        # whose residuals passed as white too: its own whiteness test could not see that noise either
+        coloured = model.ar_p_value < POOL_AR_ALPHA
         for k, i in enumerate(members):
             step, checks = steps[i], steps[i].checks
-            if not checks.correlated:
+            flagged = bool(model.stands_out[k]) and checks.correlated   # a white step has its own lack-of-fit test
+            if not (coloured or flagged or checks.correlated):
                 continue
             motion = step.state.motion
             noise = model.for_fit(k)
-            normal = motion.jacobian.T @ motion.jacobian
-            cov = ar_sandwich_covariance(normal, motion.jacobian, motion.residuals, noise=noise).covariance
             level, p_value = float(model.levels[k]), float(model.p_values[k])
-            method = f"{noise.label} spectral sandwich over {int(model.pooled.sum())} steps"
-            notes = [f"{step.where}: {checks.tested.describe()}; u from the {method}"]
-            if model.stands_out[k]:
+            if coloured or flagged:
+                normal = motion.jacobian.T @ motion.jacobian
+                cov = ar_sandwich_covariance(normal, motion.jacobian, motion.residuals, noise=noise).covariance
+                method = f"{noise.label} spectral sandwich over {int(model.pooled.sum())} steps"
+            else:
+                cov, method = checks.covariance, checks.method
+            if checks.correlated:
+                notes = [f"{step.where}: {checks.tested.describe()}; u from the {method}"]
+            else:
+                notes = [f"{step.where}: its residuals pass as white, but the steps together show coloured noise "
+                         f"(one AR model of all of them fails, p = {model.ar_p_value:.1g}): u from the {method}"]
+            if flagged:
                 notes.append(f"{step.where}: its residuals hold {np.sqrt(level):.2f}x the noise the other steps show "
                              f"(F test p = {p_value:.1g}): the motion differs from the model here, or this step "
                              "shook more; its u is from its own level"
                              + ("" if model.pooled[k] else ", and it is left out of the pooled noise"))
-            seen = noise.seen
             pooled = {"steps": int(model.pooled.sum()), "level": level, "p_value": p_value,
+                      "ar_p_value": float(model.ar_p_value), "used": bool(coloured or flagged),
                       "dof": float(model.dof[k]), "in_pool": bool(model.pooled[k]),
                       "unseen_bands_hz": [[float(noise.edges[b] * step.state.rate),
                                            float(noise.edges[b + 1] * step.state.rate)]
-                                          for b in np.flatnonzero(~seen)]}
+                                          for b in np.flatnonzero(~noise.seen)]}
             revised = replace(checks, covariance=cov, inflation=_inflation(motion, cov, checks.white), method=method,
                               notes=notes, pooled=pooled)
             steps[i] = step_result(step.state, revised)
