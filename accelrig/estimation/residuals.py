@@ -529,8 +529,9 @@ def _band_index(edges: np.ndarray, cycles: np.ndarray) -> np.ndarray:
 
 
 def pool_band_edges(shortest: int) -> np.ndarray:
-    """Band edges (cycles per sample) for a pooled spectrum of records at least ``shortest`` samples long: as
-    wide as a record's resolution (1 / shortest) at low frequencies, growing by POOL_BAND_GROWTH above."""
+    """Band edges (cycles per sample) for a pooled spectrum of records at least ``shortest`` samples long:
+    POOL_BAND_WIDTH times a record's resolution (1 / shortest) wide at low frequencies (narrower bands
+    rest on too few periodogram ordinates), growing by POOL_BAND_GROWTH above."""
     width = POOL_BAND_WIDTH / shortest
     edges = [0.0]
     while edges[-1] < 0.5:
@@ -618,6 +619,8 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
     ``warn_ratio``^2 and significant at ``alpha`` (F test, effective dof from the expected power's spread
     over frequency) leaves that fit out of the pool (the worst first, one at a time, while two remain),
     which is then found again from the others; ``pooled`` says which fits the spectrum rests on.
+    ``ar_p_value`` tests one AR model of the pooled fits against the same band powers (``_ar_band_test``):
+    where it holds, a caller may keep the smoother AR answer.
     """
     shortest = min(np.asarray(r).size for _, r in fits)
     edges = pool_band_edges(shortest)
