@@ -11,13 +11,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import signal
+from scipy.linalg import toeplitz
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation.residuals import ar_noise_model, ar_sandwich_covariance
 from accelrig.estimation.sinefit import fit_sine, fit_sines_known_frequency
 from accelrig.procedures.rotary.bench import EncoderLog, RotarySetup, analyse_test
 from accelrig.procedures.slider_crank.motion_fit import fit_crank_motion
-from accelrig.procedures.slider_crank.procedure import verify_slider_crank
+from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure, verify_slider_crank
 from accelrig.recording import Recording
 from accelrig.sim.campaign import paper_sensor
 from accelrig.sim.device import simulate
@@ -232,3 +233,55 @@ def test_several_signals_at_one_known_frequency_match_one_fit_each():
         assert fit.amplitude == pytest.approx(alone.amplitude, rel=1e-10)
         assert fit.amplitude_uncertainty == pytest.approx(alone.amplitude_uncertainty, rel=1e-8)
         assert fit.covariance_method == alone.covariance_method
+
+
+def _steps_before_and_after_pooling(rec):
+    """The slider-crank procedure's steps as each was analysed alone, and as verified (noise pooled)."""
+    values = {"crank_radius": RADIUS, "rod_length": ROD, "clearance": 0.0, "speeds": None, "harmonics": 4,
+              "profile": None}
+    procedure = SliderCrankProcedure(values, {})
+    procedure.open_source("sim", rec.meta)
+    procedure.feed(rec.to_si())
+    procedure.finish()
+    alone = list(procedure.steps)
+    result = procedure.result()
+    return alone, list(procedure.steps), result
+
+
+def test_a_slow_step_under_1f_noise_takes_the_noise_the_other_steps_show():
+    # 1/f noise rises within a few bins of a 1-s step's 2.5 Hz: the step's own residuals cannot show it
+    # (the fit empties them there) and its u was half the exact one; the 6 and 10 Hz steps show it
+    rig = SliderCrankRig(steps=(2.5, 6.0, 10.0))
+    sensor = SensorModel(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(0.08, FS), flicker=0.01)
+    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=11)
+    alone, pooled, result = _steps_before_and_after_pooling(rec)
+    rate = float(rec.meta["delivered_rate"])
+    lags = np.arange(alone[0].n_samples)
+    gamma = sensor.noise_sd(rate) ** 2 * (lags == 0)
+    for corner in sensor._flicker_corners(rate):
+        gamma = gamma + sensor.flicker_variance(corner) * np.exp(-2 * np.pi * corner / rate) ** lags
+    motion = pooled[0].state.motion
+    row = motion.radius_gradient()[1] @ np.linalg.pinv(motion.jacobian)
+    exact = float(np.sqrt(row @ toeplitz(gamma) @ row))
+    assert alone[0].radius_m.uncertainty < 0.75 * exact
+    assert 0.7 * exact < pooled[0].radius_m.uncertainty < 1.5 * exact
+    checks = result.details["steps"][0]["residual_checks"]
+    assert checks["pooled_noise"]["steps"] == 3 and checks["pooled_noise"]["in_pool"]
+    assert "pooled-spectrum spectral sandwich over 3 steps" in checks["covariance_method"]
+    assert not any("the noise the other steps show" in w for w in result.warnings)
+
+
+def test_a_step_the_model_misses_is_warned_and_kept_out_of_the_pooled_noise():
+    # correlated residuals get no lack-of-fit test of their own: the pool is the reference, and a step
+    # with something the crank model does not hold (a 23.3 Hz shake) must stand out, not be averaged in
+    rig = SliderCrankRig(steps=(4.0, 7.0, 10.0))
+    sensor = SensorModel(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(0.08, FS), ar1=0.9)
+    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=12)
+    shaken = rec.channels["step"] == 1
+    rec.acc[shaken, 0] += 0.12 * np.sin(2 * np.pi * 23.3 * rec.t[shaken])
+    _, pooled, result = _steps_before_and_after_pooling(rec)
+    flagged = [w for w in result.warnings if "the noise the other steps show" in w]
+    assert len(flagged) == 1 and flagged[0].startswith("step 2 (sim step 2)")
+    pools = [s["residual_checks"]["pooled_noise"] for s in result.details["steps"]]
+    assert [p["in_pool"] for p in pools] == [True, False, True]
+    assert pools[1]["level"] > 1.5

@@ -167,3 +167,31 @@ def test_whiteness_reads_tau_from_the_first_lags_only_when_the_window_is_there(m
     w = whiteness(x)
     assert (w.tau, w.window) == pytest.approx(full)
     assert w.window > 64
+
+
+def test_pooled_noise_of_white_residuals_is_flat_at_the_noise_level_and_no_fit_stands_out():
+    from accelrig.estimation.residuals import pooled_noise_model
+
+    rng = np.random.default_rng(3)
+    n, sd = 1024, 0.5
+    t = np.arange(n)
+    fits = []
+    for cycles in (0.004, 0.01, 0.03):   # sine fits at three frequencies, as a slider-crank's steps
+        jac = np.column_stack([np.cos(2 * np.pi * cycles * t), np.sin(2 * np.pi * cycles * t)])
+        y = jac @ [1.0, 2.0] + rng.normal(0, sd, n)
+        coef = np.linalg.lstsq(np.column_stack([np.ones(n), jac]), y, rcond=None)[0]
+        fits.append((jac, y - np.column_stack([np.ones(n), jac]) @ coef))
+    model = pooled_noise_model(fits)
+    omega = 2 * np.pi * np.linspace(0.0, 0.5, 400)
+    # over the whole band the levels average to the noise variance (white: sd^2 per sample everywhere)
+    assert np.mean(model.noise.spectrum(omega)) == pytest.approx(sd**2, rel=0.05)
+    assert model.noise.seen.all() and model.pooled.all() and not model.stands_out.any()
+    assert np.allclose(model.levels, 1.0, atol=0.1)
+    # a fit with twice the noise stands out, is left out of the pool, and keeps its own level
+    jac = fits[1][0]
+    noisy = rng.normal(0, 2 * sd, n)
+    noisy -= np.column_stack([np.ones(n), jac]) @ np.linalg.lstsq(np.column_stack([np.ones(n), jac]), noisy,
+                                                                rcond=None)[0]
+    model = pooled_noise_model([fits[0], (jac, noisy), fits[2]])
+    assert list(model.stands_out) == [False, True, False] and list(model.pooled) == [True, False, True]
+    assert model.levels[1] == pytest.approx(4.0, rel=0.15)

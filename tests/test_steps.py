@@ -90,8 +90,12 @@ def test_the_end_of_a_timed_capture_is_not_a_step():
 def test_a_step_index_seen_twice_is_refused_and_a_marked_source_ignores_arming():
     capture = StepCapture(where="run.csv")
     capture.arm(None)  # a file: the whole of it, unless it marks its steps
-    with pytest.raises(DataError, match="run.csv: step 0 is not one contiguous block"):
+    with pytest.raises(DataError, match=r"run.csv: step 1 \(step column value 0\) is not one contiguous block"):
         capture.feed(stream([0, 0, -1, 1, 1, 0, 0, -1]))
+    # numbered from 1 like every other message (the column's value only beside it), whichever step repeats
+    capture = StepCapture(where="run.csv")
+    with pytest.raises(DataError, match=r"run.csv: step 3 \(step column value 2\) is not one contiguous block"):
+        capture.feed(stream([0, -1, 1, -1, 2, 2, -1, 2, -1]))
     capture = StepCapture()
     capture.feed(stream([-1, 0]))
     with pytest.raises(DataError, match="marks its steps"):

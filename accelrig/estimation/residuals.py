@@ -337,6 +337,10 @@ class ARNoise:
     def order(self) -> int:
         return int(self.coefficients.size)
 
+    @property
+    def label(self) -> str:
+        return f"AR({self.order})"
+
     def spectrum(self, omega: np.ndarray) -> np.ndarray:
         """Two-sided spectral density per sample at angular frequencies omega (rad per sample);
         white noise of variance s2 gives s2 everywhere."""
@@ -422,7 +426,7 @@ def ar_noise_model(residuals: np.ndarray, max_order: int = AR_MAX_ORDER, jacobia
 
 
 def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, residuals: np.ndarray,
-                           noise: ARNoise | None = None) -> Sandwich:
+                           noise: ARNoise | BandNoise | None = None) -> Sandwich:
     """Sandwich covariance with the middle matrix J' Sigma J from an AR model of the residuals.
 
     For records too short for batch means (fewer than MIN_BLOCKS blocks of BLOCK_PER_TAU tau): the
@@ -435,19 +439,22 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     jacobian = np.asarray(jacobian, dtype=float)
     noise = noise or ar_noise_model(residuals, jacobian=jacobian)
     n = jacobian.shape[0]
-    size = 1 << int(np.ceil(np.log2(2 * n)))
+    size = _grid_size(n)
     spectrum_j = np.fft.rfft(jacobian, size, axis=0)
     weights = np.full(spectrum_j.shape[0], 2.0)
     weights[0] = 1.0
     if size % 2 == 0:
         weights[-1] = 1.0
-    # the AR transfer 1 - sum a_k e^{-i w k} on the FFT grid is the FFT of its coefficients
-    transfer = np.fft.rfft(np.concatenate([[1.0], -noise.coefficients]), size)
-    s = noise.innovation / np.abs(transfer) ** 2 * weights / size
+    s = noise.spectrum(2 * np.pi * np.arange(spectrum_j.shape[0]) / size) * weights / size
     middle = np.real((spectrum_j.conj() * s[:, None]).T @ spectrum_j)
     bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
     cov = bread @ middle @ bread
-    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"AR({noise.order}) spectral sandwich")
+    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"{noise.label} spectral sandwich")
+
+
+def _grid_size(n: int) -> int:
+    """FFT length for an n-sample record's spectral sums: a power of two >= 2n (no lag of the record wraps)."""
+    return 1 << int(np.ceil(np.log2(2 * n)))
 
 
 def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray,
@@ -472,3 +479,220 @@ def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.nd
         sandwich = ar_sandwich_covariance(normal, jacobian, residuals)
         return sandwich.covariance, sandwich.method, w
     return sandwich.covariance, f"batch-means sandwich, {sandwich.blocks} blocks of {sandwich.block} samples", w
+
+
+# ---------------------------------------------------------------- one sensor, several short fits: a pooled spectrum
+
+POOL_BAND_GROWTH = 1.25      # band edges grow geometrically by this factor once wider than a record's resolution
+POOL_BAND_WIDTH = 2.0        # the narrowest band, in units of a record's resolution 1 / n
+POOL_SEEN = 0.2              # a band is seen when at least this share of its noise survives the fits' projections
+
+
+@dataclass
+class BandNoise:
+    """A piecewise-constant noise spectrum: ``levels`` (two-sided density per sample, as ARNoise.spectrum) in the
+    bands between ``edges`` (cycles per sample, 0 .. 0.5).  ``seen`` marks the bands the residuals showed;
+    an unseen band holds the larger level of its seen neighbours."""
+
+    edges: np.ndarray
+    levels: np.ndarray
+    seen: np.ndarray
+
+    label = "pooled-spectrum"
+
+    def spectrum(self, omega: np.ndarray) -> np.ndarray:
+        f = np.abs(np.asarray(omega, dtype=float)) / (2 * np.pi)
+        return self.levels[_band_index(self.edges, f)]
+
+    def scaled(self, level: float) -> BandNoise:
+        return BandNoise(self.edges, self.levels * level, self.seen)
+
+
+@dataclass
+class PooledNoise:
+    """The spectrum several fits of one sensor share, and each fit's own level against it (``pooled_noise_model``)."""
+
+    noise: BandNoise
+    levels: np.ndarray       # per fit: its residual power over what the pooled spectrum predicts for it
+    p_values: np.ndarray     # per fit: F test of that level against 1 (one-sided, too much residual)
+    dof: np.ndarray          # per fit: effective degrees of freedom of its residual power
+    pooled: np.ndarray       # per fit: did it inform the pooled spectrum (False: its level stood out)
+    stands_out: np.ndarray   # per fit: its level above warn_ratio^2 and significant (warn: the model misses it)
+    ar_p_value: float        # chi-square test of one AR model of all pooled residuals against their band powers
+
+    def for_fit(self, i: int) -> BandNoise:
+        return self.noise.scaled(float(self.levels[i]))
+
+
+def _band_index(edges: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+    return np.clip(np.searchsorted(edges, np.minimum(cycles, 0.5), side="right") - 1, 0, edges.size - 2)
+
+
+def pool_band_edges(shortest: int) -> np.ndarray:
+    """Band edges (cycles per sample) for a pooled spectrum of records at least ``shortest`` samples long:
+    POOL_BAND_WIDTH times a record's resolution (1 / shortest) wide at low frequencies (narrower bands
+    rest on too few periodogram ordinates), growing by POOL_BAND_GROWTH above."""
+    width = POOL_BAND_WIDTH / shortest
+    edges = [0.0]
+    while edges[-1] < 0.5:
+        edges.append(edges[-1] + max(width, (POOL_BAND_GROWTH - 1.0) * edges[-1]))
+    if 0.5 - edges[-2] < 0.5 * (edges[-2] - edges[-3]):
+        edges.pop(-2)   # no sliver of a last band
+    edges[-1] = 0.5
+    return np.array(edges)
+
+
+def _band_moments(jacobian: np.ndarray, residuals: np.ndarray, edges: np.ndarray):
+    """One fit's observed residual power per band (periodogram sums, (m,)), its expectation per unit level
+    of each band's noise after the fit's projection ((m, m): row = where the power shows, column = the
+    noise band), and the same without the projection (the noise itself, for how much of a band survives).
+
+    E|F(r)_k|^2 for r = (I - H) e, H = Q Q', is u' Sigma u - 2 Re(F(Q)_k F(Sigma Q)_k*) +
+    F(Q)_k (Q' Sigma Q) F(Q)_k*: Toeplitz products by FFT on a grid of >= 2n points (exact there)."""
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    columns = np.column_stack([np.ones(n), np.asarray(jacobian, dtype=float).reshape(n, -1)])
+    u, s, _ = np.linalg.svd(columns, full_matrices=False)
+    basis = u[:, s > s[0] * 1e-10]
+    size = _grid_size(n)
+    bins = size // 2 + 1
+    band = _band_index(edges, np.arange(bins) / size)
+    m = edges.size - 1
+    # each rfft bin stands for itself and its negative frequency (not 0 and the Nyquist bin)
+    fold = np.full(bins, 2.0)
+    fold[0] = fold[-1] = 1.0
+    observed = np.bincount(band, np.abs(np.fft.rfft(r, size)) ** 2 * fold, m)
+    f_basis = np.fft.rfft(basis, size, axis=0)
+    lags = np.arange(n)
+    expected = np.zeros((m, m))
+    bare = np.zeros((m, m))
+    for b in range(m):
+        indicator = (band == b).astype(float)
+        if not indicator.any():
+            continue
+        gamma = np.fft.irfft(indicator, size)[:n]
+        kernel = np.zeros(size)
+        kernel[:n] = (n - lags) * gamma
+        kernel[size - n + 1:] = kernel[1:n][::-1]
+        plain = np.real(np.fft.rfft(kernel))
+        sigma_basis = np.fft.irfft(indicator[:, None] * f_basis, size, axis=0)[:n]
+        f_sigma_basis = np.fft.rfft(sigma_basis, size, axis=0)
+        inner = basis.T @ sigma_basis
+        power = (plain - 2 * np.real(np.sum(f_basis * f_sigma_basis.conj(), axis=1))
+                 + np.real(np.einsum("kp,pq,kq->k", f_basis, inner, f_basis.conj())))
+        expected[:, b] = np.bincount(band, power * fold, m)
+        bare[:, b] = np.bincount(band, plain * fold, m)
+    return observed, expected, bare, n - basis.shape[1]
+
+
+def _solve_levels(observed: np.ndarray, expected: np.ndarray) -> np.ndarray:
+    """Band levels >= 0 whose expected residual power matches the observed, each band's power weighted by
+    its relative error (twice: the weights from the first fit)."""
+    from scipy.optimize import nnls
+
+    scale = np.maximum(observed, 1e-300) / np.maximum(np.diag(expected), 1e-300)   # a first level per band
+    weight = 1.0 / np.maximum(observed, 1e-300)
+    for _ in range(2):
+        design = expected * scale[None, :] * weight[:, None]
+        x, _ = nnls(design, observed * weight, maxiter=50 * expected.shape[1])
+        levels = x * scale
+        fitted = expected @ levels
+        weight = 1.0 / np.maximum(fitted, 1e-3 * np.max(fitted))
+    return levels
+
+
+def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float = ALPHA,
+                       warn_ratio: float = 1.15) -> PooledNoise:
+    """The noise spectrum several least-squares fits of one sensor's record share, from all their residuals.
+
+    ``fits``: (jacobian, residuals) per fit, rows in time order, one instant each, all at one sampling rate.
+    A short fit's residuals say little about the noise where its own columns live (a sine fit empties
+    the periodogram at its frequency); another fit, with its columns elsewhere, shows the noise there.
+    The spectrum is piecewise constant in bands (``pool_band_edges``), and each band's level is found
+    by matching every fit's residual power per band to its expectation after that fit's projection (a
+    method of moments, the projection exact): a band emptied in one fit is read from the others.  A band
+    none of the fits shows (less than POOL_SEEN of its noise survives) takes the larger level of its
+    neighbours, and is marked unseen.
+
+    Each fit keeps a level of its own, its residual power over what the pooled spectrum predicts for it
+    (a step that shakes more, or a model that misses the motion, shows there).  A level above
+    ``warn_ratio``^2 and significant at ``alpha`` (F test, effective dof from the expected power's spread
+    over frequency) leaves that fit out of the pool (the worst first, one at a time, while two remain),
+    which is then found again from the others; ``pooled`` says which fits the spectrum rests on.
+    ``ar_p_value`` tests one AR model of the pooled fits against the same band powers (``_ar_band_test``):
+    where it holds, a caller may keep the smoother AR answer.
+    """
+    shortest = min(np.asarray(r).size for _, r in fits)
+    edges = pool_band_edges(shortest)
+    moments = [_band_moments(j, r, edges) for j, r in fits]
+    width = np.diff(edges)
+    pooled = np.ones(len(fits), dtype=bool)
+    for _ in range(len(fits)):
+        observed = sum(mo[0] for mo, keep in zip(moments, pooled, strict=True) if keep)
+        expected = sum(mo[1] for mo, keep in zip(moments, pooled, strict=True) if keep)
+        bare = sum(mo[2] for mo, keep in zip(moments, pooled, strict=True) if keep)
+        seen = expected.sum(axis=0) >= POOL_SEEN * np.maximum(bare.sum(axis=0), 1e-300)
+        levels = _solve_levels(observed[seen], expected[np.ix_(seen, seen)])
+        full = np.zeros(edges.size - 1)
+        full[seen] = levels
+        for b in np.flatnonzero(~seen):
+            neighbours = [full[c] for c in (b - 1, b + 1) if 0 <= c < full.size and seen[c]]
+            full[b] = max(neighbours) if neighbours else float(np.max(levels, initial=0.0))
+        own, dof = np.empty(len(fits)), np.empty(len(fits))
+        for i, (obs, exp_, _bare, dof_fit) in enumerate(moments):
+            predicted = exp_ @ full
+            own[i] = float(obs.sum() / predicted.sum()) if predicted.sum() > 0 else 1.0
+            # a band of width w holds n w independent periodogram ordinates (2 dof each): a power spread
+            # unevenly over frequency has fewer dof than the n - p of white residuals
+            spread = float(np.sum(predicted**2 / width)) / (dof_fit * predicted.sum() ** 2)
+            dof[i] = float(np.clip(2.0 / spread, 1.0, dof_fit)) if spread > 0 else float(dof_fit)
+        pool_dof = max(float(dof[pooled].sum()), 1.0)
+        p_values = np.array([float(_sps.f.sf(level, d, pool_dof)) for level, d in zip(own, dof, strict=True)])
+        # the worst step that stands out leaves the pool, one at a time (it would inflate the reference the
+        # others are judged by), while at least two remain
+        stands_out = pooled & (own > warn_ratio**2) & (p_values < alpha)
+        if not stands_out.any() or pooled.sum() <= 2:
+            break
+        pooled[int(np.argmax(np.where(stands_out, own, -np.inf)))] = False
+    stands_out = (own > warn_ratio**2) & (p_values < alpha)
+    kept = [fit for fit, keep in zip(fits, pooled, strict=True) if keep]
+    ar_p = _ar_band_test(kept, [mo for mo, keep in zip(moments, pooled, strict=True) if keep], edges, seen)
+    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out, ar_p)
+
+
+def _ar_band_test(fits, moments, edges: np.ndarray, seen: np.ndarray) -> float:
+    """p-value of one AR model of all the fits' residuals (their autocovariances summed, each fit's
+    projection shortfall added back, as ar_noise_model) against the residual power they show per band.
+
+    A smooth AR spectrum is precise where it is right (white, AR-like noise: two or three parameters
+    from every sample), the bands are unbiased but each rests on a few seconds of data; a caller keeps
+    the AR model unless this test rejects it."""
+    n_total = sum(np.asarray(r).size for _, r in fits)
+    max_order = int(min(AR_MAX_ORDER, max(min(np.asarray(r).size for _, r in fits) // 10, 1)))
+    acov = np.zeros(max_order + 1)
+    bases = []
+    for jacobian, residuals in fits:
+        r = np.asarray(residuals, dtype=float).ravel()
+        acov += autocorrelation(r, max_order) * float(np.mean((r - r.mean()) ** 2)) * r.size
+        columns = np.column_stack([np.ones(r.size), np.asarray(jacobian, dtype=float).reshape(r.size, -1)])
+        u, sv, _ = np.linalg.svd(columns, full_matrices=False)
+        bases.append((r.size, u[:, sv > sv[0] * 1e-10]))
+    acov /= n_total
+    noise = _levinson_aic(acov, n_total, max_order)
+    for _ in range(2):
+        shortfall = sum(_projection_shortfall(noise, basis, max_order) * n for n, basis in bases) / n_total
+        noise = _levinson_aic(acov + shortfall, n_total, max_order)
+    grid = np.linspace(0.0, 0.5, 8193)
+    band = _band_index(edges, grid)
+    density = np.bincount(band, noise.spectrum(2 * np.pi * grid), edges.size - 1)
+    levels = density / np.maximum(np.bincount(band, minlength=edges.size - 1), 1)
+    width = np.diff(edges)
+    observed = sum(mo[0] for mo in moments)
+    expected = np.zeros(edges.size - 1)
+    variance = np.zeros(edges.size - 1)
+    for _obs, exp_, _bare, dof_fit in moments:
+        mine = exp_ @ levels
+        expected += mine
+        variance += mine**2 / np.maximum(dof_fit * width, 1.0)   # n w complex ordinates per band
+    chi2 = float(np.sum((observed - expected)[seen] ** 2 / np.maximum(variance[seen], 1e-300)))
+    return float(_sps.chi2.sf(chi2, int(seen.sum())))

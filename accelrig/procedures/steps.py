@@ -128,8 +128,9 @@ class StepCapture:
             if value < 0:
                 continue  # the motor settling between steps
             if int(value) in self.taken:
-                raise DataError(f"{self.where}: step {value:g} is not one contiguous block of rows",
-                                "one block per step, in time order")
+                # steps are numbered from 1 in every message; the column's own (0-based) value beside it
+                raise DataError(f"{self.where}: step {int(value) + 1} (step column value {value:g}) is not one "
+                                "contiguous block of rows", "one block per step, in time order")
             self.taken.add(int(value))
             steps.append(Step(int(value), self._recording(t[a:b], acc[a:b],
                                                           {k: v[a:b] for k, v in channels.items()})))

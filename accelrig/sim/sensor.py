@@ -56,6 +56,7 @@ class SensorModel:
     axis_noise        per-axis factors on the white noise sd (3,)
     ar1               AR(1) coefficient of the white part (0: white), marginal sd unchanged
     flicker           sqrt of the 1/f density at 1 Hz, (m/s^2)/sqrt(Hz) (0: none)
+    flicker_slope     alpha of that density's h / f^alpha, 0 < alpha < 2 (1: flicker proper)
     drift_rate        offset drift, m/s^2 per s (3,); needs the sample times in ``sense``
     """
 
@@ -68,6 +69,7 @@ class SensorModel:
     axis_noise: np.ndarray = field(default_factory=lambda: np.ones(3))
     ar1: float = 0.0
     flicker: float = 0.0
+    flicker_slope: float = 1.0
     drift_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
     # filter states carried from one block to the next (None until the first block)
     _noise_state: dict | None = field(default=None, init=False, repr=False, compare=False)
@@ -79,6 +81,8 @@ class SensorModel:
             raise ValueError(f"ar1 must lie in (-1, 1), got {self.ar1}")
         if self.flicker < 0 or np.any(self.axis_noise < 0):
             raise ValueError("flicker and axis_noise must not be negative")
+        if not 0.0 < self.flicker_slope < 2.0:
+            raise ValueError(f"flicker_slope must lie in (0, 2), got {self.flicker_slope}")
 
     @classmethod
     def random(cls, rng: np.random.Generator, **overrides) -> SensorModel:
@@ -157,13 +161,22 @@ class SensorModel:
             state = self._state(rng, rate)
             for k, fc in enumerate(self._flicker_corners(rate)):
                 a = np.exp(-2.0 * np.pi * fc / rate)
-                sd = np.sqrt(self.flicker**2 * np.log(10.0) / 3.0)
+                sd = np.sqrt(self.flicker_variance(fc))
                 e = rng.standard_normal((n, 3))
                 x, _ = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], e, axis=0,
                                zi=state["flicker"][k][None, :] * a)
                 state["flicker"][k] = x[-1].copy()
                 noise += x * sd
         return noise
+
+    def flicker_variance(self, corner: float) -> float:
+        """Variance of the relaxation process with ``corner`` Hz, one of three per decade that sum to h / f^alpha.
+
+        The one-sided density of a process of variance v and corner f_c is (2 v / (pi f_c)) / (1 + (f / f_c)^2);
+        with v = c f_c^(1 - alpha) and corners d = ln(10) / 3 apart in ln f_c the sum is close to
+        c f^-alpha / (d sin(pi alpha / 2)), so c = h d sin(pi alpha / 2).  alpha = 1: v = h d for every corner."""
+        alpha = self.flicker_slope
+        return float(self.flicker**2 * np.log(10.0) / 3.0 * np.sin(np.pi * alpha / 2) * corner ** (1.0 - alpha))
 
     @staticmethod
     def _flicker_corners(rate: float) -> np.ndarray:
@@ -192,6 +205,7 @@ class SensorModel:
             "axis_noise": self.axis_noise.tolist(),
             "ar1": self.ar1,
             "flicker": self.flicker,
+            "flicker_slope": self.flicker_slope,
             "drift_rate": self.drift_rate.tolist(),
             "correction": {"matrix": corr.matrix.tolist(), "bias": corr.bias.tolist()},
         }

@@ -38,7 +38,14 @@ from scipy import stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
-from accelrig.estimation.residuals import checked_covariance, difference_noise_variance, lack_of_fit
+from accelrig.estimation.residuals import (
+    Whiteness,
+    ar_sandwich_covariance,
+    checked_covariance,
+    difference_noise_variance,
+    lack_of_fit,
+    pooled_noise_model,
+)
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.estimation.stats import robust_sd
 from accelrig.procedures.slider_crank.motion_fit import CrankMotionFit, fit_crank_motion
@@ -77,6 +84,10 @@ MIN_STEP_CYCLES = 2.0
 # over the steps judged (Sidak: each step at 1 - (1 - alpha)^(1/m)): with five sound steps at k = 2 one
 # falls outside by chance in a fifth of runs, a warning an operator would learn to ignore.
 CLEARANCE_ALPHA = 0.05
+# One AR model of all steps' residuals is kept unless a test rejects it at this level (pool_noise): a wrong
+# smooth model halves a slow step's u under 1/f noise, the pooled bands only make it scatter, so the test
+# errs towards the bands.
+POOL_AR_ALPHA = 0.05
 
 
 def step_name(index: int, label: str) -> str:
@@ -137,6 +148,8 @@ class StepResult:
     residual_checks: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # what the residual checks found, for the warnings
     clearance_k: float = 0.0       # the coverage factor within_clearance was judged at
+    state: StepFit | None = field(default=None, repr=False)      # the fits, for pool_noise
+    checks: ResidualChecks | None = field(default=None, repr=False)
 
     @property
     def where(self) -> str:
@@ -348,10 +361,21 @@ class ResidualChecks:
     whiteness: dict
     lack_of_fit: dict | None
     notes: list[str]
+    white: np.ndarray | None = None     # the white-noise covariance the inflation is against
+    tested: Whiteness | None = None
+    pooled: dict | None = None          # the noise spectrum pooled over the steps (pool_noise), when used
+
+    @property
+    def correlated(self) -> bool:
+        """The residuals were found correlated: u from a sandwich (what pool_noise revises)."""
+        return self.tested is not None and self.tested.correlated
 
     def to_dict(self) -> dict:
-        return {"covariance_method": self.method, "inflation": self.inflation, "whiteness": self.whiteness,
-                "lack_of_fit": self.lack_of_fit}
+        out = {"covariance_method": self.method, "inflation": self.inflation, "whiteness": self.whiteness,
+               "lack_of_fit": self.lack_of_fit}
+        if self.pooled is not None:
+            out["pooled_noise"] = self.pooled
+        return out
 
 
 def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | None) -> ResidualChecks:
@@ -395,9 +419,13 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
             )
         if result.significant() and result.ratio > LOF_WARN:
             notes.append(f"{where}: {result.describe()}; u is from the residuals, so it includes the misfit")
+    return ResidualChecks(cov, _inflation(motion, cov, white), method, w.to_dict(), lof, notes, white, w)
+
+
+def _inflation(motion: CrankMotionFit, cov: np.ndarray, white: np.ndarray) -> float:
+    """The radius's u over its white-noise u, at least 1: the factor on the sine fit's u (harmonics, peak)."""
     _, g = motion.radius_gradient()
-    inflation = float(np.sqrt(max((g @ cov @ g) / (g @ white @ g), 1.0))) if g @ white @ g > 0 else 1.0
-    return ResidualChecks(cov, inflation, method, w.to_dict(), lof, notes)
+    return float(np.sqrt(max((g @ cov @ g) / (g @ white @ g), 1.0))) if g @ white @ g > 0 else 1.0
 
 
 def fft_peak_frequency(t, y) -> float:
@@ -491,9 +519,46 @@ def analyse_step(
         motion = fit_crank_motion(t, y - signature, fit.frequency, fit.harmonics)
     else:
         motion = fit_crank_motion(t, y, fit.frequency, fit.harmonics)
+    checks = motion_checks(where, t, y, motion, fit if backlash else None)
+    state = StepFit(index=index, label=label, n_samples=int(t.size), rate=float((t.size - 1) / (t[-1] - t[0])),
+                    commanded_hz=commanded_hz, fit=fit, motion=motion, start=float(start),
+                    fft_peak_hz=fft_peak_frequency(t, y), axis=axis, angle_sd=angle_sd, noise_sd=noise_sd,
+                    backlash=backlash, knock_peak=knock_peak, knock_p=knock_p, crank_radius=crank_radius,
+                    rod_length=rod_length, clearance=clearance)
+    return step_result(state, checks)
+
+
+@dataclass
+class StepFit:
+    """What a step's fits left, from which its result is stated (again, when pool_noise revises its noise)."""
+
+    index: int
+    label: str
+    n_samples: int
+    rate: float
+    commanded_hz: float | None
+    fit: SineFit
+    motion: CrankMotionFit
+    start: float
+    fft_peak_hz: float
+    axis: np.ndarray
+    angle_sd: float
+    noise_sd: float
+    backlash: bool
+    knock_peak: float
+    knock_p: float
+    crank_radius: float
+    rod_length: float
+    clearance: float
+
+
+def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
+    """The step's estimates and their u, from its fits and the covariance the residual checks gave."""
+    fit, motion, backlash = state.fit, state.motion, state.backlash
+    crank_radius, rod_length, clearance = state.crank_radius, state.rod_length, state.clearance
+    commanded_hz, axis, h = state.commanded_hz, state.axis, fit.harmonics
     f, grad_f = motion.mean_frequency_gradient()
     radius, grad_r = motion.radius_gradient()
-    checks = motion_checks(where, t, y, motion, fit if backlash else None)
     cov = checks.covariance
     u_f = float(np.sqrt(grad_f @ cov @ grad_f))
     u_radius = float(np.sqrt(grad_r @ cov @ grad_r))
@@ -543,13 +608,13 @@ def analyse_step(
     commanded_model = None if commanded_hz is None else crank_radius * (2 * np.pi * commanded_hz) ** 2
     angles = np.degrees(np.arccos(np.clip(np.abs(axis), 0, 1)))
     return StepResult(
-        index=index,
-        label=label,
-        n_samples=int(t.size),
+        index=state.index,
+        label=state.label,
+        n_samples=state.n_samples,
         commanded_hz=commanded_hz,
         frequency_hz=Estimate(f, u_f, "Hz"),
-        fft_peak_hz=fft_peak_frequency(t, y),
-        start_frequency_hz=float(start),
+        fft_peak_hz=state.fft_peak_hz,
+        start_frequency_hz=state.start,
         amplitude=Estimate(amp1, u_amp1, "m/s^2"),
         harmonic_amplitudes=Estimate(fit.amplitude.tolist(), (fit.amplitude_uncertainty * checks.inflation).tolist(),
                                      "m/s^2"),
@@ -565,23 +630,95 @@ def analyse_step(
         backlash=backlash,
         play_m=float(play),
         radius_play_uncertainty_m=float(u_play),
-        knock_peak=knock_peak,
-        knock_significance=knock_p,
+        knock_peak=state.knock_peak,
+        knock_significance=state.knock_p,
         speed_unsteady=unsteady,
         speed_spread_hz=spread,
         motor_limited=False,  # judged over all steps (mark_rolloff): shortfall, or hunting at the top
         axis=axis.tolist(),
         axis_angles_deg=angles.tolist(),
-        axis_angle_uncertainty_deg=float(np.degrees(angle_sd)),
+        axis_angle_uncertainty_deg=float(np.degrees(state.angle_sd)),
         residual_sd=fit.residual_sd,
-        noise_sd=noise_sd,
+        noise_sd=state.noise_sd,
         n_iterations=fit.n_iterations,
         fit=fit,
         harmonics=fit.harmonics,
         speed_order=motion.order,
         residual_checks=checks.to_dict(),
         notes=checks.notes,
+        state=state,
+        checks=checks,
     )
+
+
+def pool_noise(steps: list[StepResult]) -> None:
+    """Each short step's u from the noise spectrum all steps of the sensor show, not from its own residuals alone.
+
+    A 1-s step cannot show the noise where its own motion lives: its fit takes the noise out there, and
+    under 1/f noise the spectrum rises within a few bins, so the step's own AR model misses it (u at
+    2.5 Hz half the true one).  The steps share one sensor, axis and record: the other steps' residuals
+    show the noise at this step's crank frequency.  residuals.pooled_noise_model finds the spectrum in
+    bands from every step's residuals (each step's projection accounted for), and a level per step
+    (a step that shook more keeps its own level).  Every step whose residuals were found correlated gets
+    the sandwich with that spectrum at its level: batch means over blocks of a few correlation times
+    (milliseconds under 1/f noise) see the slow noise no better than the step's own AR model.  A step
+    whose residual power stands out from the pool (a motion the model misses; correlated residuals get
+    no other lack-of-fit test) keeps its own level, is warned, and is left out of the pool while two
+    others remain.  Steps with backlash (their phase-locked template removed) and steps at another
+    sampling rate are not pooled.  Replaces the revised steps in ``steps``.
+    """
+    eligible = [i for i, s in enumerate(steps) if s.state is not None and s.checks is not None and not s.backlash]
+    groups: list[list[int]] = []
+    for i in eligible:   # one sampling rate per group (within 0.5 %): the spectrum is per sample
+        rate = steps[i].state.rate
+        group = next((g for g in groups if abs(steps[g[0]].state.rate / rate - 1.0) < 0.005), None)
+        if group is None:
+            groups.append([i])
+        else:
+            group.append(i)
+    for members in groups:
+        if len(members) < 2:
+            continue
+        model = pooled_noise_model([(steps[i].state.motion.jacobian, steps[i].state.motion.residuals)
+                                    for i in members], warn_ratio=LOF_WARN)
+        # one smooth AR model explains every step's residuals (white, AR-like noise): each step's own u
+        # stands, resting on a model fitted to all its samples.  Otherwise (1/f: the rise at a slow step's
+        # own frequency is what its residuals cannot show) every step takes the pooled bands, a step
+        # whose residuals passed as white too: its own whiteness test could not see that noise either
+        coloured = model.ar_p_value < POOL_AR_ALPHA
+        for k, i in enumerate(members):
+            step, checks = steps[i], steps[i].checks
+            flagged = bool(model.stands_out[k]) and checks.correlated   # a white step has its own lack-of-fit test
+            if not (coloured or flagged or checks.correlated):
+                continue
+            motion = step.state.motion
+            noise = model.for_fit(k)
+            level, p_value = float(model.levels[k]), float(model.p_values[k])
+            if coloured or flagged:
+                normal = motion.jacobian.T @ motion.jacobian
+                cov = ar_sandwich_covariance(normal, motion.jacobian, motion.residuals, noise=noise).covariance
+                method = f"{noise.label} spectral sandwich over {int(model.pooled.sum())} steps"
+            else:
+                cov, method = checks.covariance, checks.method
+            if checks.correlated:
+                notes = [f"{step.where}: {checks.tested.describe()}; u from the {method}"]
+            else:
+                notes = [f"{step.where}: its residuals pass as white, but the steps together show coloured noise "
+                         f"(one AR model of all of them fails, p = {model.ar_p_value:.1g}): u from the {method}"]
+            if flagged:
+                notes.append(f"{step.where}: its residuals hold {np.sqrt(level):.2f}x the noise the other steps show "
+                             f"(F test p = {p_value:.1g}): the motion differs from the model here, or this step "
+                             "shook more; its u is from its own level"
+                             + ("" if model.pooled[k] else ", and it is left out of the pooled noise"))
+            pooled = {"steps": int(model.pooled.sum()), "level": level, "p_value": p_value,
+                      "ar_p_value": float(model.ar_p_value), "used": bool(coloured or flagged),
+                      "dof": float(model.dof[k]), "in_pool": bool(model.pooled[k]),
+                      "unseen_bands_hz": [[float(noise.edges[b] * step.state.rate),
+                                           float(noise.edges[b + 1] * step.state.rate)]
+                                          for b in np.flatnonzero(~noise.seen)]}
+            revised = replace(checks, covariance=cov, inflation=_inflation(motion, cov, checks.white), method=method,
+                              notes=notes, pooled=pooled)
+            steps[i] = step_result(step.state, revised)
 
 
 def check_neighbours(steps: list[StepResult]) -> None:
@@ -754,6 +891,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
     """
     if not steps:
         raise DataError("no steps were captured", "capture at least two motor speed steps")
+    pool_noise(steps)
     check_neighbours(steps)
     rolloff = mark_rolloff(steps)
     judge_clearance(steps, crank_radius, clearance)
