@@ -334,3 +334,27 @@ def test_procedure_takes_timed_steps_from_the_stream_and_reports_the_campaign():
     report = proc.result()
     assert report.details["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
     assert proc.act("capture") == []
+
+
+def test_an_encoder_coarser_than_stated_gets_the_u_of_its_own_steps(sim_test):
+    """The quantisation term uses the step the log shows when it is coarser than the stated 0.01 degree
+    (held-out audit: a 0.1-degree encoder kept the stated step's u and covered the truth in 45 % of runs)."""
+    from accelrig.procedures.rotary.bench import RotarySetup, encoder_step
+
+    rec, enc, truth, _, _ = sim_test
+    step = np.radians(0.1)
+    coarse = EncoderLog(enc.t, np.rint(enc.theta / step) * step)
+    assert encoder_step(coarse.theta) == pytest.approx(step, rel=1e-9)
+    assert encoder_step(enc.theta) == pytest.approx(np.radians(0.01), rel=1e-6)   # the simulator's own
+    assert encoder_step(enc.theta + 1e-7 * np.sin(np.arange(enc.t.size))) == 0.0   # not on a grid
+    setup = RotarySetup(radius_uncertainty=1e-6, geometry_uncertainty=0.0)
+    fine, rough = (analyse_test(rec, e, "x", "y", NOMINAL, setup=setup) for e in (enc, coarse))
+
+    def u_q(res):
+        (row,) = [c for c in res.reference["tangential"]["budget"]["contributions"] if c["symbol"] == "u_q"]
+        return row
+
+    assert u_q(rough)["note"] == "step 0.1 deg, read from the log (coarser than stated)"
+    assert u_q(fine)["note"] == "step 0.01 deg"
+    assert u_q(rough)["uncertainty"] == pytest.approx(10 * u_q(fine)["uncertainty"], rel=1e-3)   # theta0 refitted
+    assert rough.sensitivity["x"].uncertainty > 2 * fine.sensitivity["x"].uncertainty

@@ -711,6 +711,19 @@ class EncoderReference:
     components: dict  # component -> {"value", "uncertainty", "relative_uncertainty", "budget"}
 
 
+def encoder_step(theta: np.ndarray) -> float:
+    """The quantisation step of an encoder log, rad: the smallest gap between the angles it takes; 0 when
+    the angles are not on a grid (more distinct values than half the samples: interpolated or simulated).
+
+    Gaps below 1e-7 of the swing are the same count written twice with different rounding."""
+    levels = np.unique(theta)
+    if levels.size < 3 or levels.size > theta.size / 2:
+        return 0.0
+    gaps = np.diff(levels)
+    gaps = gaps[gaps > 1e-7 * (levels[-1] - levels[0])]
+    return float(gaps.min()) if gaps.size else 0.0
+
+
 def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySetup) -> EncoderReference:
     """Stage 1: f and theta0 from a sine fit of the encoder angle; eq. 3-4 give the reference accelerations."""
     if np.ptp(enc.theta) < 20 * setup.encoder_resolution:
@@ -740,9 +753,14 @@ def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySet
     # alike on the fundamental: M samples per period give M / 2 independent errors and
     # an amplitude sd of (q / sqrt 12) sqrt(2 / (M / 2)).  (Simulated with M = 200: 17 ppm
     # predicted with M, 26 ppm seen, 24 ppm with M / 2.)  Conservative when not in step.
+    # The step is the stated one or the one the log shows, whichever is coarser: a log quantised more
+    # coarsely than stated (another encoder, a decimated count) must not keep the stated step's u.
     enc_rate = (enc.t.size - 1) / (enc.t[-1] - enc.t[0])
     independent_per_period = max(enc_rate / f / 2.0, 1.0)
-    u_quant = setup.encoder_resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
+    resolution = max(setup.encoder_resolution, encoder_step(enc.theta))
+    u_quant = resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
+    resolution_note = (f"step {np.degrees(resolution):.3g} deg"
+                       + (", read from the log (coarser than stated)" if resolution > setup.encoder_resolution else ""))
     components = {}
     for name, value, c_theta in (("tangential", a_tan, 1.0), ("centripetal", a_cen, 2.0), ("dc", a_cen, 2.0)):
         budget = UncertaintyBudget(
@@ -750,7 +768,7 @@ def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySet
                 Contribution("radius", "u_r", u_r_rel),
                 Contribution("bench geometry", "u_g", setup.geometry_uncertainty),
                 Contribution("encoder amplitude (fit)", "u_theta0", u_theta0 / theta0, c_theta),
-                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta),
+                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta, note=resolution_note),
                 Contribution("frequency", "u_f", u_f_rel, 2.0),
             ],
             correlation=0.0, relative=True, value=value, unit="m/s^2",
