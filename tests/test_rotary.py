@@ -334,3 +334,58 @@ def test_procedure_takes_timed_steps_from_the_stream_and_reports_the_campaign():
     report = proc.result()
     assert report.details["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
     assert proc.act("capture") == []
+
+
+def test_an_encoder_coarser_than_stated_gets_the_u_of_its_own_steps(sim_test):
+    """The quantisation term uses the step the log shows when it is coarser than the stated 0.01 degree
+    (held-out audit: a 0.1-degree encoder kept the stated step's u and covered the truth in 45 % of runs)."""
+    from accelrig.procedures.rotary.bench import RotarySetup, encoder_step
+
+    rec, enc, truth, _, _ = sim_test
+    step = np.radians(0.1)
+    coarse = EncoderLog(enc.t, np.rint(enc.theta / step) * step)
+    assert encoder_step(coarse.theta) == pytest.approx(step, rel=1e-9)
+    assert encoder_step(enc.theta) == pytest.approx(np.radians(0.01), rel=1e-6)   # the simulator's own
+    assert encoder_step(enc.theta + 1e-7 * np.sin(np.arange(enc.t.size))) == 0.0   # not on a grid
+    setup = RotarySetup(radius_uncertainty=1e-6, geometry_uncertainty=0.0)
+    fine, rough = (analyse_test(rec, e, "x", "y", NOMINAL, setup=setup) for e in (enc, coarse))
+
+    def u_q(res):
+        (row,) = [c for c in res.reference["tangential"]["budget"]["contributions"] if c["symbol"] == "u_q"]
+        return row
+
+    assert u_q(rough)["note"] == "step 0.1 deg, read from the log (coarser than stated)"
+    assert u_q(fine)["note"] == "step 0.01 deg"
+    assert u_q(rough)["uncertainty"] == pytest.approx(10 * u_q(fine)["uncertainty"], rel=1e-3)   # theta0 refitted
+    assert rough.sensitivity["x"].uncertainty > 2 * fine.sensitivity["x"].uncertainty
+
+
+def test_a_swing_with_a_2nd_harmonic_is_no_sign_of_swapped_axes_and_its_crosstalk_is_in_u():
+    """Held-out audit: a disk whose swing carries a 1 % 2nd harmonic puts 4 % of the tangential line at 2f on
+    the tangential axis; at small angles that exceeds the centripetal line, and the test was refused as
+    'axis x, not the radial axis y, carries the centripetal' (8 of 25 runs); through the sensor's cross-axis
+    sensitivity it also moved the radial sensitivity by several u."""
+    from accelrig.procedures.rotary.bench import AxisAmplitudes, check_axis_roles, sensitivities
+
+    tangential = AxisAmplitudes(at_f=20000.0, at_f_uncertainty=1.0, at_2f=800.0, at_2f_uncertainty=1.0,
+                                dc=0.0, dc_uncertainty=1.0)
+    radial = AxisAmplitudes(at_f=100.0, at_f_uncertainty=1.0, at_2f=600.0, at_2f_uncertainty=1.0,
+                            dc=600.0, dc_uncertainty=1.0)
+    up = AxisAmplitudes(at_f=5.0, at_f_uncertainty=1.0, at_2f=2.0, at_2f_uncertainty=1.0, dc=4100.0,
+                        dc_uncertainty=1.0)
+    amplitudes = {"x": tangential, "y": radial, "z": up}
+    with pytest.raises(DataError, match="axis x, not the 'radial' axis y"):
+        check_axis_roles(amplitudes, 0, 1, 8.0)                         # a pure sine cannot put 800 there
+    check_axis_roles(amplitudes, 0, 1, 8.0, motion_2f_share=0.04)       # the encoder shows the 2nd harmonic
+    reference = {name: {"value": v, "relative_uncertainty": 1e-4} for name, v in
+                 (("tangential", 47.0), ("centripetal", 1.41), ("dc", 1.41))}
+    used, _ = sensitivities(amplitudes, reference, 0, 1)
+    # coupling 100 / 20000 seen at f, times the 800 counts at 2f, phase unknown: / sqrt 2
+    expected = 100 / 20000 * 800 / np.sqrt(2) / 600
+    assert used["y"].crosstalk_uncertainty == pytest.approx(expected)
+    assert used["y"].uncertainty == pytest.approx(used["y"].value * np.sqrt((1 / 600) ** 2 + 1e-8 + expected**2))
+    assert used["x"].crosstalk_uncertainty == 0.0
+    # without a 2f line on the tangential axis the term is negligible
+    clean = {**amplitudes, "x": AxisAmplitudes(20000.0, 1.0, 3.0, 1.0, 0.0, 1.0)}
+    quiet = sensitivities(clean, reference, 0, 1)[0]["y"]
+    assert quiet.crosstalk_uncertainty < 0.02 * quiet.noise_uncertainty

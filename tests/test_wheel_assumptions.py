@@ -109,6 +109,22 @@ def test_drifting_offsets_are_taken_in_and_reported():
     assert np.all(np.abs(z_scores(result, OFFSET + drift / 2)) < 4)
 
 
+def test_an_offset_that_settles_is_warned_a_straight_line_is_not():
+    """Held-out audit: an offset warming up (exponential settling) or stepping mid-run is no straight line; what the
+    linear drift leaves moves the gains and tilt by 2-3 u, and the linear test alone missed it in 8-12 % of runs."""
+    rec, _ = record(seed=12)
+    x = (rec.t - rec.t[0]) / SECONDS
+    settle = np.array([0.02, -0.015, 0.01])[None, :] * (-np.expm1(-x / 0.15))[:, None]
+    warmed = Recording(rec.t, rec.acc + settle, rec.units, dict(rec.channels), dict(rec.meta))
+    result = calibrate_wheel(warmed, radius=0.28)
+    assert any("a straight line does not follow" in w for w in result.warnings)
+    assert result.quality["residual_checks"]["offset_drift_shape_test"]["significant"]
+    # a linear drift is taken in and warned as such, not as a shape
+    linear, _ = record(seed=8, drift_rate=np.array([0.02, -0.01, 0.015]) / SECONDS)
+    result = calibrate_wheel(linear, radius=0.28)
+    assert not any("a straight line does not follow" in w for w in result.warnings)
+
+
 def test_white_noise_keeps_the_crb_and_stays_quiet():
     rec, _ = record(seed=9)
     result = calibrate_wheel(rec, radius=0.28)

@@ -204,6 +204,7 @@ class AxisSensitivity:
     reference_amplitude: float  # m/s^2
     noise_uncertainty: float
     reference_uncertainty: float
+    crosstalk_uncertainty: float = 0.0   # relative: another axis's line at this frequency seen through cross-axis
 
     def to_dict(self) -> dict:
         return {
@@ -212,6 +213,7 @@ class AxisSensitivity:
             "reference_amplitude": self.reference_amplitude,
             "relative_uncertainty_noise": self.noise_uncertainty,
             "relative_uncertainty_reference": self.reference_uncertainty,
+            "relative_uncertainty_crosstalk": self.crosstalk_uncertainty,
         }
 
 
@@ -394,7 +396,9 @@ def analyse_test(
                                                           setup.filter_cutoff)
     gain = {"at_f": zero_phase_gain(sos, f, fs), "at_2f": zero_phase_gain(sos, 2 * f, fs)}
     amplitudes, noise = axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain)   # 4
-    check_axis_roles(amplitudes, i_t, i_r, f)
+    # the encoder's own 2nd harmonic: (2 omega)^2 theta_2 against omega^2 theta_1 on the tangential axis
+    motion_2f_share = 4.0 * float(ref.fit.amplitude[1] / ref.fit.amplitude[0]) if ref.fit.harmonics > 1 else 0.0
+    check_axis_roles(amplitudes, i_t, i_r, f, motion_2f_share)
     sensitivity, dc_sens = sensitivities(amplitudes, ref.components, i_t, i_r)            # 5
 
     amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
@@ -612,13 +616,15 @@ def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, sourc
     wander["jumps"] = jumps
     if wander["p_value"] < TIMING_FALSE_ALARM and samples > 1.0:
         raise CalibrationError(
-            f"{source}: samples were lost without a trace: the sample count does not match the motion. Counted "
-            f"in samples, the phase of the tangential axis's oscillation wanders by up to {samples:.0f} sample "
-            f"periods ({wander['max_deviation_rad']:.2f} rad) between stretches of the record (chi-square "
-            f"{wander['chi2']:.3g} for {wander['dof']} degrees of freedom); a sample-index fit would report a "
-            "sensitivity several per cent low",
+            f"{source}: the sample count does not match the motion: samples were lost without a trace, or the "
+            f"sample clock's rate wandered during the record. Counted in samples, the phase of the tangential "
+            f"axis's oscillation wanders by up to {samples:.0f} sample periods "
+            f"({wander['max_deviation_rad']:.2f} rad) between stretches of the record (chi-square "
+            f"{wander['chi2']:.3g} for {wander['dof']} degrees of freedom) with no whole-sample step in it; a "
+            "sample-index fit would report a sensitivity several per cent low",
             "record the MEMS with its timestamps or its recorder's gap list (accelrig record keeps both) so the "
-            "gaps can be placed, or re-record over a steady link",
+            "gaps can be placed, or re-record over a steady link; a clock that wanders (temperature) needs the "
+            "timestamps too",
         )
     return wander
 
@@ -711,6 +717,19 @@ class EncoderReference:
     components: dict  # component -> {"value", "uncertainty", "relative_uncertainty", "budget"}
 
 
+def encoder_step(theta: np.ndarray) -> float:
+    """The quantisation step of an encoder log, rad: the smallest gap between the angles it takes; 0 when
+    the angles are not on a grid (more distinct values than half the samples: interpolated or simulated).
+
+    Gaps below 1e-7 of the swing are the same count written twice with different rounding."""
+    levels = np.unique(theta)
+    if levels.size < 3 or levels.size > theta.size / 2:
+        return 0.0
+    gaps = np.diff(levels)
+    gaps = gaps[gaps > 1e-7 * (levels[-1] - levels[0])]
+    return float(gaps.min()) if gaps.size else 0.0
+
+
 def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySetup) -> EncoderReference:
     """Stage 1: f and theta0 from a sine fit of the encoder angle; eq. 3-4 give the reference accelerations."""
     if np.ptp(enc.theta) < 20 * setup.encoder_resolution:
@@ -740,9 +759,14 @@ def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySet
     # alike on the fundamental: M samples per period give M / 2 independent errors and
     # an amplitude sd of (q / sqrt 12) sqrt(2 / (M / 2)).  (Simulated with M = 200: 17 ppm
     # predicted with M, 26 ppm seen, 24 ppm with M / 2.)  Conservative when not in step.
+    # The step is the stated one or the one the log shows, whichever is coarser: a log quantised more
+    # coarsely than stated (another encoder, a decimated count) must not keep the stated step's u.
     enc_rate = (enc.t.size - 1) / (enc.t[-1] - enc.t[0])
     independent_per_period = max(enc_rate / f / 2.0, 1.0)
-    u_quant = setup.encoder_resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
+    resolution = max(setup.encoder_resolution, encoder_step(enc.theta))
+    u_quant = resolution / np.sqrt(12.0) * np.sqrt(2.0 / independent_per_period)
+    resolution_note = (f"step {np.degrees(resolution):.3g} deg"
+                       + (", read from the log (coarser than stated)" if resolution > setup.encoder_resolution else ""))
     components = {}
     for name, value, c_theta in (("tangential", a_tan, 1.0), ("centripetal", a_cen, 2.0), ("dc", a_cen, 2.0)):
         budget = UncertaintyBudget(
@@ -750,7 +774,7 @@ def encoder_reference(enc: EncoderLog, frequency: float | None, setup: RotarySet
                 Contribution("radius", "u_r", u_r_rel),
                 Contribution("bench geometry", "u_g", setup.geometry_uncertainty),
                 Contribution("encoder amplitude (fit)", "u_theta0", u_theta0 / theta0, c_theta),
-                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta),
+                Contribution("encoder resolution", "u_q", u_quant / theta0, c_theta, note=resolution_note),
                 Contribution("frequency", "u_f", u_f_rel, 2.0),
             ],
             correlation=0.0, relative=True, value=value, unit="m/s^2",
@@ -860,9 +884,17 @@ def axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain):
     return amplitudes, raw_fits
 
 
-def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, f: float) -> None:
-    """The tangential axis carries f and the radial 2f, more than any other axis: else say which axis does."""
+def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, f: float,
+                     motion_2f_share: float = 0.0) -> None:
+    """The tangential axis carries f and the radial 2f, more than any other axis: else say which axis does.
+
+    ``motion_2f_share``: the tangential acceleration's 2f line over its f line that the encoder shows (a
+    disk whose swing is not a pure sine: 4 theta_2 / theta_1).  That much of the tangential axis's 2f is
+    its own; at small angles it can exceed the centripetal line, and is no sign of swapped axes."""
     amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
+    at_2f = {a: amplitudes[a].at_2f for a in amplitudes}
+    own = motion_2f_share * amp_t.at_f
+    at_2f[AXES[i_t]] = max(amp_t.at_2f - own - 3.0 * amp_t.at_2f_uncertainty, 0.0)
     if amp_t.at_2f > amp_t.at_f:
         raise DataError(
             f"axis roles contradict the data: the 'tangential' axis {AXES[i_t]} carries more at 2f "
@@ -876,7 +908,7 @@ def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, 
             "check --tangential and --radial",
         )
     strongest_f = max(amplitudes, key=lambda a: amplitudes[a].at_f)
-    strongest_2f = max(amplitudes, key=lambda a: amplitudes[a].at_2f)
+    strongest_2f = max(at_2f, key=lambda a: at_2f[a])
     if strongest_f != AXES[i_t]:
         raise DataError(
             f"axis roles contradict the data: axis {strongest_f}, not the 'tangential' axis {AXES[i_t]}, carries "
@@ -893,19 +925,32 @@ def check_axis_roles(amplitudes: dict[str, AxisAmplitudes], i_t: int, i_r: int, 
 
 def sensitivities(amplitudes: dict[str, AxisAmplitudes], reference: dict, i_t: int, i_r: int):
     """Stage 5: counts per m/s^2 (tangential axis from f, radial from 2f; the radial DC reported, not used),
-    each with its budget: the output's noise and the reference's uncertainty.  Returns (used, dc)."""
-    def sens(axis: str, component: str, output: float, u_output: float) -> AxisSensitivity:
+    each with its budget: the output's noise, the reference's uncertainty and, for the radial axis, cross-talk.
+    Returns (used, dc).
+
+    Cross-talk: the radial axis also sees a share c of the tangential axis's force (cross-axis sensitivity,
+    mounting).  At 2f that adds c times the tangential axis's own 2f line, which a motion that is not a pure
+    sine puts there (a 2nd harmonic of 1 % gives the tangential axis 4 % of its f amplitude at 2f, as large as
+    the whole centripetal line at small angles).  c is bounded by what the radial axis shows at f, where the
+    tangential force is the only line (more when the motion adds its own f there: then conservative); the
+    leak's phase is unknown, so its standard uncertainty is that bound over sqrt 2 (a cosine of a uniform
+    phase).  Without a 2f line on the tangential axis the term is negligible."""
+    def sens(axis: str, component: str, output: float, u_output: float, u_cross: float = 0.0) -> AxisSensitivity:
         ref = reference[component]
         value = output / ref["value"]
         u_noise = u_output / output
         u_ref = ref["relative_uncertainty"]
-        return AxisSensitivity(axis, component, float(value), float(abs(value) * np.hypot(u_noise, u_ref)),
-                               float(output), float(ref["value"]), float(u_noise), float(u_ref))
+        return AxisSensitivity(axis, component, float(value),
+                               float(abs(value) * np.sqrt(u_noise**2 + u_ref**2 + u_cross**2)),
+                               float(output), float(ref["value"]), float(u_noise), float(u_ref), float(u_cross))
 
     amp_t, amp_r = amplitudes[AXES[i_t]], amplitudes[AXES[i_r]]
+    coupling = amp_r.at_f / amp_t.at_f if amp_t.at_f > 0 else 0.0
+    leak = coupling * amp_t.at_2f / np.sqrt(2.0)
     used = {
         AXES[i_t]: sens(AXES[i_t], "tangential", amp_t.at_f, amp_t.at_f_uncertainty),
-        AXES[i_r]: sens(AXES[i_r], "centripetal", amp_r.at_2f, amp_r.at_2f_uncertainty),
+        AXES[i_r]: sens(AXES[i_r], "centripetal", amp_r.at_2f, amp_r.at_2f_uncertainty,
+                        leak / amp_r.at_2f if amp_r.at_2f > 0 else 0.0),
     }
     return used, sens(AXES[i_r], "dc", abs(amp_r.dc), amp_r.dc_uncertainty)
 

@@ -17,7 +17,9 @@ there:
   a refusal.
 * **Offset drift** (a warming sensor): a score test of a linear drift of each axis'
   offset.  Found: the fit takes the drift in, u comes from that larger model, the offsets
-  reported are the run's mean, and a warning says how much the offsets moved.
+  reported are the run's mean, and a warning says how much the offsets moved.  A second score
+  test looks for drift shapes beyond the line (Legendre degrees 2-3 in time: a step, a warm-up
+  that settles); found, it warns, since what the line leaves is confounded with the gains.
 
 Structure found is taken in by fitting the model and the added regressors together
 (Gauss-Newton from the fit's estimate until it settles: one linearised step is not enough,
@@ -90,6 +92,7 @@ class Checks:
     drift_per_axis: np.ndarray | None = None      # offset change over the run, m/s^2
     extra: np.ndarray | None = None               # coefficients of the added regressors taken in
     notes: list[str] = field(default_factory=list)
+    drift_shape: ScoreTest | None = None          # the offsets' change beyond a straight line (warned, not taken in)
 
     def to_dict(self) -> dict:
         out = {"noise": "correlated" if self.correlated else "white",
@@ -101,6 +104,8 @@ class Checks:
             out["offset_drift_test"] = self.drift.to_dict()
         if self.drift_per_axis is not None:
             out["offset_drift_m_s2"] = self.drift_per_axis.tolist()
+        if self.drift_shape is not None:
+            out["offset_drift_shape_test"] = self.drift_shape.to_dict()
         return out
 
 
@@ -141,13 +146,21 @@ def _extra_columns(t, state: WheelState, jac_theta: np.ndarray, time_scale: floa
         d2 = np.polynomial.legendre.legval(tau, np.polynomial.legendre.legder(coef, 2)) * dtau**2
         perturbation(d, d1, d2)
     along = np.stack(columns, axis=2)
-    drift = np.zeros((t.size, 3, 3))
-    for k in range(3):
-        drift[:, k, k] = tau
+    drift = np.zeros((t.size, 3, 3 * DRIFT_DEGREE))
+    for deg in range(1, DRIFT_DEGREE + 1):
+        shape = np.polynomial.legendre.legval(tau, [0] * deg + [1])
+        for k in range(3):
+            drift[:, k, 3 * (deg - 1) + k] = shape
     return np.concatenate([along, drift], axis=2)
 
 
 N_SPEED_LAW = 2 * HARMONICS * (AMPLITUDE_DEGREE + 1) + len(SLOW_DEGREES)
+# Offset drift per axis: the linear shape (tested, and taken in when found), then Legendre degrees 2..DRIFT_DEGREE
+# in time, tested only: an offset that steps or settles (a warm-up) is no straight line, and what the line
+# leaves of it is slow, like the centripetal term's own change, so it moves the gains and the tilt by more
+# than their u.  Taking those shapes in makes the gains indistinguishable from the drift; the test warns.
+DRIFT_DEGREE = 3
+N_EXTRA = N_SPEED_LAW + 3 * DRIFT_DEGREE
 
 
 def _score_test(name, g, s_white, block_scores, use_blocks, n_values) -> tuple[ScoreTest, np.ndarray]:
@@ -179,7 +192,7 @@ def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_sc
     short last block of less than half a block joins the previous one).  ``residuals``, when given, is
     filled with v - model - regressors."""
     n, p = t.size, free.size
-    q = N_SPEED_LAW + 3
+    q = N_EXTRA
     k_blocks = max(1, n // block)
     if n - k_blocks * block >= block / 2:
         k_blocks += 1
@@ -221,7 +234,7 @@ def _take_in(t, v, state: WheelState, free: FreeSet, time_scale: float, g: float
     """Fit the model together with the added regressors ``taken`` (indices into the q regressors, built at
     the fit's estimate ``state``); ``residuals`` is overwritten with what is left.  Returns the moved state
     and the regressors' coefficients (q,)."""
-    p, q = free.size, N_SPEED_LAW + 3
+    p, q = free.size, N_EXTRA
     keep = list(range(p)) + [p + i for i in taken]
     extra = np.zeros(q)
     moved = state
@@ -264,7 +277,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     period = float(np.median(np.diff(t)))
     block = _block_for(white, correlated, period)
     n, p = t.size, free.size
-    q = N_SPEED_LAW + 3
+    q = N_EXTRA
     normal, scores_all = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(q), block)
     full_normal = normal.sum(axis=0)
     a, b, c = full_normal[:p, :p], full_normal[:p, p:], full_normal[p:, p:]
@@ -278,9 +291,15 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # the tests use the batch-means length itself (the finest blocks serve the sandwich ladder)
     test_scores = _merge(scores, 4) if correlated else scores
     law = slice(0, N_SPEED_LAW)
-    dr = slice(N_SPEED_LAW, q)
+    dr = slice(N_SPEED_LAW, N_SPEED_LAW + 3)
+    shape = slice(N_SPEED_LAW + 3, q)
     speed_law, _ = _score_test("speed law", g_all[law], schur[law, law], test_scores[:, law], use_blocks, 3 * n)
     drift, _ = _score_test("offset drift", g_all[dr], schur[dr, dr], test_scores[:, dr], use_blocks, 3 * n)
+    # the shapes beyond the line, with the line projected out too (a linear drift is taken in, not warned twice)
+    to_line = np.linalg.lstsq(schur[dr, dr], schur[dr, shape], rcond=None)[0]
+    drift_shape, _ = _score_test("offset drift shape", g_all[shape] - to_line.T @ g_all[dr],
+                                 schur[shape, shape] - schur[shape, dr] @ to_line,
+                                 test_scores[:, shape] - test_scores[:, dr] @ to_line, use_blocks, 3 * n)
 
     notes = []
     # Structure found is taken into the model (the model and the regressors fitted together), so the
@@ -343,7 +362,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         source += "; the model takes in " + " and ".join(names)
     drift_per_axis = 2.0 * extra_step[dr] if drift.significant else None    # tau runs -1 .. 1
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
-                  drift_per_axis, extra_step if taken else None, notes)
+                  drift_per_axis, extra_step if taken else None, notes, drift_shape)
 
 
 def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:

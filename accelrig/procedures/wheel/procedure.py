@@ -177,6 +177,12 @@ def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
                    f"score test p = {checks.drift.p_value:.1g}): the fit takes a linear drift in, the offsets are the "
                    "run's mean and their u includes it; a sensor still warming up drifts like this, let it settle "
                    "before calibrating")
+    shape = checks.drift_shape
+    if shape is not None and shape.significant:
+        out.append(f"the offsets changed during the run in a way a straight line does not follow (a step, or a "
+                   f"warm-up that settles: score test of their curvature in time p = {shape.p_value:.1g}): what the "
+                   "line leaves changes slowly, as the centripetal term does, so the gains, offsets and tilt may be "
+                   "off by more than their u; let the sensor settle powered and record again")
     return out
 
 

@@ -1,0 +1,371 @@
+"""A held-out simulator for the static, wheel and rotary procedures (issue 18's held-out audit).
+
+It shares NO code with ``accelrig.sim`` (nor with anything else in accelrig): numpy and scipy only,
+its own trajectories, its own sensor and noise models, its own conventions, written from the
+physics and from the file formats in docs/recordings.md.  It writes the files a person would hand
+accelrig (CSV with a header row, m/s^2 or counts), so the audit (``bench_heldout.py``) judges the
+real commands on them.  Nothing in accelrig may be tuned to its conditions: they exist to find
+what the project's own stress benchmark (``bench_stress.py``, built on ``accelrig.sim``) cannot.
+
+Noise (``noise``): white, power-law 1/f^beta by spectral shaping of a record four times longer
+than the one kept (so the slow part is not periodic in the record), random walk plus white, AR(2)
+with a spectral peak, band-limited vibration.  Offset drifts (``drift``): a step, an exponential
+warm-up, a sinusoidal thermal cycle, each of a stated total size.
+
+Truth for offsets: the sensor's offset during the calibration, i.e. its fixed offset plus the mean,
+over the samples the procedure uses, of every slow part (the drift and the non-white noise).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+G = 9.80665
+
+
+# ----------------------------------------------------------------------------------------------------------
+# noise and drift
+
+
+@dataclass
+class Noise:
+    """Per-sample noise: ``kind`` one of white, power, walk, ar2, band.
+
+    sd          white sd per sample (m/s^2), per axis scale ``axis``
+    beta        power law exponent (power): PSD(f) = white PSD * (corner / f)^beta
+    corner      frequency where the coloured part's PSD equals the white PSD (power), Hz
+    walk        random-walk step sd per sqrt(s) (walk), m/s^2/sqrt(s)
+    peak, r     AR(2) peak frequency (Hz) and pole radius (ar2); the sd is ``sd``
+    band        (low, high) Hz and ``band_sd`` m/s^2 of a vibration added to white noise (band)
+    """
+
+    kind: str = "white"
+    sd: float = 0.03
+    axis: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    beta: float = 1.0
+    corner: float = 1.0
+    walk: float = 0.0
+    peak: float = 5.0
+    r: float = 0.97
+    band: tuple[float, float] = (8.0, 12.0)
+    band_sd: float = 0.0
+
+    def draw(self, n: int, rate: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(total noise, its slow non-white part) as (n, 3) arrays."""
+        scale = np.asarray(self.axis, dtype=float)
+        white = rng.standard_normal((n, 3)) * self.sd
+        slow = np.zeros((n, 3))
+        if self.kind == "white":
+            pass
+        elif self.kind == "power":
+            m = 4 * n
+            f = np.fft.rfftfreq(m, 1.0 / rate)
+            f[0] = f[1]
+            shape = (self.corner / f) ** (self.beta / 2.0)
+            spec = np.fft.rfft(rng.standard_normal((m, 3)), axis=0) * shape[:, None]
+            long = np.fft.irfft(spec, m, axis=0) * self.sd
+            start = int(rng.integers(0, m - n))
+            slow = long[start:start + n]
+        elif self.kind == "walk":
+            slow = np.cumsum(rng.standard_normal((n, 3)), axis=0) * self.walk / np.sqrt(rate)
+            slow -= slow[0]
+        elif self.kind == "ar2":
+            # x_k = 2 r cos(w) x_k-1 - r^2 x_k-2 + e_k, scaled to sd; replaces the white part
+            w = 2 * np.pi * self.peak / rate
+            a = [1.0, -2 * self.r * np.cos(w), self.r ** 2]
+            e = rng.standard_normal((n + 2000, 3))
+            x = signal.lfilter([1.0], a, e, axis=0)[2000:]
+            x *= self.sd / x.std(axis=0)
+            return x * scale, np.zeros((n, 3))
+        elif self.kind == "band":
+            sos = signal.butter(4, self.band, btype="bandpass", fs=rate, output="sos")
+            e = rng.standard_normal((n + 4000, 3))
+            x = signal.sosfilt(sos, e, axis=0)[4000:]
+            slow = x * self.band_sd / x.std(axis=0)
+            # a vibration is not slow: it is noise that is not white, judged as noise (not in the truth)
+            return (white + slow) * scale, np.zeros((n, 3))
+        else:
+            raise ValueError(self.kind)
+        return (white + slow) * scale, slow * scale
+
+
+@dataclass
+class Drift:
+    """An offset change over time, m/s^2 per axis direction ``direction`` (unit, drawn if None)."""
+
+    kind: str = "none"       # none, step, warmup, thermal
+    size: float = 0.0        # total change (step, warmup) or peak-to-peak (thermal)
+    at: float = 0.5          # step: share of the run; warmup: time constant as a share; thermal: period share
+    direction: np.ndarray | None = None
+
+    def at_times(self, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        if self.kind == "none" or self.size == 0.0:
+            return np.zeros((t.size, 3))
+        d = self.direction if self.direction is not None else rng.normal(size=3)
+        d = np.asarray(d, float) / np.linalg.norm(d)
+        span = t[-1] - t[0]
+        x = (t - t[0]) / span
+        if self.kind == "step":
+            where = float(rng.uniform(0.3, 0.7))
+            shape = (x >= where).astype(float)
+        elif self.kind == "warmup":
+            shape = -np.expm1(-x / self.at) / -np.expm1(-1.0 / self.at)
+        elif self.kind == "thermal":
+            phase = float(rng.uniform(0, 2 * np.pi))
+            shape = 0.5 * np.sin(2 * np.pi * x / self.at + phase)
+        else:
+            raise ValueError(self.kind)
+        return shape[:, None] * self.size * d[None, :]
+
+
+def rotation(axis_angles: np.ndarray) -> np.ndarray:
+    """Rotation matrix from a rotation vector (Rodrigues)."""
+    v = np.asarray(axis_angles, float)
+    a = np.linalg.norm(v)
+    if a < 1e-15:
+        return np.eye(3)
+    k = v / a
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(a) * kx + (1 - np.cos(a)) * kx @ kx
+
+
+def write_csv(path: Path, t: np.ndarray | None, columns: dict[str, np.ndarray], meta: dict | None = None,
+              fmt: str = "%.6f") -> None:
+    names = (["t"] if t is not None else []) + list(columns)
+    data = np.column_stack(([t] if t is not None else []) + list(columns.values()))
+    with open(path, "w") as fh:
+        if meta:
+            fh.write("# accelrig-meta: " + json.dumps(meta) + "\n")
+        fh.write(",".join(names) + "\n")
+        np.savetxt(fh, data, fmt=["%.9f"] * (t is not None) + [fmt] * len(columns), delimiter=",")
+
+
+# ----------------------------------------------------------------------------------------------------------
+# static: faces held by hand, with handling between
+
+
+FACES = {"+x": (0, -1), "-x": (0, 1), "+y": (1, -1), "-y": (1, 1), "+z": (2, -1), "-z": (2, 1)}
+WIZARD = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y")
+
+
+@dataclass
+class StaticCase:
+    rate: float = 200.0
+    hold: tuple[float, float] = (4.5, 6.0)     # each hold's length drawn uniformly, s
+    move: tuple[float, float] = (1.5, 2.5)     # handling between holds, s
+    tilt_deg: float = 0.1                      # hand tilt sd per component
+    order: tuple[str, ...] = WIZARD
+    noise: Noise = field(default_factory=Noise)
+    drift: Drift = field(default_factory=Drift)
+    g: float = G
+    range_g: float = 2.0
+
+
+def _up_for(face: str, tilt_deg: float, rng: np.random.Generator) -> np.ndarray:
+    axis, sign = FACES[face]
+    up = np.zeros(3)
+    up[axis] = sign            # "+z down": z points down, the up direction is -z
+    return rotation(np.radians(tilt_deg) * rng.standard_normal(3)) @ up
+
+
+def simulate_static(case: StaticCase, rng: np.random.Generator):
+    """Returns (t, raw (n, 3) in m/s^2, truth dict with C, b and hold intervals)."""
+    gains = 1.0 + 0.02 * rng.standard_normal(3)
+    mount = rotation(np.radians(0.5) * rng.standard_normal(3))
+    k = mount.T @ np.diag(1.0 / gains)                 # raw = K f + o, calibrated = C (raw - o), C = K^-1
+    offset = 0.3 * rng.standard_normal(3)
+    dt = 1.0 / case.rate
+    pieces_f, holds = [], []
+    t_now = 0.0
+    prev = None
+
+    def hand(n):   # the hand's own acceleration while handling: smooth, about 1 m/s^2
+        sos = signal.butter(2, 4.0, fs=case.rate, output="sos")
+        x = signal.sosfilt(sos, rng.standard_normal((n + 200, 3)), axis=0)[200:]
+        return x / x.std(axis=0) * 1.2
+
+    for face in case.order:
+        up = _up_for(face, case.tilt_deg, rng)
+        n_move = int(rng.uniform(*case.move) * case.rate)
+        start_up = prev if prev is not None else _up_for(case.order[-1], 5.0, rng)
+        mid = start_up + up
+        if np.linalg.norm(mid) < 0.3:                  # opposite faces: turn through a perpendicular
+            mid = np.cross(up, rng.normal(size=3))
+        mid /= np.linalg.norm(mid)
+        s = 0.5 - 0.5 * np.cos(np.pi * np.arange(n_move) / n_move)
+        path = np.where(s[:, None] < 0.5, (1 - 2 * s)[:, None] * start_up + (2 * s)[:, None] * mid,
+                        (2 - 2 * s)[:, None] * mid + (2 * s - 1)[:, None] * up)
+        path /= np.linalg.norm(path, axis=1, keepdims=True)
+        pieces_f.append(case.g * path + hand(n_move) * np.sin(np.pi * np.arange(n_move) / n_move)[:, None])
+        t_now += n_move * dt
+        n_hold = int(rng.uniform(*case.hold) * case.rate)
+        pieces_f.append(np.tile(case.g * up, (n_hold, 1)))
+        holds.append((t_now, t_now + n_hold * dt))
+        t_now += n_hold * dt
+        prev = up
+    n_end = int(1.5 * case.rate)
+    pieces_f.append(case.g * prev + hand(n_end) * np.sin(np.pi * np.arange(n_end) / n_end)[:, None])
+    f = np.concatenate(pieces_f)
+    n = f.shape[0]
+    t = np.arange(n) * dt
+    noise, slow = case.noise.draw(n, case.rate, rng)
+    drift = case.drift.at_times(t, rng)
+    raw = f @ k.T + offset + drift + noise
+    scale = case.range_g * G / 32768.0
+    raw = np.clip(np.rint(raw / scale), -32768, 32767) * scale
+    used = np.zeros(n, dtype=bool)
+    for a, b in holds:                                 # the still samples a procedure would keep
+        used |= (t >= a + 0.3) & (t <= b - 0.5)
+    b_true = offset + (drift + slow)[used].mean(axis=0)
+    return t, raw, {"C": np.linalg.inv(k), "b": b_true, "holds": holds, "scale": scale}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# wheel: a tilted wheel coasting down
+
+
+@dataclass
+class WheelCase:
+    rate: float = 200.0
+    seconds: float = 90.0
+    radius: float = 0.28
+    tilt_deg: float = 45.0
+    omega0: float = 9.0
+    # speed law: "cubic" (w0 + w1 t + w2 t^2 + w3 t^3, the paper's), or friction "viscous+coulomb",
+    # "quadratic+coulomb" (aerodynamic drag), with the loss over the run ``slow_to`` (share of omega0 left)
+    law: str = "cubic"
+    slow_to: float = 0.55
+    coulomb_share: float = 0.5     # share of the initial deceleration that is Coulomb (speed-independent)
+    tilt_wander_deg: float = 0.0   # the stand creeps: tilt changes linearly by this over the run
+    wobble_deg: float = 0.0        # bearing play: the axis nods by this once per turn
+    noise: Noise = field(default_factory=lambda: Noise(sd=0.08))
+    drift: Drift = field(default_factory=Drift)
+    range_g: float = 4.0
+
+
+def _speed(case: WheelCase, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    w0, T = case.omega0, case.seconds
+    if case.law == "cubic":
+        # a gentle coast-down that a cubic holds exactly, with a random shape
+        x = t / T
+        c2 = rng.uniform(-0.1, 0.1)
+        c3 = rng.uniform(-0.05, 0.05)
+        w = w0 * (1 - (1 - case.slow_to) * x + c2 * x * (1 - x) + c3 * x * (1 - x) * (0.5 - x))
+        return w
+    # integrate dw/dt = -c - k w (viscous) or -c - q w^2 (quadratic), choosing k or q and c so that
+    # w(T) = slow_to * w0 and the Coulomb part is coulomb_share of the initial deceleration
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    def run(drag, c, times):
+        if case.law == "viscous+coulomb":
+            f = (lambda _t, w: -c - drag * w)
+        else:
+            f = (lambda _t, w: -c - drag * w * w)
+        return solve_ivp(f, (0, T), [w0], t_eval=times, rtol=1e-11, atol=1e-12).y[0]
+
+    def end_error(total):   # total initial deceleration
+        c = case.coulomb_share * total
+        drag = (1 - case.coulomb_share) * total / (w0 if case.law == "viscous+coulomb" else w0 * w0)
+        return run(drag, c, [T])[-1] - case.slow_to * w0
+
+    total = brentq(end_error, 1e-6, w0 / T * 3)
+    c = case.coulomb_share * total
+    drag = (1 - case.coulomb_share) * total / (w0 if case.law == "viscous+coulomb" else w0 * w0)
+    return run(drag, c, t)
+
+
+def simulate_wheel(case: WheelCase, rng: np.random.Generator):
+    n = int(case.seconds * case.rate)
+    t = np.arange(n) / case.rate
+    w = _speed(case, t, rng)
+    dw = np.gradient(w, t, edge_order=2)
+    theta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]) + rng.uniform(0, 2 * np.pi)
+    alpha = np.radians(case.tilt_deg + case.tilt_wander_deg * (t / case.seconds - 0.5))
+    alpha = alpha + np.radians(case.wobble_deg) * np.cos(theta)
+    # wheel frame: X towards the axis, Y along the motion, Z along the axis; up in it:
+    up = np.column_stack([-np.sin(alpha) * np.cos(theta), -np.sin(alpha) * np.sin(theta), np.cos(alpha)])
+    f = G * up
+    f[:, 0] += case.radius * w * w
+    f[:, 1] += case.radius * dw
+    gains = 1.0 + 0.015 * rng.standard_normal(3)
+    angles = np.radians(rng.uniform(18, 32, 3) * rng.choice([-1, 1], 3))
+    mount = rotation(angles)
+    offset = 0.25 * rng.standard_normal(3)
+    noise, slow = case.noise.draw(n, case.rate, rng)
+    drift = case.drift.at_times(t, rng)
+    raw = f @ (np.diag(gains) @ mount).T + offset + drift + noise
+    scale = case.range_g * G / 32768.0
+    raw = np.clip(np.rint(raw / scale), -32768, 32767) * scale
+    return t, raw, {"gain": gains, "offset": offset + (drift + slow).mean(axis=0),
+                    "tilt_deg": float(np.degrees(alpha.mean())), "scale": scale}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# rotary: an encoder-driven disk oscillating about a vertical axis
+
+
+@dataclass
+class RotaryCase:
+    nominal_rate: float = 1660.0
+    seconds: float = 20.0
+    radius: float = 0.170
+    plan: tuple[tuple[float, float], ...] = ((4.0, 40.0), (6.0, 24.0), (7.0, 14.0), (10.0, 7.0))  # Hz, deg p-p
+    harmonic2: float = 0.0          # relative amplitude of a 2nd harmonic in the disk's motion
+    encoder_step_deg: float = 0.01  # encoder resolution
+    eccentric_rad: float = 0.0      # encoder disk eccentricity: theta_read = theta + e sin(theta + phase)
+    jitter_s: float = 0.0           # MEMS sample-time jitter sd (white), s
+    clock_wander: float = 0.0       # MEMS clock: random walk of the rate, relative sd per sqrt(s)
+    noise: Noise = field(default_factory=Noise)
+    range_g: float = 8.0
+
+
+def simulate_rotary(case: RotaryCase, rng: np.random.Generator):
+    """Returns (mems counts (n, 3), encoder t, theta, truth: rate, sensitivities per axis)."""
+    f0, pp = case.plan[int(rng.integers(len(case.plan)))]
+    theta0 = np.radians(pp / 2.0)
+    phase = rng.uniform(-np.pi, np.pi)
+    phase2 = rng.uniform(-np.pi, np.pi)
+    w = 2 * np.pi * f0
+
+    def motion(t):
+        """theta, theta', theta''."""
+        a1 = w * t + phase
+        a2 = 2 * w * t + phase2
+        h = case.harmonic2
+        th = theta0 * (np.cos(a1) + h * np.cos(a2))
+        d1 = -theta0 * (w * np.sin(a1) + 2 * w * h * np.sin(a2))
+        d2 = -theta0 * (w * w * np.cos(a1) + 4 * w * w * h * np.cos(a2))
+        return th, d1, d2
+
+    true_rate = case.nominal_rate * (1 + rng.uniform(0.002, 0.005) * rng.choice([-1, 1]))
+    n = int(case.seconds * case.nominal_rate)
+    k = np.arange(n)
+    if case.clock_wander:
+        rel = np.cumsum(rng.standard_normal(n)) * case.clock_wander / np.sqrt(true_rate)
+        t = np.concatenate([[0.0], np.cumsum(1.0 / (true_rate * (1 + rel[:-1])))])
+    else:
+        t = k / true_rate
+    t = t + 0.05 + (rng.standard_normal(n) * case.jitter_s if case.jitter_s else 0.0)
+    _, d1, d2 = motion(t)
+    force = np.column_stack([case.radius * d2, case.radius * d1 * d1, np.full(n, G)])  # x along, y to the axis, z up
+    scale = case.range_g * G / 32768.0
+    sens = (1.0 / scale) * (1.0 + 0.012 * rng.standard_normal(3) + 0.012)
+    cross = 0.001 * rng.standard_normal((3, 3))
+    np.fill_diagonal(cross, 0.0)
+    resp = np.diag(sens) @ (np.eye(3) + cross)
+    offset = rng.normal(0, 0.2, 3) / scale
+    noise, _ = case.noise.draw(n, case.nominal_rate, rng)
+    counts = force @ resp.T + offset + noise @ np.diag(sens).T
+    counts = np.clip(np.rint(counts), -32768, 32767)
+    te = np.arange(int(case.seconds * 1000.0) + 100) / 1000.0
+    th, _, _ = motion(te)
+    read = th + case.eccentric_rad * np.sin(th + rng.uniform(0, 2 * np.pi))
+    step = np.radians(case.encoder_step_deg)
+    read = np.rint(read / step) * step
+    return counts, te, read, {"rate": true_rate, "S_x": sens[0], "S_y": sens[1], "frequency": f0}
