@@ -24,7 +24,8 @@ async def default_settings_to_results(app, pilot, timeout=40.0):
     await pilot.press("k", "enter")
     await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
     await pilot.press("enter")
-    await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=timeout)
+    await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and bool(app.screen.query("#results-warnings")),
+                   timeout=timeout)   # pushed and composed (composing is slow on a loaded host)
 
 
 @async_test
@@ -44,6 +45,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         assert wizard.procedure.complete   # computed on its own after the drift check (one face per axis again)
         assert wizard.recorder.reader.lost_total == 0
         results = app.screen
+        await wait_for(pilot, lambda: bool(results.query("#results-warnings")))   # composed (as in the helper above)
         assert "drift not checked" not in str(results.query_one("#results-warnings").render())
         await wait_for(pilot, lambda: results.profile is not None)
         assert results.query_one("#parameters").row_count == len(results.result.parameters)
