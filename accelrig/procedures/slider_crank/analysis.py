@@ -700,11 +700,12 @@ def pool_noise(steps: list[StepResult]) -> None:
                 method = f"{noise.label} spectral sandwich over {int(model.pooled.sum())} steps"
             else:
                 cov, method = checks.covariance, checks.method
-            if checks.correlated:
+            if checks.correlated:   # its one note said where its u came from: now from here
                 notes = [f"{step.where}: {checks.tested.describe()}; u from the {method}"]
-            else:
-                notes = [f"{step.where}: its residuals pass as white, but the steps together show coloured noise "
-                         f"(one AR model of all of them fails, p = {model.ar_p_value:.1g}): u from the {method}"]
+            else:                   # a white step's lack-of-fit warning stands
+                notes = list(checks.notes) + [
+                    f"{step.where}: its residuals pass as white, but the steps together show coloured noise "
+                    f"(one AR model of all of them fails, p = {model.ar_p_value:.1g}): u from the {method}"]
             if flagged:
                 notes.append(f"{step.where}: its residuals hold {np.sqrt(level):.2f}x the noise the other steps show "
                              f"(F test p = {p_value:.1g}): the motion differs from the model here, or this step "
