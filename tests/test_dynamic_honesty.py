@@ -8,6 +8,8 @@ without a trace is refused, one with a gap list is placed on its sample grid.  T
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy import signal
@@ -17,6 +19,7 @@ from accelrig.errors import CalibrationError
 from accelrig.estimation.residuals import ar_noise_model, ar_sandwich_covariance
 from accelrig.estimation.sinefit import fit_sine, fit_sines_known_frequency
 from accelrig.procedures.rotary.bench import EncoderLog, RotarySetup, analyse_test
+from accelrig.procedures.slider_crank.analysis import pool_noise, step_result
 from accelrig.procedures.slider_crank.motion_fit import fit_crank_motion
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure, verify_slider_crank
 from accelrig.recording import Recording
@@ -285,3 +288,20 @@ def test_a_step_the_model_misses_is_warned_and_kept_out_of_the_pooled_noise():
     pools = [s["residual_checks"]["pooled_noise"] for s in result.details["steps"]]
     assert [p["in_pool"] for p in pools] == [True, False, True]
     assert pools[1]["level"] > 1.5
+
+
+def test_a_white_step_that_takes_the_pooled_noise_keeps_its_own_lack_of_fit_warning():
+    # under 1/f noise every step takes the pooled u, a step whose residuals passed as white too; the warning
+    # that step's own lack-of-fit test gave must stay beside the note on where its u now comes from
+    rig = SliderCrankRig(steps=(2.5, 6.0, 10.0))
+    sensor = SensorModel(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(0.08, FS), flicker=0.01)
+    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=11)
+    alone, _, _ = _steps_before_and_after_pooling(rec)
+    misfit = "step 2: the residuals hold more than the noise (stands for the lack-of-fit warning)"
+    white = replace(alone[1].checks, tested=None, notes=[misfit])   # as motion_checks leaves a white step's misfit
+    steps = list(alone)
+    steps[1] = step_result(alone[1].state, white)
+    pool_noise(steps)
+    assert steps[1].residual_checks["pooled_noise"]["used"]
+    assert steps[1].notes[0] == misfit
+    assert "pass as white, but the steps together show coloured noise" in steps[1].notes[1]
