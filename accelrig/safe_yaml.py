@@ -67,6 +67,10 @@ def load_yaml(text: str, source: str = "<yaml>", error: type[AccelrigError] = Da
         raise error(f"{source}{_line(exc)}: {exc.problem}", f"{what} holds plain data only; remove the tag") from None
     except yaml.YAMLError as exc:
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        if "maximum nesting depth" in problem:
+            # libyaml in PyYAML >= 6.0.4 refuses deep flow nesting while scanning ahead, before the events
+            # reach the depth check: the same refusal
+            raise _too_deep(f"{source}{_line(exc)}", error) from None
         raise error(f"{source}{_line(exc)}: not valid YAML ({problem})") from None
     except (RecursionError, ValueError, OverflowError, MemoryError) as exc:   # guarded above; never a traceback
         raise error(f"{source}: cannot read {what} ({type(exc).__name__})") from None
@@ -155,8 +159,11 @@ def _child_path(parent: dict | None) -> str:
 
 def _check_depth(depth: int, source: str, line: int, error: type[AccelrigError]) -> None:
     if depth > MAX_DEPTH:
-        raise error(f"{source}:{line}: nested more than {MAX_DEPTH} levels deep",
-                    "no accelrig file nests this deep; is it the right file?")
+        raise _too_deep(f"{source}:{line}", error)
+
+
+def _too_deep(where: str, error: type[AccelrigError]) -> AccelrigError:
+    return error(f"{where}: nested more than {MAX_DEPTH} levels deep", "no accelrig file nests this deep; is it the right file?")
 
 
 def _check_number(value: str, where: str, error: type[AccelrigError]) -> None:
