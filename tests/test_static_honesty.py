@@ -12,6 +12,7 @@ import pytest
 from accelrig.cli import main
 from accelrig.errors import DataError
 from accelrig.procedures.static.procedure import calibrate_static
+from accelrig.recording import Recording
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import StaticRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -49,7 +50,8 @@ def test_each_axis_keeps_its_own_noise():
     sd = np.array(result.quality["noise_sd_axes"])
     assert sd[2] == pytest.approx(3 * sd[0], rel=0.1)
     u = result.correction.bias_uncertainty
-    assert u[2] > 2.2 * u[0] and u[1] == pytest.approx(u[0], rel=0.3)
+    # x and y share their noise; their u differ by the drift allowance, which follows each axis's measured rate
+    assert u[2] > 2.2 * u[0] and max(u[0], u[1]) < 0.6 * u[2]
 
 
 def test_local_gravity_from_latitude_and_height_and_its_u_in_the_gains():
@@ -108,3 +110,51 @@ def test_a_drifting_offset_is_warned_when_a_face_is_held_again():
     warnings = calibrate_static(steady, pose_flatness_deg=0.1, g_u=0.0).warnings
     assert [w for w in warnings if "drift" in w][0].startswith("offset drift not checked along x and y:")
     assert len([w for w in warnings if "drift" in w]) == 1
+
+
+def _with_offset_path(rec, path):
+    """The recording with ``path(t)`` (n, 3) m/s^2 added to its raw offsets (a drift accelrig.sim cannot draw)."""
+    si = rec.to_si()
+    return Recording(si.t, si.acc + path(si.t), "m/s^2", dict(si.channels), dict(si.meta))
+
+
+def test_a_drift_that_curves_is_warned_and_its_allowance_covers_the_offsets():
+    """A warm-up whose rate halves and more over the run: the faces held again fit one straight line through
+    it, and the poses' own trends show the rate changing.  The result says so and its u covers the error."""
+    rec, sensor, _ = _record(6)
+    mid = float(rec.t.mean())
+    curving = np.array([0.0, 0.0, 2.0e-4])      # m/s^2 per s^2: the z rate changes by 0.012 m/s^2 per s a minute
+    bent = _with_offset_path(rec, lambda t: np.outer((t - mid) ** 2 / 2.0, curving))
+    result = calibrate_static(bent, pose_flatness_deg=0.1, g_u=0.0)
+    warning = next(w for w in result.warnings if w.startswith("the offset drift is not a straight line"))
+    assert "along z its rate changes" in warning
+    bend = result.quality["noise"]["drift"]["bend"]
+    z = bend["axes"].index("z")
+    assert bend["p_value"] < 1e-3 and bend["curvature"][z] == pytest.approx(curving[2], rel=0.3)
+    assert bend["allowance"]["from"] == "trends" and "allowance for a drift that curves" in result.quality[
+        "uncertainty_source"]
+    # the truth: the offsets averaged over the still samples of the run (the result stands for the run)
+    still = np.zeros(len(bent.t), dtype=bool)
+    for row in result.details["poses"]:
+        if row["fate"] == "used":
+            still |= (bent.t >= row["start"]) & (bent.t <= row["stop"])
+    truth = sensor.offset + np.mean(((bent.t[still] - mid) ** 2 / 2.0)[:, None] * curving, axis=0)
+    error, u = result.correction.bias - truth, result.correction.bias_uncertainty
+    assert np.all(np.abs(error) < 2.0 * u)
+    # without the allowance the straight line's u alone would not cover z's
+    straight = calibrate_static(rec, pose_flatness_deg=0.1, g_u=0.0).correction.bias_uncertainty
+    assert abs(error[2]) > 2.0 * straight[2]
+
+
+def test_a_straight_drift_and_a_steady_offset_keep_a_small_stated_allowance():
+    """A drift that is a straight line is not called curved, and a steady offset's u barely grows: the type B
+    allowance scales with the largest rate the faces held again allow (rectangular), recorded in the JSON."""
+    for rate in (np.zeros(3), np.array([0.0, 0.0, 0.05]) / 40.0):
+        rec, _, _ = _record(7, drift_rate=rate)
+        result = calibrate_static(rec, pose_flatness_deg=0.1, g_u=0.0)
+        assert not any("not a straight line" in w for w in result.warnings)
+        bend = result.quality["noise"]["drift"]["bend"]
+        assert bend["axes"] == ["x", "y", "z"] and bend["allowance"]["from"] == "largest rate"
+        assert "rectangular" in bend["allowance"]["distribution"]
+        largest = np.array(bend["allowance"]["largest_rate"])
+        assert np.all(largest >= np.abs(rate) - 1e-4) and largest[2] < abs(rate[2]) + 1e-3

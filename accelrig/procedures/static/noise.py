@@ -38,6 +38,10 @@ drift         an offset that moves during the run is invisible in one pose's mea
               the hold length (both scale alike).  Such a run is calibrated, with a warning that says
               drift was not checked and how large a drift could go unseen (``_unchecked``); the
               wizard asks the operator to end on the face they began with, and the docs say why.
+shape         the revisits fit a straight line; whether the drift follows it is read from each pose's
+              own slope (``drift_bend``): regressed on time they give the rate at the middle of the run
+              and how fast it changes (the curvature), tested against the line; the curvature they show,
+              or else a stated type B allowance from the largest rate the revisits allow, enters u.
 """
 
 from __future__ import annotations
@@ -72,6 +76,11 @@ class StillNoise:
     # procedure (``procedure._drift_rates``), which measures it from a first fit's calibrated magnitudes
     drift_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
     drift_rate_u: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    # each pose's own trend (the least-squares slope of each axis within the pose, m/s^2 per s), its u and the
+    # pose's centre time: a model-free reading of how fast the offsets move at that moment (``drift_bend``)
+    pose_slopes: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    pose_slope_u: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    pose_centres: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def tau(self) -> np.ndarray:
@@ -175,15 +184,22 @@ def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) 
 
 
 def _trend(noise: StillNoise, samples, times) -> None:
-    """Pooled within-pose slope per axis (m/s^2 per s) and its u; warn when it differs from zero at ALPHA."""
+    """Pooled within-pose slope per axis (m/s^2 per s) and its u; warn when it differs from zero at ALPHA.
+    Each pose's own slope is kept too (``pose_slopes``), for the check of the drift's shape."""
     sxx = 0.0
     sxy = np.zeros(3)
+    own, own_sxx = [], []
     for x, t in zip(samples, times, strict=True):
         dt = t - t.mean()
         sxx += float(dt @ dt)
         sxy += dt @ (x - x.mean(axis=0))
+        own.append(dt @ (x - x.mean(axis=0)) / max(float(dt @ dt), 1e-300))
+        own_sxx.append(float(dt @ dt))
     if sxx <= 0:
         return
+    noise.pose_centres = np.array([float(np.mean(t)) for t in times])
+    noise.pose_slopes = np.array(own)
+    noise.pose_slope_u = noise.sd * np.sqrt(noise.tau_any[None, :] / np.maximum(np.array(own_sxx), 1e-300)[:, None])
     slope = sxy / sxx
     # var(slope) = sigma^2 tau / sum dt^2 for a process correlated over tau samples (long-run variance)
     u = noise.sd * np.sqrt(noise.tau_any / sxx)
@@ -280,3 +296,85 @@ def _unchecked(noise: StillNoise, times, faces) -> None:
         f"would miss (up to {float(unseen_rate[unchecked].max()) * span:.2g} m/s^2 over the {span:.0f} s run) "
         f"would shift the offsets by up to {float(shift.max()):.2g} m/s^2. After the six faces put one face of "
         "each axis down again (the wizard asks for it) to check")
+
+
+def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middle: float) -> dict:
+    """Does the drift follow the straight line the revisits fitted?  What the poses' own trends say.
+
+    A straight-line drift moves each offset at the fitted rate r at every moment, so every pose's own trend
+    (its slope over its 4-6 s, ``pose_slopes``) must read r.  Per axis k held again the pose slopes are
+    regressed on time, s_i = a + kappa (t_i - t_mid): the rate at the middle a, and how fast the rate
+    changes, kappa (m/s^2 per s^2: the drift's curvature, the first term beyond a line).  Tested (chi^2,
+    1 dof per axis, at ALPHA): kappa against 0 (a against r is recorded as ``level_z``; a pooled trend is
+    ``_trend``'s to warn).  A significant result is warned as a drift that is not a straight line.
+
+    The allowance, whether significant or not (not a correction: the slopes are about 5x coarser than the
+    offsets).  GUM type B: over the run the rate may change by up to the largest rate the revisits allow,
+    |r| + 2 u(r), either way: kappa rectangular within +-2 r_max / span (first to last pose).  When the
+    test rejects, the curvature the trends show replaces it if larger: normal, sd sqrt(kappa^2 + u(kappa)^2),
+    u(kappa) widened by the pose slopes' scatter about their line when that exceeds their noise.  The departure from the
+    straight line that such a curvature makes is kappa (t - t_a) (t - t_b) / 2, zero at the two holds t_a, t_b
+    that fix the axis's rate (``anchors``); the procedure propagates it through the fit (less its average over
+    the run: the offsets stand for the run's average).  Returns the
+    record (also in ``drift["bend"]``); empty when there are too few poses or no axis held again."""
+    if not anchors or len(noise.pose_centres) < 4:
+        return {}
+    t = noise.pose_centres - middle
+    axes = sorted(anchors)
+    kappa, kappa_u, level, level_u, scatter, dof = [], [], [], [], 0.0, 0
+    for k in axes:
+        w = 1.0 / noise.pose_slope_u[:, k] ** 2
+        x = np.column_stack([np.ones_like(t), t])
+        info = x.T @ (w[:, None] * x)
+        cov = np.linalg.inv(info)
+        coef = cov @ (x.T @ (w * noise.pose_slopes[:, k]))
+        resid = noise.pose_slopes[:, k] - x @ coef
+        scatter += float(np.sum(w * resid**2))
+        dof += len(t) - 2
+        level.append(float(coef[0]))
+        kappa.append(float(coef[1]))
+        level_u.append(float(np.sqrt(cov[0, 0])))
+        kappa_u.append(float(np.sqrt(cov[1, 1])))
+    kappa, kappa_u = np.array(kappa), np.array(kappa_u)
+    level, level_u = np.array(level), np.array(level_u)
+    rate, rate_u = noise.drift_rate[axes], noise.drift_rate_u[axes]
+    z_kappa = kappa / kappa_u
+    z_level = (level - rate) / np.sqrt(level_u**2 + rate_u**2)
+    # the test is of the curvature alone: the level against the fitted rate is recorded, but a pooled trend
+    # away from the rate is the within-pose trend check's to warn (``_trend``), not twice
+    chi2 = float(np.sum(z_kappa**2))
+    p = float(chi2_dist.sf(chi2, len(axes)))
+    widen = float(np.sqrt(max(scatter / dof, 1.0))) if dof > 0 else 1.0
+    span = float(noise.pose_centres.max() - noise.pose_centres.min())
+    # type B: over the run the rate may change by up to the largest rate the revisits allow (|r| + 2 u(r)),
+    # either way: the curvature rectangular within +-2 r_max / span (span: first to last pose)
+    largest_rate = np.abs(rate) + 2.0 * rate_u
+    assumed = 2.0 * largest_rate / max(span, 1e-9) / np.sqrt(3.0)
+    seen = p < ALPHA
+    measured = np.sqrt(kappa**2 + (widen * kappa_u) ** 2)
+    allowance = np.maximum(assumed, measured) if seen else assumed
+    # the largest departure from the straight line at a pose, per axis, at that sd
+    departure = [float(allowance[j] * np.max(np.abs((noise.pose_centres - anchors[k][0])
+                                                    * (noise.pose_centres - anchors[k][1]))) / 2.0)
+                 for j, k in enumerate(axes)]
+    record = {"axes": [AXES[k] for k in axes], "rate_at_middle": level.tolist(), "rate_at_middle_u": level_u.tolist(),
+              "level_z": z_level.tolist(), "curvature": kappa.tolist(), "curvature_u": kappa_u.tolist(),
+              "chi2": chi2, "dof": len(axes),
+              "p_value": p, "slope_scatter_ratio": widen,
+              "allowance": {"curvature_sd": allowance.tolist(),
+                            "from": "trends" if seen else "largest rate",
+                            "largest_rate": largest_rate.tolist(),
+                            "distribution": ("normal (the curvature the trends show, and its u)" if seen else
+                                             "rectangular (GUM type B: over the run the rate changes by up to "
+                                             "+-the largest rate the faces held again allow)"),
+                            "anchors_s": [list(anchors[k]) for k in axes], "largest_departure": departure}}
+    noise.drift["bend"] = record
+    if seen:
+        j = int(np.argmax(np.abs(z_kappa)))
+        noise.warnings.append(
+            f"the offset drift is not a straight line: along {AXES[axes[j]]} its rate changes by "
+            f"{kappa[j] * 60:+.2g} m/s^2 per s each minute ({abs(z_kappa[j]):.1f} u; the poses' own trends, all "
+            f"axes chi^2 {chi2:.1f} for {len(axes)}, p = {p:.1g}). The u allows for a drift that curves (up to {max(departure):.2g} m/s^2 "
+            "off the straight line at a pose, 1 sd), but a drift that turns back between the holds can be larger: "
+            "let the sensor settle powered (temperature steady) and calibrate again")
+    return record

@@ -42,7 +42,7 @@ from accelrig.estimation.gravity_fit import (
 from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
-from accelrig.procedures.static.noise import StillNoise, still_noise
+from accelrig.procedures.static.noise import StillNoise, drift_bend, still_noise
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
@@ -379,15 +379,30 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     centres = np.array([float(np.mean(p.t)) for p in poses])
     middle = float(np.average(centres, weights=[len(p.t) for p in poses]))
 
-    def referred(rate: np.ndarray) -> tuple[list[PoseStats], list[np.ndarray]]:
-        shift = np.outer(centres - middle, rate)
+    # per axis held again, the centres of the two holds furthest apart that fix its rate: a curving drift's
+    # departure from the straight line is zero there (``noise.drift_bend``)
+    anchors: dict[int, tuple[float, float]] = {}
+    for r in noise.drift.get("revisits") or []:
+        k = AXES.index(r["face"][1])
+        if k not in anchors or r["last"] - r["first"] > anchors[k][1] - anchors[k][0]:
+            anchors[k] = (float(r["first"]), float(r["last"]))
+    bend_shape = np.zeros((len(poses), 3))
+    counts = np.array([len(p.t) for p in poses], dtype=float)
+    for k, (t_a, t_b) in anchors.items():
+        bend_shape[:, k] = (centres - t_a) * (centres - t_b) / 2.0
+        # less its average over the run's samples: the offsets stand for the run's average, which a curving
+        # drift moves too (a constant goes into b alone)
+        bend_shape[:, k] -= np.average(bend_shape[:, k], weights=counts)
+
+    def referred(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[list[PoseStats], list[np.ndarray]]:
+        shift = np.outer(centres - middle, rate) + (bend_shape * bend if bend is not None else 0.0)
         return ([PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)],
                 [p.mean - d for p, d in zip(poses, shift, strict=True)])
 
-    def fit(rate: np.ndarray) -> tuple[float, np.ndarray]:
+    def fit(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """The model's lack of fit (chi^2, no inflation: only its shape in r counts) and its reported parameters
         then C and b, as ``build_result`` fits them."""
-        referred_stats, means = referred(rate)
+        referred_stats, means = referred(rate, bend)
         if model in MODELS:
             data = PoseData([s.face for s in stats], means, [len(p.samples) for p in poses],
                             [p.within_ss for p in poses], settings["g"])
@@ -436,8 +451,20 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     noise.drift["rate_from"] = "fit" if rate is not start else "revisits"
     jac = np.column_stack([(at[("+", i)][1] - at[("-", i)][1]) / (2.0 * steps[i]) for i in range(m)])
     referred_stats, means = referred(rate)
+    # before the result is built: its warning and record go with the noise's
+    bend = drift_bend(noise, anchors, middle)
     base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means)
     extra = jac @ rate_cov @ jac.T
+    # the drift's curvature the poses' own trends allow (type B, normal): through the same fits, one step
+    # of its sd per axis held again (central differences; the departure is linear in it)
+    if bend:
+        for j, k in enumerate(anchors_axes := sorted(anchors)):
+            step = np.zeros(3)
+            step[k] = bend["allowance"]["curvature_sd"][j]
+            if step[k] > 0:
+                column = (fit(rate, step)[1] - fit(rate, -step)[1]) / 2.0
+                extra = extra + np.outer(column, column)
+        bend["allowance"]["on"] = [AXES[k] for k in anchors_axes]
     n_par = len(base.parameters)
     cov = np.array(base.covariance, dtype=float) + extra[:n_par, :n_par]
     corr_cov = np.array(base.correction.covariance, dtype=float) + extra[n_par:, n_par:]
@@ -448,6 +475,10 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     names = ", ".join(AXES[k] for k in axes)
     base.quality["uncertainty_source"] += (f"; pose means referred to the middle of the run (t = {middle:.1f} s) "
                                            f"with the offset drift rate on {names} fitted (faces held again)")
+    if bend:
+        base.quality["uncertainty_source"] += (
+            f"; a drift allowance for a drift that curves ({bend['allowance']['distribution']}: up to "
+            f"{max(bend['allowance']['largest_departure']):.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
     # the revisits' degrees of freedom went into the rates: the lack-of-fit test has m fewer (none left with
     # the wizard's sequence of six faces and three again)
