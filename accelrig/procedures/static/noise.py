@@ -317,8 +317,8 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
     that fix the axis's rate (``anchors``); the procedure propagates it through the fit (less its average over
     the run: the offsets stand for the run's average).  Returns the
     record (also in ``drift["bend"]``); empty when there are too few poses or no axis held again."""
-    if not anchors or len(noise.pose_centres) < 4:
-        return {}
+    if not anchors or len(noise.pose_centres) < 4 or not np.all(noise.pose_slope_u[:, sorted(anchors)] > 0):
+        return {}   # too few poses, or an axis without noise (its slopes have no u to weigh them by)
     t = noise.pose_centres - middle
     axes = sorted(anchors)
     kappa, kappa_u, level, level_u, scatter, dof = [], [], [], [], 0.0, 0
