@@ -27,9 +27,11 @@ import argparse
 import contextlib
 import io
 import json
+import re
 import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -318,6 +320,11 @@ def main(argv=None) -> int:
                 z = np.array([o.errors[k] / o.u[k] for o in kept if o.u.get(k)])
                 print(f"    {k:10s} cover {np.mean(np.abs(z) <= 2):.2f}  z mean {z.mean():+.2f} sd {z.std():.2f}",
                       file=sys.stderr)
+            # what the warnings say, by kind (the text after the step's name, up to its first digit), in runs
+            kinds = Counter(kind for o in kept for kind in {re.split(r"[0-9]", w.split("): ", 1)[-1])[0][:60]
+                                                             for w in o.warnings})
+            for kind, count in kinds.most_common(6):
+                print(f"    warned in {count:2d} runs: {kind}", file=sys.stderr)
     print_table(rows)
     return 0
 
