@@ -72,3 +72,8 @@ def test_heldout_play_crossed_where_the_link_force_reverses_is_named_backlash(tm
     steps = result["details"]["steps"]
     assert all(s["backlash"] and 30.0 < s["take_up_deg"] < 150.0 for s in steps)
     assert sum("backlash (play taken up" in w and "after each dead centre" in w for w in result["warnings"]) == 2
+    # a take-up near mid-stroke puts the play's first harmonic (2b/pi) in phase with the crank's: u(radius)
+    # carries that whole share, not the rectangle's 1/sqrt(3) of it
+    for s in steps:
+        in_phase = 2 * s["play_m"] / np.pi * abs(np.sin(np.radians(s["take_up_deg"])))
+        assert s["radius_play_uncertainty_m"] >= 0.999 * in_phase > 0.999 * 2 * s["play_m"] / np.pi / np.sqrt(3)

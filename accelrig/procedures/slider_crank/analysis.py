@@ -624,10 +624,13 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
         # the dead centre; delta read from where the phase-locked residual's
         # energy arrives undercovered (50 % at 8-10 Hz with 20 um of play: the
         # pick-up's shape matters, not only its place), so the bound stays the
-        # whole first harmonic.  Type B: rectangular within +-2b/pi.
+        # whole first harmonic.  Type B: rectangular within +-2b/pi.  A take-up found well after the dead
+        # centres (the slider's inertia outweighs the rail's friction, detect_backlash) puts the share
+        # (2b/pi) |sin delta| in phase with the crank, at one edge of the bound or the other, whichever
+        # side the slider rides: a two-point distribution, sd that share, when it exceeds the rectangle's.
         third = float(fit.amplitude[2]) / (9 * omega2)
         play = 1.5 * np.pi * third
-        u_play = 3 * third / np.sqrt(3)
+        u_play = max(3 * third / np.sqrt(3), 3 * third * abs(np.sin(state.take_up)))
         u_radius = float(np.hypot(u_radius, u_play))
     model = crank_radius * omega2
     # measured / model first harmonic = A_1 / (r_caliper omega^2) = radius / r_caliper
