@@ -360,16 +360,27 @@ def detect_backlash(t, residuals, frequency, phase1, noise_sd):
     z2 = counts * means**2 / noise_sd**2  # chi-square(1) per bin under noise alone
     n_bins = centres.size
     angles = 2 * np.pi * np.arange(n_bins // 2) / n_bins   # the dead centres (0), then one bin apart
+    # Away from the dead centres the search looks only at what is sharper than the fitted harmonics: a
+    # speed that wanders leaves a smooth fold (its low harmonics) peaking a quarter turn from them, a
+    # take-up is a step or an impact, broadband.  (4 harmonics and the mean, least squares over the bins.)
+    # And against what is not phase-locked (the scatter within the bins, when above the noise: a wandering
+    # speed leaves it large and its fold uneven by chance), so a search over angles finds no chance peak.
+    basis = np.column_stack([np.ones(n_bins)] + [f(k * centres) for k in range(1, 5) for f in (np.cos, np.sin)])
+    weight = np.sqrt(counts)
+    coef = np.linalg.lstsq(basis * weight[:, None], means * weight, rcond=None)[0]
+    within = (float(residuals @ residuals) - float(np.sum(counts * means**2))) / max(residuals.size - n_bins, 1)
+    sharp = counts * (means - basis @ coef) ** 2 / max(noise_sd**2, within)
     found = []
     for k, take_up in enumerate(angles):
         near = dead_centre_window(centres, frequency, take_up)
         if near.sum() == 0 or (~near).sum() == 0:
             continue
-        p_value = float(stats.chi2.sf(z2[near].sum(), int(near.sum())))
-        concentration = z2[near].mean() / max(z2[~near].mean(), 1.0)
+        score = z2 if k == 0 else sharp
+        p_value = float(stats.chi2.sf(score[near].sum(), int(near.sum())))
+        concentration = score[near].mean() / max(score[~near].mean(), 1.0)
         level = FALSE_ALARM if k == 0 else FALSE_ALARM / max(angles.size - 1, 1)
         if k == 0 or (p_value < level and concentration > KNOCK_CONCENTRATION):
-            found.append((p_value < level and concentration > KNOCK_CONCENTRATION, -z2[near].sum(), k, p_value,
+            found.append((p_value < level and concentration > KNOCK_CONCENTRATION, -score[near].sum(), k, p_value,
                           float(np.max(np.abs(means[near]))), float(take_up)))
         if k == 0 and found[0][0]:
             break   # at the dead centres: the play's usual place, and the test of before
@@ -380,7 +391,7 @@ def detect_backlash(t, residuals, frequency, phase1, noise_sd):
     if detected and k > 0:
         # every window holding the whole ring scores alike: the take-up is where the pair's folded power peaks
         near = dead_centre_window(centres, frequency, take_up)
-        pair = z2 + np.roll(z2, -(n_bins // 2))
+        pair = sharp + np.roll(sharp, -(n_bins // 2))
         first = int(np.argmax(np.where(near, pair, -np.inf)))
         take_up = float(np.mod(2 * np.pi * first / n_bins, np.pi))
     return bool(detected), peak, p_value, take_up if detected else 0.0
