@@ -1,4 +1,4 @@
-"""A held-out simulator for the static, wheel and rotary procedures (issue 18's held-out audit).
+"""A held-out simulator for the static, wheel, slider-crank and rotary procedures (issue 18's held-out audit).
 
 It shares NO code with ``accelrig.sim`` (nor with anything else in accelrig): numpy and scipy only,
 its own trajectories, its own sensor and noise models, its own conventions, written from the
@@ -369,3 +369,193 @@ def simulate_rotary(case: RotaryCase, rng: np.random.Generator):
     step = np.radians(case.encoder_step_deg)
     read = np.rint(read / step) * step
     return counts, te, read, {"rate": true_rate, "S_x": sens[0], "S_y": sens[1], "frequency": f0}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# slider-crank: a motor turns a crank at speed steps, a rod drives a slider carrying the sensor
+
+
+@dataclass
+class SliderCase:
+    """A slider-crank stand, written from the geometry and Newton's law (no formula for the acceleration).
+
+    The crank angle phi(t) is the integral of the motor speed on a fine time grid (``oversample`` points
+    per sample); the pin's position is the exact law x = r cos phi + sqrt(l^2 - r^2 sin^2 phi).  A rigid
+    link: the slider's acceleration is that position differentiated twice by a five-point stencil on
+    the fine grid.  A link with play or compliance: the slider is a mass on a rail with Coulomb and
+    viscous friction, driven through the link (a dead zone with a stiff, lightly damped contact at each
+    side, or a spring-damper), integrated on the fine grid; its acceleration is the net force over the
+    mass.  The sensor low-passes at ``bandwidth`` (2nd-order Butterworth, causal) and samples every
+    ``oversample``-th point.
+
+    steps, seconds, settle  speed steps (Hz), steady seconds per step, a cosine speed ramp between them
+                            (``step`` column -1; the first step starts already turning)
+    eccentric               the crank pin sits off its nominal place by this much (m), in a random
+                            direction: the effective radius |r + e| is the truth, r the caliper's
+    wobble, wobble_hz       a sinusoidal speed ripple (relative amplitude, Hz, random phase)
+    wander, wander_hz       a random speed wander: Gaussian, relative sd, low-passed at wander_hz (4th order)
+    cogging, cogging_n      a motor torque ripple at cogging_n per turn: angular acceleration amplitude rad/s^2
+                            (its speed ripple shrinks as 1/omega^2, as inertia filters a torque)
+    dead_zone               play in the rod-to-slider pin, m (total width): the slider crosses it in free
+                            flight on the rail whenever the force through the link would reverse, then
+                            hits the other side (a contact at contact_hz, damping ratio contact_zeta)
+    link_hz, link_zeta      a compliant link: spring-damper between rod and slider (resonance link_hz);
+                            0 = rigid.  Friction reversing at the dead centres excites it twice per turn
+    friction                Coulomb friction of the rail over the slider's weight (mu), viscous ``damping`` 1/s
+    misalign_deg            the sensor sits rotated by this much on the slider (about a random axis)
+    """
+
+    rate: float = 2048.0
+    oversample: int = 8
+    radius: float = 0.0080
+    rod: float = 0.0420
+    clearance: float = 1e-4
+    steps: tuple[float, ...] = (3.0, 4.5, 6.5, 8.5, 10.0)
+    seconds: float = 1.25
+    settle: float = 0.4
+    eccentric: float = 0.0
+    wobble: float = 0.0
+    wobble_hz: float = 5.0
+    wander: float = 0.0
+    wander_hz: float = 1.5
+    cogging: float = 0.0
+    cogging_n: int = 6
+    dead_zone: float = 0.0
+    contact_hz: float = 450.0
+    contact_zeta: float = 0.1
+    link_hz: float = 0.0
+    link_zeta: float = 0.05
+    mass: float = 0.05
+    friction: float = 0.15
+    damping: float = 0.5
+    misalign_deg: float = 0.5
+    bandwidth: float = 450.0
+    noise: Noise = field(default_factory=lambda: Noise(sd=0.08))
+    range_g: float = 8.0
+
+
+def _speed_profile(case: SliderCase, t: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(crank speed rad/s on the fine grid ``t``, evenly spaced, step index per point: -1 while settling)."""
+    w = np.full_like(t, 2 * np.pi * case.steps[0])    # before t = 0: already turning at the first speed
+    index = np.full(t.size, -1)
+    edge = 0.0
+    previous = case.steps[0]
+    for i, hz in enumerate(case.steps):
+        ramp = (t >= edge) & (t < edge + case.settle)
+        x = (t[ramp] - edge) / case.settle
+        w[ramp] = 2 * np.pi * (previous + (hz - previous) * (0.5 - 0.5 * np.cos(np.pi * x)))
+        edge += case.settle
+        steady = (t >= edge) & (t < edge + case.seconds) if i < len(case.steps) - 1 else t >= edge
+        w[steady] = 2 * np.pi * hz
+        index[steady] = i
+        edge += case.seconds
+        previous = hz
+    relative = np.zeros_like(t)
+    if case.wobble:
+        relative += case.wobble * np.sin(2 * np.pi * case.wobble_hz * t + rng.uniform(0, 2 * np.pi))
+    if case.wander:
+        fs = (t.size - 1) / (t[-1] - t[0])
+        sos = signal.butter(4, case.wander_hz, fs=fs, output="sos")
+        pad = int(4 * fs / case.wander_hz)
+        x = signal.sosfilt(sos, rng.standard_normal(t.size + pad))[pad:]
+        relative += case.wander * x / x.std()
+    return w * (1.0 + relative), index
+
+
+def _second_derivative(x: np.ndarray, h: float) -> np.ndarray:
+    """Five-point central stencil (error h^4 x^(6) / 90); the two points at each end are left at the next."""
+    d = np.empty_like(x)
+    d[2:-2] = (-x[4:] + 16 * x[3:-1] - 30 * x[2:-2] + 16 * x[1:-3] - x[:-4]) / (12 * h * h)
+    d[:2], d[-2:] = d[2], d[-3]
+    return d
+
+
+def _driven_slider(case: SliderCase, pin: np.ndarray, h: float) -> np.ndarray:
+    """The slider's acceleration when driven through play or a spring: semi-implicit Euler on the fine grid.
+
+    Forces on the slider: the link (dead zone: a contact spring-damper acting only while the pin presses on
+    a side; compliance: a spring-damper always), Coulomb friction mu m g (smoothed over 1 mm/s) and viscous
+    friction.  Returns the net force over the mass at each grid point.
+    """
+    m = case.mass
+    pin_v = np.gradient(pin, h)
+    if case.dead_zone > 0:
+        k = m * (2 * np.pi * case.contact_hz) ** 2
+        c = 2 * case.contact_zeta * np.sqrt(k * m)
+        half = 0.5 * case.dead_zone
+    else:
+        k = m * (2 * np.pi * case.link_hz) ** 2
+        c = 2 * case.link_zeta * np.sqrt(k * m)
+        half = 0.0
+    coulomb = case.friction * m * G
+    viscous = case.damping * m
+    s, v = float(pin[0]), float(pin_v[0])
+    acc = np.empty_like(pin)
+    for i in range(pin.size):
+        gap = s - float(pin[i])
+        rel_v = v - float(pin_v[i])
+        if half > 0:
+            if gap > half:
+                force = -k * (gap - half) - c * rel_v
+                force = min(force, 0.0)      # a contact pushes, never pulls
+            elif gap < -half:
+                force = -k * (gap + half) - c * rel_v
+                force = max(force, 0.0)
+            else:
+                force = 0.0
+        else:
+            force = -k * gap - c * rel_v
+        force -= coulomb * np.tanh(v / 1e-3) + viscous * v
+        a = force / m
+        acc[i] = a
+        v += a * h
+        s += v * h
+    return acc
+
+
+def simulate_slider(case: SliderCase, rng: np.random.Generator):
+    """Returns (t, acc (n, 3) m/s^2 as the sensor reads it, step column, truth).
+
+    truth: ``radius`` (the effective crank radius, what the motion shows), ``speed`` per step (mean crank
+    rate over the step's first to last sample, Hz), ``rod``.
+    """
+    total = case.settle * len(case.steps) + case.seconds * len(case.steps)
+    lead = 0.3                                  # the dynamics and the sensor's filter settle before t = 0
+    h = 1.0 / (case.rate * case.oversample)
+    n = int(round(total * case.rate))
+    t_fine = np.arange(-int(lead / h), n * case.oversample + 4) * h
+    w, index = _speed_profile(case, t_fine, rng)
+    phi = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * h)]) + rng.uniform(0, 2 * np.pi)
+    if case.cogging:
+        # J phi'' = T sin(N phi): at steady speed the angle lags by (T/J) / (N omega)^2 sin(N phi)
+        phase = rng.uniform(0, 2 * np.pi)
+        phi = phi - case.cogging / (case.cogging_n * w) ** 2 * np.sin(case.cogging_n * phi + phase)
+    psi = rng.uniform(0, 2 * np.pi)
+    radius = float(np.hypot(case.radius + case.eccentric * np.cos(psi), case.eccentric * np.sin(psi)))
+    pin = radius * np.cos(phi) + np.sqrt(case.rod ** 2 - (radius * np.sin(phi)) ** 2)
+    if case.dead_zone > 0 or case.link_hz > 0:
+        along = _driven_slider(case, pin, h)
+    else:
+        along = _second_derivative(pin, h)
+    sos = signal.butter(2, case.bandwidth, fs=1.0 / h, output="sos")
+    along = signal.sosfilt(sos, along)
+    start = int(lead / h)
+    keep = start + np.arange(n) * case.oversample
+    t = t_fine[keep]
+    t = t - t[0]
+    f = np.zeros((n, 3))
+    f[:, 0] = along[keep]
+    f[:, 2] = G                                  # the rail is level: the sensor's z feels gravity (up)
+    axis = rng.normal(size=3)
+    mount = rotation(np.radians(case.misalign_deg) * axis / np.linalg.norm(axis))
+    offset = 0.1 * rng.standard_normal(3)
+    noise, _ = case.noise.draw(n, case.rate, rng)
+    acc = f @ mount.T + offset + noise
+    scale = case.range_g * G / 32768.0
+    acc = np.clip(np.rint(acc / scale), -32768, 32767) * scale
+    step = index[keep]
+    speeds = []
+    for i in range(len(case.steps)):
+        at = keep[step == i]
+        speeds.append(float((phi[at[-1]] - phi[at[0]]) / (2 * np.pi * (t_fine[at[-1]] - t_fine[at[0]]))))
+    return t, acc, step, {"radius": radius, "speed": speeds, "rod": case.rod, "scale": scale}

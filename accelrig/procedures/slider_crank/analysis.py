@@ -15,10 +15,12 @@ at a series of motor speed steps.  Per step:
    harmonics), so at constant speed the first harmonic of the acceleration is
    exactly r omega^2 and the crank radius follows from the measured motion as
    r = A_1 / omega^2 (the double integration of the first harmonic, eq. 53-55);
-5. backlash: knocks at the dead centres are phase-locked to the crank, so the
-   fit's residuals folded by crank angle keep them while the noise averages
-   out; a significant folded residual concentrated at the dead centres is
-   reported as backlash;
+5. backlash: play is taken up twice per turn, phase-locked to the crank (at
+   the dead centres when the rail's friction dominates the slider's inertia,
+   later, up to mid-stroke, where the force through the link reverses when
+   inertia dominates), so the fit's residuals folded by crank angle keep the
+   take-ups while the noise averages out; a significant folded residual
+   concentrated at two places half a turn apart is reported as backlash;
 6. motor: a step whose speed wanders within the record (frequency fitted on
    segments disagrees beyond their uncertainties), falls short of the
    commanded speed, or does not rise above the step before marks the roll-off.
@@ -132,7 +134,8 @@ class StepResult:
     play_m: float                  # play estimated from the odd harmonics when backlash is seen (0 otherwise)
     radius_play_uncertainty_m: float  # the play's share of u(radius), common to all steps
     knock_peak: float              # largest phase-locked residual near a dead centre, m/s^2
-    knock_significance: float      # chi-square p-value of the folded residuals near the dead centres
+    knock_significance: float      # chi-square p-value of the folded residuals where the play is taken up
+    take_up_deg: float             # where: crank angle after each dead centre (0: at them)
     speed_unsteady: bool
     speed_spread_hz: float
     motor_limited: bool = False
@@ -180,6 +183,7 @@ class StepResult:
             "radius_play_uncertainty_m": self.radius_play_uncertainty_m,
             "knock_peak": self.knock_peak,
             "knock_significance": self.knock_significance,
+            "take_up_deg": self.take_up_deg,
             "speed_unsteady": self.speed_unsteady,
             "speed_spread_hz": self.speed_spread_hz,
             "motor_limited": self.motor_limited,
@@ -276,7 +280,7 @@ def _phase_locked_template(t, residuals, frequency, phase1):
     return np.interp(theta, centres[filled], means[filled], period=2 * np.pi), int(np.count_nonzero(counts))
 
 
-def _noise_only_covariance(t, fit: SineFit) -> SineFit:
+def _noise_only_covariance(t, fit: SineFit, take_up: float = 0.0) -> SineFit:
     """The fit with its covariance scaled to the random noise alone, for a record with knocks.
 
     Knocks are deterministic and phase-locked: left in the residual sd they
@@ -292,7 +296,7 @@ def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     dof = cleaned.size - fit.covariance.shape[0] - bins
     if dof <= 0:
         return fit
-    share = quiet_noise_share(t, cleaned, fit.frequency, float(fit.phase[0]))
+    share = quiet_noise_share(t, cleaned, fit.frequency, float(fit.phase[0]), take_up)
     scale = float(np.sqrt(share * (cleaned @ cleaned) / dof)) / fit.residual_sd
     if not np.isfinite(scale) or scale >= 1:
         return fit
@@ -306,23 +310,25 @@ def _noise_only_covariance(t, fit: SineFit) -> SineFit:
     )
 
 
-def dead_centre_window(theta: np.ndarray, frequency: float) -> np.ndarray:
-    """Crank angles (first-harmonic phase, rad) near a dead centre, where play shows.
+def dead_centre_window(theta: np.ndarray, frequency: float, take_up: float = 0.0) -> np.ndarray:
+    """Crank angles (first-harmonic phase, rad) near where play is taken up, ``take_up`` rad after each dead centre.
 
     The first harmonic A cos(theta) has its extremes, the dead centres, at
-    theta = 0 and pi.  A knock starts there and rings for some ms: the window is
-    from 2 % of a cycle before to min(25 % of a cycle, 30 ms) after each.
+    theta = 0 and pi.  A take-up starts there (``take_up`` 0) or, when the
+    slider's inertia outweighs the rail's friction, later, where the force
+    through the link reverses; it rings for some ms: the window is from 2 % of a
+    cycle before to min(25 % of a cycle, 30 ms) after each take-up.
     """
     after = min(0.25, 0.030 * frequency) * 2 * np.pi
     before = 0.02 * 2 * np.pi
     near = np.zeros(np.shape(theta), dtype=bool)
-    for dead_centre in (0.0, np.pi):
+    for dead_centre in (take_up, take_up + np.pi):
         delta = np.angle(np.exp(1j * (np.asarray(theta) - dead_centre)))
         near |= (delta >= -before) & (delta <= after)
     return near
 
 
-def quiet_noise_share(t, cleaned, frequency, phase1) -> float:
+def quiet_noise_share(t, cleaned, frequency, phase1, take_up: float = 0.0) -> float:
     """Noise variance away from the dead centres over the variance of all ``cleaned`` residuals, at most 1.
 
     With play, the residuals minus their crank-angle-folded mean still hold what the fold cannot follow
@@ -331,7 +337,7 @@ def quiet_noise_share(t, cleaned, frequency, phase1) -> float:
     part of the cycle away from them measures the noise (white or coloured, its marginal variance).
     """
     theta = np.mod(2 * np.pi * frequency * t + phase1, 2 * np.pi)
-    quiet = ~dead_centre_window(theta, frequency)
+    quiet = ~dead_centre_window(theta, frequency, take_up)
     total = float(cleaned @ cleaned)
     if quiet.sum() < 0.2 * cleaned.size or total <= 0:
         return 1.0
@@ -339,16 +345,56 @@ def quiet_noise_share(t, cleaned, frequency, phase1) -> float:
 
 
 def detect_backlash(t, residuals, frequency, phase1, noise_sd):
-    """Knocks at the dead centres (``dead_centre_window``): (detected, peak phase-locked residual, p-value)."""
+    """Play taken up twice per turn: (detected, peak phase-locked residual, p-value, take-up angle in rad).
+
+    A pin with play is crossed whenever the force through the link reverses: at the dead centres when the
+    rail's friction outweighs the slider's inertia (a slow step, a stiff slide), up to a quarter turn later
+    when inertia dominates (the force follows the acceleration, which reverses near mid-stroke).  So the
+    take-up is looked for at the dead centres first (FALSE_ALARM), then at every other angle, a pair of
+    windows (``dead_centre_window``) half a turn apart, at FALSE_ALARM over the number of angles tried: a
+    significant folded residual there, KNOCK_CONCENTRATION times stronger than elsewhere.
+    """
     centres, means, counts = fold_residuals(t, residuals, frequency, phase1)
-    near = dead_centre_window(centres, frequency)
-    if noise_sd <= 0 or near.sum() == 0 or (~near).sum() == 0:
-        return False, 0.0, 1.0
+    if noise_sd <= 0:
+        return False, 0.0, 1.0, 0.0
     z2 = counts * means**2 / noise_sd**2  # chi-square(1) per bin under noise alone
-    p_value = float(stats.chi2.sf(z2[near].sum(), int(near.sum())))
-    concentration = z2[near].mean() / max(z2[~near].mean(), 1.0)
-    detected = p_value < FALSE_ALARM and concentration > KNOCK_CONCENTRATION
-    return bool(detected), float(np.max(np.abs(means[near]))), p_value
+    n_bins = centres.size
+    angles = 2 * np.pi * np.arange(n_bins // 2) / n_bins   # the dead centres (0), then one bin apart
+    # Away from the dead centres the search looks only at what is sharper than the fitted harmonics: a
+    # speed that wanders leaves a smooth fold (its low harmonics) peaking a quarter turn from them, a
+    # take-up is a step or an impact, broadband.  (4 harmonics and the mean, least squares over the bins.)
+    # And against what is not phase-locked (the scatter within the bins, when above the noise: a wandering
+    # speed leaves it large and its fold uneven by chance), so a search over angles finds no chance peak.
+    basis = np.column_stack([np.ones(n_bins)] + [f(k * centres) for k in range(1, 5) for f in (np.cos, np.sin)])
+    weight = np.sqrt(counts)
+    coef = np.linalg.lstsq(basis * weight[:, None], means * weight, rcond=None)[0]
+    within = (float(residuals @ residuals) - float(np.sum(counts * means**2))) / max(residuals.size - n_bins, 1)
+    sharp = counts * (means - basis @ coef) ** 2 / max(noise_sd**2, within)
+    found = []
+    for k, take_up in enumerate(angles):
+        near = dead_centre_window(centres, frequency, take_up)
+        if near.sum() == 0 or (~near).sum() == 0:
+            continue
+        score = z2 if k == 0 else sharp
+        p_value = float(stats.chi2.sf(score[near].sum(), int(near.sum())))
+        concentration = score[near].mean() / max(score[~near].mean(), 1.0)
+        level = FALSE_ALARM if k == 0 else FALSE_ALARM / max(angles.size - 1, 1)
+        if k == 0 or (p_value < level and concentration > KNOCK_CONCENTRATION):
+            found.append((p_value < level and concentration > KNOCK_CONCENTRATION, -score[near].sum(), k, p_value,
+                          float(np.max(np.abs(means[near]))), float(take_up)))
+        if k == 0 and found[0][0]:
+            break   # at the dead centres: the play's usual place, and the test of before
+    if not found:
+        return False, 0.0, 1.0, 0.0
+    best = found[0] if found[0][0] or len(found) == 1 else min(found[1:])
+    detected, _, k, p_value, peak, take_up = best
+    if detected and k > 0:
+        # every window holding the whole ring scores alike: the take-up is where the pair's folded power peaks
+        near = dead_centre_window(centres, frequency, take_up)
+        pair = sharp + np.roll(sharp, -(n_bins // 2))
+        first = int(np.argmax(np.where(near, pair, -np.inf)))
+        take_up = float(np.mod(2 * np.pi * first / n_bins, np.pi))
+    return bool(detected), peak, p_value, take_up if detected else 0.0
 
 
 @dataclass
@@ -378,7 +424,8 @@ class ResidualChecks:
         return out
 
 
-def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | None) -> ResidualChecks:
+def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | None,
+                  take_up: float = 0.0) -> ResidualChecks:
     """Whiteness and lack of fit of the crank-motion fit's residuals; the covariance they call for.
 
     White residuals: sigma^2 (J'J)^-1.  Correlated (estimation.residuals.checked_covariance): the
@@ -395,7 +442,7 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
         template, bins = _phase_locked_template(t, resid, knocked.frequency, float(knocked.phase[0]))
         resid = resid - template
         dof -= bins
-        share = quiet_noise_share(t, resid, knocked.frequency, float(knocked.phase[0]))
+        share = quiet_noise_share(t, resid, knocked.frequency, float(knocked.phase[0]), take_up)
     dof = max(dof, 1)
     sigma2 = share * float(resid @ resid) / dof
     normal = motion.jacobian.T @ motion.jacobian
@@ -504,9 +551,10 @@ def analyse_step(
             "check that the stand ran steadily and the record holds the motion",
         )
     noise_sd = robust_noise_sd(fit.residuals)
-    backlash, knock_peak, knock_p = detect_backlash(t, fit.residuals, fit.frequency, float(fit.phase[0]), noise_sd)
+    backlash, knock_peak, knock_p, take_up = detect_backlash(t, fit.residuals, fit.frequency, float(fit.phase[0]),
+                                                              noise_sd)
     if backlash:
-        fit = _noise_only_covariance(t, fit)
+        fit = _noise_only_covariance(t, fit, take_up)
     check_crank_motion(where, fit, t)
 
     # The radius and the mean speed from the crank-angle model (motion_fit): identical to the sine
@@ -519,11 +567,12 @@ def analyse_step(
         motion = fit_crank_motion(t, y - signature, fit.frequency, fit.harmonics)
     else:
         motion = fit_crank_motion(t, y, fit.frequency, fit.harmonics)
-    checks = motion_checks(where, t, y, motion, fit if backlash else None)
+    checks = motion_checks(where, t, y, motion, fit if backlash else None, take_up)
     state = StepFit(index=index, label=label, n_samples=int(t.size), rate=float((t.size - 1) / (t[-1] - t[0])),
                     commanded_hz=commanded_hz, fit=fit, motion=motion, start=float(start),
                     fft_peak_hz=fft_peak_frequency(t, y), axis=axis, angle_sd=angle_sd, noise_sd=noise_sd,
-                    backlash=backlash, knock_peak=knock_peak, knock_p=knock_p, crank_radius=crank_radius,
+                    backlash=backlash, knock_peak=knock_peak, knock_p=knock_p, take_up=take_up,
+                    crank_radius=crank_radius,
                     rod_length=rod_length, clearance=clearance)
     return step_result(state, checks)
 
@@ -547,6 +596,7 @@ class StepFit:
     backlash: bool
     knock_peak: float
     knock_p: float
+    take_up: float                 # where the play is taken up, rad of crank angle after each dead centre
     crank_radius: float
     rod_length: float
     clearance: float
@@ -585,10 +635,13 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
         # the dead centre; delta read from where the phase-locked residual's
         # energy arrives undercovered (50 % at 8-10 Hz with 20 um of play: the
         # pick-up's shape matters, not only its place), so the bound stays the
-        # whole first harmonic.  Type B: rectangular within +-2b/pi.
+        # whole first harmonic.  Type B: rectangular within +-2b/pi.  A take-up found well after the dead
+        # centres (the slider's inertia outweighs the rail's friction, detect_backlash) puts the share
+        # (2b/pi) |sin delta| in phase with the crank, at one edge of the bound or the other, whichever
+        # side the slider rides: a two-point distribution, sd that share, when it exceeds the rectangle's.
         third = float(fit.amplitude[2]) / (9 * omega2)
         play = 1.5 * np.pi * third
-        u_play = 3 * third / np.sqrt(3)
+        u_play = max(3 * third / np.sqrt(3), 3 * third * abs(np.sin(state.take_up)))
         u_radius = float(np.hypot(u_radius, u_play))
     model = crank_radius * omega2
     # measured / model first harmonic = A_1 / (r_caliper omega^2) = radius / r_caliper
@@ -632,6 +685,7 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
         radius_play_uncertainty_m=float(u_play),
         knock_peak=state.knock_peak,
         knock_significance=state.knock_p,
+        take_up_deg=float(np.degrees(state.take_up)),
         speed_unsteady=unsteady,
         speed_spread_hz=spread,
         motor_limited=False,  # judged over all steps (mark_rolloff): shortfall, or hunting at the top
@@ -852,7 +906,9 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
                 "test over all steps judged)"
             )
         if s.backlash:
-            warnings.append(f"{s.where}: backlash (play taken up at the dead centres): a phase-locked "
+            where = ("at the dead centres" if s.take_up_deg == 0 else
+                     f"{s.take_up_deg:.0f} deg after each dead centre, where the force through the link reverses")
+            warnings.append(f"{s.where}: backlash (play taken up {where}): a phase-locked "
                             f"residual of up to {s.knock_peak:.2g} m/s^2 there; the play's share is in u(radius)")
         if s.speed_unsteady:
             warnings.append(f"{s.where}: the speed wandered by {s.speed_spread_hz:.3g} Hz "
