@@ -464,11 +464,9 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         source += "; the model takes in " + " and ".join(names)
     drift_per_axis = None
     if drifting:
-        # the offsets' path over the run, at the segments' centres: the line and each segment's own offset
-        centres = -1.0 + (2.0 * np.arange(DRIFT_SEGMENTS) + 1.0) / DRIFT_SEGMENTS
-        own = np.vstack([np.zeros(3), extra_step[N_EXTRA:N_ALL].reshape(DRIFT_SEGMENTS - 1, 3)])
-        path = centres[:, None] * extra_step[dr][None, :] + own
-        drift_per_axis = path[-1] - path[0]
+        # from the first sample to the last: the line (tau runs -1 .. 1) and the last segment's own offset (the
+        # first segment's is the reference)
+        drift_per_axis = 2.0 * extra_step[dr] + extra_step[N_ALL - 3:N_ALL]
     # the wobble's size: what was taken in, or what the test's augmented fit shows
     rotations = (extra_step[play] if "wobble" in causes else wobble_coef)[PLAY_ROTATIONS]
     wobble_deg = float(np.degrees(np.sqrt(np.sum(PLAY_MEAN_SQUARE * rotations**2))))   # rms over a turn
