@@ -105,24 +105,46 @@ def test_drifting_offsets_are_taken_in_and_reported():
     result = calibrate_wheel(rec, radius=0.28)
     assert any("offsets drifted" in w for w in result.warnings)
     found = np.array(result.quality["residual_checks"]["offset_drift_m_s2"])
-    assert np.allclose(found, drift, atol=0.006)
+    assert np.allclose(found, drift, atol=0.012)
     assert np.all(np.abs(z_scores(result, OFFSET + drift / 2)) < 4)
 
 
-def test_an_offset_that_settles_is_warned_a_straight_line_is_not():
-    """Held-out audit: an offset warming up (exponential settling) or stepping mid-run is no straight line; what the
-    linear drift leaves moves the gains and tilt by 2-3 u, and the linear test alone missed it in 8-12 % of runs."""
+def test_an_offset_that_settles_is_taken_in_whatever_its_shape():
+    """Held-out audit: an offset warming up (exponential settling) is no straight line; what a fitted line leaves
+    changes slowly, like the centripetal term, and moved the gains by 3-5 u.  A drift found is taken in as a line
+    and an offset per segment of the run, so u of the gains holds it."""
     rec, _ = record(seed=12)
     x = (rec.t - rec.t[0]) / SECONDS
-    settle = np.array([0.02, -0.015, 0.01])[None, :] * (-np.expm1(-x / 0.15))[:, None]
+    size = np.array([0.02, -0.015, 0.01])
+    settle = size[None, :] * (-np.expm1(-x / 0.25) / -np.expm1(-1 / 0.25))[:, None]
     warmed = Recording(rec.t, rec.acc + settle, rec.units, dict(rec.channels), dict(rec.meta))
     result = calibrate_wheel(warmed, radius=0.28)
-    assert any("a straight line does not follow" in w for w in result.warnings)
-    assert result.quality["residual_checks"]["offset_drift_shape_test"]["significant"]
-    # a linear drift is taken in and warned as such, not as a shape
-    linear, _ = record(seed=8, drift_rate=np.array([0.02, -0.01, 0.015]) / SECONDS)
-    result = calibrate_wheel(linear, radius=0.28)
-    assert not any("a straight line does not follow" in w for w in result.warnings)
+    assert any("offsets drifted" in w and "8 parts of the run" in w for w in result.warnings)
+    assert "8 parts of the run" in result.quality["uncertainty"]
+    assert np.all(np.abs(z_scores(result, OFFSET + settle.mean(axis=0))) < 3)
+
+
+def test_a_wobbling_wheel_is_named_as_play_not_as_the_speed_law():
+    """Held-out audit: a wheel whose axis nods once per turn (bearing play) was warned as a speed law the wheel did
+    not follow, and its gains were covered in 27 % of runs.  Gravity tipping towards the axis with the wheel angle is
+    no speed law: the check names the wobble, says how large, and takes it in."""
+    rec, _ = record(seed=21, rig_options={"wobble_deg": 0.1})
+    result = calibrate_wheel(rec, radius=0.28)
+    checks = result.quality["residual_checks"]
+    assert checks["angle_locked_causes"] == ["wobble"]
+    said = [w for w in result.warnings if "locked to the wheel angle" in w]
+    assert len(said) == 1 and "bearing play" in said[0] and "smooth speed law" not in said[0]
+    # the nod's twice-per-turn part, seen from the wheel: about half the nod, rms
+    assert 0.02 < checks["wobble_deg_rms"] < 0.1
+    assert "wobble" in result.quality["uncertainty"]
+    assert np.all(np.abs(z_scores(result)) < 3)
+
+
+def test_a_gross_wobble_is_refused_naming_the_bearing():
+    rec, _ = record(seed=22, rig_options={"wobble_deg": 1.5})
+    with pytest.raises(CalibrationError) as err:
+        calibrate_wheel(rec, radius=0.28)
+    assert "bearing play" in str(err.value) and "bearing" in err.value.hint
 
 
 def test_white_noise_keeps_the_crb_and_stays_quiet():

@@ -18,7 +18,7 @@ import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.procedures.contract import Event, Procedure
-from accelrig.procedures.wheel.assumptions import MAX_SYSTEMATIC, Checks, check_residuals
+from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SYSTEMATIC, Checks, check_residuals
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     WheelSurvey,
@@ -156,34 +156,64 @@ def calibrate_wheel(
 def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
     """What the residual checks found, in the operator's words; a refusal beyond MAX_SYSTEMATIC."""
     out = list(checks.notes)
-    law = checks.speed_law
-    if law is not None and law.significant:
-        size = law.systematic_rms * float(np.mean(sigma))
-        seen = (f"the wheel did not follow the model's smooth speed law: the residuals hold a structure locked to "
-                f"the wheel angle or slower than the cubic coast-down, {size:.3g} m/s^2 rms "
-                f"({100 * law.systematic_rms:.0f} % of the noise sd; score test p = {law.p_value:.1g})")
-        if law.systematic_rms > MAX_SYSTEMATIC:
-            raise CalibrationError(
-                seen + f"; beyond {100 * MAX_SYSTEMATIC:.0f} % the gains and offsets are off by many times any u "
-                "the fit can state",
-                "balance the wheel (an unbalanced wheel speeds up and slows down once per turn), check its bearing, "
-                "and record a free coast-down without touching it")
-        out.append(seen + ": an unbalanced wheel or friction that is not a smooth coast-down does this; the fit "
-                   "takes the structure in and u grows with it, but a balanced wheel gives a calibration to trust "
-                   "more")
+    angle = checks.angle
+    if angle is not None and angle.significant:
+        out += _angle_locked(checks, sigma)
     if checks.drift_per_axis is not None:
         d = checks.drift_per_axis
-        out.append(f"the offsets drifted during the run by {d[0]:+.3g}, {d[1]:+.3g}, {d[2]:+.3g} m/s^2 (x, y, z; "
-                   f"score test p = {checks.drift.p_value:.1g}): the fit takes a linear drift in, the offsets are the "
-                   "run's mean and their u includes it; a sensor still warming up drifts like this, let it settle "
-                   "before calibrating")
-    shape = checks.drift_shape
-    if shape is not None and shape.significant:
-        out.append(f"the offsets changed during the run in a way a straight line does not follow (a step, or a "
-                   f"warm-up that settles: score test of their curvature in time p = {shape.p_value:.1g}): what the "
-                   "line leaves changes slowly, as the centripetal term does, so the gains, offsets and tilt may be "
-                   "off by more than their u; let the sensor settle powered and record again")
+        seen = [f"{t.name} p = {t.p_value:.1g}" for t in (checks.drift, checks.drift_shape) if t.significant]
+        out.append(f"the offsets drifted during the run, by {d[0]:+.3g}, {d[1]:+.3g}, {d[2]:+.3g} m/s^2 from its "
+                   f"start to its end (x, y, z; known only roughly, as what moves along the wheel's radius looks like "
+                   f"the centripetal term; score tests: {', '.join(seen)}): the fit takes the drift in as a "
+                   f"line and an offset for each of {DRIFT_SEGMENTS} parts of the run, whatever its shape (a warm-up "
+                   "that settles, a step); the offsets are the run's mean. A drifting offset looks like the "
+                   "centripetal term the gains are scaled by, so u of the gains, offsets and tilt grows several "
+                   "times; a sensor still warming up drifts like this, let it settle powered before calibrating")
     return out
+
+
+BALANCE_HINT = ("balance the wheel (an unbalanced wheel speeds up and slows down once per turn), check its bearing, "
+                "and record a free coast-down without touching it")
+PLAY_HINT = ("check the wheel's bearing for play and that the wheel runs true on its axle (a dial gauge on the rim "
+             "shows a wobble), tighten or replace the bearing and record again")
+
+
+def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
+    """Structure locked to the wheel's angle, named by its cause: the speed law (imbalance, friction), the
+    wheel's wobble (play, an axle that does not run true), or both when the data cannot tell them apart.
+
+    Taken into the fit, it widens u; beyond MAX_SYSTEMATIC of the noise sd the first-order model of it (a small
+    speed swing, a small wobble) is no longer enough for the estimates to be trusted within any u: refused."""
+    angle, causes = checks.angle, checks.causes
+    size = angle.systematic_rms * float(np.mean(sigma))
+    found = (f"{size:.3g} m/s^2 rms ({100 * angle.systematic_rms:.0f} % of the noise sd; score test "
+             f"p = {angle.p_value:.1g})")
+    law = ("the wheel did not follow the model's smooth speed law: the residuals hold a structure locked to the "
+           "wheel angle or slower than the cubic coast-down")
+    wobble = (f"the wheel wobbles with its own angle (bearing play, or a wheel that does not run true on its axle): "
+              f"the residuals hold a structure locked to the wheel angle that tips gravity towards the wheel axis, "
+              f"where no speed law reaches, a wobble of about {checks.wobble_deg:.2g} deg rms "
+              f"(score test with the speed law projected out p = {checks.wobble.p_value:.1g})")
+    if causes == ["speed law"]:
+        seen, hint = f"{law}, {found}", BALANCE_HINT
+        cause = "an unbalanced wheel or friction that is not a smooth coast-down does this"
+    elif causes == ["wobble"]:
+        seen, hint, cause = f"{wobble}; the structure in all: {found}", PLAY_HINT, "it is not the speed law"
+    else:
+        both = all(t.significant for t in (checks.speed_law, checks.wobble))
+        seen = (f"the residuals hold a structure locked to the wheel angle, {found}: "
+                + ("both a speed swing (an unbalanced wheel, friction) and a wobble (bearing play, a wheel that "
+                   "does not run true), " if both else
+                   "a speed swing (an unbalanced wheel) or a wobble (bearing play, a wheel that does not run true), "
+                   "the data cannot tell which; ")
+                + f"a wobble of about {checks.wobble_deg:.2g} deg rms")
+        hint, cause = PLAY_HINT + "; " + BALANCE_HINT, "the fit takes both in"
+    if angle.systematic_rms > MAX_SYSTEMATIC:
+        raise CalibrationError(
+            seen + f"; beyond {100 * MAX_SYSTEMATIC:.0f} % of the noise the gains and offsets are off by many times "
+            "any u the fit can state", hint)
+    return [seen + f": {cause}; the fit takes the structure in and u grows with it, but a wheel that runs true and "
+            "smoothly gives a calibration to trust more"]
 
 
 def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, runs, seed,

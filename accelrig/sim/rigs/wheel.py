@@ -79,6 +79,7 @@ class WheelRig(Rig):
         "theta0_deg": "wheel phase at the first sample, deg (default 30)",
         "imbalance": "peak angular acceleration from an unbalanced mass, rad/s^2 (default 0: balanced)",
         "imbalance_deg": "wheel angle at which the unbalanced mass hangs lowest, deg (default 0)",
+        "wobble_deg": "bearing play: the wheel's axis nods by this once per turn, deg (default 0: runs true)",
     }
 
     def __init__(
@@ -95,6 +96,7 @@ class WheelRig(Rig):
         g: float = STANDARD_GRAVITY,
         imbalance: float = 0.0,
         imbalance_deg: float = 0.0,
+        wobble_deg: float = 0.0,
     ):
         if radius <= 0:
             raise DeviceError(f"radius={radius} m: the sensor must sit off the axis", "give a positive radius")
@@ -121,6 +123,7 @@ class WheelRig(Rig):
         self.g = g
         self.imbalance = float(imbalance)
         self.imbalance_angle = np.deg2rad(imbalance_deg)
+        self.wobble = np.deg2rad(wobble_deg)
         self._unbalanced = None   # dense solution of the unbalanced motion, made on first use
         # the angle is the integral of the cubic speed law, starting at theta0
         self._angle_law = np.polynomial.Polynomial(self.omega).integ(k=self.theta0)
@@ -150,6 +153,7 @@ class WheelRig(Rig):
             theta0_deg=url.get_float("theta0_deg", TABLE_I_THETA0_DEG),
             imbalance=url.get_float("imbalance", 0.0, low=0.0),
             imbalance_deg=url.get_float("imbalance_deg", 0.0),
+            wobble_deg=url.get_float("wobble_deg", 0.0, low=0.0, high=5.0, unit="deg"),
         )
 
     def motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -212,7 +216,16 @@ class WheelRig(Rig):
         theta = self.motion(t)[0]
         c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
         x0, y0, z = self._bench0.T
-        return np.stack([c * x0 - s * y0, c * y0 + s * x0, np.broadcast_to(z, c.shape[:1] + (3,))], axis=2)
+        frame = np.stack([c * x0 - s * y0, c * y0 + s * x0, np.broadcast_to(z, c.shape[:1] + (3,))], axis=2)
+        if self.wobble:
+            # bearing play: the whole wheel (axis, rim and sensor) nods about the horizontal world y axis, by
+            # wobble cos(theta): its tilt swings once per turn
+            nod = self.wobble * np.cos(theta)
+            cn, sn = np.cos(nod), np.sin(nod)
+            turn = np.zeros((theta.size, 3, 3))
+            turn[:, 0, 0], turn[:, 0, 2], turn[:, 1, 1], turn[:, 2, 0], turn[:, 2, 2] = cn, sn, 1.0, -sn, cn
+            frame = turn @ frame
+        return frame
 
     def position(self, t: np.ndarray) -> np.ndarray:
         """On the rim, opposite X (which points at the axis)."""
