@@ -94,6 +94,10 @@ CLEARANCE_ALPHA = 0.05
 # smooth model halves a slow step's u under 1/f noise, the pooled bands only make it scatter, so the test
 # errs towards the bands.
 POOL_AR_ALPHA = 0.05
+# A step's own u is judged against the pooled bands at its own speed at this family-wise level (_judge_own_u):
+# the shortfall it is for is large (a 2.5 Hz step's own u at half the bands' under 1/f: p ~ 1e-9), and every
+# false alarm costs a white run a warning, so it is stricter than the AR test
+OWN_U_ALPHA = 0.01
 
 
 def step_name(index: int, label: str) -> str:
@@ -806,7 +810,7 @@ def _judge_own_u(step: StepResult, model: PooledNoise, k: int, n_steps: int) -> 
     The bands' variance of a quantity is level_k * shares @ levels (``band_variance_shares``), with
     effective dof nu (Welch-Satterthwaite over the band powers behind it, ``PooledNoise.variance_dof``).
     Were the step's own variance v_own right, the bands' v_b would be v_own chi-square(nu) / nu: one-sided
-    p = P(chi2_nu > nu v_b / v_own), Bonferroni over the two quantities and the steps, at POOL_AR_ALPHA.
+    p = P(chi2_nu > nu v_b / v_own), Bonferroni over the two quantities and the steps, at OWN_U_ALPHA.
     Returns dof ({"radius", "frequency"}), shares (2, m), short, ratio (the smaller u_own / u_bands) and
     its p_value.
     """
@@ -825,7 +829,7 @@ def _judge_own_u(step: StepResult, model: PooledNoise, k: int, n_steps: int) -> 
         p = float(stats.chi2.sf(nu * bands / own, nu)) if np.isfinite(nu) else float(bands <= own)
         if p < p_value:
             ratio, p_value = float(np.sqrt(own / bands)), p
-    return {"dof": dof, "shares": shares, "short": p_value * 2 * n_steps < POOL_AR_ALPHA, "ratio": ratio,
+    return {"dof": dof, "shares": shares, "short": p_value * 2 * n_steps < OWN_U_ALPHA, "ratio": ratio,
             "p_value": p_value}
 
 
