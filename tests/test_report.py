@@ -139,7 +139,9 @@ def test_slider_crank_certificate_has_the_verdict_and_the_figure_the_steps(slide
     result, rec = slider_run
     src = from_result(result, rec)
     html = certificate_html(src)
-    assert_every_parameter_with_its_u_and_U(result, html)
+    # U at the coverage factor the verification judged with (Student's t on the radius's effective dof)
+    assert_every_parameter_with_its_u_and_U(result, html, k=result.details["radius_k"])
+    assert f"k = {result.details['radius_k']:.2f}, Student" in text_of(html)
     assert "Verification certificate" in html
     assert "Slider-crank verification: " in text_of(html) and str(result.details["verdict"]) in text_of(html)
     assert result.details["verdict"] == "holds" and 'class="verdict-pass">holds' in html

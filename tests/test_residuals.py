@@ -195,3 +195,46 @@ def test_pooled_noise_of_white_residuals_is_flat_at_the_noise_level_and_no_fit_s
     model = pooled_noise_model([fits[0], (jac, noisy), fits[2]])
     assert list(model.stands_out) == [False, True, False] and list(model.pooled) == [True, False, True]
     assert model.levels[1] == pytest.approx(4.0, rel=0.15)
+
+
+def test_coverage_factor_is_students_t_at_the_probability_of_k_2():
+    # GUM Table G.2 (p = 95.45 %): 13.97 at 1 dof, 2.28 at 10, 2.05 at 50, 2.00 at infinity
+    from accelrig.estimation.gum import coverage_factor
+
+    assert [round(coverage_factor(nu), 2) for nu in (1, 10, 50)] == [13.97, 2.28, 2.05]
+    assert coverage_factor(float("inf")) == pytest.approx(2.0, abs=1e-5)
+    with pytest.raises(ValueError):
+        coverage_factor(0.0)
+
+
+def test_a_variance_from_pooled_bands_states_the_dof_it_scatters_with():
+    # a sine fit's amplitude variance read from the bands of three short fits (white noise): the bands rest on a
+    # few periodogram ordinates each, so the variance scatters like a chi-square of about ten dof, not of n - p
+    from accelrig.estimation.residuals import ar_sandwich_covariance, band_variance_shares, pooled_noise_model
+
+    rng = np.random.default_rng(5)
+    n = 256
+    t = np.arange(n)
+    columns = [np.column_stack([np.cos(2 * np.pi * c * t), np.sin(2 * np.pi * c * t)]) for c in (0.02, 0.05, 0.12)]
+    jac = columns[0]
+    row = np.linalg.inv(jac.T @ jac)[0]          # g' (J'J)^-1 for the cosine amplitude
+    values, dofs = [], []
+    for rep in range(150):
+        fits = []
+        for c in columns:
+            design = np.column_stack([np.ones(n), c])
+            y = rng.normal(0, 1, n)
+            fits.append((c, y - design @ np.linalg.lstsq(design, y, rcond=None)[0]))
+        model = pooled_noise_model(fits)
+        shares = band_variance_shares(jac, row[None, :], model.noise.edges)[0]
+        value = model.levels[0] * shares @ model.noise.levels
+        if rep == 0:   # the shares are the sandwich's own sum, split by band
+            cov = ar_sandwich_covariance(jac.T @ jac, jac, fits[0][1], noise=model.for_fit(0)).covariance
+            assert value == pytest.approx(cov[0, 0], rel=1e-9)
+        values.append(value)
+        dofs.append(model.variance_dof(0, shares))
+    values = np.array(values)
+    assert np.mean(values) == pytest.approx(np.linalg.inv(jac.T @ jac)[0, 0], rel=0.1)   # unbiased
+    empirical = 2 * np.mean(values) ** 2 / np.var(values)
+    assert 6 < empirical < 16                      # far below n - p = 253: the bands' scatter is real
+    assert 0.75 < np.median(dofs) / empirical < 1.25

@@ -78,6 +78,12 @@ def _profile_correction(path: str, recordings, force: bool = False) -> tuple:
     return profile.correction, warnings
 
 
+def coverage_text(k: float, dof: float | None) -> str:
+    """A coverage factor with the effective dof it is Student's t on ("2.13 (nu_eff 21)"; "2.00" when the dof
+    are beyond counting)."""
+    return f"{k:.2f}" + (f" (nu_eff {dof:.0f})" if dof is not None and dof < 1e4 else "")
+
+
 def format_report(result) -> str:
     """Human-readable frequency response table and verdict (mm and degrees at the edge)."""
     v = result.details
@@ -88,8 +94,8 @@ def format_report(result) -> str:
         + (f", profile {v['profile']}" if v["profile"] else ""),
         "",
         "| step | f / Hz | u(f) / Hz | FFT peak / Hz | A1 / m/s^2 | model r w^2 | ratio | radius / mm | u / mm | "
-        "in clearance | backlash | motor | axis angle x,y,z / deg |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "k (nu_eff) | in clearance | backlash | motor | axis angle x,y,z / deg |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in v["steps"]:
         motor = "limited" if s["motor_limited"] else "ok"
@@ -99,13 +105,16 @@ def format_report(result) -> str:
             f"{s['fft_peak_hz']:.2f} | {s['amplitude']['value']:.4f} | {s['model_amplitude']:.4f} | "
             f"{s['ratio']['value']:.5f} +- {s['ratio']['uncertainty']:.5f} | "
             f"{s['radius_m']['value'] * 1e3:.4f} | {s['radius_m']['uncertainty'] * 1e3:.4f} | "
+            f"{coverage_text(s.get('radius_k', 2.0), s.get('radius_dof'))} | "
             f"{'yes' if s['within_clearance'] else 'NO'} | {'YES' if s['backlash'] else 'no'} | {motor} | {angles} |"
         )
     lines.append("")
     r = result.parameters["radius"]
     lines.append(
         f"radius from the motion: {r.value * 1e3:.4f} +- {r.uncertainty * 1e3:.4f} mm (k = 1) over steps "
-        f"{', '.join(str(i + 1) for i in v['used_steps'])}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof"
+        f"{', '.join(str(i + 1) for i in v['used_steps'])}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof; "
+        f"expanded U = {v.get('radius_k', 2.0) * r.uncertainty * 1e3:.4f} mm at k = "
+        f"{coverage_text(v.get('radius_k', 2.0), v.get('radius_nu_eff'))}"
     )
     lines.append(
         "motor roll-off: " + (f"tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else "none seen")

@@ -20,6 +20,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from accelrig.errors import CalibrationError
+from accelrig.estimation.distributions import normal_cdf, student_t_quantile
+
+# The coverage probability of k = 2 for a normal distribution (95.45 %): the Student-t factor at this level
+# tends to 2 as the degrees of freedom grow (GUM G.3-G.4, Table G.2), so an estimate resting on much data keeps
+# the k = 2 it always had and one resting on little gets more.
+COVERAGE_PROBABILITY = float(2.0 * normal_cdf(2.0) - 1.0)
+
+
+def coverage_factor(dof: float, probability: float = COVERAGE_PROBABILITY) -> float:
+    """k = t_p(nu_eff) for an expanded uncertainty U = k u whose u^2 rests on ``dof`` effective degrees of
+    freedom (GUM G.4.1: Welch-Satterthwaite); 2.00 at infinite dof and the default probability."""
+    dof = float(dof)
+    if not dof > 0:
+        raise ValueError(f"degrees of freedom must be positive, got {dof}")
+    return float(student_t_quantile(0.5 + probability / 2.0, min(dof, 1e12)))
 
 
 def correlation_matrix(n: int, correlation: float | np.ndarray) -> np.ndarray:

@@ -195,6 +195,9 @@ class Sandwich:
     blocks: int
     block: int             # instants per block
     method: str = "batch-means sandwich"
+    # degrees of freedom of the middle matrix's estimate (GUM G.4: the t factor of an expanded u): batch means
+    # over K blocks have K - 1; an AR(p) spectrum fitted to n samples about n / p (Berk 1974: var S^ ~ 2p/n S^2)
+    dof: float = float("inf")
 
     @property
     def underresolved(self) -> bool:
@@ -221,7 +224,7 @@ def sandwich_covariance(normal_matrix: np.ndarray, scores: np.ndarray, block: in
     middle = centred.T @ centred * (k / max(k - 1, 1))
     bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
     cov = bread @ middle @ bread
-    return Sandwich(0.5 * (cov + cov.T), k, int(block))
+    return Sandwich(0.5 * (cov + cov.T), k, int(block), dof=float(max(k - 1, 1)))
 
 
 @dataclass
@@ -449,7 +452,8 @@ def ar_sandwich_covariance(normal_matrix: np.ndarray, jacobian: np.ndarray, resi
     middle = np.real((spectrum_j.conj() * s[:, None]).T @ spectrum_j)
     bread = np.linalg.pinv(np.asarray(normal_matrix, dtype=float))
     cov = bread @ middle @ bread
-    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"{noise.label} spectral sandwich")
+    dof = n / max(noise.order, 1) if isinstance(noise, ARNoise) else float("inf")   # a BandNoise's: PooledNoise
+    return Sandwich(0.5 * (cov + cov.T), 0, 0, method=f"{noise.label} spectral sandwich", dof=float(dof))
 
 
 def _grid_size(n: int) -> int:
@@ -471,14 +475,21 @@ def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.nd
     w = tested if tested is not None else whiteness(residuals)
     if not w.correlated:
         return white, "white noise: sigma^2 (J'J)^-1", w
+    sandwich = correlated_sandwich(jacobian, residuals, w)
+    return sandwich.covariance, sandwich.method, w
+
+
+def correlated_sandwich(jacobian: np.ndarray, residuals: np.ndarray, tested: Whiteness) -> Sandwich:
+    """``checked_covariance``'s covariance for correlated residuals, as a Sandwich (its ``dof`` too): the
+    batch-means sandwich when the record holds MIN_BLOCKS blocks of BLOCK_PER_TAU tau, else the AR one."""
     jacobian = np.asarray(jacobian, dtype=float)
     normal = jacobian.T @ jacobian
-    block = w.block_length()
+    block = tested.block_length()
     sandwich = sandwich_covariance(normal, block_scores(jacobian, residuals, block), block)
     if sandwich.underresolved:
-        sandwich = ar_sandwich_covariance(normal, jacobian, residuals)
-        return sandwich.covariance, sandwich.method, w
-    return sandwich.covariance, f"batch-means sandwich, {sandwich.blocks} blocks of {sandwich.block} samples", w
+        return ar_sandwich_covariance(normal, jacobian, residuals)
+    sandwich.method = f"batch-means sandwich, {sandwich.blocks} blocks of {sandwich.block} samples"
+    return sandwich
 
 
 # ---------------------------------------------------------------- one sensor, several short fits: a pooled spectrum
@@ -519,9 +530,67 @@ class PooledNoise:
     pooled: np.ndarray       # per fit: did it inform the pooled spectrum (False: its level stood out)
     stands_out: np.ndarray   # per fit: its level above warn_ratio^2 and significant (warn: the model misses it)
     ar_p_value: float        # chi-square test of one AR model of all pooled residuals against their band powers
+    # what a variance stated from the bands rests on, for its effective degrees of freedom (``variance_dof``)
+    observed: np.ndarray | None = None        # (F, m): each fit's residual power per band
+    expected: np.ndarray | None = None        # (F, m, m): its expectation per unit level of each band's noise
+    level_map: np.ndarray | None = None       # (m, m): d noise.levels / d (pooled fits' summed power per band)
+    power_variance: np.ndarray | None = None  # (F, m): variance of each fit's band power under the model
 
     def for_fit(self, i: int) -> BandNoise:
         return self.noise.scaled(float(self.levels[i]))
+
+    def variance_gradient(self, i: int, shares: np.ndarray) -> tuple[float, np.ndarray]:
+        """A variance fit ``i`` states from the bands, v = levels[i] * shares @ noise.levels (``shares``: each
+        band's part at unit level, ``band_variance_shares``), and its gradient (F, m) with respect to every
+        fit's residual power per band, to first order: both the pooled band levels and the fit's own level
+        (its residual power over what the bands predict for it) move with them."""
+        full = self.noise.levels
+        shares = np.asarray(shares, dtype=float)
+        value = float(self.levels[i] * (shares @ full))
+        gradient = np.zeros_like(self.observed)
+        if value <= 0 or self.observed[i].sum() <= 0:
+            return value, gradient
+        gradient[i] += value / float(self.observed[i].sum())
+        predicted = self.expected[i].sum(axis=0)          # the fit's total power per unit level of each band
+        direction = shares / (shares @ full) - predicted / max(float(predicted @ full), 1e-300)
+        gradient[self.pooled] += value * (direction @ self.level_map)[None, :]
+        return value, gradient
+
+    def gradient_variance(self, gradient: np.ndarray) -> float:
+        """Variance of a quantity with this gradient (F, m) over the fits' band powers (independent, each a sum
+        of |periodogram|^2 ordinates: var = mean^2 / ordinates)."""
+        return float(np.sum(np.asarray(gradient) ** 2 * self.power_variance))
+
+    def variance_dof(self, i: int, shares: np.ndarray) -> float:
+        """Effective degrees of freedom (Welch-Satterthwaite, GUM G.4) of ``variance_gradient``'s variance:
+        2 v^2 / var(v), at least 1."""
+        value, gradient = self.variance_gradient(i, shares)
+        return satterthwaite_dof(value, self.gradient_variance(gradient))
+
+
+def satterthwaite_dof(variance: float, variance_of_variance: float) -> float:
+    """Effective dof of a variance estimate from its own variance (a chi-square with nu dof: var = 2 v^2 / nu),
+    at least 1; infinite when it is known exactly."""
+    if variance_of_variance <= 0 or not np.isfinite(variance_of_variance):
+        return float("inf")
+    return float(max(2.0 * variance**2 / variance_of_variance, 1.0))
+
+
+def band_variance_shares(jacobian: np.ndarray, rows: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Each band's part, at unit level, of the variances of rows @ theta under ``ar_sandwich_covariance`` with a
+    BandNoise of these ``edges``: (q, m) for ``rows`` (q, p) = g' (J'J)^-1 of q quantities.  The sandwich's
+    middle matrix is sum_k S(w_k) J^_k* J^_k, so g' cov g = sum_k S(w_k) |FFT(J v)_k|^2, v = (J'J)^-1 g."""
+    jacobian = np.asarray(jacobian, dtype=float)
+    n = jacobian.shape[0]
+    size = _grid_size(n)
+    spectrum = np.fft.rfft(jacobian @ np.atleast_2d(np.asarray(rows, dtype=float)).T, size, axis=0)
+    weights = np.full(spectrum.shape[0], 2.0)
+    weights[0] = 1.0
+    if size % 2 == 0:
+        weights[-1] = 1.0
+    power = np.abs(spectrum) ** 2 * (weights / size)[:, None]
+    band = _band_index(edges, np.arange(spectrum.shape[0]) / size)
+    return np.stack([np.bincount(band, power[:, q], edges.size - 1) for q in range(power.shape[1])])
 
 
 def _band_index(edges: np.ndarray, cycles: np.ndarray) -> np.ndarray:
@@ -657,7 +726,78 @@ def pooled_noise_model(fits: list[tuple[np.ndarray, np.ndarray]], alpha: float =
     stands_out = (own > warn_ratio**2) & (p_values < alpha)
     kept = [fit for fit, keep in zip(fits, pooled, strict=True) if keep]
     ar_p = _ar_band_test(kept, [mo for mo, keep in zip(moments, pooled, strict=True) if keep], edges, seen)
-    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out, ar_p)
+    level_map = _level_map(expected[np.ix_(seen, seen)], levels, seen, full)
+    observed_all = np.array([mo[0] for mo in moments])
+    expected_all = np.array([mo[1] for mo in moments])
+    power_variance = np.empty_like(observed_all)
+    for i, (jacobian, residuals) in enumerate(fits):
+        # each band power is a chi-square with the dof of its periodogram ordinates, net of the fit's projection
+        power_variance[i] = 2.0 * (own[i] * (moments[i][1] @ full)) ** 2 / _band_power_dof(jacobian, residuals, edges)
+    return PooledNoise(BandNoise(edges, full, seen), own, p_values, dof, pooled, stands_out, ar_p,
+                       observed_all, expected_all, level_map, power_variance)
+
+
+def _band_power_dof(jacobian: np.ndarray, residuals: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Satterthwaite dof of one fit's residual power per band (as ``_band_moments`` sums it), the noise taken
+    flat within a band: 2 tr(WG)^2 / tr((WG)^2), G = F (I - H) F^H over the band's grid bins (F the DFT rows
+    on the >= 2n grid, W the fold weights).  A band of K Fourier ordinates that no fit column reaches has
+    2K; what the fit took out (its columns' share of the band) and the grid's overlap between ordinates
+    are counted exactly, not assumed."""
+    r = np.asarray(residuals, dtype=float).ravel()
+    n = r.size
+    columns = np.column_stack([np.ones(n), np.asarray(jacobian, dtype=float).reshape(n, -1)])
+    u, s, _ = np.linalg.svd(columns, full_matrices=False)
+    f_basis = np.fft.rfft(u[:, s > s[0] * 1e-10], _grid_size(n), axis=0)
+    size = _grid_size(n)
+    bins = size // 2 + 1
+    band = _band_index(edges, np.arange(bins) / size)
+    fold = np.full(bins, 2.0)
+    fold[0] = fold[-1] = 1.0
+    # the Dirichlet kernel sum_t<n exp(-2 pi i d t / size) for every bin distance d
+    d = np.arange(-(bins - 1), bins)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dirichlet = (1 - np.exp(-2j * np.pi * d * n / size)) / (1 - np.exp(-2j * np.pi * d / size))
+    dirichlet[d == 0] = n
+    out = np.empty(edges.size - 1)
+    for b in range(edges.size - 1):
+        k = np.flatnonzero(band == b)   # contiguous bins: G's noise part D is Toeplitz, d[k - l]
+        w, fq = fold[k], f_basis[k]
+        lags = dirichlet[bins - k.size: bins + k.size - 1]
+        trace = float(np.sum(w * (n - np.sum(np.abs(fq) ** 2, axis=1))))
+        # tr((WG)^2) = sum w_k w_l |D_kl|^2 - 2 Re tr(Fq' W D W Fq) + |Fq' W Fq|^2, D applied by FFT convolution
+        noise = float(np.sum(np.abs(lags) ** 2 * np.correlate(w, w, "full")))
+        weighted = w[:, None] * fq
+        size_b = _next_fast_len(3 * k.size - 2)
+        d_weighted = np.fft.ifft(np.fft.fft(lags, size_b)[:, None] * np.fft.fft(weighted, size_b, axis=0),
+                                 axis=0)[k.size - 1: 2 * k.size - 1]
+        cross = float(np.real(np.vdot(weighted, d_weighted)))
+        projected = float(np.sum(np.abs(fq.conj().T @ weighted) ** 2))
+        square = noise - 2.0 * cross + projected
+        out[b] = 2.0 * trace**2 / square if square > 0 else 1.0
+    return np.maximum(out, 1.0)
+
+
+def _level_map(expected: np.ndarray, levels: np.ndarray, seen: np.ndarray, full: np.ndarray) -> np.ndarray:
+    """d full / d (summed observed power per band) at ``_solve_levels``' answer: the weighted least squares
+    over the seen bands whose level is positive (the others held at zero), an unseen band following the
+    neighbour whose level it took (``pooled_noise_model``)."""
+    m = full.size
+    fitted = expected @ levels
+    weight = 1.0 / np.maximum(fitted, 1e-3 * max(float(np.max(fitted, initial=0.0)), 1e-300))
+    active = levels > 0
+    seen_map = np.zeros((levels.size, levels.size))
+    if active.any():
+        seen_map[active] = np.linalg.pinv(expected[:, active] * weight[:, None]) * weight[None, :]
+    out = np.zeros((m, m))
+    index = np.flatnonzero(seen)
+    out[np.ix_(index, index)] = seen_map
+    for b in np.flatnonzero(~seen):
+        neighbours = [c for c in (b - 1, b + 1) if 0 <= c < m and seen[c]]
+        source = max(neighbours, key=lambda c: full[c]) if neighbours else (
+            int(index[np.argmax(levels)]) if index.size else None)
+        if source is not None:
+            out[b] = out[source]
+    return out
 
 
 def _ar_band_test(fits, moments, edges: np.ndarray, seen: np.ndarray) -> float:

@@ -228,6 +228,8 @@ def slider_crank_series(src: Source) -> dict[str, np.ndarray]:
         "model_upper": np.array([s["model_amplitude_bounds"][1] for s in steps]),
         "radius_m": np.array([s["radius_m"]["value"] for s in steps]),
         "radius_uncertainty_m": np.array([s["radius_m"]["uncertainty"] for s in steps]),
+        # each step's coverage factor (Student's t on its u's effective dof; 2 in results saved before it)
+        "coverage_factor": np.array([s.get("radius_k", 2.0) for s in steps]),
     }
 
 
@@ -242,8 +244,10 @@ def slider_crank_figure(src: Source) -> Figure:
     ax.fill_between(f[order], series["model_lower"][order], series["model_upper"][order], color="C1", alpha=0.25,
                     label="model within the clearance")
     ax.plot(f[order], series["model_amplitude"][order], "-", color="C1", label="slider-crank model")
-    ax.errorbar(f, series["amplitude"], yerr=2 * series["amplitude_uncertainty"], fmt="o", ms=4, color="C0",
-                label="measured (U, k = 2)")
+    k = series["coverage_factor"]
+    k_label = f"k = {k[0]:.2f}" if np.ptp(k) < 0.005 else f"k = {k.min():.2f}-{k.max():.2f}"
+    ax.errorbar(f, series["amplitude"], yerr=k * series["amplitude_uncertainty"], fmt="o", ms=4, color="C0",
+                label=f"measured (U, {k_label})")
     ax.set_xlabel("crank frequency (Hz)")
     ax.set_ylabel("first-harmonic amplitude (m/s²)")
     ax.set_title("Amplitude vs frequency: points inside the band", fontsize=9)
@@ -254,8 +258,8 @@ def slider_crank_figure(src: Source) -> Figure:
         ax.axhspan(1e3 * (r0 - clearance), 1e3 * (r0 + clearance), color="C1", alpha=0.25,
                    label="caliper radius ± clearance")
         ax.axhline(1e3 * r0, color="C1")
-    ax.errorbar(f, 1e3 * series["radius_m"], yerr=2e3 * series["radius_uncertainty_m"], fmt="o", ms=4,
-                label="radius from the motion (U, k = 2)")
+    ax.errorbar(f, 1e3 * series["radius_m"], yerr=1e3 * k * series["radius_uncertainty_m"], fmt="o", ms=4,
+                label=f"radius from the motion (U, {k_label})")
     ax.set_xlabel("crank frequency (Hz)")
     ax.set_ylabel("crank radius (mm)")
     ax.set_title("Radius per step: inside the clearance band", fontsize=9)

@@ -116,7 +116,12 @@ def coverage_factor(src: Source) -> float:
                  or DEFAULT_K)
 
 
-def coverage_statement(k: float) -> str:
+def coverage_statement(k: float, dof: float | None = None) -> str:
+    if dof is not None:   # k = t_p(nu_eff) (GUM G.4): the probability is the t's, not the normal's at this k
+        return (f"The expanded uncertainty U = k·u is stated with the coverage factor k = {k:.2f}, Student's t "
+                f"for the {dof:.0f} effective degrees of freedom of u (Welch-Satterthwaite, GUM G.4), which "
+                "corresponds to a coverage probability of approximately 95 %. The standard uncertainty u (k = 1) "
+                "was evaluated following the GUM (JCGM 100:2008).")
     return (f"The expanded uncertainty U = k·u is stated with the coverage factor k = {k:g}, which for a normal "
             f"distribution corresponds to a coverage probability of approximately "
             f"{'95' if abs(k - 2) < 1e-9 else f'{100 * math.erf(k / math.sqrt(2)):.1f}'} %. The standard "
@@ -273,7 +278,7 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
                      ("samples", prov.get("recording_samples")), ("source of this certificate", src.path)]))
 
     html.append("<h2>5. Results</h2>")
-    html.append(f'<p class="note">{escape(coverage_statement(k))}</p>')
+    html.append(f'<p class="note">{escape(coverage_statement(k, src.details.get("coverage_dof")))}</p>')
     head = ["quantity", "value", "u (k = 1)", f"U (k = {k:g})", "unit"]
     if r.get("correction"):
         html.append("<h3>Correction: calibrated = C · (raw − b), raw = counts × nominal scale</h3>")

@@ -14,8 +14,9 @@ For each condition the table gives, over the runs:
 
     refused    share of runs refused, with the most common message
     warned     share of the other runs that carried a warning
-    cover      coverage of +-2u over all parameters, in the runs neither refused nor warned
-               (target 90-98 %)
+    cover      coverage of +-k u over all parameters, in the runs neither refused nor warned
+               (target 90-98 %); k = 2 unless the tool states its own coverage factor for the
+               parameter (``Outcome.k``: Student's t on the effective dof of u^2)
     cover(w)   the same in the warned runs (may be low: the warning is what makes it honest)
     u/sd       median over parameters of rms(u) / sd(error), all unrefused runs (1 = honest)
 
@@ -48,6 +49,7 @@ class Outcome:
 
     errors: dict[str, float] = field(default_factory=dict)
     u: dict[str, float] = field(default_factory=dict)
+    k: dict[str, float] = field(default_factory=dict)   # the coverage factor the tool states, where it does (else 2)
     warnings: list[str] = field(default_factory=list)
     refused: str | None = None
     seconds: float = 0.0
@@ -104,7 +106,7 @@ class Row:
 
 
 def _coverage(outcomes: list[Outcome]) -> float:
-    hits = [abs(o.errors[k]) <= 2.0 * o.u[k] for o in outcomes for k in o.errors]
+    hits = [abs(o.errors[k]) <= o.k.get(k, 2.0) * o.u[k] for o in outcomes for k in o.errors]
     return float(np.mean(hits)) if hits else float("nan")
 
 

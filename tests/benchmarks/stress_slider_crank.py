@@ -60,12 +60,15 @@ def _run(seed: int, rig_options: dict | None = None, sensor_options: dict | None
         i = s["index"] + 1
         outcome.errors[f"radius_{i}"] = s["radius_m"]["value"] - rig.effective_radius
         outcome.u[f"radius_{i}"] = s["radius_m"]["uncertainty"]
+        outcome.k[f"radius_{i}"] = s["radius_k"]
         outcome.errors[f"speed_{i}"] = s["frequency_hz"]["value"] - f_true
         outcome.u[f"speed_{i}"] = s["frequency_hz"]["uncertainty"]
+        outcome.k[f"speed_{i}"] = s["frequency_k"]
     radius = result.parameters["radius"]
     if np.isfinite(radius.value):
         outcome.errors["radius"] = radius.value - rig.effective_radius
         outcome.u["radius"] = radius.uncertainty
+        outcome.k["radius"] = result.details["radius_k"]
     outcome.warnings = list(result.warnings)
     if result.details["verdict"] != "holds":   # the sensor is perfect: anything else must be explained
         outcome.warnings.append(f"verdict: {result.details['verdict']}")

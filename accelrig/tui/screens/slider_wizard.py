@@ -115,7 +115,8 @@ class VerificationScreen(Screen):
             yield Static(f"[b]slider-crank verification: [{colour}]{v['verdict']}[/][/b]\n{v['verdict_reason']}",
                          id="verdict")
             yield Static(f"radius from the motion {r.value * 1e3:.4f} ± {r.uncertainty * 1e3:.2g} mm "
-                         f"(k = 1, chi² {v['radius_chi2']:.3g} for {v['radius_dof']} dof); caliper "
+                         f"(k = 1, chi² {v['radius_chi2']:.3g} for {v['radius_dof']} dof; judged at "
+                         f"k = {v.get('radius_k', 2.0):.2f}); caliper "
                          f"{v['crank_radius_m'] * 1e3:g} ± {v['clearance_m'] * 1e3:g} mm"
                          + (f"; motor tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else ""),
                          id="verification-radius")
@@ -128,7 +129,7 @@ class VerificationScreen(Screen):
     def on_mount(self) -> None:
         self.sub_title = "verification"
         table = self.query_one("#steps", DataTable)
-        table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "flags")
+        table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k", "flags")
         for s in self.verification.details["steps"]:
             flags = [name for name, on_ in (("motor-limited", s["motor_limited"]), ("backlash", s["backlash"]),
                                             ("unsteady", s["speed_unsteady"]),
@@ -136,7 +137,7 @@ class VerificationScreen(Screen):
             table.add_row(s["label"], f"{s['frequency_hz']['value']:.3f}", f"{s['amplitude']['value']:.4g}",
                           f"{s['amplitude']['uncertainty']:.2g}", f"{s['model_amplitude']:.4g}",
                           f"{s['radius_m']['value'] * 1e3:.4f}", f"{s['radius_m']['uncertainty'] * 1e3:.2g}",
-                          " ".join(flags))
+                          f"{s.get('radius_k', 2.0):.2f}", " ".join(flags))
         response = self.verification.arrays
         self.query_one("#verification-plot", LinePlot).set_series(response_series(
             response["frequency_hz"], response["amplitude"], response["model_amplitude"]))
