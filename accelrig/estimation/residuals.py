@@ -23,7 +23,9 @@ non-overlapping-blocks HAC estimator).  It was chosen over scaling u by
 sqrt(tau) because it is right for every parameter, not only for means: a
 sine fit's amplitude sees the noise near its frequency, which tau (the noise
 at frequency 0) does not describe.  ``block_scores`` makes the block sums
-from an in-memory Jacobian; a chunked fit can sum its own blocks.
+from an in-memory Jacobian; a chunked fit can sum its own blocks.  Noise slower than the longest
+blocks a record allows (1/f-like) is seen as flat by batch means; ``fit_power_law`` fits the residuals'
+lowest octaves as white + c f^-beta and ``low_frequency_covariance`` adds the part batch means miss.
 
 The policy (the same for every procedure):
 
@@ -836,3 +838,122 @@ def _ar_band_test(fits, moments, edges: np.ndarray, seen: np.ndarray) -> float:
         variance += mine**2 / np.maximum(dof_fit * width, 1.0)   # n w complex ordinates per band
     chi2 = float(np.sum((observed - expected)[seen] ** 2 / np.maximum(variance[seen], 1e-300)))
     return float(_sps.chi2.sf(chi2, int(seen.sum())))
+
+
+# ---------------------------------------------------------------- noise slower than the longest block: a power law
+
+LOW_FIRST_ORDINATE = 3       # the fit empties the lowest ordinates (offsets, drifts, slow shapes): fitted from here
+LOW_OCTAVES_ABOVE = 2        # the power law is fitted over the band up to this many octaves above the cut
+POWER_LAW_EXPONENTS = np.arange(0.1, 2.0001, 0.05)   # 1/f^beta up to a random walk's beta = 2
+
+
+@dataclass
+class PowerLawNoise:
+    """A noise spectrum white + level |f|^-beta at low frequencies, fitted to one series' periodogram
+    (Whittle likelihood) over ordinates ``first``..``last`` of an ``n``-point series; f in cycles per
+    sample of that series, the density two-sided per sample (E|DFT_j|^2 / n).  ``p_value`` tests the
+    power-law part against white noise over the same band (likelihood ratio, chi-square with 2 dof)."""
+
+    white: float
+    level: float
+    beta: float
+    p_value: float
+    n: int
+    first: int
+    last: int
+
+    def spectrum(self, f: np.ndarray) -> np.ndarray:
+        f = np.abs(np.asarray(f, dtype=float))
+        return self.white + self.level * np.power(np.maximum(f, 1e-300), -self.beta)
+
+    @property
+    def found(self) -> bool:
+        return self.p_value < ALPHA and self.level > 0
+
+    def to_dict(self) -> dict:
+        return {"beta": self.beta, "p_value": self.p_value, "found": self.found,
+                "band_cycles_per_sample": [self.first / self.n, self.last / self.n]}
+
+
+def _whittle(power: np.ndarray, design: np.ndarray) -> tuple[np.ndarray, float]:
+    """Non-negative coefficients of spectrum = design @ x that maximise the Whittle likelihood of the
+    periodogram ``power`` (iteratively reweighted: each ordinate's power has sd equal to its mean),
+    and the negative log-likelihood sum(log s + I / s)."""
+    from scipy.optimize import nnls
+
+    s = np.full(power.size, max(float(np.mean(power)), 1e-300))
+    x = np.zeros(design.shape[1])
+    for _ in range(8):
+        x, _ = nnls(design / s[:, None], power / s)
+        fitted = np.maximum(design @ x, 1e-12 * float(np.mean(power)) + 1e-300)
+        if np.max(np.abs(fitted / s - 1.0)) < 1e-4:
+            s = fitted
+            break
+        s = fitted
+    return x, float(np.sum(np.log(s) + power / s))
+
+
+def fit_power_law(series: np.ndarray, first: int, last: int) -> list[PowerLawNoise]:
+    """``PowerLawNoise`` of each column of an (n, k) array of series (means removed) over periodogram
+    ordinates ``first``..``last``, with one exponent for all columns (the axes of one sensor share the
+    physics of their wander; one exponent from all of them is far steadier than one per axis).
+
+    The exponent is searched over POWER_LAW_EXPONENTS, each column's white and power-law levels
+    fitted for each; the likelihood ratio against white alone (same band, every column) gives the
+    p-value (chi-square, k + 1 dof).  Used where the noise slower than a record's blocks must be
+    extrapolated: the band is the lowest the record shows well, and the power law is the stated
+    assumption about what lies below it."""
+    x = np.asarray(series, dtype=float)
+    x = x[:, None] if x.ndim == 1 else x
+    n, k = x.shape
+    last = int(min(last, (n - 1) // 2))
+    first = int(max(1, first))
+    if last - first < 8:
+        return [PowerLawNoise(float(np.var(c)), 0.0, 0.0, 1.0, n, first, last) for c in x.T]
+    j = np.arange(first, last + 1)
+    # a taper keeps a steep spectrum's low-frequency power from leaking up the band (it would flatten the slope)
+    taper = np.hanning(n + 2)[1:-1]
+    taper /= np.sqrt(np.mean(taper**2))
+    power = np.abs(np.fft.rfft((x - x.mean(axis=0)) * taper[:, None], axis=0)[first:last + 1]) ** 2 / n
+    f = j / n
+    white_only = np.mean(power, axis=0)
+    null = float(np.sum(np.log(white_only) * j.size + np.sum(power / white_only, axis=0)))
+    best = (np.inf, 0.0, [])
+    for beta in POWER_LAW_EXPONENTS:
+        design = np.column_stack([np.ones(j.size), f ** -beta])
+        fits = [_whittle(power[:, c], design) for c in range(k)]
+        nll = sum(fit[1] for fit in fits)
+        if nll < best[0]:
+            best = (nll, float(beta), [fit[0] for fit in fits])
+    nll, beta, coefs = best
+    statistic = max(2.0 * (null - nll), 0.0)
+    p_value = float(_sps.chi2.sf(statistic, k + 1))
+    return [PowerLawNoise(float(c[0]), float(c[1]), beta, p_value, n, first, last) for c in coefs]
+
+
+LOW_PADDING = 8              # the low-frequency integral is summed on a grid this many times finer than 1 / record
+
+
+def low_frequency_covariance(influence: np.ndarray, noise: PowerLawNoise, cut: int) -> np.ndarray:
+    """What batch means over blocks shorter than the record miss of a noise with a long memory, as a
+    covariance: the integral over |f| < f_cut of (S(f) - S(f_cut)) Re(H^(f) H^(f)*).
+
+    ``influence`` (K, p): how each estimate moves per unit of the residual series ``noise`` was fitted
+    to (K consecutive block sums; f in cycles per block, f_cut = cut / K).  Batch means over blocks of
+    resolution f_cut see the spectrum below it as flat at S(f_cut); the power law's rise above that
+    level is added.  The integral is summed on a grid LOW_PADDING times finer than 1 / K, since much
+    of a 1/f noise's effect lies between the record's own ordinates (it bends the record as a whole);
+    f = 0 is left out, which needs influences that sum to zero (an estimate that moves with the
+    noise's mean over the record is the caller's to correct: that mean is part of an offset)."""
+    h = np.asarray(influence, dtype=float)
+    k, p = h.shape
+    size = LOW_PADDING * k
+    top = int(min(LOW_PADDING * cut, size // 2))
+    if top < 2 or noise.level <= 0:
+        return np.zeros((p, p))
+    spectrum = np.fft.rfft(h, size, axis=0)[1:top]
+    f = np.arange(1, top) / size
+    excess = np.maximum(noise.spectrum(f) - noise.spectrum(cut / k), 0.0)
+    # each positive ordinate stands for itself and its negative twin
+    cov = 2.0 * np.real((spectrum.conj() * excess[:, None]).T @ spectrum) / size
+    return 0.5 * (cov + cov.T)

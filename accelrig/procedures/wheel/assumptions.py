@@ -40,7 +40,19 @@ import numpy as np
 from scipy import stats as _sps
 
 from accelrig.errors import CalibrationError
-from accelrig.estimation.residuals import ALPHA, MIN_BLOCKS, Whiteness, sandwich_covariance, whiteness_by_column
+from accelrig.estimation.residuals import (
+    ALPHA,
+    LOW_FIRST_ORDINATE,
+    LOW_OCTAVES_ABOVE,
+    MATERIAL_INFLATION,
+    MIN_BLOCKS,
+    PowerLawNoise,
+    Whiteness,
+    fit_power_law,
+    low_frequency_covariance,
+    sandwich_covariance,
+    whiteness_by_column,
+)
 from accelrig.procedures.wheel.fit import chunks
 from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, pack, phase, unpack
 from accelrig.units import STANDARD_GRAVITY
@@ -54,9 +66,6 @@ LOWEST_SPEED_SHARE = 0.1  # Legendre degrees in time beyond the phase law's quar
 # Refuse when the structure the model misses is larger than this share of the noise sd (rms):
 # the estimates are then off by many times their u whatever u is made of.
 MAX_SYSTEMATIC = 0.5
-# The sandwich's variance growing by more than this factor per doubling of the block length, twice
-# in a row at the longest blocks, marks noise with a long memory.
-LONG_MEMORY_GROWTH = 1.15
 
 
 @dataclass
@@ -97,6 +106,7 @@ class Checks:
     wobble: ScoreTest | None = None               # the wheel's wobble with the speed law projected out
     causes: list[str] = field(default_factory=list)   # of the angle-locked structure: "speed law", "wobble"
     wobble_deg: float = 0.0                       # rms tilt of the wheel's plane the wobble regressors show
+    low_frequency: list[PowerLawNoise] | None = None  # per axis: the power law below the longest blocks (correlated)
 
     def to_dict(self) -> dict:
         out = {"noise": "correlated" if self.correlated else "white",
@@ -115,6 +125,8 @@ class Checks:
             out["wobble_test"] = self.wobble.to_dict()
             out["angle_locked_causes"] = list(self.causes)
             out["wobble_deg_rms"] = self.wobble_deg
+        if self.low_frequency is not None:
+            out["low_frequency_noise"] = [w.to_dict() for w in self.low_frequency]
         return out
 
 
@@ -252,14 +264,15 @@ def _score_test(name, g, s_white, block_scores, use_blocks, n_values) -> tuple[S
 
 def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_scale: float, g: float,
           weight: np.ndarray, extra: np.ndarray, block: int,
-          residuals: np.ndarray | None = None, segments: bool = False) -> tuple[np.ndarray, np.ndarray]:
+          residuals: np.ndarray | None = None, segments: bool = False,
+          low: LowSums | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One chunked pass over the record for the model at ``state`` plus the added regressors (built at
     ``reference``, the fit's own estimate, where they were tested) with coefficients ``extra`` (q,).
 
     Returns the per-axis normal matrices of the model's columns and the regressors together,
     (3, p + q, p + q), and the weighted scores summed over blocks of ``block`` instants, (K, p + q) (a
     short last block of less than half a block joins the previous one).  ``residuals``, when given, is
-    filled with v - model - regressors."""
+    filled with v - model - regressors; ``low``, when given, with the per-axis sums over its blocks."""
     n, p = t.size, free.size
     q = N_ALL if segments else N_EXTRA
     k_blocks = max(1, n // block)
@@ -280,7 +293,32 @@ def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_sc
             normal[k] += columns[:, k, :].T @ columns[:, k, :]
         index = np.minimum(np.arange(part.start, part.stop) // block, k_blocks - 1)
         np.add.at(scores, index, np.einsum("nkp,nk->np", columns, rest * weight))
+        if low is not None:
+            low.add(part, columns, rest * weight)
     return normal, scores
+
+
+# The noise slower than the longest batch-means block is read from the residuals summed over at most this
+# many blocks (a few MB whatever the record's length; such blocks are far shorter than the longest batch).
+LOW_BLOCKS = 2048
+
+
+class LowSums:
+    """The weighted Jacobian (K, 3, p + q) and weighted residuals (K, 3) summed per axis over K consecutive
+    blocks of ``size`` instants (a remainder joins the last): the record seen at the low frequencies where
+    batch means run out of blocks."""
+
+    def __init__(self, n: int, columns: int):
+        self.size = max(1, -(-n // LOW_BLOCKS))
+        self.blocks = max(1, n // self.size)
+        self.jacobian = np.zeros((self.blocks, 3, columns))
+        self.residuals = np.zeros((self.blocks, 3))
+
+    def add(self, part: slice, columns: np.ndarray, residuals: np.ndarray) -> None:
+        index = np.minimum(np.arange(part.start, part.stop) // self.size, self.blocks - 1)
+        starts = np.flatnonzero(np.r_[True, np.diff(index) != 0])
+        self.jacobian[index[starts]] += np.add.reduceat(columns, starts, axis=0)
+        self.residuals[index[starts]] += np.add.reduceat(residuals, starts, axis=0)
 
 
 def _phase_direction(t, state: WheelState, g: float) -> np.ndarray:
@@ -348,7 +386,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     block = _block_for(white, correlated, period)
     n, p = t.size, free.size
     q = N_EXTRA
-    normal, scores_all = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(N_ALL), block)
+    low = LowSums(n, p + q)
+    normal, scores_all = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(N_ALL), block, low=low)
     full_normal = normal.sum(axis=0)
     a, b, c = full_normal[:p, :p], full_normal[:p, p:], full_normal[p:, p:]
     js, xs = scores_all[:, :p], scores_all[:, p:]
@@ -419,32 +458,44 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         white = whiteness_by_column(residuals)
         correlated = any(w.correlated for w in white)
         block = _block_for(white, correlated, period)
+        # the drift taken in per segment adds its segment columns: the low-frequency sums carry them too
+        low = LowSums(n, p + (N_ALL if segments else N_EXTRA))
         normal, scores_all = _pass(t, v, moved, state, free, time_scale, g, weight, extra_step, block,
-                                   segments=segments)
+                                   segments=segments, low=low)
     full = normal.sum(axis=0)[np.ix_(keep, keep)]
     full_inv = np.linalg.pinv(full)
     block_scores = scores_all[:, keep]
     if correlated:
-        sandwich, block_used, blocks_used, extrapolation = _widest_sandwich(full, block_scores, block, full_inv)
+        sandwich, block_used, blocks_used, longest = _widest_sandwich(full, block_scores, block, full_inv)
         if taken and before[0]:
             # Correlated before and after: slow noise and slow structure look alike (a 1/f wander passes for a
             # drift), so what was taken in may be noise.  The sandwich from the residuals before it was taken
             # in counts it as noise; the wider of the two is kept.
             other = _widest_sandwich(full, before[1], before[2], full_inv)
             if np.mean(np.diag(other[0]) / np.diag(full_inv)) > np.mean(np.diag(sandwich) / np.diag(full_inv)):
-                sandwich, block_used, blocks_used, extrapolation = other
-        cov = sandwich[:p, :p]
+                sandwich, block_used, blocks_used, longest = other
+        # the noise slower than the longest blocks: a power law fitted to the residuals' lowest octaves
+        low_cov, low_noise = _low_frequency(low, keep, longest, n, full_inv, slice(p - 3, p),
+                                           1.0 / weight)
+        widened = sandwich + low_cov
+        growth = float(np.sqrt(np.max(np.diag(widened)[:p] / np.diag(sandwich)[:p])))
+        cov = widened[:p, :p]
         worst = max(white, key=lambda w: w.tau)
         source = (f"batch-means sandwich over {blocks_used} blocks of {block_used} samples: the residuals are "
                   f"correlated in time (lag-1 {worst.lag1:.2f}, integrated time {worst.tau:.1f} samples), so a "
                   "white-noise u would be too small")
-        if extrapolation > 1.0:
-            notes.append("the noise has a long memory (1/f-like wander): its effect on the estimates still grew at "
-                         f"the longest time scale this record can show ({block_used * period:.0f} s); u is "
-                         f"extrapolated to the length of the run ({np.sqrt(extrapolation):.1f}x), which assumes the "
-                         "wander keeps growing the same way; a sensor that has settled at a steady temperature "
-                         "wanders less")
-            source += f", extrapolated {np.sqrt(extrapolation):.1f}x for a noise with a long memory"
+        law = low_noise[0]
+        if growth > 1.0 + 1e-6:
+            source += (f"; plus the noise slower than blocks of {longest} samples: the residuals' spectrum over the "
+                       f"two octaves above fitted as white + 1/f^{law.beta:.2f} (test against white p = "
+                       f"{law.p_value:.2g}) and carried to the run's length, u up to {growth:.2f}x the batch means'")
+        if law.found and growth > MATERIAL_INFLATION:
+            notes.append(f"the noise has a long memory (a 1/f^{law.beta:.2f} wander below "
+                         f"{1.0 / (longest * period):.2g} Hz): the estimates take much of their error from noise "
+                         "slower than this record can average out; u includes it (up to "
+                         f"{growth:.1f}x the batch-means u), which assumes the spectrum keeps rising below what the "
+                         "record shows as it does within it; a sensor that has settled at a steady temperature "
+                         "wanders less, and a longer record pins it down better")
         elif blocks_used < MIN_BLOCKS:
             notes.append(f"the noise is correlated over {block_used} samples: only {blocks_used} independent "
                          "blocks in the record, too few to pin the uncertainty down; record longer")
@@ -477,7 +528,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     wobble_deg = float(np.degrees(np.sqrt(np.sum(PLAY_MEAN_SQUARE * rotations**2))))   # rms over a turn
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
                   drift_per_axis, extra_step if taken else None, notes, drift_shape, angle, wobble, causes,
-                  wobble_deg)
+                  wobble_deg, low_noise if correlated else None)
 
 
 def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:
@@ -490,32 +541,48 @@ def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:
     return merged
 
 
-def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int, float]:
+def _widest_sandwich(normal, scores, block, bread) -> tuple[np.ndarray, int, int, int]:
     """Batch means over blocks of ``block``, 2 ``block``, 4 ``block`` ... while MIN_BLOCKS remain; the
     widest covariance (largest mean variance ratio to the white one) is kept.  The integrated time
     from the residuals sees only the short correlations; noise with a long memory (1/f) keeps
     growing with the block length, and the longest blocks the record allows are what show it.
-    When the variance was still growing over the last two doublings, even the longest blocks do
-    not hold the slowest part of the noise: the growth per doubling is then carried on to blocks
-    of half the record (an extrapolation, returned as the factor on the variance; 1 otherwise)."""
+    Returns the covariance, its block length and count, and the longest block length tried (the
+    resolution below which ``_low_frequency`` takes over)."""
     best, best_block, best_k, best_ratio = None, block, scores.shape[0], -np.inf
     white_diag = np.diag(bread)
     current, size = scores, block
-    ratios = []
     while True:
         cov = sandwich_covariance(normal, current, size).covariance
         ratio = float(np.mean(np.diag(cov) / white_diag))
-        ratios.append(ratio)
         if ratio > best_ratio:
             best, best_block, best_k, best_ratio = cov, size, current.shape[0], ratio
         if current.shape[0] // 2 < MIN_BLOCKS:
-            growth = LONG_MEMORY_GROWTH
-            long_memory = len(ratios) >= 3 and ratios[-1] > growth * ratios[-2] > growth**2 * ratios[-3]
-            extrapolation = 1.0
-            if long_memory:
-                # carry the growth per doubling on to blocks of half the record, the slowest scale
-                # that moves the estimates; at most 2 per doubling (a random walk's variance)
-                per_doubling = min(ratios[-1] / ratios[-2], 2.0)
-                extrapolation = float(per_doubling ** np.log2(max(best_k / 2.0, 1.0)))
-            return best * extrapolation, best_block, best_k, extrapolation
+            return best, best_block, best_k, size
         current, size = _merge(current, 2), 2 * size
+
+
+def _low_frequency(low: LowSums, keep: list[int], longest: int, n: int, bread: np.ndarray,
+                   offsets: slice, sigma: np.ndarray) -> tuple[np.ndarray, list[PowerLawNoise]]:
+    """The covariance of the noise slower than the longest batch-means blocks (``longest`` instants),
+    and the power law fitted to the residuals (one exponent, a level per axis).
+
+    Batch means over blocks of B see the noise below 1/B as if flat: a 1/f-like noise keeps rising
+    there, and the estimates whose columns change slowly over the run (the gains through the
+    centripetal term, the tilt, the offsets) take most of their error from it.  With 20 blocks a
+    ladder of doublings cannot tell that rise from the blocks' own scatter (their variance is known
+    to about +-30 %), so the residuals' spectrum is fitted instead, as white + c f^-beta over the two
+    octaves above the longest block's resolution (from the third ordinate: the fit empties the lowest),
+    and the power law's rise above its level there is carried to the record's length with each
+    estimate's own influence function (``low_frequency_covariance``).  ``bread`` is the inverse normal
+    matrix of the ``keep`` columns; ``sigma`` each axis' noise sd (the weights' inverse).  The noise's
+    mean over the run is part of the offsets reported (the run's mean offset), so it is taken out of
+    their influence."""
+    cut = max(1, int(round(n / longest)))
+    found = fit_power_law(low.residuals, LOW_FIRST_ORDINATE, cut * 2 ** LOW_OCTAVES_ABOVE)
+    cov = np.zeros(bread.shape)
+    total = low.blocks * low.size
+    for axis, noise in enumerate(found):
+        influence = (low.jacobian[:, axis, keep] / low.size) @ bread
+        influence[:, offsets.start + axis] -= sigma[axis] / total
+        cov += low_frequency_covariance(influence, noise, cut)
+    return cov, found
