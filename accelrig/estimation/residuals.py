@@ -464,8 +464,9 @@ def _grid_size(n: int) -> int:
 
 
 def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.ndarray,
-                       tested: Whiteness | None = None):
-    """The policy in one call: (covariance, how it was made, Whiteness) for a least-squares fit.
+                       tested: Whiteness | None = None, white_dof: float = float("inf")):
+    """The policy in one call: (covariance, how it was made, Whiteness, effective dof of the covariance's
+    estimate) for a least-squares fit (the dof: ``white_dof``, the fit's n - p, when white; the sandwich's).
 
     ``white`` is the fit's white-noise covariance sigma^2 (J'J)^-1, returned as it is when the
     residuals pass as white.  Correlated residuals: the batch-means sandwich when the record
@@ -476,9 +477,9 @@ def checked_covariance(jacobian: np.ndarray, residuals: np.ndarray, white: np.nd
     """
     w = tested if tested is not None else whiteness(residuals)
     if not w.correlated:
-        return white, "white noise: sigma^2 (J'J)^-1", w
+        return white, "white noise: sigma^2 (J'J)^-1", w, float(white_dof)
     sandwich = correlated_sandwich(jacobian, residuals, w)
-    return sandwich.covariance, sandwich.method, w
+    return sandwich.covariance, sandwich.method, w, sandwich.dof
 
 
 def correlated_sandwich(jacobian: np.ndarray, residuals: np.ndarray, tested: Whiteness) -> Sandwich:

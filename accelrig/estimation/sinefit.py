@@ -535,7 +535,7 @@ def fit_sine(t, y, frequency: float | None = None, harmonics: int = 1, fit_frequ
     if check_noise:
         white_test = whiteness(resid)
         if white_test.correlated:
-            cov_q, method, white_test = checked_covariance(jacobian(), resid, cov_q, white_test)
+            cov_q, method, white_test, _ = checked_covariance(jacobian(), resid, cov_q, white_test)
     amp, phase, cov, names = _to_reported(coef, estimate, t_ref, harmonics, fit_frequency, cov_q)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     nf = 1 if fit_frequency else 0
@@ -599,7 +599,7 @@ def fit_sines_known_frequency(t, signals, frequency: float, harmonics: int = 1,
         cov_q = sigma2 * unit
         method, white_test = "white noise: sigma^2 (J'J)^-1", None
         if checks[j]:
-            cov_q, method, white_test = checked_covariance(phi, resid, cov_q)
+            cov_q, method, white_test, _ = checked_covariance(phi, resid, cov_q)
         amp, phase, cov, reported = _to_reported(coef, frequency, t_ref, harmonics, False, cov_q)
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         fits.append(SineFit(

@@ -47,12 +47,11 @@ from accelrig.estimation.residuals import (
     Whiteness,
     ar_sandwich_covariance,
     band_variance_shares,
-    correlated_sandwich,
+    checked_covariance,
     difference_noise_variance,
     lack_of_fit,
     pooled_noise_model,
     satterthwaite_dof,
-    whiteness,
 )
 from accelrig.estimation.sinefit import MIN_CYCLES, SineFit, fit_sine, interpolated_dft_frequency
 from accelrig.estimation.stats import robust_sd
@@ -489,13 +488,7 @@ def motion_checks(where: str, t, y, motion: CrankMotionFit, knocked: SineFit | N
     sigma2 = share * float(resid @ resid) / dof
     normal = motion.jacobian.T @ motion.jacobian
     white = sigma2 * np.linalg.pinv(normal)
-    # estimation.residuals.checked_covariance's policy, keeping the sandwich's dof
-    w = whiteness(resid)
-    if w.correlated:
-        sandwich = correlated_sandwich(motion.jacobian, resid, w)
-        cov, method, cov_dof = sandwich.covariance, sandwich.method, sandwich.dof
-    else:
-        cov, method, cov_dof = white, "white noise: sigma^2 (J'J)^-1", float(dof)
+    cov, method, w, cov_dof = checked_covariance(motion.jacobian, resid, white, white_dof=dof)
     if share < 1.0 and w.correlated:
         cov = cov * share   # the sandwich's middle matrix held the take-up's leftover too
     notes: list[str] = []
