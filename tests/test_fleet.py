@@ -75,8 +75,9 @@ OUTAGE_S = 30.0   # the issue's network cut; the one test that waits it (marked 
 @pytest.mark.slow
 def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
     (tmp_path / "daemon.pass").write_text(DAEMON_PASSWORD + "\n")
+    # reconnect_max 2: the daemons find the broker back within 2 s (the default, 10 s, is the collector's)
     common = {"site": "north", "username": DAEMON_USER, "password_file": str(tmp_path / "daemon.pass"),
-              "status_seconds": 1}
+              "status_seconds": 1, "reconnect_max": 2}
     mqtt_a = {**common, "broker": broker.url}
     if broker.tls:   # device a's daemon goes through the TLS listener
         mqtt_a.update(broker=f"mqtts://127.0.0.1:{broker.tls_port}", ca_file=str(broker.tls["ca"]))
@@ -116,9 +117,9 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
         assert metric(metrics_port, "accelrig_mqtt_connected", "a") == 0
         assert metric(metrics_port, "accelrig_mqtt_spooled_messages", "a") >= 0.8 * OUTAGE_S / 0.2 * 0.5
         broker.start()
-        # the backlog goes out in order (paho retries at most every 30 s); b's spool overflowed and says so
+        # the backlog goes out in order; b's spool overflowed and says so
         wait_for(lambda: all((s := daemon_status(p).get(n)) and s["mqtt"]["connected"] and s["mqtt"]["spooled"] <= 3
-                             for n, (_, p) in daemons.items()), 45, "the spools to drain")
+                             for n, (_, p) in daemons.items()), 30, "the spools to drain")
         status_b = daemon_status(daemons["b"][1])["b"]["mqtt"]
         assert status_b["dropped_samples"] > 0 and status_b["spool_gaps"] >= 1
         status_a = daemon_status(daemons["a"][1])["a"]["mqtt"]
@@ -147,6 +148,8 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
         assert "left in the spool" not in log, log
         assert DAEMON_PASSWORD not in log and DAEMON_PASSWORD not in (tmp_path / f"out-{name}" / name /
                                                                        "journal.jsonl").read_text()
+    # the collector finds the broker back within its reconnect_max (10 s) and takes what the broker kept for it
+    wait_for(lambda: "reconnected to" in (tmp_path / "collect.log").read_text(), 20, "the collector to reconnect")
     time.sleep(1.0)
     collector.send_signal(signal.SIGTERM)
     assert collector.wait(15) == 0
@@ -238,6 +241,7 @@ def test_payload_round_trip_and_refusals():
     ({"broker": "mqtt://x", "site": "n", "ca_file": "ca.crt"}, "CA file is for TLS"),
     ({"broker": "mqtt://u:pw@x", "site": "n"}, "credentials do not belong"),
     ({"broker": "mqtt://x", "site": "a/b"}, "mqtt.site"),
+    ({"broker": "mqtt://x", "site": "n", "reconnect_max": 0}, "mqtt.reconnect_max"),
 ])
 def test_mqtt_config_refused_naming_the_field(mqtt, message):
     from accelrig.daemon.config import ConfigError, parse_config

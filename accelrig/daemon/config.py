@@ -85,6 +85,9 @@ MQTT = Object(
             "seconds between retained status messages; default 10"))),
         "keepalive": optional(Integer(minimum=5, maximum=3600, description=(
             "MQTT keepalive, s: a dead link is noticed within 1.5 times this; default 30"))),
+        "reconnect_max": optional(Number(minimum=1, maximum=3600, description=(
+            "longest wait between tries to reach a broker that is away, s (1, 2, 4 ... up to this); "
+            "the spool is sent within this long of its return; default 10"))),
     },
     description="publish every device's samples to an MQTT broker (needs the 'mqtt' extra); see docs/fleet.md",
 )
@@ -152,6 +155,7 @@ class MqttConfig:
     spool_megabytes: float = 512.0
     status_seconds: float = 10.0
     keepalive: int = 30
+    reconnect_max: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -251,6 +255,7 @@ def _mqtt(data: dict, source: str, path) -> MqttConfig:
         spool_megabytes=float(data.get("spool_megabytes", 512.0)),
         status_seconds=float(data.get("status_seconds", 10.0)),
         keepalive=int(data.get("keepalive", 30)),
+        reconnect_max=float(data.get("reconnect_max", 10.0)),
     )
 
 

@@ -111,7 +111,8 @@ class Publisher:
     def start(self) -> None:
         password = wire.read_password(self.settings.password_file, self.settings.password_env)
         client = wire.make_client(self.client_id, self.broker, self.settings.username, password,
-                                  self.settings.ca_file, clean=False)
+                                  self.settings.ca_file, clean=False,
+                                  reconnect_max=self.settings.reconnect_max)
         client.max_inflight_messages_set(WINDOW + 8)
         client.max_queued_messages_set(0)
         client.will_set(self.topics["status"], json.dumps(self._offline()), qos=1, retain=True)

@@ -203,7 +203,7 @@ CONNECT_ERRORS = {
 
 
 def make_client(client_id: str, broker: Broker, username: str | None, password: str | None,
-                ca_file: str | None, clean: bool = False):
+                ca_file: str | None, clean: bool = False, reconnect_max: float = 10.0):
     """A paho client (MQTT 3.1.1) set up for ``broker``; not yet connected.
 
     ``clean=False``: a persistent session (the broker keeps our subscriptions and queues QoS 1
@@ -221,7 +221,8 @@ def make_client(client_id: str, broker: Broker, username: str | None, password: 
     if broker.tls:
         context = ssl.create_default_context(cafile=ca_file)
         client.tls_set_context(context)
-    client.reconnect_delay_set(1, 30)
+    # paho doubles the wait after each failed try, from 1 s up to reconnect_max
+    client.reconnect_delay_set(1, max(1, round(reconnect_max)))
     return client
 
 
