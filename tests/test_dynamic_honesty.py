@@ -187,6 +187,37 @@ def test_rotary_steady_loss_is_refused_with_its_size_and_a_slow_clock_is_not():
     assert [w for w in test.warnings if "off the nominal" in w and "no samples were lost" in w]
 
 
+def test_rotary_a_clock_that_moves_keeps_its_mean_rate_with_a_u_that_holds_the_rates_it_took():
+    """A crystal warming during the record: the rate climbs 300 ppm over 10 s, under a sample of phase
+    wander, so no refusal; the mean rate is given, its u covers the rate at the start and at the end,
+    and the warning says the clock moved.  A steady clock (the same seed) gets neither."""
+    rng = np.random.default_rng(4)
+    sensor = paper_sensor(rng, noise_sd=0.03, rate=NOMINAL)
+    rig = RotaryRig(frequency=5.0, amplitude_deg=34.0, duration=SECONDS, phase=0.3)
+    tests = {}
+    for drift in (0.0, 3e-5):
+        clock = SimClock(NOMINAL, 0.003, 0.0, rate_drift=drift)
+        rec = simulate(rig, sensor, clock, seconds=SECONDS, seed=4, units="counts")
+        rec.channels, rec.t = {}, np.arange(len(rec)) / NOMINAL
+        tests[drift] = analyse_test(rec, EncoderLog(**encoder_samples(rig, SECONDS, 1000.0)), "x", "y", NOMINAL,
+                                    setup=SETUP)
+    steady, warming = tests[0.0], tests[3e-5]
+    assert not any("clock's rate moved" in w for w in steady.warnings)
+    assert "rate_wander" not in steady.quality["sample_timing"]
+    assert [w for w in warming.warnings if "clock's rate moved" in w and "ppm" in w]
+    rate, u = warming.sample_rate.value, warming.sample_rate.uncertainty
+    start, end = clock.true_rate, clock.true_rate * (1 + 3e-5 * SECONDS)
+    assert abs(rate - (start + end) / 2) < 2 * u
+    assert abs(rate - start) < 2 * u and abs(rate - end) < 2 * u
+    assert u < (end - start)                      # no wider than the move it saw
+    moved = warming.quality["sample_timing"]["rate_wander"]
+    assert moved["largest_relative"] == pytest.approx(1.5e-4, rel=0.15)
+    assert moved["start_relative"] == pytest.approx(-1.5e-4, rel=0.15)   # slower than the mean at the start
+    assert moved["end_relative"] == pytest.approx(1.5e-4, rel=0.15)
+    for axis in ("x", "y"):
+        assert warming.sensitivity[axis].value == pytest.approx(steady.sensitivity[axis].value, rel=1e-3)
+
+
 def test_rotary_gaps_from_the_gap_list_are_placed_and_the_sensitivity_holds():
     rec, enc, truth = rotary_run(2)
     test = analyse_test(lose(rec, gap_list=True), enc, "x", "y", NOMINAL, setup=SETUP)

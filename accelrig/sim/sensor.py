@@ -217,12 +217,16 @@ class SimClock:
 
     True sample k is taken at k / (nominal_rate * (1 + rate_error)); the
     timestamps the driver reports carry Gaussian jitter (sd ``jitter`` s), kept
-    small enough that they still increase.
+    small enough that they still increase.  ``rate_drift`` (per second) makes the
+    rate move during the run, as a crystal's does while it warms: rate(t) =
+    true_rate (1 + rate_drift t), so sample k is taken when the integral of the
+    rate reaches k.
     """
 
     nominal_rate: float = 200.0
     rate_error: float = 0.0
     jitter: float = 0.0
+    rate_drift: float = 0.0
 
     @property
     def true_rate(self) -> float:
@@ -231,7 +235,11 @@ class SimClock:
     def times(self, first: int, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """(true times, reported times) of samples first .. first+n-1."""
         k = np.arange(first, first + n, dtype=float)
-        true_t = k / self.true_rate
+        if self.rate_drift:
+            # true_rate (t + rate_drift t^2 / 2) = k, the root written to keep its precision for small drift
+            true_t = 2 * k / self.true_rate / (1 + np.sqrt(1 + 2 * self.rate_drift * k / self.true_rate))
+        else:
+            true_t = k / self.true_rate
         if self.jitter > 0:
             limit = 0.45 / self.true_rate  # keep reported times increasing
             reported = true_t + np.clip(rng.standard_normal(n) * self.jitter, -limit, limit)
@@ -241,4 +249,4 @@ class SimClock:
 
     def truth(self) -> dict:
         return {"nominal_rate": self.nominal_rate, "rate_error": self.rate_error,
-                "true_rate": self.true_rate, "jitter": self.jitter}
+                "true_rate": self.true_rate, "jitter": self.jitter, "rate_drift": self.rate_drift}

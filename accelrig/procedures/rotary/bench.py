@@ -37,7 +37,8 @@ Processing, as the paper and with its known weaknesses made explicit:
    without a trace is refused, however they were lost (the residual steps by
    whole sample periods between consecutive samples, or the phase in sample
    index wanders); a clock that is merely slow or fast spaces every sample
-   alike and passes.  Gaps the record knows of (the recorder's gap list, or
+   alike and passes; one whose rate moved during the record by less than
+   that gives the record's mean rate, its u widened to hold every rate seen.  Gaps the record knows of (the recorder's gap list, or
    its timestamps) are placed on the sample grid and only real samples enter
    the fits.
 5. Sensitivity in counts per m/s^2: tangential axis from the f component,
@@ -394,6 +395,17 @@ def analyse_test(
     if rate_method == "scan":
         fs, u_fs, nu, sos, filtered = sample_rate_by_scan(counts, filtered, seg, i_t, f, nominal_rate, sos,
                                                           setup.filter_cutoff)
+    # a clock whose rate moved during the record (not enough to refuse): the mean rate, u as wide as it moved
+    wandered = clock_wander(timing if timing and "p_value" in timing else None, nu)
+    if wandered is not None:
+        u_fs = float(np.hypot(u_fs, fs * wandered["relative_uncertainty"]))
+        timing["rate_wander"] = wandered
+        warnings.append(
+            f"the sample clock's rate moved during the record: between stretches of it the rate was up to "
+            f"{1e6 * wandered['largest_relative']:.0f} ppm ({fs * wandered['largest_relative']:.2g} Hz) off the "
+            f"record's mean (the phase of the motion, counted in samples, wanders: chi-square p = "
+            f"{wandered['p_value']:.2g}); the rate given is the record's mean and its u holds every rate seen "
+            "(rectangular); record with timestamps to follow the clock, or keep the device's temperature steady")
     gain = {"at_f": zero_phase_gain(sos, f, fs), "at_2f": zero_phase_gain(sos, 2 * f, fs)}
     amplitudes, noise = axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain)   # 4
     # the encoder's own 2nd harmonic: (2 omega)^2 theta_2 against omega^2 theta_1 on the tangential axis
@@ -504,6 +516,10 @@ def checked_counts(mems: Recording) -> np.ndarray:
 # a sample (a clock cannot do that within a test; lost samples do).
 TIMING_SEGMENTS = 20
 TIMING_FALSE_ALARM = 1e-6
+# Below the refusal, a phase that wanders (p below WANDER_LEVEL) with no step is a clock whose rate
+# moved during the record: the record's mean rate stands, and its u carries how far it moved.
+WANDER_LEVEL = 1e-3
+WANDER_DEGREE = 6     # the smoothest polynomial that follows the phase of a clock warming or wandering
 
 
 def sample_positions(mems: Recording, nominal_rate: float) -> tuple[np.ndarray, str | None]:
@@ -573,7 +589,43 @@ def phase_wander(t: np.ndarray, y: np.ndarray, frequency: float, segments: int =
     chi2 = float(np.sum((deviation / sds) ** 2))
     return {"segments": k, "chi2": chi2, "dof": k - 2, "p_value": float(chi2_dist.sf(chi2, k - 2)),
             "max_deviation_rad": float(np.max(np.abs(deviation))), "deviation_rad": deviation.tolist(),
-            "uncertainty_rad": sds.tolist()}
+            "uncertainty_rad": sds.tolist(), "centre": centres.tolist(), "span": [float(t[0]), float(t[-1])]}
+
+
+def clock_wander(wander: dict, nu: float) -> dict | None:
+    """How far the sample clock's rate strayed from the record's mean rate, from the phase wander.
+
+    A clock running locally fast by a fraction e packs more samples into each period, so the phase
+    per sample falls behind the whole-record line: e = -(d phase deviation / d sample) / (2 pi nu).
+    The stretches' deviations are smoothed by a weighted Legendre polynomial in the sample position
+    (degree 2 up, the first whose chi-square passes at 1 %, at most WANDER_DEGREE): a stretch's phase
+    is far noisier than the whole record's, and differences of neighbours would pass their noise for a
+    move; the polynomial's slope follows a warming crystal's smooth drift to the record's two ends.
+    The rate the fit reports is the record's mean; the rate at any moment of the record lay within
+    the largest |e| of it.  GUM type B, rectangular with that half-width: u_r = half-width / sqrt 3,
+    so +-2u holds every rate the clock took (at the start, at the end).  Only when the phases
+    disagree (p below WANDER_LEVEL): a steady clock adds nothing.  None then.
+    """
+    if wander is None or wander["p_value"] >= WANDER_LEVEL:
+        return None
+    deviation, sd, centre = (np.asarray(wander[key]) for key in ("deviation_rad", "uncertainty_rad", "centre"))
+    first, last = wander["span"]
+    half = (last - first) / 2.0
+    x = (centre - first) / half - 1.0
+    k = deviation.size
+    for degree in range(2, min(WANDER_DEGREE, k - 3) + 1):
+        design = np.polynomial.legendre.legvander(x, degree) / sd[:, None]
+        coef, *_ = np.linalg.lstsq(design, deviation / sd, rcond=None)
+        chi2 = float(np.sum((design @ coef - deviation / sd) ** 2))
+        if chi2_dist.sf(chi2, k - degree - 1) > 0.01:
+            break
+    grid = np.linspace(-1.0, 1.0, 201)
+    slope = np.polynomial.legendre.legval(grid, np.polynomial.legendre.legder(coef)) / half
+    local = -slope / (2 * np.pi * nu)
+    largest = float(np.max(np.abs(local)))
+    return {"largest_relative": largest, "relative_uncertainty": largest / np.sqrt(3.0), "degree": degree,
+            "chi2": chi2, "dof": k - degree - 1, "p_value": wander["p_value"],
+            "start_relative": float(local[0]), "end_relative": float(local[-1])}
 
 
 def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, source: str,
