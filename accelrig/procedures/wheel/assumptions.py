@@ -107,6 +107,7 @@ class Checks:
     causes: list[str] = field(default_factory=list)   # of the angle-locked structure: "speed law", "wobble"
     wobble_deg: float = 0.0                       # rms tilt of the wheel's plane the wobble regressors show
     low_frequency: list[PowerLawNoise] | None = None  # per axis: the power law below the longest blocks (correlated)
+    drift_move_over_u: float | None = None        # largest move of an estimate by the drift taken in, in its u
 
     def to_dict(self) -> dict:
         out = {"noise": "correlated" if self.correlated else "white",
@@ -120,6 +121,8 @@ class Checks:
             out["offset_drift_m_s2"] = self.drift_per_axis.tolist()
         if self.drift_shape is not None:
             out["offset_drift_shape_test"] = self.drift_shape.to_dict()
+        if self.drift_move_over_u is not None:
+            out["offset_drift_move_over_u"] = self.drift_move_over_u
         if self.angle is not None:
             out["wheel_angle_test"] = self.angle.to_dict()
             out["wobble_test"] = self.wobble.to_dict()
@@ -519,12 +522,26 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         cov = full_inv[:p, :p]
         block_used, blocks_used = None, None     # white: no batch means
         source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate): residuals white"
+    drift_move_over_u = None
+    if drifting:
+        # The drift's columns share a direction with the gains (along the radius a drift looks like the centripetal
+        # term), so taking it in moves the estimates along that direction by the drift estimate's own noise, and
+        # the take-in happens exactly when a test found that estimate large: on a clean recording the 1 % of runs
+        # that fire move every estimate by 2-3 of the larger model's u (stress, a wheel that stops: 2.4 u).  The
+        # data cannot say whether the model with the drift or the one without is right, so u includes the move
+        # from one to the other (GUM type B, rectangular, half-width the move; fully correlated along it).
+        move = _drift_move(full, p, len(locked), extra_step[taken[len(locked):]])
+        drift_move_over_u = float(np.max(np.abs(move) / np.sqrt(np.diag(cov))))
+        cov = cov + np.outer(move, move) / 3.0
     if taken:
         names = ([n for cause, n in (("speed law", "the speed swings the cubic law misses"),
                                      ("wobble", "the wheel's wobble")) if cause in causes]
                  + ([f"an offset drift per axis (a line and an offset for each of {DRIFT_SEGMENTS} parts of the "
                      "run)"] if drifting else []))
         source += "; the model takes in " + " and ".join(names)
+    if drifting:
+        source += (f"; u includes the move taking the drift in made (up to {drift_move_over_u:.2g} u), as a "
+                   "rectangular allowance: the data cannot tell a drift along the radius from the gains")
     drift_per_axis = None
     if drifting:
         # from the first sample to the last: the line (tau runs -1 .. 1) and the last segment's own offset (the
@@ -535,7 +552,16 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     wobble_deg = float(np.degrees(np.sqrt(np.sum(PLAY_MEAN_SQUARE * rotations**2))))   # rms over a turn
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
                   drift_per_axis, extra_step if taken else None, notes, drift_shape, angle, wobble, causes,
-                  wobble_deg, low_noise if correlated else None)
+                  wobble_deg, low_noise if correlated else None, drift_move_over_u)
+
+
+def _drift_move(full: np.ndarray, p: int, locked: int, drift: np.ndarray) -> np.ndarray:
+    """How far the model's parameters (internal, the first ``p``) moved when the drift was taken in: the normal
+    matrix ``full`` orders the model, the ``locked`` angle-locked regressors, then the drift's columns with
+    coefficients ``drift``.  Linear in the drift: the other coefficients' shift when it is held at zero."""
+    m = slice(0, p + locked)
+    d = slice(p + locked, full.shape[0])
+    return -np.linalg.lstsq(full[m, m], full[m, d] @ drift, rcond=None)[0][:p]
 
 
 def _merge(block_sums: np.ndarray, factor: int) -> np.ndarray:
