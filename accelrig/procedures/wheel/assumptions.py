@@ -615,6 +615,11 @@ def _low_frequency(low: LowSums, keep: list[int], longest: int, n: int, bread: n
     cov = np.zeros(bread.shape)
     total = low.blocks * low.size
     for axis, noise in enumerate(found):
+        if not noise.found:
+            # the spectrum shows no rise over white there (test at ALPHA): nothing to carry below the blocks.  An
+            # insignificant fit's exponent is anything up to the grid's end, and carried over decades it made u
+            # 5-400x the white one on AR(1) noise, whose spectrum flattens below its knee
+            continue
         influence = (low.jacobian[:, axis, keep] / low.size) @ bread
         influence[:, offsets.start + axis] -= sigma[axis] / total
         cov += low_frequency_covariance(influence, noise, cut)
