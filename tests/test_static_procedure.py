@@ -228,10 +228,10 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
         if proc.complete:
             break
     assert proc.done and proc.complete and proc.progress == 1.0 and events[-1].kind == "ready"
-    assert len(proc.poses) == 8 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
+    assert len(proc.poses) == 11 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
     assert rec.t[k] < last["stop"] - 1.0   # stopped well before the operator lifted it
     live = proc.result()
-    assert live.quality["n_poses"] == 9 and live.settings["faces"][-1] == last["face"]
+    assert live.quality["n_poses"] == 12 and live.settings["faces"][-1] == last["face"]
     batch = calibrate_static(rec)
     u = batch.correction.bias_uncertainty
     assert np.all(np.abs(live.correction.bias - batch.correction.bias) < 3 * u)
