@@ -311,11 +311,11 @@ def _shape(noise: StillNoise, samples, times, faces, g: float, flatness_deg: flo
         cross = [k for k in range(3) if k != axis]
         d = {k: (mean[k][cross] - mean[a][cross]) / g for k in (m, b)}
 
-        def change(k):
-            towards_zero = -np.sign(mean[a][axis]) * g * float(d[k] @ d[k]) / 2.0
-            return float(mean[k][axis] - mean[a][axis]) - towards_zero
-
-        departure = change(m) - w * change(b)
+        # the change along gravity from hold a, less the shortening the measured tilt change explains (towards
+        # zero by g |d|^2 / 2)
+        change = {k: float(mean[k][axis] - mean[a][axis]) + np.sign(mean[a][axis]) * g * float(d[k] @ d[k]) / 2.0
+                  for k in (m, b)}
+        departure = change[m] - w * change[b]
         lever = d[m] - w * d[b]
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[m]) + (1 - w) ** 2 / len(samples[a])
                                                   + w**2 / len(samples[b]))
