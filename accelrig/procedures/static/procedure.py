@@ -40,6 +40,7 @@ from accelrig.estimation.gravity_fit import (
     fit_six_face,
     magnitude_z,
 )
+from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
@@ -457,6 +458,12 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     else:
         theta, theta_cov, from_ = start, np.diag((steps / 2.0) ** 2), "revisits"
     rate, bend_fitted = split(theta)
+    # a drift that the middle holds show is not a line (noise._shape rejected): the parabola through three
+    # holds fixes it at those holds only; between and beyond them the drift may leave the parabola by as much
+    # as the curve it had to bend (type B, normal): each measured curvature's u grows by its own size
+    off_line = q > 0 and noise.drift["shape"].get("p_value", 1.0) < ALPHA
+    if off_line:
+        theta_cov = theta_cov + np.diag(np.r_[np.zeros(m), theta[m:] ** 2])
     theta_u = np.sqrt(np.clip(np.diag(theta_cov), 0.0, None))
     noise.drift_rate = rate
     noise.drift_rate_u = np.zeros(3)
@@ -466,7 +473,8 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     if q:
         noise.drift["shape"]["fitted"] = {"axes": [AXES[k] for k in bent], "curvature": theta[m:].tolist(),
                                           "curvature_u": theta_u[m:].tolist(),
-                                          "anchors_s": [list(anchors[k]) for k in bent]}
+                                          "anchors_s": [list(anchors[k]) for k in bent],
+                                          "u_widened_by_the_curvature": bool(off_line)}
     referred_stats, means = referred(rate, bend_fitted)
     # before the result is built: its warning and record go with the noise's
     bend = drift_bend(noise, anchors, middle, measured=bent)
@@ -494,6 +502,10 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
                                            f"with the offset drift rate on {_names(axes)} fitted (faces held again)")
     if q:
         base.quality["uncertainty_source"] += f" and its curvature on {_names(bent)} (a face held three times)"
+        if off_line:
+            base.quality["uncertainty_source"] += (" (the drift is not a straight line: each curvature's u widened "
+                                                   "by its own size, for a drift that leaves the parabola between "
+                                                   "the holds)")
     if bend and allowed:
         departure = max(d for d, k in zip(bend["allowance"]["largest_departure"], sorted(anchors), strict=True)
                         if k in allowed)
