@@ -169,6 +169,9 @@ def test_a_cycle_that_comes_back_is_seen_by_the_face_held_three_times_and_measur
     warning = next(w for w in result.warnings if w.startswith("the offset drift is not a straight line: +z down read"))
     assert "off the line through its holds" in warning and shape["p_value"] < 0.01
     assert "its curvature on x, y, z (a face held three times)" in result.quality["uncertainty_source"]
+    # not a line: each curvature's u grows by its own size (the drift may leave the parabola between the holds)
+    assert shape["fitted"]["u_widened_by_the_curvature"] and "widened by its own size" in result.quality[
+        "uncertainty_source"]
     still = np.zeros(len(cycle.t), dtype=bool)
     for row in result.details["poses"]:
         if row["fate"] == "used":
@@ -179,6 +182,7 @@ def test_a_cycle_that_comes_back_is_seen_by_the_face_held_three_times_and_measur
     # a steady offset on the same run: no such warning, and u within 1.5x of the nine holds' straight line
     steady = calibrate_static(rec, pose_flatness_deg=0.1, g_u=0.0)
     assert not any(w.startswith("the offset drift is not a straight line") for w in steady.warnings)
+    assert not steady.quality["noise"]["drift"]["shape"]["fitted"]["u_widened_by_the_curvature"]
     assert np.all(steady.correction.bias_uncertainty < 2.0 * u)
 
 
