@@ -74,13 +74,30 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     unchecked = [w for w in result.warnings if w.startswith("offset drift not checked")]
     assert len(unchecked) == 1 and unchecked[0].startswith("offset drift not checked along y: no face of that axis")
 
+    # the first round through: the second asks for the same faces once more (their third hold)
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y,+z,+x,+y", seed=4)
+    proc = StaticProcedure(rec.rate)
+    events = proc.feed(rec) + proc.finish()
+    again = [e.message for e in events if e.data["kind"] == "again"]
+    assert again[-1].startswith("drift check, last round: now put +z, +x and +y down once more (the same faces")
+    assert proc.faces["again_round"] == 2 and proc.faces["again_missing"] == ["+z", "+x", "+y"]
+    assert proc.done and not proc.complete
+    result = proc.result()   # calibrates; names the check of the drift's shape it could not make
+    assert not any("drift not checked" in w for w in result.warnings)
+    assert result.quality["noise"]["drift"]["shape"]["unchecked_axes"] == ["x", "y", "z"]
+    assert "drift shape not checked on x, y, z" in result.quality["uncertainty_source"]
+
     rec, _, _ = _record("sim://static", seed=4)   # the rig's default is the wizard's whole sequence
     proc = StaticProcedure(rec.rate)
     events = proc.feed(rec) + proc.finish()
     assert events[-1].data["kind"] == "complete" and proc.complete
+    assert "hold still: +y down a third time (the drift check)" in [e.message for e in events]
+    assert proc.faces["again_round"] is None and proc.faces["third_done"] == ["+z", "+x", "+y"]
     result = proc.result()
     assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "y", "z"]
-    assert not any("drift not checked" in w for w in result.warnings)
+    assert result.quality["noise"]["drift"]["shape"]["checked_axes"] == ["x", "y", "z"]
+    assert "and its curvature on x, y, z" in result.quality["uncertainty_source"]
+    assert not any("drift not checked" in w or "shape not checked" in w for w in result.warnings)
 
 
 def test_faces_held_once_say_drift_was_not_checked_and_how_much_could_hide():
@@ -228,10 +245,10 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
         if proc.complete:
             break
     assert proc.done and proc.complete and proc.progress == 1.0 and events[-1].kind == "ready"
-    assert len(proc.poses) == 8 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
+    assert len(proc.poses) == 11 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
     assert rec.t[k] < last["stop"] - 1.0   # stopped well before the operator lifted it
     live = proc.result()
-    assert live.quality["n_poses"] == 9 and live.settings["faces"][-1] == last["face"]
+    assert live.quality["n_poses"] == 12 and live.settings["faces"][-1] == last["face"]
     batch = calibrate_static(rec)
     u = batch.correction.bias_uncertainty
     assert np.all(np.abs(live.correction.bias - batch.correction.bias) < 3 * u)

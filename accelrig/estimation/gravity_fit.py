@@ -507,18 +507,26 @@ def _require_faces(poses: Sequence[PoseStats]) -> None:
                                "put the sensor down on the missing faces too")
 
 
-def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float, extra_var: float) -> tuple[float, np.ndarray]:
-    """chi^2 of the gravity magnitudes |C (m_p - b)| - g against their variance from each mean's covariance."""
+def magnitude_z(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float,
+                extra_var: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The gravity magnitudes' residuals |C (m_p - b)| - g per pose, and the same in units of their sd from
+    each mean's covariance (plus ``extra_var`` per axis): (z, residuals)."""
     c_mat, b = correction_vec[:9].reshape(3, 3), correction_vec[9:12]
-    total, resid = 0.0, []
+    z, resid = [], []
     for p in poses:
         v = c_mat @ (p.mean - b)
         u = v / np.linalg.norm(v)
         var = u @ c_mat @ (p.mean_cov + extra_var * np.eye(3)) @ c_mat.T @ u
         r = np.linalg.norm(v) - g
-        total += r * r / var
+        z.append(r / np.sqrt(var))
         resid.append(r)
-    return float(total), np.array(resid)
+    return np.array(z), np.array(resid)
+
+
+def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float, extra_var: float) -> tuple[float, np.ndarray]:
+    """chi^2 of the gravity magnitudes |C (m_p - b)| - g against their variance from each mean's covariance."""
+    z, resid = magnitude_z(correction_vec, poses, g, extra_var)
+    return float(z @ z), resid
 
 
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",

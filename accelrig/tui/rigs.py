@@ -35,7 +35,7 @@ NEEDS: dict[str, RigNeeds] = {
         "static", "still poses on six faces",
         "sim://static",
         {},
-        "a sensor put on its six faces in turn, then one face of each axis again, 4 s each (about 52 s)"),
+        "a sensor put on its six faces in turn, then one face of each axis again, twice, 4 s each (about 70 s)"),
     "wheel": RigNeeds(
         "wheel", "rotation (a wheel spun and left to coast)",
         "sim://wheel?range=4&pace=fast&seconds=40",

@@ -141,6 +141,7 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
     _revisits(noise, samples, times, faces, g, flatness_deg)
+    _shape(noise, samples, times, faces, g, flatness_deg)
     _unchecked(noise, times, faces)
     return noise
 
@@ -264,6 +265,90 @@ def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: 
             "powered and calibrate again for the best result")
 
 
+# The middle hold of a face held three times must lie in the middle three fifths of the span between its first
+# and last holds to tell a curve from a line: nearer to either end, the departure from the chord is too small
+# against its noise (the three holds would measure a rate twice, not a shape).  And the three must cover at
+# least half the run (first to last pose): a curvature measured over a short stretch, extrapolated to the
+# whole run, would carry its u many times over into the offsets.
+MIDDLE_SHARE = (0.2, 0.8)
+SHAPE_MIN_COVER = 0.5
+
+
+def _shape(noise: StillNoise, samples, times, faces, g: float, flatness_deg: float) -> None:
+    """A face held three times, far apart: is its offset on the straight line through the first and last?
+
+    The middle hold m (the one nearest the middle of the span, at share w of it from the first hold a to the
+    last b) reads, along gravity, the first hold's value plus the offset's change; a straight-line drift puts
+    that change at w times the change to b, so the departure  D = (m - a) - w (b - a)  is zero whatever the
+    rate.  Each hold's tilt relative to a is measured (the cross-axis change over g, as in ``_revisits``); its
+    expected shortening of the reading is removed and the unknown tilt of a enters as g theta_a . (d_m - w d_b),
+    sd g s |d_m - w d_b|.  Noise: sigma^2 tau (1/n_m + (1 - w)^2/n_a + w^2/n_b), plus the slow-noise wander of
+    the three means.  D is the drift's curvature kappa (m/s^2 per s^2) times (t_m - t_a)(t_m - t_b) / 2: a
+    thermal cycle that has come back by the last hold shows here at the offsets' own precision (the poses' own
+    trends, ``drift_bend``, are about 5x coarser).  Per axis the face with the most central middle hold is
+    used; the departures are tested together (chi^2, one dof per axis, at ALPHA) and recorded in
+    ``drift["shape"]``; the procedure fits the curvature on these axes (``procedure._referred_to_middle``).
+    Axes held again without such a face are listed as ``unchecked_axes``."""
+    tau = noise.tau_any
+    s = np.radians(flatness_deg)
+    run = float(max(np.mean(t) for t in times) - min(np.mean(t) for t in times)) if times else 0.0
+    best: dict[int, dict] = {}
+    for face in dict.fromkeys(f for f in faces if f is not None):
+        idx = [k for k, f in enumerate(faces) if f == face]
+        if len(idx) < 3:
+            continue
+        centre = [float(times[k].mean()) for k in idx]
+        t_a, t_b = centre[0], centre[-1]
+        if t_b - t_a < SHAPE_MIN_COVER * run:
+            continue
+        j = min(range(1, len(idx) - 1), key=lambda i: abs(centre[i] - (t_a + t_b) / 2))
+        w = (centre[j] - t_a) / (t_b - t_a)
+        if not MIDDLE_SHARE[0] <= w <= MIDDLE_SHARE[1]:
+            continue
+        axis = AXES.index(face[1])
+        a, m, b = idx[0], idx[j], idx[-1]
+        mean = {k: samples[k].mean(axis=0) for k in (a, m, b)}
+        cross = [k for k in range(3) if k != axis]
+        d = {k: (mean[k][cross] - mean[a][cross]) / g for k in (m, b)}
+
+        # the change along gravity from hold a, less the shortening the measured tilt change explains (towards
+        # zero by g |d|^2 / 2)
+        change = {k: float(mean[k][axis] - mean[a][axis]) + np.sign(mean[a][axis]) * g * float(d[k] @ d[k]) / 2.0
+                  for k in (m, b)}
+        departure = change[m] - w * change[b]
+        lever = d[m] - w * d[b]
+        var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[m]) + (1 - w) ** 2 / len(samples[a])
+                                                  + w**2 / len(samples[b]))
+        var += (g * s) ** 2 * float(lever @ lever) + noise.wander_var * (1 + (1 - w) ** 2 + w**2)
+        shape = (centre[j] - t_a) * (centre[j] - t_b) / 2.0
+        entry = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, centre[j], t_b],
+                 "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
+                 "z": departure / float(np.sqrt(var)),
+                 "curvature": departure / shape, "curvature_u": float(np.sqrt(var)) / abs(shape)}
+        if axis not in best or abs(w - 0.5) < abs(best[axis]["middle_share"] - 0.5):
+            best[axis] = entry
+    revisited = sorted({r["face"][1] for r in noise.drift.get("revisits", [])})
+    found = [best[k] for k in sorted(best)]
+    record: dict = {"faces": found, "checked_axes": [e["axis"] for e in found],
+                    "unchecked_axes": [a for a in revisited if a not in {e["axis"] for e in found}]}
+    noise.drift["shape"] = record
+    if not found:
+        return
+    chi2 = float(sum(e["z"] ** 2 for e in found))
+    p = float(chi2_dist.sf(chi2, len(found)))
+    record.update(chi2=chi2, dof=len(found), p_value=p)
+    if p < ALPHA:
+        worst = max(found, key=lambda e: abs(e["z"]))
+        t_a, t_m, t_b = worst["times"]
+        noise.warnings.append(
+            f"the offset drift is not a straight line: {worst['face']} down read {worst['departure']:+.4f} m/s^2 "
+            f"along {worst['axis']} at t = {t_m:.0f} s off the line through its holds at t = {t_a:.0f} and "
+            f"{t_b:.0f} s ({abs(worst['z']):.1f} u; all axes chi^2 {chi2:.1f} for {len(found)}, p = {p:.1g}): "
+            "a drift that comes and goes (temperature changing?). The offsets are referred to the middle of "
+            "the run with the curve measured (its u included); let the sensor's temperature settle and "
+            "calibrate again for the best result")
+
+
 def _unchecked(noise: StillNoise, times, faces) -> None:
     """Axes whose faces were each held once: say that their drift was not checked, and how much could hide.
 
@@ -298,7 +383,8 @@ def _unchecked(noise: StillNoise, times, faces) -> None:
         "each axis down again (the wizard asks for it) to check")
 
 
-def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middle: float) -> dict:
+def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middle: float,
+               measured: list[int] | tuple[int, ...] = ()) -> dict:
     """Does the drift follow the straight line the revisits fitted?  What the poses' own trends say.
 
     A straight-line drift moves each offset at the fitted rate r at every moment, so every pose's own trend
@@ -315,7 +401,8 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
     u(kappa) widened by the pose slopes' scatter about their line when that exceeds their noise.  The departure from the
     straight line that such a curvature makes is kappa (t - t_a) (t - t_b) / 2, zero at the two holds t_a, t_b
     that fix the axis's rate (``anchors``); the procedure propagates it through the fit (less its average over
-    the run: the offsets stand for the run's average).  Returns the
+    the run: the offsets stand for the run's average).  On the ``measured`` axes (a face held three times far
+    apart: the procedure fits the curvature there, with its u) there is no allowance.  Returns the
     record (also in ``drift["bend"]``); empty when there are too few poses or no axis held again."""
     if not anchors or len(noise.pose_centres) < 4 or not np.all(noise.pose_slope_u[:, sorted(anchors)] > 0):
         return {}   # too few poses, or an axis without noise (its slopes have no u to weigh them by)
@@ -351,8 +438,8 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
     largest_rate = np.abs(rate) + 2.0 * rate_u
     assumed = 2.0 * largest_rate / max(span, 1e-9) / np.sqrt(3.0)
     seen = p < ALPHA
-    measured = np.sqrt(kappa**2 + (widen * kappa_u) ** 2)
-    allowance = np.maximum(assumed, measured) if seen else assumed
+    allowance = np.maximum(assumed, np.sqrt(kappa**2 + (widen * kappa_u) ** 2)) if seen else assumed
+    allowance[[j for j, k in enumerate(axes) if k in measured]] = 0.0
     # the largest departure from the straight line at a pose, per axis, at that sd
     departure = [float(allowance[j] * np.max(np.abs((noise.pose_centres - anchors[k][0])
                                                     * (noise.pose_centres - anchors[k][1]))) / 2.0)
@@ -367,14 +454,19 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
                             "distribution": ("normal (the curvature the trends show, and its u)" if seen else
                                              "rectangular (GUM type B: over the run the rate changes by up to "
                                              "+-the largest rate the faces held again allow)"),
-                            "anchors_s": [list(anchors[k]) for k in axes], "largest_departure": departure}}
+                            "anchors_s": [list(anchors[k]) for k in axes], "largest_departure": departure,
+                            "measured_axes": [AXES[k] for k in axes if k in measured]}}
     noise.drift["bend"] = record
     if seen:
         j = int(np.argmax(np.abs(z_kappa)))
         noise.warnings.append(
             f"the offset drift is not a straight line: along {AXES[axes[j]]} its rate changes by "
             f"{kappa[j] * 60:+.2g} m/s^2 per s each minute ({abs(z_kappa[j]):.1f} u; the poses' own trends, all "
-            f"axes chi^2 {chi2:.1f} for {len(axes)}, p = {p:.1g}). The u allows for a drift that curves (up to {max(departure):.2g} m/s^2 "
-            "off the straight line at a pose, 1 sd), but a drift that turns back between the holds can be larger: "
-            "let the sensor settle powered (temperature steady) and calibrate again")
+            f"axes chi^2 {chi2:.1f} for {len(axes)}, p = {p:.1g}). "
+            + (f"The u allows for a drift that curves (up to {max(departure):.2g} m/s^2 off the straight line at a "
+               "pose, 1 sd), but a drift that turns back between the holds can be larger: "
+               if max(departure) > 0 else
+               "The u holds the curve the faces held three times measured, but a drift that turns back faster "
+               "can be larger: ")
+            + "let the sensor settle powered (temperature steady) and calibrate again")
     return record

@@ -6,10 +6,13 @@ operator should be told as contract ``Event``s; the specific happening is in
 complete, too_short, moved, not_flat, saturated, redo), ``face`` and ``time``.
 
 The guided sequence: the six faces in any order, then one face of each axis
-again (``again``): a face held twice, far apart in time, is the only check of a
-slow offset drift (``noise.py`` says why), and each axis needs its own.  Six faces
-are enough to compute (``faces_done``); the sequence is complete with the three
-holds again (``axes_again``).
+again (``again``: a face held twice, far apart in time, is the only check of a
+slow offset drift, ``noise.py`` says why, and each axis needs its own), then
+those three faces once more (the second round): a face seen at three
+well-spaced times shows the drift's shape, not only its straight line (a
+thermal cycle that has come back by the second hold).  Six faces are enough to
+compute (``faces_done``); the sequence is complete with both rounds
+(``again_rounds``).
 Fed a whole recording or the same samples in chunks it finds the same poses.
 
 Detection works on RAW data in m/s^2 (never on calibrated data: the
@@ -187,31 +190,52 @@ class PoseDetector:
         return faces + ([self._seg_face] if self._held_captured and self._seg_flat else [])
 
     @property
-    def axes_again(self) -> dict[str, str]:
-        """The drift check: per axis, the face held again after all six faces were done (axis -> face)."""
+    def again_rounds(self) -> tuple[dict[str, str], dict[str, str]]:
+        """The drift check's two rounds, each axis -> face.  Round 1: per axis, the first face of that axis
+        held after all six faces were done (either face).  Round 2: that same face held once more, after
+        round 1 is through on every axis (so that its three holds are spread over the run)."""
         seen: set[str] = set()
-        again: dict[str, str] = {}
+        first: dict[str, str] = {}
+        second: dict[str, str] = {}
         for face in self._flat_faces():
             if len(seen) == len(FACES):
-                again.setdefault(face[1], face)
+                axis = face[1]
+                if axis not in first:
+                    first[axis] = face
+                elif len(first) == len(AXES) and axis not in second and first[axis] == face:
+                    second[axis] = face
             seen.add(face)
-        return again
+        return first, second
+
+    @property
+    def axes_again(self) -> dict[str, str]:
+        """The drift check's first round: per axis, the face held again after all six faces were done."""
+        return self.again_rounds[0]
+
+    @property
+    def again_round(self) -> int | None:
+        """The drift check's round under way (1 or 2), None once both are through."""
+        first, second = self.again_rounds
+        return 1 if len(first) < len(AXES) else 2 if len(second) < len(AXES) else None
 
     @property
     def again_missing(self) -> list[str]:
-        """The faces to hold again for the drift check: per axis not yet checked, the face first held on it."""
-        again = self.axes_again
+        """The faces to hold again in the round under way: in round 1 per axis not yet checked the face first
+        held on it; in round 2 the face each axis was held again with in round 1."""
+        first_round, second_round = self.again_rounds
+        if len(first_round) == len(AXES):
+            return [face for axis, face in first_round.items() if axis not in second_round]
         first: dict[str, str] = {}
         for face in self._flat_faces():
             first.setdefault(face[1], face)
-        # in the order the operator first held them (each face's two holds about equally far apart)
-        return [face for face in first.values() if face[1] not in again] + [
-            f"+{axis}" for axis in AXES if axis not in again and axis not in first]
+        # in the order the operator first held them (each face's holds about equally far apart)
+        return [face for face in first.values() if face[1] not in first_round] + [
+            f"+{axis}" for axis in AXES if axis not in first_round and axis not in first]
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces, then one face of each axis again."""
-        return not self.missing_faces and not self.again_missing
+        """The guided sequence is through: six faces, then one face of each axis again, twice."""
+        return not self.missing_faces and self.again_round is None
 
     @property
     def state(self) -> dict:
@@ -223,6 +247,8 @@ class PoseDetector:
             "n_poses": len(self.poses) + self._held_captured,
             "missing": self.missing_faces,
             "again_done": list(self.axes_again.values()),
+            "third_done": list(self.again_rounds[1].values()),
+            "again_round": self.again_round,
             "again_missing": self.again_missing,
             "current_face": self._seg_face if self._still and self._seg_flat else None,
             "still": self._still,
@@ -337,7 +363,11 @@ class PoseDetector:
             if not self._seg_flat:
                 events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
                                          "multi-position model; for six faces put one face flat on the table", now))
-            elif not self.missing_faces and face[1] not in self.axes_again:
+            elif not self.missing_faces and face in self.again_missing:
+                which = "again" if self.again_round == 1 else "a third time"
+                events.append(pose_event("hold_still", f"hold still: {face} down {which} (the drift check)", now,
+                                         face))
+            elif not self.missing_faces and self.again_round == 1 and face[1] not in self.axes_again:
                 events.append(pose_event("hold_still", f"hold still: {face} down again (the drift check)", now, face))
             elif face in self.faces_done:
                 events.append(pose_event("already_done", f"{face} already done (holding it adds data)", now, face))
@@ -434,15 +464,22 @@ class PoseDetector:
         events = [pose_event("progress", f"{n} of 6", now, progress=n / len(FACES))]
         if n < len(FACES):
             return events
-        again = self.again_missing
-        if not again:
-            events.append(pose_event("complete", "all six faces captured, and each axis held again", now, progress=1.0))
+        again, round_ = self.again_missing, self.again_round
+        if round_ is None:
+            events.append(pose_event("complete", "all six faces captured, and each axis held again twice", now,
+                                     progress=1.0))
+            return events
+        names = ", ".join(again[:-1]) + (" and " if len(again) > 1 else "") + again[-1]
+        if round_ == 1 and len(again) == 3:
+            text = (f"all six faces captured: now put {names} down once more (either face of each axis will "
+                    "do), and after that the same faces once more: held three times, far apart, a face shows "
+                    "whether its offset drifted, steadily or in a curve. c computes without it")
+        elif round_ == 1:
+            text = f"drift check: now put {names} down once more (either face of each axis will do)"
         else:
-            names = ", ".join(again[:-1]) + (" and " if len(again) > 1 else "") + again[-1]
-            events.append(pose_event(
-                "again", f"{'all six faces captured' if len(again) == 3 else 'drift check'}: now put {names} down "
-                "once more (either face of each axis will do): it checks that the offsets did not drift. "
-                "c computes without it", now))
+            text = (f"drift check, last round: now put {names} down once more (the same face"
+                    f"{'s' if len(again) > 1 else ''} again). c computes without it")
+        events.append(pose_event("again", text, now))
         return events
 
     def _check(self, pose: Pose) -> tuple[str, str] | None:

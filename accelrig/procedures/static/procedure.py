@@ -38,7 +38,9 @@ from accelrig.estimation.gravity_fit import (
     face_tilts,
     fit_multiposition,
     fit_six_face,
+    magnitude_z,
 )
+from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
@@ -366,32 +368,39 @@ def _drift_rates(noise: StillNoise, poses: list[Pose], first: Correction) -> boo
 
 def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
                         settings: dict, noise: StillNoise) -> CalibrationResult:
-    """The fit on pose means referred to the middle of the run, the drift rates of the axes held again fitted.
+    """The fit on pose means referred to the middle of the run, the drift of the axes held again fitted.
 
-    Each pose mean m_i becomes m_i - r (t_i - t_mid) (t_i the pose's centre, t_mid the count-weighted mean of
-    the centres: the time the offsets stand for).  r is the model's own: the rates that minimise the fit's
-    lack of fit (its chi^2 as a function of r, profiled over the other parameters: a quadratic from 1 + m(m+3)/2
-    fits about the revisits' estimate ``_drift_rates``, m the axes measured); cov(r) = 2 H^-1 (H the chi^2's
-    Hessian).  A rate taken from the revisits alone would disagree with the fit's tilts and misalignment and
-    show as lack of fit.  The rate's u enters the result's covariance through the fit's sensitivity to it
-    (central differences of the same fits): cov += J cov(r) J^T.  The revisits' degrees of freedom go into
-    the rates, so the lack-of-fit test has that many fewer."""
+    Each pose mean m_i becomes m_i - r (t_i - t_mid) - kappa q(t_i) (t_i the pose's centre, t_mid the
+    count-weighted mean of the centres: the time the offsets stand for).  r, per axis with a face held again,
+    is the drift rate; kappa, per axis with a face held three times far apart (``noise._shape``), the drift's
+    curvature, with q(t) = (t - t_a)(t - t_b) / 2 through that face's first and last holds, less its average
+    over the run (the offsets stand for the run's average, which a curving drift moves too).  Both are the
+    model's own: the values that minimise the fit's lack of fit, its whitened residuals profiled over the
+    other parameters (Gauss-Newton from the revisits' estimates, the Jacobian from one refit per parameter
+    two of its u away; the fits are linear in them to well within that); cov = (J^T J)^-1.  A rate taken
+    from the revisits alone would disagree with the fit's tilts and misalignment and show as lack of fit.
+    Their u enters the result's covariance through the fit's sensitivity to them (the same refits):
+    cov += S cov(r, kappa) S^T.  Their degrees of freedom go into them, so the lack-of-fit test has that many
+    fewer.  An axis held again but not three times far apart keeps a stated allowance for a curving drift
+    (``noise.drift_bend``, type B), and the uncertainty line names the check it could not make."""
     centres = np.array([float(np.mean(p.t)) for p in poses])
-    middle = float(np.average(centres, weights=[len(p.t) for p in poses]))
+    counts = np.array([len(p.t) for p in poses], dtype=float)
+    middle = float(np.average(centres, weights=counts))
+    shaped = {AXES.index(e["axis"]): e for e in noise.drift.get("shape", {}).get("faces", [])}
 
-    # per axis held again, the centres of the two holds furthest apart that fix its rate: a curving drift's
-    # departure from the straight line is zero there (``noise.drift_bend``)
+    # per axis held again, the centres of the two holds that fix its rate: a curving drift's departure from
+    # the straight line is zero there (the face held three times when there is one; else the two holds
+    # furthest apart)
     anchors: dict[int, tuple[float, float]] = {}
     for r in noise.drift.get("revisits") or []:
         k = AXES.index(r["face"][1])
         if k not in anchors or r["last"] - r["first"] > anchors[k][1] - anchors[k][0]:
             anchors[k] = (float(r["first"]), float(r["last"]))
+    for k, e in shaped.items():
+        anchors[k] = (e["times"][0], e["times"][2])
     bend_shape = np.zeros((len(poses), 3))
-    counts = np.array([len(p.t) for p in poses], dtype=float)
     for k, (t_a, t_b) in anchors.items():
         bend_shape[:, k] = (centres - t_a) * (centres - t_b) / 2.0
-        # less its average over the run's samples: the offsets stand for the run's average, which a curving
-        # drift moves too (a constant goes into b alone)
         bend_shape[:, k] -= np.average(bend_shape[:, k], weights=counts)
 
     def referred(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[list[PoseStats], list[np.ndarray]]:
@@ -399,72 +408,89 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         return ([PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)],
                 [p.mean - d for p, d in zip(poses, shift, strict=True)])
 
-    def fit(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[float, np.ndarray]:
-        """The model's lack of fit (chi^2, no inflation: only its shape in r counts) and its reported parameters
-        then C and b, as ``build_result`` fits them."""
+    def fit(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The model's whitened lack-of-fit residuals (no inflation: only their shape in r counts) and its
+        reported parameters then C and b, as ``build_result`` fits them."""
         referred_stats, means = referred(rate, bend)
         if model in MODELS:
             data = PoseData([s.face for s in stats], means, [len(p.samples) for p in poses],
                             [p.within_ss for p in poses], settings["g"])
             f = fit_model(data, model, method if model == "paper" else "vp")
-            chi2 = f.chi2 / (float(np.mean(noise.tau)) if noise.correlated else 1.0)
+            scale = f.sigma * np.sqrt(float(np.mean(noise.tau)) if noise.correlated else 1.0)
+            z = (np.sqrt(counts)[:, None] * f.residuals).ravel() / scale
             values, corr = f.values, f.correction
         else:
             f = fit_six_face(referred_stats, "paper", settings["pose_flatness_deg"], settings["g"],
                              inflation="none", wander_var=noise.wander_var)
-            # chi2 with the slow-noise wander as the fit weighs the poses (chi2_before leaves it out, for
-            # the repeatability decision): the rates' u must carry the wander the poses carry
-            chi2, values, corr = float(f.chi2), f.values, f.correction
-        return chi2, np.concatenate([values, corr.matrix.ravel(), corr.bias])
+            # with the slow-noise wander as the fit weighs the poses: the rates' u must carry the wander the
+            # poses carry (the tilt-free gravity magnitudes, whose chi^2 is the fit's lack of fit)
+            values, corr = f.values, f.correction
+            z = magnitude_z(np.concatenate([corr.matrix.ravel(), corr.bias]), referred_stats, settings["g"],
+                            noise.wander_var)[0]
+        return z, np.concatenate([values, corr.matrix.ravel(), corr.bias])
 
     axes = [k for k in range(3) if noise.drift_rate_u[k] > 0]
-    m = len(axes)
-    start, steps = noise.drift_rate.copy(), 2.0 * noise.drift_rate_u[axes]
-    unit = np.eye(3)[axes] * steps[:, None]          # (m, 3): one step per measured axis
-    at = {(): fit(start)}
-    for i in range(m):
-        at[("+", i)], at[("-", i)] = fit(start + unit[i]), fit(start - unit[i])
-        for j in range(i):
-            at[("+", i, j)] = fit(start + unit[i] + unit[j])
-    chi2 = {key: c for key, (c, _) in at.items()}
-    c0 = chi2[()]
-    grad = np.array([(chi2[("+", i)] - chi2[("-", i)]) / 2.0 for i in range(m)])
-    hess = np.zeros((m, m))
-    for i in range(m):
-        hess[i, i] = chi2[("+", i)] + chi2[("-", i)] - 2.0 * c0
-        for j in range(i):
-            hess[i, j] = hess[j, i] = chi2[("+", i, j)] - chi2[("+", i)] - chi2[("+", j)] + c0
-    # in units of the steps; a chi^2 that does not curve upward in every direction is not a profile to trust:
-    # then the revisits' own estimate and u stand
-    eigenvalues = np.linalg.eigvalsh(hess) if m else np.zeros(0)
-    if m and np.all(eigenvalues > 1e-9 * max(float(np.max(np.abs(eigenvalues))), 1e-300)):
-        inv = np.linalg.inv(hess)
-        rate = start.copy()
-        rate[axes] = start[axes] - steps * (inv @ grad)
-        rate_cov = 2.0 * np.outer(steps, steps) * inv
+    bent = [k for k in sorted(shaped) if k in axes]
+    m, q = len(axes), len(bent)
+
+    def split(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rate, bend = noise.drift_rate.copy(), np.zeros(3)
+        rate[axes], bend[bent] = theta[:m], theta[m:]
+        return rate, bend
+
+    start = np.concatenate([noise.drift_rate[axes], [shaped[k]["curvature"] for k in bent]])
+    steps = 2.0 * np.concatenate([noise.drift_rate_u[axes], [shaped[k]["curvature_u"] for k in bent]])
+    z0, p0 = fit(*split(start))
+    jz, jp = [], []
+    for i in range(m + q):
+        z, p = fit(*split(start + steps[i] * np.eye(m + q)[i]))
+        jz.append((z - z0) / steps[i])
+        jp.append((p - p0) / steps[i])
+    jz, jac = np.column_stack(jz), np.column_stack(jp)
+    info = jz.T @ jz
+    eigenvalues = np.linalg.eigvalsh(info) if m + q else np.zeros(0)
+    # information that is not positive in every direction is not a profile to trust: then the revisits' own
+    # estimates and u stand
+    if m + q and np.all(eigenvalues > 1e-9 * max(float(np.max(np.abs(eigenvalues))), 1e-300)):
+        theta_cov = np.linalg.inv(info)
+        theta = start - theta_cov @ (jz.T @ z0)
+        from_ = "fit"
     else:
-        rate, rate_cov = start, np.diag(noise.drift_rate_u[axes] ** 2)
+        theta, theta_cov, from_ = start, np.diag((steps / 2.0) ** 2), "revisits"
+    rate, bend_fitted = split(theta)
+    # a drift that the middle holds show is not a line (noise._shape rejected): the parabola through three
+    # holds fixes it at those holds only; between and beyond them the drift may leave the parabola by as much
+    # as the curve it had to bend (type B, normal): each measured curvature's u grows by its own size
+    off_line = q > 0 and noise.drift["shape"].get("p_value", 1.0) < ALPHA
+    if off_line:
+        theta_cov = theta_cov + np.diag(np.r_[np.zeros(m), theta[m:] ** 2])
+    theta_u = np.sqrt(np.clip(np.diag(theta_cov), 0.0, None))
     noise.drift_rate = rate
     noise.drift_rate_u = np.zeros(3)
-    noise.drift_rate_u[axes] = np.sqrt(np.clip(np.diag(rate_cov), 0.0, None))
+    noise.drift_rate_u[axes] = theta_u[:m]
     noise.drift["rate"], noise.drift["rate_u"] = noise.drift_rate.tolist(), noise.drift_rate_u.tolist()
-    noise.drift["rate_from"] = "fit" if rate is not start else "revisits"
-    jac = np.column_stack([(at[("+", i)][1] - at[("-", i)][1]) / (2.0 * steps[i]) for i in range(m)])
-    referred_stats, means = referred(rate)
+    noise.drift["rate_from"] = from_
+    if q:
+        noise.drift["shape"]["fitted"] = {"axes": [AXES[k] for k in bent], "curvature": theta[m:].tolist(),
+                                          "curvature_u": theta_u[m:].tolist(),
+                                          "anchors_s": [list(anchors[k]) for k in bent],
+                                          "u_widened_by_the_curvature": bool(off_line)}
+    referred_stats, means = referred(rate, bend_fitted)
     # before the result is built: its warning and record go with the noise's
-    bend = drift_bend(noise, anchors, middle)
+    bend = drift_bend(noise, anchors, middle, measured=bent)
     base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means)
-    extra = jac @ rate_cov @ jac.T
-    # the drift's curvature the poses' own trends allow (type B, normal): through the same fits, one step
-    # of its sd per axis held again (central differences; the departure is linear in it)
+    extra = jac @ theta_cov @ jac.T
+    # the drift's curvature allowed on the axes whose shape was not measured (type B): through the same
+    # fits, one step of its sd per such axis (central differences; the departure is linear in it)
+    allowed = [k for k in sorted(anchors) if k not in bent]
     if bend:
-        for j, k in enumerate(anchors_axes := sorted(anchors)):
+        for j, k in enumerate(sorted(anchors)):
             step = np.zeros(3)
             step[k] = bend["allowance"]["curvature_sd"][j]
-            if step[k] > 0:
-                column = (fit(rate, step)[1] - fit(rate, -step)[1]) / 2.0
+            if k in allowed and step[k] > 0:
+                column = (fit(rate, bend_fitted + step)[1] - fit(rate, bend_fitted - step)[1]) / 2.0
                 extra = extra + np.outer(column, column)
-        bend["allowance"]["on"] = [AXES[k] for k in anchors_axes]
+        bend["allowance"]["on"] = [AXES[k] for k in allowed]
     n_par = len(base.parameters)
     cov = np.array(base.covariance, dtype=float) + extra[:n_par, :n_par]
     corr_cov = np.array(base.correction.covariance, dtype=float) + extra[n_par:, n_par:]
@@ -472,20 +498,32 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     base.correction = Correction(base.correction.matrix, base.correction.bias, corr_cov)
     base.parameters = {n: Estimate(e.value, float(np.sqrt(max(cov[k, k], 0.0))), e.unit)
                        for k, (n, e) in enumerate(base.parameters.items())}
-    names = ", ".join(AXES[k] for k in axes)
     base.quality["uncertainty_source"] += (f"; pose means referred to the middle of the run (t = {middle:.1f} s) "
-                                           f"with the offset drift rate on {names} fitted (faces held again)")
-    if bend:
+                                           f"with the offset drift rate on {_names(axes)} fitted (faces held again)")
+    if q:
+        base.quality["uncertainty_source"] += f" and its curvature on {_names(bent)} (a face held three times)"
+        if off_line:
+            base.quality["uncertainty_source"] += (" (the drift is not a straight line: each curvature's u widened "
+                                                   "by its own size, for a drift that leaves the parabola between "
+                                                   "the holds)")
+    if bend and allowed:
+        departure = max(d for d, k in zip(bend["allowance"]["largest_departure"], sorted(anchors), strict=True)
+                        if k in allowed)
         base.quality["uncertainty_source"] += (
-            f"; a drift allowance for a drift that curves ({bend['allowance']['distribution']}: up to "
-            f"{max(bend['allowance']['largest_departure']):.2g} m/s^2 off the straight line at a pose, 1 sd)")
+            f"; drift shape not checked on {_names(allowed)} (no face of {'that axis' if len(allowed) == 1 else 'those axes'} "
+            f"held three times far apart): an allowance for a drift that curves instead "
+            f"({bend['allowance']['distribution']}: up to {departure:.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
-    # the revisits' degrees of freedom went into the rates: the lack-of-fit test has m fewer (none left with
-    # the wizard's sequence of six faces and three again)
-    dof = int(base.quality["dof"]) - m
+    # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
+    # fewer (none left with the wizard's sequence of six faces and three again, twice)
+    dof = int(base.quality["dof"]) - m - q
     base.quality["dof"] = dof
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
+
+
+def _names(axes: list[int]) -> str:
+    return ", ".join(AXES[k] for k in axes)
 
 
 def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,

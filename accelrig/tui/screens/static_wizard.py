@@ -2,7 +2,7 @@
 
 What it adds to the generic wizard: the face grid (which faces are done,
 which one is held, with its progress, and a suggestion for the next; after the six, the faces to
-hold once more for the drift check), the
+hold once more for the drift check, in two rounds), the
 held pose's own progress bar, r for the procedure's 'redo' (asking which
 face), and 'still missing: ...' when c is pressed early.  Settings, events
 ('hold still', 'motion detected', 'captured'), the fit in a worker and the
@@ -90,6 +90,9 @@ class StaticWizard(ProcedureWizard):
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
+        elif faces["again_missing"] and faces.get("again_round") == 2:
+            state = (f"[yellow]drift check, last round[/]: put {', '.join(faces['again_missing'])} down once "
+                     "more (the same faces), or c to compute without it")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
                      "(either face of each axis), or c to compute without it")

@@ -1,4 +1,5 @@
-"""Six face cells: done, being held (with its progress), still to do, or (after the six) to hold again."""
+"""Six face cells: done, being held (with its progress), still to do, or (after the six) to hold again,
+twice (the drift check: held three times, a face shows whether its offset drifted and in what shape)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ class FaceGrid(Horizontal):
         current = progress["current_face"] if progress["still"] else None
         missing = progress["missing"]
         again_done = set(progress.get("again_done", ()))
+        third_done = set(progress.get("third_done", ()))
         again_missing = progress.get("again_missing", [])
         # the next face: a missing one, then (six done) one to hold again for the drift check
         todo = missing or again_missing
@@ -31,8 +33,10 @@ class FaceGrid(Horizontal):
                 state = f"holding {progress['hold_fraction']:.0%}"
             elif face == suggested:
                 state = "next" if missing else "again next"
+            elif face in third_done:
+                state = "✓✓✓ done"
             elif face in again_done:
-                state = "✓✓ twice"
+                state = "✓✓ · again" if face in again_missing else "✓✓ twice"
             elif face in done:
                 state = "✓ · again" if not missing and face in again_missing else "✓ done"
             else:
