@@ -191,6 +191,36 @@ def test_six_face_bound_with_drift_rates_matches_the_linear_model_written_out():
     assert np.isclose(bound[10, 10], without[10, 10], rtol=1e-9)   # y's rate is not fitted
 
 
+def test_six_face_bound_with_a_drift_curvature_matches_the_linear_model_written_out():
+    """The twelve-hold sequence: each axis's face held three times, so each axis's drift has a rate and a
+    curvature, kappa (q(t) - mean q) with q(t) = (t - t_a)(t - t_b) / 2 through that face's first and last holds."""
+    faces = ["+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y"]
+    counts = np.array([800, 700, 800, 900, 800, 750, 800, 820, 790, 810, 780, 800], dtype=float)
+    times = np.array([2, 8, 13, 19, 24, 29, 35, 41, 46, 52, 57, 63], dtype=float)
+    sigma, g, axes = 0.05, 9.81, [0, 1, 2]
+    anchors = {2: (2.0, 52.0), 0: (13.0, 57.0), 1: (24.0, 63.0)}
+    mean_w = lambda v: np.average(v, weights=counts)  # noqa: E731
+    q = {k: (times - a) * (times - b) / 2 for k, (a, b) in anchors.items()}
+    rows, weights = [], []
+    for i, (face, n, t) in enumerate(zip(faces, counts, times, strict=True)):
+        f = -g * face_down_direction(face)
+        for j in range(3):
+            row = np.zeros(18)
+            row[3 * j:3 * j + 3], row[9 + j] = f, 1.0
+            row[12 + j] = t - mean_w(times)
+            row[15 + j] = q[j][i] - mean_w(q[j])
+            rows.append(row)
+            weights.append(n / sigma**2)
+    x = np.array(rows)
+    expected = np.linalg.inv(x.T @ (np.array(weights)[:, None] * x))[9:12, 9:12]
+    bound = six_face_crb("affine", np.eye(3), np.zeros(3), faces, counts, sigma, 0.0, g,
+                         drift_times=times, drift_axes=axes, curvature_anchors=anchors)
+    assert np.allclose(bound[9:, 9:], expected, rtol=1e-6)
+    rates_only = six_face_crb("affine", np.eye(3), np.zeros(3), faces, counts, sigma, 0.0, g,
+                              drift_times=times, drift_axes=axes)
+    assert np.all(np.diag(bound)[9:] > 1.001 * np.diag(rates_only)[9:])
+
+
 @pytest.mark.parametrize("scenario, models", [
     ("hand 0.3", ["six-face affine", "six-face paper"]),
     ("hand 1", ["six-face paper"]),

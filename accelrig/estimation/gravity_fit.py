@@ -689,7 +689,8 @@ def _student_variance_factor(dof: float) -> float:
 def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequence[str], counts, sigma: float,
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
                  params: np.ndarray | None = None, draws: int = 0, seed: int = 0,
-                 drift_times=None, drift_axes: Sequence[int] = ()) -> np.ndarray:
+                 drift_times=None, drift_axes: Sequence[int] = (),
+                 curvature_anchors: dict[int, tuple[float, float]] | None = None) -> np.ndarray:
     """Bound (12 x 12, correction order) of a planned six-face run with the flatness prior.
 
     The hybrid CRB: the inverse of the data information at zero tilt plus the prior information of the
@@ -701,7 +702,10 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     ``params`` gives the paper model's parameters (else derived from ``matrix``, ``bias`` with zero angles).
     ``drift_times``, ``drift_axes``: the poses' centre times (s) and the raw axes (0-2) whose offset drifts at
     an unknown constant rate, nuisance parameters as the static procedure fits them for the axes held twice
-    (the offsets then stand for the count-weighted mean of the times, as there).
+    (the offsets then stand for the count-weighted mean of the times, as there).  ``curvature_anchors``:
+    per raw axis whose drift's curvature is fitted too (a face held three times), the first and last of
+    that face's hold times: the pose means gain kappa_k (q(t_i) - mean q), q(t) = (t - t_a)(t - t_b) / 2, as
+    the static procedure refers them (the offsets stand for the run's average).
     """
     m = _Model(model)
     counts = np.broadcast_to(np.asarray(counts, dtype=float), (len(faces),))
@@ -713,12 +717,17 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
     rng = np.random.default_rng(seed)
     samples = [np.zeros(n_t)] if n_t == 0 or draws == 0 else [tau * rng.standard_normal(n_t) for _ in range(draws)]
-    drift = np.zeros((3 * len(faces) + n_t, len(drift_axes)))
-    if len(drift_axes):
-        # pose i's mean on axis k gains r_k (t_i - t_mid); the residual is whitened by sqrt(n) / sigma
+    bends = sorted((curvature_anchors or {}).items())
+    drift = np.zeros((3 * len(faces) + n_t, len(drift_axes) + len(bends)))
+    if len(drift_axes) or bends:
+        # pose i's mean on axis k gains r_k (t_i - t_mid) (+ kappa_k (q(t_i) - mean q)); the residual is
+        # whitened by sqrt(n) / sigma
         times = np.asarray(drift_times, dtype=float)
         for c, k in enumerate(drift_axes):
             drift[k:3 * len(faces):3, c] = -np.sqrt(counts) / sigma * (times - np.average(times, weights=counts))
+        for c, (k, (t_a, t_b)) in enumerate(bends, start=len(drift_axes)):
+            q = (times - t_a) * (times - t_b) / 2.0
+            drift[k:3 * len(faces):3, c] = -np.sqrt(counts) / sigma * (q - np.average(q, weights=counts))
     info = np.zeros((m.size + n_t + drift.shape[1],) * 2)
     for t in samples:
         jac = np.hstack([system(np.concatenate([p, t]))[1], drift])

@@ -13,8 +13,8 @@ on the raw data and fits.  Printed (Markdown):
     (variable projection + LM), the paper's Nelder-Mead scheme and the affine
     model; the classic +-pair formulas of Ferraris et al. (as in imucal) for
     scale; time per fit; and the whole default command (the six-face model with its pose tilts and the drift
-    rates of the axes held twice) on C and b against the bound with those unknowns
-    (``gravity_fit.six_face_crb`` with ``drift_axes``).
+    rates of the axes held twice, and the drift's curvature of the axes held three times) on C and b against
+    the bound with those unknowns (``gravity_fit.six_face_crb`` with ``drift_axes`` and ``curvature_anchors``).
  2. non-orthogonal truth: the 9-parameter model's bias against the affine model.
  3. a table that is not level: what a tilt of each pose does (the faces are
     the references, so a tilt is an error the estimators cannot remove).
@@ -155,18 +155,25 @@ def table_paper_family(runs, seed):
         auto = calibrate_static(rec)
         auto_times.append(time.perf_counter() - t0)
         auto_choice.append(auto.model)
-        # the whole command on the wizard's nine holds, told the simulator's g (as --g would): it fits each pose's
-        # tilt under the flatness prior and a drift rate for each axis held twice; judged on C and b
+        # the whole command on the wizard's twelve holds, told the simulator's g (as --g would): it fits each pose's
+        # tilt under the flatness prior, a drift rate for each axis held twice and the drift's curvature for each
+        # axis held three times; judged on C and b
         result = calibrate_static(rec, g=G)
         checked = [AXES.index(a) for a in result.quality["noise"]["drift"]["checked_axes"]]
+        shape = result.quality["noise"]["drift"].get("shape") or {}
+        fitted = (shape.get("fitted") or {}).get("axes", [])
+        anchors = {AXES.index(e["axis"]): (e["times"][0], e["times"][2]) for e in shape.get("faces", [])
+                   if e["axis"] in fitted}
         centres = [(h["start"] + h["stop"]) / 2 for h in true_holds(rec, detect_poses(rec).poses)]
         got = result.correction
         whole["err"].append(np.concatenate([got.matrix.ravel(), got.bias]) - corr)
         whole["unc"].append(np.sqrt(np.diag(got.covariance)))
         bound = {key: np.sqrt(np.diag(six_face_crb("paper", c_mat, bias, data.faces, counts, SIGMA, flat, G,
-                                                   params=truth, drift_times=centres, drift_axes=axes)))
-                 for key, flat, axes in (("exact", 0.0, ()), ("flatness", DEFAULT_POSE_FLATNESS_DEG, ()),
-                                         ("flatness+drift", DEFAULT_POSE_FLATNESS_DEG, checked))}
+                                                   params=truth, drift_times=centres, drift_axes=axes,
+                                                   curvature_anchors=bent)))
+                 for key, flat, axes, bent in (("exact", 0.0, (), None),
+                                               ("flatness", DEFAULT_POSE_FLATNESS_DEG, (), None),
+                                               ("flatness+drift", DEFAULT_POSE_FLATNESS_DEG, checked, anchors))}
         for key, value in bound.items():
             whole.setdefault(key, []).append(value)
         whole["checked"].append(len(checked))
@@ -207,14 +214,15 @@ def table_paper_family(runs, seed):
     print_table(f"### 1f. The whole `calibrate static --g {G}` (default six-face model: each pose's tilt a nuisance "
                 f"under a {DEFAULT_POSE_FLATNESS_DEG:g}-degree flatness prior, pose means referred to the middle of the "
                 f"run with a drift rate fitted for each axis held twice: {min(whole['checked'])}-{max(whole['checked'])} "
-                f"axes per run) on C and b, against the bound with those tilts and rates unknown ({runs} runs)",
+                f"axes per run, and a curvature for each held three times) on C and b, against the bound with those "
+                f"tilts, rates and curvatures unknown ({runs} runs)",
                 stats_rows(AFFINE_NAMES, whole["err"], whole["flatness+drift"], whole["unc"]))
     rms = {key: np.sqrt(np.mean(np.square(whole[key]), axis=0)) for key in ("exact", "flatness", "flatness+drift")}
     print("\nWhat the unknowns cost, bound / the exact-face bound (C diagonal, C off-diagonal, b, mean):\n")
     print("| unknowns | C diagonal | C off-diagonal | b |")
     print("|---|---:|---:|---:|")
     diagonal, off, offsets = [0, 4, 8], [1, 2, 3, 5, 6, 7], [9, 10, 11]
-    for key, label in (("flatness", "pose tilts (flatness prior)"), ("flatness+drift", "pose tilts and drift rates")):
+    for key, label in (("flatness", "pose tilts (flatness prior)"), ("flatness+drift", "pose tilts, drift rates and curvatures")):
         r = rms[key] / rms["exact"]
         print(f"| {label} | {np.mean(r[diagonal]):.2f} | {np.mean(r[off]):.2f} | {np.mean(r[offsets]):.2f} |")
     print("\nC off-diagonal: a tilt common to every pose looks like a rotation of the sensor in its housing, so with"
