@@ -55,7 +55,8 @@ async def test_quitting_with_unsaved_captures_asks_and_after_writing_does_not(tm
         for key in ("q", "ctrl+q"):
             await pilot.press(key)
             await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
-            assert "are not written" in str(app.screen.query_one("#question").render())
+            question = str(app.screen.query_one("#question").render())
+            assert "are not written" in question and f"on disk in {wizard.capture_path}" in question
             await pilot.press("n")   # stay: nothing lost
             await wait_for(pilot, lambda: app.screen is wizard)
         assert app.return_code is None
@@ -67,6 +68,9 @@ async def test_quitting_with_unsaved_captures_asks_and_after_writing_does_not(tm
         assert (tmp_path / "mean-capture.csv").exists()
         await pilot.press("q")
         await wait_for(pilot, lambda: app.return_code is not None)
+    # quitting finished the capture's segments: none is left open (an open one is only for a crash)
+    assert wizard.capture_path is not None and any(wizard.capture_path.iterdir())
+    assert not list(wizard.capture_path.glob("*.seg")), list(wizard.capture_path.iterdir())
 
 
 @async_test

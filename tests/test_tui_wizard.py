@@ -255,7 +255,7 @@ async def test_an_open_that_was_superseded_closes_its_own_stream_and_leaves_the_
         stale = Session.open_and_start("sim://still?seed=15", 1, record=True,
                                        writer=lambda info: streaming_writer(info, tmp_path / "stale"))
         await wait_for(pilot, lambda: stale.recorder.poll().n and stale.recorder.samples > 0)
-        wizard._opened(wizard._generation - 1, stale)
+        wizard._opened(wizard._generation - 1, stale, tmp_path / "stale")
         assert wizard.recorder is current and wizard.session is live and app.session is live
         assert stale.stats().state == State.STOPPED and live.stats().state == State.STREAMING
         assert list((tmp_path / "stale").glob("*.parquet")) and not list((tmp_path / "stale").glob("*.seg"))

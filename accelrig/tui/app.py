@@ -112,6 +112,14 @@ class AccelrigApp(App):
         if await self.push_screen_wait(ConfirmScreen(f"Quit? {unsaved}", "Quit", "Stay")):
             self.exit()
 
+    def exit(self, *args, **kwargs) -> None:
+        """Leave the app; each wizard's capture segments are finished first (they stay under captures/)."""
+        for screen in self.screen_stack:
+            close = getattr(screen, "close_recorder", None)
+            if close is not None:
+                close()
+        super().exit(*args, **kwargs)
+
     def on_mount(self) -> None:
         if self.daemon_socket is not None:
             from accelrig.tui.screens.daemon import DaemonScreen

@@ -107,6 +107,7 @@ class ProcedureWizard(Screen):
         self._stream_line = ""
         self._alarm_key = None
         self.written_samples = 0   # samples written to a file so far (w)
+        self.capture_path: Path | None = None       # where this run's capture streams to (segments)
         self.results_screen: Screen | None = None   # the last results shown (its saved_path: saved)
         for key, action in self.ACTION_KEYS.items():
             self._bindings.bind(key, f"procedure_action({action!r})", self.procedure_class.actions[action])
@@ -118,8 +119,9 @@ class ProcedureWizard(Screen):
             return None
         if getattr(self.results_screen, "saved_path", None) is not None:
             return None
-        return (f"The {self.recorder.samples} samples captured for the {self.procedure_class.title} are not written "
-                "(w writes them) and no result of them was saved.")
+        where = f" are on disk in {self.capture_path}" if self.capture_path is not None else ""
+        return (f"The {self.recorder.samples} samples captured for the {self.procedure_class.title}{where} but "
+                "are not written as a file (w writes them) and no result of them was saved.")
 
     @property
     def capture_name(self) -> str:
@@ -323,16 +325,16 @@ class ProcedureWizard(Screen):
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_instruction, f"cannot open the device: {exc}", "bold red")
             return
-        self.app.call_from_thread(self._opened, generation, session)
+        self.app.call_from_thread(self._opened, generation, session, directory)
 
-    def _opened(self, generation: int, session: Session) -> None:
+    def _opened(self, generation: int, session: Session, directory: Path) -> None:
         if generation != self._generation:
             # restarted or left while it opened: this stream is no one's; its capture is finished
             # on disk and the device released, and the wizard's own stream stays untouched
             self.close_recorder(session.recorder)
             session.stop()
             return
-        self.session, self.recorder = session, session.recorder
+        self.session, self.recorder, self.capture_path = session, session.recorder, directory
         self.app.use_session(session)
         self.set_instruction(self.opening_instruction())
         if self._timer is None:
