@@ -251,6 +251,90 @@ def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> f
     return stop
 
 
+# The free coast's start.  Over REST_WINDOW_S windows the points in the wheel plane lie on the circle gravity
+# draws, whose centre is the centripetal term r w^2 (plus the offsets): it moves only one way while the wheel
+# coasts (towards the centre of the slowest turns), and away from it while a hand drives the wheel.  A window
+# whose points spread across their best line by less than REST_SCATTER noise sds, or whose arc spans less
+# than MIN_COAST_ARC, or whose circle's radius is off the run's by more than
+# CIRCLE_RADIUS_TOL, shows no usable circle (a wheel at rest or barely turning).  A rise of the centre by more
+# than PUSH_RISE of gravity's circle is a push (a slow noise or a drift moves it by some hundredths of that).
+MIN_COAST_ARC = np.pi / 2
+CIRCLE_RADIUS_TOL = 0.3
+PUSH_RISE = 0.05
+COAST_BLOCK = 4096        # windows looked at together
+
+
+def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
+    """Time from which the wheel coasts freely to the end of the recording (or to a stop), or None when it
+    coasts from the first sample.  Before it the wheel rested or a hand drove it (a push, or several): the
+    centre of gravity's circle, r w^2 along the radius, last rose there (see PUSH_RISE)."""
+    width = max(int(round(REST_WINDOW_S / period)), 5)
+    count = t.size // width
+    if count < 3:
+        return None
+    mean = acc.mean(axis=0)
+    scatter = np.zeros((3, 3))
+    for part in _survey_chunks(t.size):
+        centred = acc[part] - mean
+        scatter += centred.T @ centred
+    plane = np.linalg.eigh(scatter)[1][:, 1:]        # the wheel plane: all but the least-varying direction
+    limit = REST_SCATTER * max(noise, 1e-12)
+    centre = np.full((count, 2), np.nan)
+    radius = np.full(count, np.nan)
+    arc = np.zeros(count)
+    for lo in range(0, count, COAST_BLOCK):
+        hi = min(lo + COAST_BLOCK, count)
+        win = acc[lo * width:hi * width].reshape(hi - lo, width, 3)
+        p = (win - mean) @ plane
+        middle = p.mean(axis=1, keepdims=True)
+        x = p - middle
+        # an arc, not a point (a wheel at rest) nor a straight stroke (a wheel barely turning, whose noise alone
+        # would bend a circle through it): the points spread across their best line by more than the noise
+        cov = np.einsum("wni,wnj->wij", x, x) / width
+        across = 0.5 * (cov[:, 0, 0] + cov[:, 1, 1]) - np.hypot(0.5 * (cov[:, 0, 0] - cov[:, 1, 1]), cov[:, 0, 1])
+        moving = across > limit**2
+        # Kasa's circle: |x|^2 = 2 c.x + k, least squares per window
+        design = np.concatenate([2 * x, np.ones(x.shape[:2] + (1,))], axis=2)
+        normal = np.einsum("wni,wnj->wij", design, design)
+        rhs = np.einsum("wni,wn->wi", design, np.einsum("wnk,wnk->wn", x, x))
+        ok = moving & (np.abs(np.linalg.det(normal)) > 0)
+        sol = np.zeros((hi - lo, 3))
+        if np.any(ok):
+            sol[ok] = np.linalg.solve(normal[ok], rhs[ok][..., None])[..., 0]
+        c = sol[:, :2]
+        r2 = sol[:, 2] + np.einsum("wk,wk->w", c, c)
+        ang = np.unwrap(np.arctan2(x[..., 1] - c[:, None, 1], x[..., 0] - c[:, None, 0]), axis=1)
+        span = np.ptp(ang, axis=1)
+        good = ok & (r2 > 0)
+        centre[lo:hi][good] = (middle[:, 0] + c)[good]
+        radius[lo:hi][good] = np.sqrt(r2[good])
+        arc[lo:hi][good] = span[good]
+    seen = np.isfinite(radius) & (arc >= MIN_COAST_ARC)
+    if np.count_nonzero(seen) < 3:
+        return None
+    typical = float(np.median(radius[seen]))
+    seen &= np.abs(radius - typical) <= CIRCLE_RADIUS_TOL * typical
+    index = np.flatnonzero(seen)
+    if index.size < 3:
+        return None
+    # how far above the slowest turns' centre: r (w^2 - w_last^2) along the radius, and falling while coasting
+    height = np.linalg.norm(centre[index] - centre[index[-1]], axis=1)
+    rise = PUSH_RISE * typical
+    last = int(np.argmax(height))
+    low = height[last]
+    for k in range(last + 1, index.size):
+        if height[k] > low + rise:
+            last, low = k, height[k]
+        else:
+            low = min(low, height[k])
+    if index[last] == 0:
+        return None
+    # the push ends within the window where the centre stopped rising (its mean speed is the highest): the coast
+    # from half a window after it
+    end = min((index[last] + 1) * width + width // 2, t.size - 1)
+    return float(t[end])
+
+
 def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """|w| over each full turn of the survey's angle, one value every half turn:
     (midpoint times, speeds rad/s).  A full turn, not a half, because the angle of
