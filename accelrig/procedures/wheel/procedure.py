@@ -24,6 +24,7 @@ from accelrig.procedures.wheel.checks import (
     WheelSurvey,
     check_capture,
     coasting_from,
+    noise_sd,
     stopped_at,
     survey,
     timestamp_figures,
@@ -392,7 +393,13 @@ class WheelProcedure(Procedure):
         vv = np.concatenate(self._v)
         if tt.size < MIN_LOOK_SAMPLES:
             return events
-        look = survey(tt - tt[0], vv, self.device, self.values["g"])
+        tt = tt - tt[0]
+        # once the hand has let go, the look (turns, the speed trace) is of the free coast, as the fit's will be
+        start = coasting_from(tt, vv, noise_sd(vv), float(np.median(np.diff(tt))))
+        if start is not None and np.count_nonzero(tt >= start) >= MIN_LOOK_SAMPLES:
+            keep = tt >= start
+            tt, vv = tt[keep], vv[keep]
+        look = survey(tt, vv, self.device, self.values["g"])
         self._progress = progress = min(look.turns / TARGET_TURNS, 1.0)
         if look.saturated:
             events.append(Event("problem", "the sensor clips at full scale: stop and spin slower", progress))
@@ -401,7 +408,7 @@ class WheelProcedure(Procedure):
             events.append(Event("instruction", "spin the wheel (no rotation seen yet)", progress))
             return events
         if look.turns >= TRACE_MIN_TURNS:
-            self._look, self._look_t = look, tt - tt[0]
+            self._look, self._look_t = look, tt
         events.append(Event("progress", f"{look.turns:.1f} turns, need {TARGET_TURNS:.0f}", progress,
                             {"turns": look.turns}))
         # the speed said is the newest full-turn speed of the trace: the survey's speed_end (a
