@@ -256,12 +256,14 @@ def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> f
 # coasts (towards the centre of the slowest turns), and away from it while a hand drives the wheel.  A window
 # whose points spread across their best line by less than REST_SCATTER noise sds, or whose arc spans less
 # than MIN_COAST_ARC, or whose circle's radius is off the run's by more than
-# CIRCLE_RADIUS_TOL, shows no usable circle (a wheel at rest or barely turning).  A rise of the centre by more
-# than PUSH_RISE of gravity's circle is a push (a slow noise or a drift moves it by some hundredths of that).
+# CIRCLE_RADIUS_TOL, shows no usable circle (a wheel at rest or barely turning).  The coast starts after the
+# centre's highest point, or after a later rise by more than PUSH_RISE of gravity's circle within PUSH_WINDOWS
+# windows (a second stroke): a slow noise or a drift moves it by some hundredths of that.
 MIN_COAST_ARC = np.pi / 2
 CIRCLE_RADIUS_TOL = 0.3
 PUSH_RISE = 0.05
-COAST_BLOCK = 4096        # windows looked at together
+PUSH_WINDOWS = 2          # ... within this many windows
+COAST_BLOCK = 256         # windows looked at together
 
 
 def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
@@ -321,12 +323,13 @@ def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -
     height = np.linalg.norm(centre[index] - centre[index[-1]], axis=1)
     rise = PUSH_RISE * typical
     last = int(np.argmax(height))
-    low = height[last]
     for k in range(last + 1, index.size):
-        if height[k] > low + rise:
-            last, low = k, height[k]
-        else:
-            low = min(low, height[k])
+        # a later stroke that did not reach the first one's speed: a fast rise (a hand's push takes seconds,
+        # while a slow cubic like the paper's Table I law may turn up by a few tenths of a m/s^2 over a minute)
+        order = np.arange(index.size)
+        earlier = height[(index >= index[k] - PUSH_WINDOWS) & (order >= last) & (order < k)]
+        if earlier.size and height[k] > earlier.min() + rise:
+            last = k
     if index[last] == 0:
         return None
     # the push ends within the window where the centre stopped rising (its mean speed is the highest): the coast
