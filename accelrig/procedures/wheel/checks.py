@@ -263,6 +263,7 @@ MIN_COAST_ARC = np.pi / 2
 CIRCLE_RADIUS_TOL = 0.3
 PUSH_RISE = 0.05
 PUSH_WINDOWS = 2          # ... within this many windows
+MAX_MERGE = 8             # windows a circle is fitted over, at most (a full turn of a slow wheel)
 COAST_BLOCK = 256         # windows looked at together
 
 
@@ -281,37 +282,49 @@ def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -
         scatter += centred.T @ centred
     plane = np.linalg.eigh(scatter)[1][:, 1:]        # the wheel plane: all but the least-varying direction
     limit = REST_SCATTER * max(noise, 1e-12)
-    centre = np.full((count, 2), np.nan)
-    radius = np.full(count, np.nan)
     arc = np.zeros(count)
+    moving = np.zeros(count, dtype=bool)
+    normals = np.zeros((count, 3, 3))
+    rhs = np.zeros((count, 3))
     for lo in range(0, count, COAST_BLOCK):
         hi = min(lo + COAST_BLOCK, count)
-        win = acc[lo * width:hi * width].reshape(hi - lo, width, 3)
-        p = (win - mean) @ plane
+        p = (acc[lo * width:hi * width].reshape(hi - lo, width, 3) - mean) @ plane
         middle = p.mean(axis=1, keepdims=True)
         x = p - middle
         # an arc, not a point (a wheel at rest) nor a straight stroke (a wheel barely turning, whose noise alone
         # would bend a circle through it): the points spread across their best line by more than the noise
         cov = np.einsum("wni,wnj->wij", x, x) / width
         across = 0.5 * (cov[:, 0, 0] + cov[:, 1, 1]) - np.hypot(0.5 * (cov[:, 0, 0] - cov[:, 1, 1]), cov[:, 0, 1])
-        moving = across > limit**2
-        # Kasa's circle: |x|^2 = 2 c.x + k, least squares per window
-        design = np.concatenate([2 * x, np.ones(x.shape[:2] + (1,))], axis=2)
-        normal = np.einsum("wni,wnj->wij", design, design)
-        rhs = np.einsum("wni,wn->wi", design, np.einsum("wnk,wnk->wn", x, x))
-        ok = moving & (np.abs(np.linalg.det(normal)) > 0)
-        sol = np.zeros((hi - lo, 3))
-        if np.any(ok):
-            sol[ok] = np.linalg.solve(normal[ok], rhs[ok][..., None])[..., 0]
-        c = sol[:, :2]
-        r2 = sol[:, 2] + np.einsum("wk,wk->w", c, c)
-        ang = np.unwrap(np.arctan2(x[..., 1] - c[:, None, 1], x[..., 0] - c[:, None, 0]), axis=1)
-        span = np.ptp(ang, axis=1)
-        good = ok & (r2 > 0)
-        centre[lo:hi][good] = (middle[:, 0] + c)[good]
-        radius[lo:hi][good] = np.sqrt(r2[good])
-        arc[lo:hi][good] = span[good]
-    seen = np.isfinite(radius) & (arc >= MIN_COAST_ARC)
+        moving[lo:hi] = across > limit**2
+        # Kasa's circle: |p|^2 = 2 c.p + k, least squares; its normal equations add up over windows
+        design = np.concatenate([2 * p, np.ones(p.shape[:2] + (1,))], axis=2)
+        normals[lo:hi] = np.einsum("wni,wnj->wij", design, design)
+        rhs[lo:hi] = np.einsum("wni,wn->wi", design, np.einsum("wnk,wnk->wn", p, p))
+        ok = moving[lo:hi]
+        if np.any(ok):   # the arc one window spans, seen from its own circle's centre
+            c = np.linalg.solve(normals[lo:hi][ok], rhs[lo:hi][ok][..., None])[:, :2, 0]
+            ang = np.unwrap(np.arctan2(p[ok, :, 1] - c[:, None, 1], p[ok, :, 0] - c[:, None, 0]), axis=1)
+            arc[lo:hi][ok] = np.ptp(ang, axis=1)
+    # each window's circle from as many windows as make a full turn (at most MAX_MERGE): a full turn of the
+    # ellipse a sensor's unequal gains draw has the ellipse's centre, a part of it does not
+    merge = np.minimum(np.ceil(2 * np.pi / np.maximum(arc, 1e-9)), MAX_MERGE).astype(int)
+    merge = np.minimum(merge, count - np.arange(count))
+    stack_n = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(normals, axis=0)])
+    stack_r = np.concatenate([np.zeros((1, 3)), np.cumsum(rhs, axis=0)])
+    stack_m = np.concatenate([[0], np.cumsum(moving)])
+    stack_a = np.concatenate([[0.0], np.cumsum(arc)])
+    ends = np.arange(count) + merge
+    usable = moving & (stack_m[ends] - stack_m[:-1] == merge) & (stack_a[ends] - stack_a[:-1] >= MIN_COAST_ARC)
+    centre = np.full((count, 2), np.nan)
+    radius = np.full(count, np.nan)
+    if np.any(usable):
+        k = np.flatnonzero(usable)
+        sol = np.linalg.solve(stack_n[ends[k]] - stack_n[k], (stack_r[ends[k]] - stack_r[k])[..., None])[..., 0]
+        r2 = sol[:, 2] + np.einsum("wk,wk->w", sol[:, :2], sol[:, :2])
+        good = r2 > 0
+        centre[k[good]] = sol[good, :2]
+        radius[k[good]] = np.sqrt(r2[good])
+    seen = np.isfinite(radius)
     if np.count_nonzero(seen) < 3:
         return None
     typical = float(np.median(radius[seen]))
@@ -334,7 +347,7 @@ def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -
         return None
     # the push ends within the window where the centre stopped rising (its mean speed is the highest): the coast
     # from half a window after it
-    end = min((index[last] + 1) * width + width // 2, t.size - 1)
+    end = min((index[last] + merge[index[last]]) * width + width // 2, t.size - 1)
     return float(t[end])
 
 
