@@ -93,7 +93,7 @@ def test_a_record_that_starts_at_rest_and_pushed_is_fitted_on_its_free_coast():
     note = [w for w in result.warnings if "coasted freely only from" in w]
     assert len(note) == 1 and "--start" in note[0]
     start = float(note[0].split("--start ")[1].split()[0])
-    assert 5.0 <= start < 7.5
+    assert 5.0 <= start <= 8.0   # the push ends at 5 s; the cut leaves a margin of a turn and half a window
     assert np.all(np.abs(z_scores(result)) < 4)
     quiet = calibrate_wheel(time_range(rec, start, None), radius=0.28)
     assert not any("coasted freely" in w for w in quiet.warnings)
