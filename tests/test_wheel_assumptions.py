@@ -84,6 +84,26 @@ def test_a_wheel_that_stops_is_fitted_on_its_spin_and_the_result_says_so():
     assert 70.0 < result.quality["duration_s"] < 76.0
 
 
+def test_a_record_that_starts_at_rest_and_pushed_is_fitted_on_its_free_coast():
+    """The wizard's record: the wheel rests 3 s, a hand spins it up over 2 s, then it coasts.  The speed law holds
+    only for the coast, so the fit starts after the push and says so; --start there calibrates alike, quietly."""
+    from accelrig.recording import time_range
+
+    rig = WheelRig(radius=0.28, duration=40.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    result = calibrate_wheel(rec, radius=0.28)
+    note = [w for w in result.warnings if "coasted freely only from" in w]
+    assert len(note) == 1 and "--start" in note[0]
+    start = float(note[0].split("--start ")[1].split()[0])
+    assert 5.0 <= start <= 8.0   # the push ends at 5 s; the cut leaves a margin of a turn and half a window
+    assert np.all(np.abs(z_scores(result)) < 4)
+    quiet = calibrate_wheel(time_range(rec, start, None), radius=0.28)
+    assert not any("coasted freely" in w for w in quiet.warnings)
+    assert np.allclose(quiet.parameters["gain"].value, result.parameters["gain"].value, rtol=1e-9)
+
+
 def test_a_drift_taken_in_by_a_false_alarm_keeps_its_move_in_u():
     """Stress audit: on a clean wheel that stops, the drift test fires in about 1 run in 100 (its level), and the
     drift taken in then moves every estimate by 2-3 of the larger model's u, along the direction a drift on the

@@ -20,7 +20,10 @@ def register(sub, groups) -> None:
     add_arguments(p, SETTINGS)
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
-    add_time_range(p)
+    add_time_range(p, start_note="the wheel's free coast from T (without it the fit finds where the last push "
+                   "ended and leaves the rest and the push before it out, with a warning)",
+                   stop_note="the spin before T (without it a stop and rest at the end are found and left out, "
+                   "with a warning)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     add_profile_arguments(p)
     p.set_defaults(func=run_calibrate)

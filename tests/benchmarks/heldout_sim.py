@@ -12,8 +12,12 @@ than the one kept (so the slow part is not periodic in the record), random walk 
 with a spectral peak, band-limited vibration.  Offset drifts (``drift``): a step, an exponential
 warm-up, a sinusoidal thermal cycle, each of a stated total size.
 
+Wheel records may start as an operator's do (``rest_s``, ``push_s``, ``pushes``): the wheel at rest, then a
+hand spinning it up with an irregular torque in one or more strokes, then the free coast of ``seconds``.
+
 Truth for offsets: the sensor's offset during the calibration, i.e. its fixed offset plus the mean,
-over the samples the procedure uses, of every slow part (the drift and the non-white noise).
+over the samples the procedure uses, of every slow part (the drift and the non-white noise); for the
+wheel, over the free coast.
 """
 
 from __future__ import annotations
@@ -246,6 +250,33 @@ class WheelCase:
     noise: Noise = field(default_factory=lambda: Noise(sd=0.08))
     drift: Drift = field(default_factory=Drift)
     range_g: float = 4.0
+    # what an operator's record holds before the free coast (``seconds`` long): the wheel at rest for
+    # ``rest_s``, then the hand spins it up from 0 to omega0 over ``push_s`` with an irregular torque,
+    # in ``pushes`` strokes (the hand lets go and grabs again between them)
+    rest_s: float = 0.0
+    push_s: float = 0.0
+    pushes: int = 1
+
+
+def _push(case: WheelCase, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Speed over the push, x in [0, 1] its share of the push: 0 -> omega0.  The hand's torque is a train
+    of ``pushes`` strokes of random lengths and strengths (each a sin^2 bump), with a slow random tremor
+    on top; between strokes nothing drives the wheel (the hand goes back)."""
+    k = max(int(case.pushes), 1)
+    lengths = rng.uniform(0.6, 1.0, k)
+    gaps = rng.uniform(0.1, 0.3, k - 1) if k > 1 else np.zeros(0)
+    total = lengths.sum() + gaps.sum()
+    lengths, gaps = lengths / total, gaps / total
+    torque = np.zeros_like(x)
+    start = 0.0
+    for i in range(k):
+        inside = (x >= start) & (x < start + lengths[i])
+        s = (x[inside] - start) / lengths[i]
+        tremor = 1.0 + 0.4 * np.sin(2 * np.pi * rng.uniform(1.5, 4.0) * s + rng.uniform(0, 2 * np.pi))
+        torque[inside] = rng.uniform(0.5, 1.5) * np.sin(np.pi * s) ** 2 * tremor
+        start += lengths[i] + (gaps[i] if i < k - 1 else 0.0)
+    speed = np.concatenate([[0.0], np.cumsum(0.5 * (torque[1:] + torque[:-1]) * np.diff(x))])
+    return case.omega0 * speed / speed[-1]
 
 
 def _speed(case: WheelCase, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -281,9 +312,17 @@ def _speed(case: WheelCase, t: np.ndarray, rng: np.random.Generator) -> np.ndarr
 
 
 def simulate_wheel(case: WheelCase, rng: np.random.Generator):
-    n = int(case.seconds * case.rate)
+    before = case.rest_s + case.push_s     # the free coast starts here
+    n = int((before + case.seconds) * case.rate)
     t = np.arange(n) / case.rate
-    w = _speed(case, t, rng)
+    free = t >= before - 1e-9
+    w = np.zeros(n)
+    w[free] = _speed(case, t[free] - before, rng)
+    pushed = (t >= case.rest_s) & ~free
+    if case.push_s > 0:
+        x = np.append((t[pushed] - case.rest_s) / case.push_s, 1.0)
+        w[pushed] = _push(case, x, rng)[:-1]
+    # the angle integrates the speed; the tangential r dw/dt and centripetal r w^2 act through the push too
     dw = np.gradient(w, t, edge_order=2)
     theta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]) + rng.uniform(0, 2 * np.pi)
     alpha = np.radians(case.tilt_deg + case.tilt_wander_deg * (t / case.seconds - 0.5))
@@ -302,8 +341,9 @@ def simulate_wheel(case: WheelCase, rng: np.random.Generator):
     raw = f @ (np.diag(gains) @ mount).T + offset + drift + noise
     scale = case.range_g * G / 32768.0
     raw = np.clip(np.rint(raw / scale), -32768, 32767) * scale
-    return t, raw, {"gain": gains, "offset": offset + (drift + slow).mean(axis=0),
-                    "tilt_deg": float(np.degrees(alpha.mean())), "scale": scale}
+    # the procedure calibrates from the free coast: the offset's slow parts are averaged over it
+    return t, raw, {"gain": gains, "offset": offset + (drift + slow)[free].mean(axis=0),
+                    "tilt_deg": float(np.degrees(alpha[free].mean())), "scale": scale, "coast_from": before}
 
 
 # ----------------------------------------------------------------------------------------------------------

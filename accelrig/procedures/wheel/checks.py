@@ -251,6 +251,106 @@ def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> f
     return stop
 
 
+# The free coast's start.  Over REST_WINDOW_S windows the points in the wheel plane lie on the circle gravity
+# draws, whose centre is the centripetal term r w^2 (plus the offsets): it moves only one way while the wheel
+# coasts (towards the centre of the slowest turns), and away from it while a hand drives the wheel.  A window
+# whose points spread across their best line by less than REST_SCATTER noise sds, or whose arc spans less
+# than MIN_COAST_ARC, or whose circle's radius is off the run's by more than
+# CIRCLE_RADIUS_TOL, shows no usable circle (a wheel at rest or barely turning).  The coast starts after the
+# centre's highest point, or after a later rise by more than PUSH_RISE of gravity's circle within PUSH_WINDOWS
+# windows (a second stroke): a slow noise or a drift moves it by some hundredths of that.
+MIN_COAST_ARC = np.pi / 2
+CIRCLE_RADIUS_TOL = 0.3
+PUSH_RISE = 0.05
+PUSH_WINDOWS = 2          # ... within this many windows
+MAX_MERGE = 8             # windows a circle is fitted over, at most (a full turn of a slow wheel)
+COAST_BLOCK = 256         # windows looked at together
+
+
+def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
+    """Time from which the wheel coasts freely to the end of the recording (or to a stop), or None when it
+    coasts from the first sample.  Before it the wheel rested or a hand drove it (a push, or several): the
+    centre of gravity's circle, r w^2 along the radius, last rose there (see PUSH_RISE)."""
+    width = max(int(round(REST_WINDOW_S / period)), 5)
+    count = t.size // width
+    if count < 3:
+        return None
+    mean = acc.mean(axis=0)
+    scatter = np.zeros((3, 3))
+    for part in _survey_chunks(t.size):
+        centred = acc[part] - mean
+        scatter += centred.T @ centred
+    plane = np.linalg.eigh(scatter)[1][:, 1:]        # the wheel plane: all but the least-varying direction
+    limit = REST_SCATTER * max(noise, 1e-12)
+    arc = np.zeros(count)
+    moving = np.zeros(count, dtype=bool)
+    normals = np.zeros((count, 3, 3))
+    rhs = np.zeros((count, 3))
+    for lo in range(0, count, COAST_BLOCK):
+        hi = min(lo + COAST_BLOCK, count)
+        p = (acc[lo * width:hi * width].reshape(hi - lo, width, 3) - mean) @ plane
+        middle = p.mean(axis=1, keepdims=True)
+        x = p - middle
+        # an arc, not a point (a wheel at rest) nor a straight stroke (a wheel barely turning, whose noise alone
+        # would bend a circle through it): the points spread across their best line by more than the noise
+        cov = np.einsum("wni,wnj->wij", x, x) / width
+        across = 0.5 * (cov[:, 0, 0] + cov[:, 1, 1]) - np.hypot(0.5 * (cov[:, 0, 0] - cov[:, 1, 1]), cov[:, 0, 1])
+        moving[lo:hi] = across > limit**2
+        # Kasa's circle: |p|^2 = 2 c.p + k, least squares; its normal equations add up over windows
+        design = np.concatenate([2 * p, np.ones(p.shape[:2] + (1,))], axis=2)
+        normals[lo:hi] = np.einsum("wni,wnj->wij", design, design)
+        rhs[lo:hi] = np.einsum("wni,wn->wi", design, np.einsum("wnk,wnk->wn", p, p))
+        ok = moving[lo:hi]
+        if np.any(ok):   # the arc one window spans, seen from its own circle's centre
+            c = np.linalg.solve(normals[lo:hi][ok], rhs[lo:hi][ok][..., None])[:, :2, 0]
+            ang = np.unwrap(np.arctan2(p[ok, :, 1] - c[:, None, 1], p[ok, :, 0] - c[:, None, 0]), axis=1)
+            arc[lo:hi][ok] = np.ptp(ang, axis=1)
+    # each window's circle from as many windows as make a full turn (at most MAX_MERGE): a full turn of the
+    # ellipse a sensor's unequal gains draw has the ellipse's centre, a part of it does not
+    merge = np.minimum(np.ceil(2 * np.pi / np.maximum(arc, 1e-9)), MAX_MERGE).astype(int)
+    merge = np.minimum(merge, count - np.arange(count))
+    stack_n = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(normals, axis=0)])
+    stack_r = np.concatenate([np.zeros((1, 3)), np.cumsum(rhs, axis=0)])
+    stack_m = np.concatenate([[0], np.cumsum(moving)])
+    stack_a = np.concatenate([[0.0], np.cumsum(arc)])
+    ends = np.arange(count) + merge
+    usable = moving & (stack_m[ends] - stack_m[:-1] == merge) & (stack_a[ends] - stack_a[:-1] >= MIN_COAST_ARC)
+    centre = np.full((count, 2), np.nan)
+    radius = np.full(count, np.nan)
+    if np.any(usable):
+        k = np.flatnonzero(usable)
+        sol = np.linalg.solve(stack_n[ends[k]] - stack_n[k], (stack_r[ends[k]] - stack_r[k])[..., None])[..., 0]
+        r2 = sol[:, 2] + np.einsum("wk,wk->w", sol[:, :2], sol[:, :2])
+        good = r2 > 0
+        centre[k[good]] = sol[good, :2]
+        radius[k[good]] = np.sqrt(r2[good])
+    seen = np.isfinite(radius)
+    if np.count_nonzero(seen) < 3:
+        return None
+    typical = float(np.median(radius[seen]))
+    seen &= np.abs(radius - typical) <= CIRCLE_RADIUS_TOL * typical
+    index = np.flatnonzero(seen)
+    if index.size < 3:
+        return None
+    # how far above the slowest turns' centre: r (w^2 - w_last^2) along the radius, and falling while coasting
+    height = np.linalg.norm(centre[index] - centre[index[-1]], axis=1)
+    rise = PUSH_RISE * typical
+    last = int(np.argmax(height))
+    for k in range(last + 1, index.size):
+        # a later stroke that did not reach the first one's speed: a fast rise (a hand's push takes seconds,
+        # while a slow cubic like the paper's Table I law may turn up by a few tenths of a m/s^2 over a minute)
+        order = np.arange(index.size)
+        earlier = height[(index >= index[k] - PUSH_WINDOWS) & (order >= last) & (order < k)]
+        if earlier.size and height[k] > earlier.min() + rise:
+            last = k
+    if index[last] == 0:
+        return None
+    # the push ends within the window where the centre stopped rising (its mean speed is the highest): the coast
+    # from half a window after it
+    end = min((index[last] + merge[index[last]]) * width + width // 2, t.size - 1)
+    return float(t[end])
+
+
 def turn_speeds(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """|w| over each full turn of the survey's angle, one value every half turn:
     (midpoint times, speeds rad/s).  A full turn, not a half, because the angle of

@@ -23,6 +23,8 @@ from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     WheelSurvey,
     check_capture,
+    coasting_from,
+    noise_sd,
     stopped_at,
     survey,
     timestamp_figures,
@@ -95,20 +97,10 @@ def calibrate_wheel(
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g, keep_angle=False)
-    stop = stopped_at(t, v, look.noise_sd, look.period)
-    rest_note = None
-    if stop is not None:
-        # The speed law (a cubic in t) cannot follow a wheel that stops and stays: the fit takes the
-        # spin, the rest after it holds no rotation.  Nothing is dropped from the recording itself.
-        kept = t < stop
-        rest_note = (f"the wheel stopped turning at {stop:.1f} s of {t[-1]:.1f} s: the fit uses the spin before "
-                     f"it ({np.count_nonzero(kept)} of {t.size} samples); the {t[-1] - stop:.1f} s at rest hold no "
-                     f"rotation (give --stop {stop:.1f} to calibrate from the spin alone without this warning)")
-        t, v, gap_times = t[kept], v[kept], gap_times[gap_times < stop]
+    t, v, gap_times, cut_notes, origin = _free_coast(t, v, gap_times, look)
+    if cut_notes:
         look = survey(t, v, recording.meta, g, keep_angle=False)
-    warnings = check_capture(look, radius, g)
-    if rest_note:
-        warnings.insert(0, rest_note)
+    warnings = cut_notes + check_capture(look, radius, g)
     started = time.perf_counter()
     if method == "joint":
         steps = joint_start(t, v, look, radius, tilt, g, gap_times)
@@ -149,8 +141,45 @@ def calibrate_wheel(
         "the wheel does not observe cross-axis terms (the sensor's own axis misalignment is absorbed in the "
         f"mounting rotation): the correction's off-diagonal entries are set to 0 with an assumed prior sd of "
         f"{cross_axis_sd:.3g} ({assumed}); a static calibration measures them")
-    return _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
-                         elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
+    result = _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
+                           elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
+    if origin:
+        # t, theta0 and the speed law count from the free coast's first sample
+        result.settings["time_origin"] = f"first sample of the free coast, {origin:.3f} s after the recording's first"
+    return result
+
+
+def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: WheelSurvey):
+    """The free coast the speed law (eq. 2, a cubic in t) can follow: (t, v, gap times, notes, the time of its
+    first sample in the recording).
+
+    Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand, then let it
+    coast; keep the recording running"); after it the wheel may stop and rest.  Neither is a coast-down: the fit
+    takes the coast, t counted from its first sample, and a note says what was left out and why.  Nothing is
+    dropped from the recording itself."""
+    start = coasting_from(t, v, look.noise_sd, look.period)
+    stop = stopped_at(t, v, look.noise_sd, look.period)
+    if stop is not None and start is not None and stop <= start:
+        stop = None
+    if start is None and stop is None:
+        return t, v, gap_times, [], 0.0
+    lo = 0.0 if start is None else start
+    hi = np.inf if stop is None else stop
+    kept = (t >= lo) & (t < hi)
+    used = f"the fit uses the coast from {lo:.1f} s to {min(hi, t[-1]):.1f} s ({np.count_nonzero(kept)} of {t.size} samples)"
+    notes = []
+    if start is not None:
+        notes.append(f"the wheel coasted freely only from {start:.1f} s: before it the wheel rested or was pushed by "
+                     f"hand, and the speed law holds only for a free coast-down; {used}; the first {start:.1f} s stay "
+                     f"in the recording (give --start {start:.1f} to calibrate from the coast alone without this "
+                     "warning)")
+    if stop is not None:
+        notes.append(f"the wheel stopped turning at {stop:.1f} s of {t[-1]:.1f} s: {used}; the {t[-1] - stop:.1f} s "
+                     f"at rest hold no rotation (give --stop {stop:.1f} to calibrate from the spin alone without this "
+                     "warning)")
+    origin = float(t[kept][0])
+    gap_times = gap_times[(gap_times > lo) & (gap_times < hi)] - origin
+    return t[kept] - origin, v[kept], gap_times, notes, origin
 
 
 def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
@@ -364,7 +393,13 @@ class WheelProcedure(Procedure):
         vv = np.concatenate(self._v)
         if tt.size < MIN_LOOK_SAMPLES:
             return events
-        look = survey(tt - tt[0], vv, self.device, self.values["g"])
+        tt = tt - tt[0]
+        # once the hand has let go, the look (turns, the speed trace) is of the free coast, as the fit's will be
+        start = coasting_from(tt, vv, noise_sd(vv), float(np.median(np.diff(tt))))
+        if start is not None and np.count_nonzero(tt >= start) >= MIN_LOOK_SAMPLES:
+            keep = tt >= start
+            tt, vv = tt[keep], vv[keep]
+        look = survey(tt, vv, self.device, self.values["g"])
         self._progress = progress = min(look.turns / TARGET_TURNS, 1.0)
         if look.saturated:
             events.append(Event("problem", "the sensor clips at full scale: stop and spin slower", progress))
@@ -373,7 +408,7 @@ class WheelProcedure(Procedure):
             events.append(Event("instruction", "spin the wheel (no rotation seen yet)", progress))
             return events
         if look.turns >= TRACE_MIN_TURNS:
-            self._look, self._look_t = look, tt - tt[0]
+            self._look, self._look_t = look, tt
         events.append(Event("progress", f"{look.turns:.1f} turns, need {TARGET_TURNS:.0f}", progress,
                             {"turns": look.turns}))
         # the speed said is the newest full-turn speed of the trace: the survey's speed_end (a

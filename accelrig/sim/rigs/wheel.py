@@ -33,6 +33,12 @@ swings once per turn on top of the friction law:
 
 integrated numerically (DOP853, dense output); the friction term is the law's
 w' at the same time (cubic) or at the same speed (coulomb-viscous).
+
+The operator's record (``rest`` and ``push`` seconds): the wheel stands still for ``rest`` s, then a
+hand spins it up over ``push`` s with a torque shaped sin^2 (speed w_c (x - sin(2 pi x) / (2 pi)), x the
+share of the push done, w_c the coast's first speed), then it coasts as above; the
+coast's laws and ``theta0_deg`` count from the coast's start, and the record is ``rest + push +
+seconds`` long.
 """
 
 from __future__ import annotations
@@ -80,6 +86,8 @@ class WheelRig(Rig):
         "imbalance": "peak angular acceleration from an unbalanced mass, rad/s^2 (default 0: balanced)",
         "imbalance_deg": "wheel angle at which the unbalanced mass hangs lowest, deg (default 0)",
         "wobble_deg": "bearing play: the wheel's axis nods by this once per turn, deg (default 0: runs true)",
+        "rest": "seconds the wheel stands still before the hand spins it (default 0: the record starts coasting)",
+        "push": "seconds the hand takes to spin the wheel up from rest before it coasts (default 0)",
     }
 
     def __init__(
@@ -97,6 +105,8 @@ class WheelRig(Rig):
         imbalance: float = 0.0,
         imbalance_deg: float = 0.0,
         wobble_deg: float = 0.0,
+        rest: float = 0.0,
+        push: float = 0.0,
     ):
         if radius <= 0:
             raise DeviceError(f"radius={radius} m: the sensor must sit off the axis", "give a positive radius")
@@ -110,9 +120,13 @@ class WheelRig(Rig):
             raise DeviceError("friction coefficients must not be negative")
         if imbalance < 0:
             raise DeviceError(f"imbalance={imbalance} must not be negative")
+        if rest < 0 or push < 0 or (rest > 0 and push == 0):
+            raise DeviceError(f"rest={rest}, push={push}: a wheel at rest needs a push (seconds > 0) to turn",
+                              "give push=2 with rest, or neither")
+        self.rest, self.push = float(rest), float(push)
         self.radius = float(radius)
         self.tilt = np.deg2rad(tilt_deg)
-        self.duration = float(duration)
+        self.duration = float(duration) + self.rest + self.push
         self.omega = np.asarray(TABLE_I_OMEGA * DEFAULT_SPEED / 9.0 if omega is None else omega, dtype=float)
         self.friction = friction
         self.coulomb = float(coulomb)
@@ -154,11 +168,29 @@ class WheelRig(Rig):
             imbalance=url.get_float("imbalance", 0.0, low=0.0),
             imbalance_deg=url.get_float("imbalance_deg", 0.0),
             wobble_deg=url.get_float("wobble_deg", 0.0, low=0.0, high=5.0, unit="deg"),
+            rest=url.get_float("rest", 0.0, low=0.0, high=3600.0, unit="s"),
+            push=url.get_float("push", 0.0, low=0.0, high=60.0, unit="s"),
         )
 
     def motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Wheel angle theta and angular velocity theta' at times t (analytic for both friction laws)."""
+        """Wheel angle theta and angular velocity theta' at times t: at rest, pushed, then coasting."""
         t = np.asarray(t, dtype=float)
+        before = self.rest + self.push
+        if before == 0:
+            return self._coast(t)
+        angle, rate = self._coast(np.maximum(t - before, 0.0))
+        pushed = t < before
+        if np.any(pushed):
+            w_c = float(self._coast(np.zeros(1))[1][0])
+            x = np.clip((t[pushed] - self.rest) / self.push, 0.0, 1.0)
+            rate[pushed] = w_c * (x - np.sin(2 * np.pi * x) / (2 * np.pi))
+            # the angle still to sweep before the coast: w_c push times the integral of the speed shape from x to 1
+            to_go = 0.5 - x**2 / 2 - (np.cos(2 * np.pi * x) - 1) / (4 * np.pi**2)
+            angle[pushed] = self.theta0 - w_c * self.push * to_go
+        return angle, rate
+
+    def _coast(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The coast-down from its first sample (analytic for both friction laws)."""
         if self.imbalance > 0:
             return self._unbalanced_motion(t)
         if self.friction == "cubic":
@@ -261,6 +293,7 @@ class WheelRig(Rig):
             "misalignment_rad": self.misalignment.tolist(),
             "rotation": self.rotation.tolist(),
             "g": self.g,
+            "coast_from": self.rest + self.push,
         }
 
 
