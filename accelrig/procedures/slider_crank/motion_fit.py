@@ -37,7 +37,7 @@ from numpy.polynomial import chebyshev as cheb
 from scipy import optimize
 from scipy import stats as _sps
 
-from accelrig.estimation.residuals import whiteness
+from accelrig.estimation.residuals import difference_noise_variance, lack_of_fit, whiteness
 
 ORDER_ALPHA = 1e-3   # an added speed term must lower the RSS at this significance to be kept
 MAX_ORDER = 24       # highest Chebyshev order of the crank angle (about 7 wobble cycles per record)
@@ -141,6 +141,25 @@ def _select(rss: dict, n: int, harmonics: int, correlation: float, limit: int) -
             return order
 
 
+def _structured(resid: np.ndarray, y: np.ndarray, order: int, harmonics: int) -> bool:
+    """The residuals hold more than white noise: correlated, or above the model-free noise (F test)."""
+    if whiteness(resid).correlated:
+        return True
+    noise_var, noise_dof = difference_noise_variance(y, order=3)
+    dof = resid.size - (order + 1) - (2 * harmonics + 1)
+    return dof > 0 and lack_of_fit(float(resid @ resid) / dof, dof, noise_var, noise_dof).significant()
+
+
+def _jump(rss: dict, n: int, harmonics: int, order: int, top: int, correlation: float) -> int:
+    """``top`` when it lowers the RSS below ``order``'s significantly (F test at ORDER_ALPHA, with n / correlation
+    independent samples as in _select), else ``order``."""
+    dof = (n - (top + 1) - (2 * harmonics + 1)) / correlation
+    if dof <= 0 or not rss[top] < rss[order]:
+        return order
+    statistic = (rss[order] - rss[top]) / (top - order) / (rss[top] / dof) / correlation
+    return top if float(_sps.f.sf(statistic, top - order, dof)) < ORDER_ALPHA else order
+
+
 def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: int,
                      max_order: int = MAX_ORDER) -> CrankMotionFit:
     """Fit the slider's acceleration ``y`` (along the axis, m/s^2) at times ``t`` (s), starting from ``frequency``.
@@ -167,6 +186,13 @@ def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: 
     residual_of(1)
     # keep about a hundred residual degrees of freedom per speed term: the profile follows the motor, not the noise
     limit = int(min(max_order, max(1, (n - 2 * harmonics - 1) // 100)))
+    # and no speed term within a resolution bin (1 / record) of the crank's rate or above (mid-record T_j swings
+    # as a sine of j / pi cycles over the record): the angle is seen through the harmonics' phase, and a ripple
+    # at or above the crank's rate puts its lower sideband f - f_ripple onto the offset and its upper onto the
+    # next harmonic.  Fitted anyway, a 5 Hz ripple "wandered" by 26 % at 3 Hz (order 24), and at 4.5 Hz (order
+    # 17) left the radius 4-7 u off
+    cycles = frequency * (t[-1] - t[0])
+    limit = int(max(1, min(limit, np.floor(np.pi * (cycles - 1)))))
     order = 1
     while True:
         top = max(fits)
@@ -176,12 +202,26 @@ def fit_crank_motion(t: np.ndarray, y: np.ndarray, frequency: float, harmonics: 
                 fits[order + extra] = _fit_order(tau, y, np.concatenate([previous, [0.0]]), h, harmonics)
                 residual_of(order + extra)
         chosen = _select(rss, n, harmonics, 1.0, limit)
+        if chosen == order and limit > order + 2 and limit not in fits and _structured(residual_of(order), y, order,
+                                                                                       harmonics):
+            # A speed ripple of several cycles per record (a 5 Hz wobble: six in 1.25 s) needs a dozen
+            # terms before any one of them helps: one or two more lower the RSS by nothing significant, and
+            # the search stopped at constant speed, leaving the ripple's sidebands (at k f +- the ripple's
+            # rate) in the residuals.  So when they are correlated or exceed the noise, the highest order is
+            # tried too, against the one chosen (residuals at the noise: nothing is left to follow, and the fit
+            # is not paid for).
+            fits[limit] = _fit_order(tau, y, np.concatenate([fits[order], np.zeros(limit - order)]), h, harmonics)
+            residual_of(limit)
+            chosen = _jump(rss, n, harmonics, order, limit, 1.0)
         if chosen == order:
             break
         order = chosen
+        if order == limit:
+            break
     correlation = max(whiteness(residual_of(order)).tau, 1.0)
     if correlation > 1.0:
-        order = _select(rss, n, harmonics, correlation, order)
+        chosen = _select(rss, n, harmonics, correlation, order)
+        order = _jump(rss, n, harmonics, chosen, order, correlation) if order == limit > chosen else chosen
     coefficients = fits[order]
     linear, resid, basis = _project(tau, y, coefficients, h, harmonics)
     jac = _jacobian(tau, coefficients, linear, h, harmonics, basis)
