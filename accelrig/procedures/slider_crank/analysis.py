@@ -25,7 +25,10 @@ at a series of motor speed steps.  Per step:
    segments disagrees beyond their uncertainties), falls short of the
    commanded speed, or does not rise above the step before marks the roll-off.
 
-Over all steps: the frequency response (measured first harmonic against
+Over all steps: a link or mounting that flexes (the 2nd harmonic growing
+with speed against the 1st, where a rigid crank keeps both fixed: named with
+its resonance, each radius corrected to zero speed, check_compliance), the
+frequency response (measured first harmonic against
 r omega^2 and its clearance bounds, paper Fig. 7), the radius per step
 against the caliper radius +- clearance (Fig. 8) and their weighted mean,
 and the verdict: does the static calibration hold under motion?
