@@ -186,6 +186,11 @@ class StepResult:
     compliance_factor: float = 1.0
     radius_compliance_uncertainty_m: float = 0.0
     link_ringing: bool = False
+    # a speed ripple the faster steps followed but this step could not (budget_unfollowed_ripple): its sidebands'
+    # share of u(radius), u(speed) and of the 2nd harmonic (relative), added as Type B terms
+    ripple_radius_uncertainty_m: float = 0.0
+    ripple_frequency_uncertainty_hz: float = 0.0
+    ripple_second_harmonic_share: float = 0.0
     axis: list[float] = field(default_factory=list)
     axis_angles_deg: list[float] = field(default_factory=list)
     axis_angle_uncertainty_deg: float = 0.0
@@ -247,6 +252,8 @@ class StepResult:
             "compliance_factor": self.compliance_factor,
             "radius_compliance_uncertainty_m": self.radius_compliance_uncertainty_m,
             "link_ringing": self.link_ringing,
+            "ripple_radius_uncertainty_m": self.ripple_radius_uncertainty_m,
+            "ripple_frequency_uncertainty_hz": self.ripple_frequency_uncertainty_hz,
             "motor_limited": self.motor_limited,
             "axis": self.axis,
             "axis_angles_deg": self.axis_angles_deg,
@@ -955,6 +962,7 @@ def _displacement_harmonics(step: StepResult) -> tuple[np.ndarray, np.ndarray]:
     g = np.array(grads)
     cov = g @ step.checks.covariance @ g.T
     cov[0, 0] += step.radius_play_uncertainty_m**2
+    cov[1, 1] += (step.ripple_second_harmonic_share * values[1]) ** 2
     return np.array(values), cov
 
 
@@ -1158,6 +1166,55 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     return float(max(s.frequency_hz.value for s in steps))
 
 
+def budget_unfollowed_ripple(steps: list[StepResult]) -> None:
+    """A speed ripple the faster steps followed, at steps that could not follow or show it: a Type B term.
+
+    A relative ripple eps (peak to peak) at f_m moves the crank angle by dphi = f eps / (2 f_m), in proportion to
+    the speed, and puts sidebands of A_k k dphi / 2 at k f +- f_m around each harmonic.  A step turning slower
+    than the ripple (or within a resolution bin of it) cannot follow it (motion_fit), and a sideband within a
+    resolution bin (1 / record) of a fitted harmonic j f is taken for that harmonic: a 1 % ripple at 5 Hz put
+    the 2nd harmonic's lower sideband (4 Hz) on the 1st of a 4.5 Hz step, 0.2 % of the radius (14 um, 5 u).
+    The ripple is the largest relative one the followed steps show; a steady step that would have shown it
+    (_would_show) keeps its u.  Each such step's radius takes the sum of the sidebands on its 1st harmonic
+    (relative), its 2nd harmonic's share likewise (check_compliance reads it), and its mean speed the angle's
+    swing between the record's ends, sqrt(2) dphi / (2 pi T).
+    """
+    followed = [s for s in steps if s.speed_unsteady and s.speed_ripple_hz > 0]
+    if not followed:
+        return
+    source = max(followed, key=lambda s: s.speed_spread_hz / s.frequency_hz.value)
+    eps, rate = source.speed_spread_hz / source.frequency_hz.value, source.speed_ripple_hz
+    for i, step in enumerate(steps):
+        if step.speed_unsteady or step.state is None or _would_show(step, source):
+            continue
+        f = step.frequency_hz.value
+        span = step.n_samples / step.state.rate
+        dphi = f * eps / (2 * rate)
+        amps = np.asarray(step.harmonic_amplitudes.value, dtype=float)
+        share = np.zeros(3)   # relative error on harmonics 1 and 2 (index 1, 2)
+        for k, a_k in enumerate(amps, start=1):
+            for sideband in (abs(k * f - rate), k * f + rate):
+                for j in (1, 2):
+                    if j <= amps.size and abs(sideband - j * f) < 1.0 / span:
+                        share[j] += a_k * k * dphi / 2 / amps[j - 1]
+        u_r = step.radius_m.value * share[1]
+        u_f = float(np.sqrt(2) * dphi / (2 * np.pi * span))
+        u_radius = float(np.hypot(step.radius_m.uncertainty, u_r))
+        u_freq = float(np.hypot(step.frequency_hz.uncertainty, u_f))
+        common = float(np.hypot(step.radius_play_uncertainty_m, u_r))
+        radius_dof = dof_with_play(u_radius, common, step.radius_dof)
+        frequency_dof = dof_with_play(u_freq, u_f, step.frequency_dof)
+        steps[i] = replace(step, radius_m=Estimate(step.radius_m.value, u_radius, "m"),
+                           ratio=Estimate(step.ratio.value, u_radius / step.state.crank_radius, "1"),
+                           frequency_hz=Estimate(f, u_freq, "Hz"), radius_dof=radius_dof,
+                           radius_k=coverage_factor(radius_dof), frequency_dof=frequency_dof,
+                           frequency_k=coverage_factor(frequency_dof), ripple_radius_uncertainty_m=float(u_r),
+                           ripple_frequency_uncertainty_hz=u_f, ripple_second_harmonic_share=float(share[2]),
+                           notes=[*step.notes, f"{step.where}: the faster steps show a speed ripple of "
+                                  f"{100 * eps:.2g} % at {rate:.3g} Hz, which this step cannot follow (it turns "
+                                  f"{'slower' if f <= rate else 'hardly faster'}): its sidebands' share is in u"])
+
+
 def _would_show(steady: StepResult, wandering: StepResult) -> bool:
     """Whether ``steady`` would have been found unsteady had its speed rippled as ``wandering``'s did (the same
     relative spread at the same rate): the rate below its crank's, and the ripple's sidebands, A_1 times half
@@ -1319,6 +1376,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         raise DataError("no steps were captured", "capture at least two motor speed steps")
     pool_noise(steps)
     check_neighbours(steps)
+    budget_unfollowed_ripple(steps)
     compliance = check_compliance(steps)
     rolloff = mark_rolloff(steps)
     judge_clearance(steps, crank_radius, clearance)
