@@ -411,3 +411,75 @@ def test_the_verdict_judges_the_mean_radius_at_the_k_it_states():
     assert verdict_for(radius, RADIUS, 0.0, 3, k=2.0)[0] == "does not hold"
     verdict, reason = verdict_for(radius, RADIUS, 0.0, 3, k=2.3)
     assert verdict == "holds" and "(k = 2.30)" in reason
+
+
+def _flexing_crank_steps(resonance_hz, speeds=(4.0, 7.0, 10.0), seconds=1.0, seed=0):
+    """Steps of a crank (radius RADIUS, rod ROD) seen through a spring: harmonic n of the exact law amplified
+    by 1 / (1 - (n f / resonance)^2), written from the position's Fourier series over the crank angle."""
+    from accelrig.procedures.slider_crank.analysis import analyse_step
+
+    rng = np.random.default_rng(seed)
+    phi = np.linspace(0, 2 * np.pi, 512, endpoint=False)
+    position = np.fft.rfft(RADIUS * np.cos(phi) + np.sqrt(ROD**2 - (RADIUS * np.sin(phi)) ** 2)) / phi.size
+    steps = []
+    for i, f in enumerate(speeds):
+        t = np.arange(int(seconds * FS)) / FS
+        angle = 2 * np.pi * f * t + 0.3
+        y = np.zeros_like(t)
+        for n in range(1, 5):   # the 6th harmonic is lambda^5 small
+            gain = 1.0 / (1.0 - (n * f / resonance_hz) ** 2) if resonance_hz else 1.0
+            y += -2 * (n * 2 * np.pi * f) ** 2 * gain * np.real(position[n] * np.exp(1j * n * angle))
+        acc = np.column_stack([y, np.zeros_like(y), np.full_like(y, 9.81)]) + rng.normal(0, 0.08, (t.size, 3))
+        steps.append(analyse_step(t, acc, index=i, label=f"step {i + 1}", crank_radius=RADIUS, rod_length=ROD,
+                                  clearance=1e-4))
+    return steps
+
+
+def test_a_flexing_link_is_named_with_its_resonance_and_the_radius_corrected():
+    from accelrig.procedures.slider_crank.analysis import verify_steps
+
+    result = verify_steps(_flexing_crank_steps(150.0), RADIUS, ROD, 1e-4)
+    found = result.details["compliance"]
+    assert found is not None and abs(found["resonance_hz"] - 150.0) < 3 * found["resonance_uncertainty_hz"]
+    assert any("flexes" in w and "resonance near" in w for w in result.warnings)
+    assert not any("backlash" in w for w in result.warnings)
+    for s in result.details["steps"]:   # uncorrected, the 10 Hz step is 0.44 % (28 um) high
+        assert abs(s["radius_m"]["value"] - RADIUS) < 3 * s["radius_m"]["uncertainty"]
+    assert result.details["verdict"] == "holds"
+    # a resonance near the steps: one resonance's correction is not trusted, and the refusal says why
+    with pytest.raises(CalibrationError, match="flexes.*not a crank's"):
+        verify_steps(_flexing_crank_steps(37.0), RADIUS, ROD, 1e-4)
+
+
+def test_a_ripple_only_the_fast_steps_can_show_is_not_the_motor_topping_out():
+    from types import SimpleNamespace
+
+    from accelrig.procedures.slider_crank.analysis import mark_rolloff
+    from accelrig.result import Estimate
+
+    def step(f, unsteady, spread=0.0, ripple=0.0, u_amp=0.003):
+        return SimpleNamespace(frequency_hz=Estimate(f, 1e-4, "Hz"), speed_unsteady=unsteady, speed_spread_hz=spread,
+                               speed_ripple_hz=ripple, amplitude=Estimate(RADIUS * (2 * np.pi * f) ** 2, u_amp, "m/s^2"),
+                               commanded_hz=None, motor_limited=False)
+
+    # a 1 % ripple at 5 Hz: at 3 and 4.5 Hz faster than the crank (not followed), so they look steady
+    steps = [step(3.0, False), step(4.5, False), step(6.5, True, 0.13, 5.0), step(8.5, True, 0.17, 5.0),
+             step(10.0, True, 0.2, 5.0)]
+    assert mark_rolloff(steps) is None and not any(s.motor_limited for s in steps)
+    # a motor hunting at 1.7 Hz at its top only: the steady steps below would have shown that ripple
+    steps = [step(2.5, False), step(5.0, False), step(8.0, False), step(11.0, True, 0.4, 1.7)]
+    assert mark_rolloff(steps) == pytest.approx(11.0) and steps[-1].motor_limited
+
+
+def test_a_fast_speed_ripple_is_followed_though_one_or_two_more_terms_do_not_help():
+    rng = np.random.default_rng(2)
+    t = np.arange(int(1.25 * FS)) / FS
+    f, ripple = 10.0, 0.01
+    angle = 2 * np.pi * f * t - ripple * f / 5.0 * np.cos(2 * np.pi * 5.0 * t + 0.4)   # 1 % of the speed at 5 Hz
+    position = RADIUS * np.cos(angle) + np.sqrt(ROD**2 - (RADIUS * np.sin(angle)) ** 2)
+    y = np.gradient(np.gradient(position, t), t) + rng.normal(0, 0.08, t.size)
+    motion = fit_crank_motion(t[2:-2], y[2:-2] - y[2:-2].mean(), f, 4)
+    assert motion.order > 10
+    radius, g = motion.radius_gradient()
+    u = np.sqrt(g @ (np.var(motion.residuals) * np.linalg.pinv(motion.jacobian.T @ motion.jacobian)) @ g)
+    assert abs(radius - RADIUS) < 4 * u

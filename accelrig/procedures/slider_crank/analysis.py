@@ -25,7 +25,10 @@ at a series of motor speed steps.  Per step:
    segments disagrees beyond their uncertainties), falls short of the
    commanded speed, or does not rise above the step before marks the roll-off.
 
-Over all steps: the frequency response (measured first harmonic against
+Over all steps: a link or mounting that flexes (the 2nd harmonic growing
+with speed against the 1st, where a rigid crank keeps both fixed: named with
+its resonance, each radius corrected to zero speed, check_compliance), the
+frequency response (measured first harmonic against
 r omega^2 and its clearance bounds, paper Fig. 7), the radius per step
 against the caliper radius +- clearance (Fig. 8) and their weighted mean,
 and the verdict: does the static calibration hold under motion?
@@ -36,7 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
@@ -87,6 +90,24 @@ SPEED_SPREAD = 0.005
 LOF_WARN = 1.15
 LOF_REFUSE = 4.0
 MIN_STEP_CYCLES = 2.0
+# A steady step counts against a faster step's wandering being the drive's own (mark_rolloff) when the same
+# ripple would have left sidebands this many times its u(A_1) (the speed-profile F test at 1e-3 over a dozen
+# terms needs about that).
+RIPPLE_VISIBLE = 5.0
+# A link or a mounting with a spring amplifies the crank's harmonic n by 1 / (1 - n^2 c omega^2), c = 1 / omega_r^2:
+# the displacement's 2nd harmonic grows against the 1st with speed, where a rigid crank keeps both fixed by its
+# geometry (play adds odd harmonics only).  The trend is judged over the steps at this false-alarm rate
+# (check_compliance); beyond COMPLIANCE_REFUSE (the 2nd harmonic amplified by a third: a resonance below 4 times the
+# fastest step) the one-resonance correction is not trusted and the verification is refused.
+COMPLIANCE_ALPHA = 1e-3
+COMPLIANCE_REFUSE = 0.25
+# A phase-locked event at the dead centres of a flexing link whose lost motion (play_m) is within this many times
+# what its ring's peak makes of the link's spring (knock_peak c) is the link ringing, not play (_name_link_ringing):
+# the held-out 300 Hz link 1.3-3 (median 2.5), 0.1 mm of play in the project's simulator about 6.
+RING_PLAY = 4.0
+# A dead-centre event counts as mirrored (odd harmonics only, _mirrored) when the power of its part that repeats
+# half a turn on is below this share of the power of its part that flips.
+MIRROR_SHARE = 0.1
 # A step's radius is flagged outside the caliper radius +- clearance by a test at this family-wise level
 # over the steps judged (Sidak: each step at 1 - (1 - alpha)^(1/m)): with five sound steps at k = 2 one
 # falls outside by chance in a fifth of runs, a warning an operator would learn to ignore.
@@ -159,6 +180,17 @@ class StepResult:
     speed_unsteady: bool
     speed_spread_hz: float
     motor_limited: bool = False
+    speed_ripple_hz: float = 0.0   # rate of the speed profile's swings (half its sign changes per second)
+    # a compliant link or mounting (check_compliance): the radius's correction factor 1 - c omega^2 applied and
+    # its share of u(radius) (common to all steps); a dead-centre event that is the link ringing, not play
+    compliance_factor: float = 1.0
+    radius_compliance_uncertainty_m: float = 0.0
+    link_ringing: bool = False
+    # a speed ripple the faster steps followed but this step could not (budget_unfollowed_ripple): its sidebands'
+    # share of u(radius), u(speed) and of the 2nd harmonic (relative), added as Type B terms
+    ripple_radius_uncertainty_m: float = 0.0
+    ripple_frequency_uncertainty_hz: float = 0.0
+    ripple_second_harmonic_share: float = 0.0
     axis: list[float] = field(default_factory=list)
     axis_angles_deg: list[float] = field(default_factory=list)
     axis_angle_uncertainty_deg: float = 0.0
@@ -216,6 +248,12 @@ class StepResult:
             "take_up_deg": self.take_up_deg,
             "speed_unsteady": self.speed_unsteady,
             "speed_spread_hz": self.speed_spread_hz,
+            "speed_ripple_hz": self.speed_ripple_hz,
+            "compliance_factor": self.compliance_factor,
+            "radius_compliance_uncertainty_m": self.radius_compliance_uncertainty_m,
+            "link_ringing": self.link_ringing,
+            "ripple_radius_uncertainty_m": self.ripple_radius_uncertainty_m,
+            "ripple_frequency_uncertainty_hz": self.ripple_frequency_uncertainty_hz,
             "motor_limited": self.motor_limited,
             "axis": self.axis,
             "axis_angles_deg": self.axis_angles_deg,
@@ -615,7 +653,7 @@ def analyse_step(
                     fft_peak_hz=fft_peak_frequency(t, y), axis=axis, angle_sd=angle_sd, noise_sd=noise_sd,
                     backlash=backlash, knock_peak=knock_peak, knock_p=knock_p, take_up=take_up,
                     crank_radius=crank_radius,
-                    rod_length=rod_length, clearance=clearance)
+                    rod_length=rod_length, clearance=clearance, times=t)
     return step_result(state, checks)
 
 
@@ -642,6 +680,7 @@ class StepFit:
     crank_radius: float
     rod_length: float
     clearance: float
+    times: np.ndarray | None = field(default=None, repr=False)   # the step's sample times, s (for _mirrored)
 
 
 def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
@@ -658,6 +697,8 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
     omega2 = (2 * np.pi * f) ** 2
     speed_hz = motion.speed(np.linspace(-1.0, 1.0, 201)) / (2 * np.pi)
     spread = float(np.ptp(speed_hz))
+    swings = np.count_nonzero(np.diff(np.sign(speed_hz - speed_hz.mean())) != 0)
+    ripple_hz = float(max(swings, 1) / (2 * 2 * motion.half_span))
     unsteady = bool(motion.order > 1 and spread > SPEED_SPREAD * f)
     if motion.order == 1:
         amp1, u_amp1 = float(fit.amplitude[0]), float(fit.amplitude_uncertainty[0]) * checks.inflation
@@ -738,6 +779,7 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
         take_up_deg=float(np.degrees(state.take_up)),
         speed_unsteady=unsteady,
         speed_spread_hz=spread,
+        speed_ripple_hz=ripple_hz,
         motor_limited=False,  # judged over all steps (mark_rolloff): shortfall, or hunting at the top
         axis=axis.tolist(),
         axis_angles_deg=angles.tolist(),
@@ -905,6 +947,187 @@ def check_neighbours(steps: list[StepResult]) -> None:
             )
 
 
+def _displacement_harmonics(step: StepResult) -> tuple[np.ndarray, np.ndarray]:
+    """The displacement's 1st and 2nd harmonics (hypot(a_k, b_k), m) of the crank-motion fit and their covariance
+    (the step's, with the play's share of u(radius) on the first)."""
+    motion = step.state.motion
+    grads, values = [], []
+    for k in (1, 2):
+        a, b = motion.linear[2 * k - 1], motion.linear[2 * k]
+        d = float(np.hypot(a, b))
+        g = np.zeros(motion.n_parameters)
+        g[motion.order + 2 * k - 1], g[motion.order + 2 * k] = a / d, b / d
+        grads.append(g)
+        values.append(d)
+    g = np.array(grads)
+    cov = g @ step.checks.covariance @ g.T
+    cov[0, 0] += step.radius_play_uncertainty_m**2
+    cov[1, 1] += (step.ripple_second_harmonic_share * values[1]) ** 2
+    return np.array(values), cov
+
+
+def _mirrored(step: StepResult) -> bool:
+    """Whether a step's phase-locked event is the same, mirrored, at both dead centres: then it holds odd harmonics
+    only (nearly) and leaves the even ones, which check_compliance reads, alone.  The crank-angle fold of the sine
+    fit's residuals is split into its part that repeats half a turn on (even harmonics) and its part that flips
+    (odd): mirrored when the first's power above the noise is below MIRROR_SHARE of the second's.  Friction
+    reversing at the two dead centres (a force step of the same size either way, ringing a compliant link) is
+    mirrored to within a few per cent; play taken up well after the dead centres (the held-out dead zone) is not
+    (the two powers alike)."""
+    fit = step.state.fit
+    if step.state.times is None or step.state.noise_sd <= 0:
+        return False
+    t, resid = step.state.times, fit.residuals
+    theta = np.mod(2 * np.pi * fit.frequency * t + float(fit.phase[0]), 2 * np.pi)
+    half = int(np.clip(resid.size / max(fit.frequency * (t[-1] - t[0]), 1e-12) // 4, 4, 2048))   # 2 samples a bin
+    idx = np.minimum((theta / (2 * np.pi) * 2 * half).astype(int), 2 * half - 1)
+    counts = np.bincount(idx, minlength=2 * half)
+    means = np.bincount(idx, weights=resid, minlength=2 * half) / np.maximum(counts, 1)
+    variance = step.state.noise_sd**2 * (1 / np.maximum(counts[:half], 1) + 1 / np.maximum(counts[half:], 1))
+    repeats = float(np.mean((means[:half] + means[half:]) ** 2 / variance)) - 1.0
+    flips = float(np.mean((means[:half] - means[half:]) ** 2 / variance)) - 1.0
+    return bool(flips > 0 and repeats < MIRROR_SHARE * flips)
+
+
+def _fit_compliance(steps: list[StepResult], judged: list[int]) -> tuple[float, float, float] | None:
+    """The steps' 1st and 2nd displacement harmonics fitted with r / (1 - c omega^2) and d / (1 - 4 c omega^2)
+    against c = 0: (c, u(c), p-value) when the likelihood ratio is significant at COMPLIANCE_ALPHA, else None."""
+    if len(judged) < 3:
+        return None
+    omega2 = np.array([(2 * np.pi * steps[i].frequency_hz.value) ** 2 for i in judged])
+    values, whiten = [], []
+    for i in judged:
+        v, cov = _displacement_harmonics(steps[i])
+        values.append(v)
+        whiten.append(np.linalg.inv(np.linalg.cholesky(cov)))
+    values = np.array(values)
+
+    def residuals(p, free=True):
+        r, d, c = p if free else (*p, 0.0)
+        model = np.column_stack([r / (1 - c * omega2), d / (1 - 4 * c * omega2)])
+        return np.concatenate([w @ (v - m) for w, v, m in zip(whiten, values, model, strict=True)])
+
+    start = values.mean(axis=0)
+    null = optimize.least_squares(lambda p: residuals(p, free=False), start, x_scale=start)
+    scale = np.array([*start, 0.1 / omega2.max()])
+    alt = optimize.least_squares(residuals, [*null.x, 0.0], x_scale=scale,
+                                 bounds=([0, 0, -1 / omega2.max()], [np.inf, np.inf, 0.9 / (4 * omega2.max())]))
+    chi_null, chi_alt = 2 * null.cost, 2 * alt.cost
+    p_value = float(stats.chi2.sf(max(chi_null - chi_alt, 0.0), 1))
+    if p_value >= COMPLIANCE_ALPHA:
+        return None
+    dof = 2 * len(judged) - 3
+    birge = max(chi_alt / dof, 1.0) if dof > 0 else 1.0
+    cov = np.linalg.pinv(alt.jac.T @ alt.jac) * birge
+    return float(alt.x[2]), float(np.sqrt(cov[2, 2])), p_value
+
+
+def check_compliance(steps: list[StepResult]) -> dict | None:
+    """A link or a slider mounting that flexes: the harmonics grow with speed beyond the rigid crank's law.
+
+    A rigid crank's displacement harmonics are fixed by its geometry (r cos phi exactly, and the 2nd about
+    r lambda / 4) at every speed; play adds odd harmonics only.  A spring between the crank and the sensor
+    (the rod, the pin, the slider's mounting) with its resonance well above the crank turns amplifies harmonic n
+    by 1 / (1 - n^2 c omega^2), c = 1 / omega_r^2: the radius from the motion rises as (f / f_r)^2 and the 2nd
+    harmonic four times as fast.  Fitted over the steps (r, d_2 and c, each step's two harmonics with their
+    covariance) against c = 0: when the likelihood ratio is significant at COMPLIANCE_ALPHA the resonance is
+    named and each step's radius is corrected to zero speed, r (1 - c omega^2), its u carrying the correction's
+    (common to all steps).  A sensor whose response rises with frequency looks the same: the warning says so.
+    A trend the other way (harmonics falling with speed: a response that rolls off) is not corrected: u(radius)
+    takes the bias it implies.  Beyond COMPLIANCE_REFUSE the crank law with one resonance is not trusted: refused.
+    Returns what was found (for the JSON and the warning), None when nothing was.
+    """
+    # a step whose dead-centre event differs between the two dead centres carries even harmonics of its own
+    judged = [i for i, s in enumerate(steps) if s.state is not None and s.checks is not None
+              and s.state.motion.harmonics >= 2 and (not s.backlash or _mirrored(s))]
+    fitted = _fit_compliance(steps, judged)
+    if fitted is not None and fitted[0] > 0:
+        # steps whose dead-centre event is real play (more lost motion than the link's spring makes of its ring,
+        # _is_link_ringing) carry that play's own low harmonics: judged again without them
+        played = [i for i in judged if steps[i].backlash and not _is_link_ringing(steps, fitted[0])]
+        if played:
+            judged = [i for i in judged if i not in played]
+            fitted = _fit_compliance(steps, judged)
+    if fitted is None:
+        return None
+    c, u_c, p_value = fitted
+    omega2 = np.array([(2 * np.pi * steps[i].frequency_hz.value) ** 2 for i in judged])
+    top = float(omega2.max())
+    found = {"c_s2": c, "c_uncertainty_s2": u_c, "p_value": p_value, "steps": len(judged),
+             "second_harmonic_gain_at_top": float(1 / (1 - 4 * c * top))}
+    if c > 0:
+        f_r = 1 / (2 * np.pi * np.sqrt(c))
+        u_fr = 0.5 * f_r * u_c / c
+        found.update(resonance_hz=f_r, resonance_uncertainty_hz=u_fr)
+        what = (f"the slider's harmonics grow with speed beyond the rigid crank's law (its 2nd harmonic "
+                f"{100 * (found['second_harmonic_gain_at_top'] - 1):.2g} % above the 1st's share at "
+                f"{np.sqrt(top) / (2 * np.pi):.3g} Hz, p = {p_value:.1g}): the link or the slider's mounting flexes, "
+                f"as a resonance near {f_r:.0f} +- {u_fr:.0f} Hz would (or the sensor's response rises with frequency)")
+        if 4 * c * top > COMPLIANCE_REFUSE:
+            raise CalibrationError(
+                f"{what}; that close to the fastest step the slider's motion is not a crank's with one resonance "
+                "added, and the radius cannot be corrected", "stiffen the link and the sensor's mounting, or "
+                "verify with slower steps only")
+        found["warning"] = (f"{what}; each step's radius is corrected to zero speed, r (1 - (f / f_r)^2), "
+                            "with the correction's uncertainty in u(radius)")
+    else:
+        found["warning"] = (f"the slider's harmonics shrink with speed against the rigid crank's law (its 2nd "
+                            f"harmonic {100 * (1 - found['second_harmonic_gain_at_top']):.2g} % below the 1st's share "
+                            f"at {np.sqrt(top) / (2 * np.pi):.3g} Hz, p = {p_value:.1g}): the sensor's response falls "
+                            "with frequency, or the stand damps its motion; u(radius) includes the bias that implies")
+    for k, i in enumerate(judged):
+        step = steps[i]
+        w2 = omega2[k]
+        radius, u_radius = step.radius_m.value, step.radius_m.uncertainty
+        u_stat = float(np.sqrt(max(u_radius**2 - step.radius_play_uncertainty_m**2, 0.0)))
+        if c > 0:
+            factor = 1 - c * w2
+            u_corr = radius * w2 * u_c
+            value = radius * factor
+        else:
+            factor = 1.0
+            u_corr = radius * w2 * np.hypot(c, u_c)
+            value = radius
+        u_new = float(np.sqrt((u_stat * factor) ** 2 + step.radius_play_uncertainty_m**2 + u_corr**2))
+        u_common = float(np.hypot(step.radius_play_uncertainty_m, u_corr))
+        radius_dof = dof_with_play(u_new, u_common, step.radius_dof if np.isfinite(step.radius_dof) else np.inf)
+        steps[i] = replace(step, radius_m=Estimate(float(value), u_new, "m"),
+                           ratio=Estimate(float(value / step.state.crank_radius), u_new / step.state.crank_radius, "1"),
+                           compliance_factor=float(factor), radius_compliance_uncertainty_m=float(u_corr),
+                           radius_dof=radius_dof, radius_k=coverage_factor(radius_dof))
+    if c > 0:
+        _name_link_ringing(steps, c)
+    return found
+
+
+def _is_link_ringing(steps: list[StepResult], c: float) -> bool:
+    """Whether the steps' events at the dead centres are a flexing link's own lost motion, not play.
+
+    Where the rail's friction reverses, at the dead centres, a spring link takes a force step 2F: it rings, and
+    the slider's position shifts by 2F / k = (2F / m) c, c = 1 / omega_r^2 from check_compliance.  The ring's
+    peak is about 2F / m (up to twice that as it overshoots), so the shift is about knock_peak c.  Play of b
+    shifts it by b, much more than its knock's peak times c.  So when the play read from the odd harmonics
+    (``play_m``) is within RING_PLAY times knock_peak c (a mean over the steps flagged at the dead centres: one
+    cause for all), the event is the link ringing.
+    """
+    flagged = [s for s in steps if s.backlash and s.take_up_deg == 0 and s.knock_peak > 0]
+    if not flagged:
+        return False
+    # weighted by A_1^2 (omega^4): the play read from a displacement harmonic is that much more precise at speed
+    # (at 3 Hz a 300 Hz link's lost motion read 4-20 times its spring's share, at 8.5-10 Hz 1-3)
+    ratios = np.array([s.play_m / (s.knock_peak * c) for s in flagged])
+    weights = np.array([s.amplitude.value for s in flagged]) ** 2
+    return bool(float(np.sum(weights * ratios) / np.sum(weights)) < RING_PLAY)
+
+
+def _name_link_ringing(steps: list[StepResult], c: float) -> None:
+    """Steps flagged with play at the dead centres whose event is the flexing link ringing (_is_link_ringing)."""
+    if _is_link_ringing(steps, c):
+        for i, s in enumerate(steps):
+            if s.backlash and s.take_up_deg == 0:
+                steps[i] = replace(s, backlash=False, link_ringing=True)
+
+
 def mark_rolloff(steps: list[StepResult]) -> float | None:
     """Flag steps beyond the motor's limit; return the roll-off (Hz), None if the motor followed every step.
 
@@ -925,8 +1148,13 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     top = len(by_speed)
     while top > 0 and by_speed[top - 1].speed_unsteady:
         top -= 1
-    if sum(1 for s in by_speed[:top] if not s.speed_unsteady) >= 2:
-        for step in by_speed[top:]:
+    # a steady step below speaks against a ripple only if it would have shown it: a drive's ripple of one
+    # relative size at one rate moves the angle by spread / (2 f_ripple), in proportion to the speed, so the
+    # slow steps' sidebands are the smallest, and a ripple faster than their crank is not followed at all
+    # (motion_fit); counted without this, a 1 % wobble at 5 Hz seen only from 8 Hz up "topped out" the motor
+    hunting = by_speed[top:]
+    if sum(1 for s in by_speed[:top] if not s.speed_unsteady and all(_would_show(s, h) for h in hunting)) >= 2:
+        for step in hunting:
             step.motor_limited = True
     ratios = [s.frequency_hz.value / s.commanded_hz for s in steps if s.commanded_hz]
     best_ratio = max(ratios) if ratios else None
@@ -942,6 +1170,67 @@ def mark_rolloff(steps: list[StepResult]) -> float | None:
     if not any(s.motor_limited for s in steps):
         return None
     return float(max(s.frequency_hz.value for s in steps))
+
+
+def budget_unfollowed_ripple(steps: list[StepResult]) -> None:
+    """A speed ripple the faster steps followed, at steps that could not follow or show it: a Type B term.
+
+    A relative ripple eps (peak to peak) at f_m moves the crank angle by dphi = f eps / (2 f_m), in proportion to
+    the speed, and puts sidebands of A_k k dphi / 2 at k f +- f_m around each harmonic.  A step turning slower
+    than the ripple (or within a resolution bin of it) cannot follow it (motion_fit), and a sideband within a
+    resolution bin (1 / record) of a fitted harmonic j f is taken for that harmonic: a 1 % ripple at 5 Hz put
+    the 2nd harmonic's lower sideband (4 Hz) on the 1st of a 4.5 Hz step, 0.2 % of the radius (14 um, 5 u).
+    The ripple is the largest relative one the followed steps show; a steady step that would have shown it
+    (_would_show) keeps its u.  Each such step's radius takes the sum of the sidebands on its 1st harmonic
+    (relative), its 2nd harmonic's share likewise (check_compliance reads it), and its mean speed the angle's
+    swing between the record's ends, sqrt(2) dphi / (2 pi T).
+    """
+    followed = [s for s in steps if s.speed_unsteady and s.speed_ripple_hz > 0]
+    if not followed:
+        return
+    source = max(followed, key=lambda s: s.speed_spread_hz / s.frequency_hz.value)
+    eps, rate = source.speed_spread_hz / source.frequency_hz.value, source.speed_ripple_hz
+    for i, step in enumerate(steps):
+        if step.speed_unsteady or step.state is None or _would_show(step, source):
+            continue
+        f = step.frequency_hz.value
+        span = step.n_samples / step.state.rate
+        dphi = f * eps / (2 * rate)
+        amps = np.asarray(step.harmonic_amplitudes.value, dtype=float)
+        share = np.zeros(3)   # relative error on harmonics 1 and 2 (index 1, 2)
+        for k, a_k in enumerate(amps, start=1):
+            for sideband in (abs(k * f - rate), k * f + rate):
+                for j in (1, 2):
+                    if j <= amps.size and abs(sideband - j * f) < 1.0 / span:
+                        share[j] += a_k * k * dphi / 2 / amps[j - 1]
+        u_r = step.radius_m.value * share[1]
+        u_f = float(np.sqrt(2) * dphi / (2 * np.pi * span))
+        u_radius = float(np.hypot(step.radius_m.uncertainty, u_r))
+        u_freq = float(np.hypot(step.frequency_hz.uncertainty, u_f))
+        common = float(np.hypot(step.radius_play_uncertainty_m, u_r))
+        radius_dof = dof_with_play(u_radius, common, step.radius_dof)
+        frequency_dof = dof_with_play(u_freq, u_f, step.frequency_dof)
+        steps[i] = replace(step, radius_m=Estimate(step.radius_m.value, u_radius, "m"),
+                           ratio=Estimate(step.ratio.value, u_radius / step.state.crank_radius, "1"),
+                           frequency_hz=Estimate(f, u_freq, "Hz"), radius_dof=radius_dof,
+                           radius_k=coverage_factor(radius_dof), frequency_dof=frequency_dof,
+                           frequency_k=coverage_factor(frequency_dof), ripple_radius_uncertainty_m=float(u_r),
+                           ripple_frequency_uncertainty_hz=u_f, ripple_second_harmonic_share=float(share[2]),
+                           notes=[*step.notes, f"{step.where}: the faster steps show a speed ripple of "
+                                  f"{100 * eps:.2g} % at {rate:.3g} Hz, which this step cannot follow (it turns "
+                                  f"{'slower' if f <= rate else 'hardly faster'}): its sidebands' share is in u"])
+
+
+def _would_show(steady: StepResult, wandering: StepResult) -> bool:
+    """Whether ``steady`` would have been found unsteady had its speed rippled as ``wandering``'s did (the same
+    relative spread at the same rate): the rate below its crank's, and the ripple's sidebands, A_1 times half
+    the angle's swing, at least RIPPLE_VISIBLE times the step's u(A_1)."""
+    rate = wandering.speed_ripple_hz
+    if not (rate > 0 and rate < steady.frequency_hz.value):
+        return False
+    spread = wandering.speed_spread_hz / wandering.frequency_hz.value * steady.frequency_hz.value
+    sideband = steady.amplitude.value * spread / (2 * rate) / 2
+    return bool(sideband >= RIPPLE_VISIBLE * steady.amplitude.uncertainty)
 
 
 def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: float) -> None:
@@ -970,7 +1259,8 @@ def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[
     if not used:
         return Estimate(float("nan"), float("nan"), "m"), float("nan"), 0, [], float("inf")
     r = np.array([s.radius_m.value for s in used])
-    u_play = np.array([s.radius_play_uncertainty_m for s in used])
+    # the play's and the compliance correction's shares are the same in every step: added once, not averaged down
+    u_play = np.hypot([s.radius_play_uncertainty_m for s in used], [s.radius_compliance_uncertainty_m for s in used])
     u = np.sqrt(np.maximum(np.array([s.radius_m.uncertainty for s in used]) ** 2 - u_play**2, 0.0))
     w = 1 / u**2
     mean = float(np.sum(w * r) / np.sum(w))
@@ -1042,6 +1332,11 @@ def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
                 f"outside the caliper radius +- clearance (k = {s.clearance_k:.2f}: a {100 * CLEARANCE_ALPHA:g} % "
                 "test over all steps judged)"
             )
+        if s.link_ringing:
+            warnings.append(f"{s.where}: a phase-locked ring at the dead centres of up to {s.knock_peak:.2g} m/s^2: the "
+                            "rail's friction reversing there rings the flexing link, not play (the slider's lost motion "
+                            f"there, {s.play_m * 1e6:.2g} um, is what the link's spring makes of that ring; play would "
+                            "shift it more); its share is in u(radius)")
         if s.backlash:
             where = ("at the dead centres" if s.take_up_deg == 0 else
                      f"{s.take_up_deg:.0f} deg after each dead centre, where the force through the link reverses")
@@ -1087,6 +1382,8 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         raise DataError("no steps were captured", "capture at least two motor speed steps")
     pool_noise(steps)
     check_neighbours(steps)
+    budget_unfollowed_ripple(steps)
+    compliance = check_compliance(steps)
     rolloff = mark_rolloff(steps)
     judge_clearance(steps, crank_radius, clearance)
     radius, chi2, dof, used, radius_dof = combine_radius(steps)
@@ -1103,11 +1400,12 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         quality={"radius_chi2": chi2, "radius_dof": dof, "n_steps": len(steps), "radius_k": radius_k},
         arrays=frequency_response(steps),
         settings=geometry,
-        warnings=step_warnings(steps, rolloff),
+        warnings=([compliance["warning"]] if compliance else []) + step_warnings(steps, rolloff),
         details={**geometry, "steps": [s.to_json_dict() for s in steps], "radius_m": radius.to_dict(),
                  "radius_chi2": chi2, "radius_dof": dof, "radius_nu_eff": _plain_dof(radius_dof), "radius_k": radius_k,
                  # what a certificate states U of the radius with (report.html): the same k the verdict used
                  "coverage_factor": radius_k, "coverage_dof": _plain_dof(radius_dof),
                  "used_steps": used, "rolloff_hz": rolloff,
+                 "compliance": None if compliance is None else {k: v for k, v in compliance.items() if k != "warning"},
                  "verdict": verdict, "verdict_reason": reason},
     )

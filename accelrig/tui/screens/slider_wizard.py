@@ -132,7 +132,7 @@ class VerificationScreen(Screen):
         table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k", "flags")
         for s in self.verification.details["steps"]:
             flags = [name for name, on_ in (("motor-limited", s["motor_limited"]), ("backlash", s["backlash"]),
-                                            ("unsteady", s["speed_unsteady"]),
+                                            ("link rings", s["link_ringing"]), ("unsteady", s["speed_unsteady"]),
                                             ("outside", not s["within_clearance"])) if on_]
             table.add_row(s["label"], f"{s['frequency_hz']['value']:.3f}", f"{s['amplitude']['value']:.4g}",
                           f"{s['amplitude']['uncertainty']:.2g}", f"{s['model_amplitude']:.4g}",
