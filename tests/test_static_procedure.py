@@ -47,7 +47,7 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     messages = [e.message for e in events]
     # the first thing said is what to do; then what the detector sees
     assert kinds[0] == "start" and events[0].kind == "instruction" and messages[0].startswith("put the sensor down")
-    assert kinds[1] == "hold_still" and messages[1] == "hold still: +z down"
+    assert kinds[1] == "hold_still" and messages[1] == "+z is down: hold still"
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
     assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
@@ -67,7 +67,7 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     assert again[0].startswith("all six faces captured: now put +z, +x and +y down")
     assert again[-1].startswith("drift check: now put +y down once more")   # -z counted for z, +x for x
     assert proc.faces["again_done"] == ["-z", "+x"] and proc.faces["again_missing"] == ["+y"]
-    assert "hold still: -z down again (the drift check)" in [e.message for e in events]
+    assert "-z is down again (the drift check): hold still" in [e.message for e in events]
     assert proc.done and not proc.complete
     result = proc.result()
     assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "z"]
@@ -91,7 +91,7 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     proc = StaticProcedure(rec.rate)
     events = proc.feed(rec) + proc.finish()
     assert events[-1].data["kind"] == "complete" and proc.complete
-    assert "hold still: +y down a third time (the drift check)" in [e.message for e in events]
+    assert "+y is down a third time (the drift check): hold still" in [e.message for e in events]
     assert proc.faces["again_round"] is None and proc.faces["third_done"] == ["+z", "+x", "+y"]
     result = proc.result()
     assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "y", "z"]

@@ -365,14 +365,14 @@ class PoseDetector:
                                          "multi-position model; for six faces put one face flat on the table", now))
             elif not self.missing_faces and face in self.again_missing:
                 which = "again" if self.again_round == 1 else "a third time"
-                events.append(pose_event("hold_still", f"hold still: {face} down {which} (the drift check)", now,
+                events.append(pose_event("hold_still", f"{face} is down {which} (the drift check): hold still", now,
                                          face))
             elif not self.missing_faces and self.again_round == 1 and face[1] not in self.axes_again:
-                events.append(pose_event("hold_still", f"hold still: {face} down again (the drift check)", now, face))
+                events.append(pose_event("hold_still", f"{face} is down again (the drift check): hold still", now, face))
             elif face in self.faces_done:
                 events.append(pose_event("already_done", f"{face} already done (holding it adds data)", now, face))
             else:
-                events.append(pose_event("hold_still", f"hold still: {face} down", now, face))
+                events.append(pose_event("hold_still", f"{face} is down: hold still", now, face))
         if (self._seg_announced and not self._seg_captured
                 and self._clean_duration() >= self.hold):
             pose, problem = self._settle(self._current_pose(end_clip=0))
