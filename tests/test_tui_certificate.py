@@ -86,6 +86,23 @@ async def type_path(pilot, path):
 
 
 @async_test
+async def test_help_on_the_results_says_how_to_read_them_and_lists_their_keys(static_run, tmp_path):
+    from accelrig.tui.screens.help import HelpScreen
+
+    result, rec = static_run
+    app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(100, 30)) as pilot:
+        await open_results(pilot, result, rec)
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        intro = str(app.screen.query_one("#help-intro").render())
+        keys = str(app.screen.query_one("#help-keys").render())
+        assert "Results of the" in intro and "standard uncertainty (k = 1)" in intro and "warnings" in intro
+        assert "Connect a device" not in intro   # not the live screen's guide
+        assert "Certificate" in keys and "Save profile" in keys
+
+
+@async_test
 async def test_c_writes_the_html_certificate_and_asks_before_overwriting(static_run, tmp_path, monkeypatch):
     monkeypatch.setattr("accelrig.report.certificate.find_browser", lambda: None)
     result, rec = static_run

@@ -311,6 +311,22 @@ class ResultsScreen(Screen):
         except AccelrigError as exc:
             self.set_status(f"[red]no profile can be made:[/] {exc}")
 
+    def help_text(self) -> str:
+        """What ? shows on the results: how to read them, then this screen's keys (listed by the help)."""
+        from rich.markup import escape
+
+        return (f"[b]Results of the {escape(self.result.procedure)}[/b]\n"
+                "Read the warnings at the top first: each says what the data showed that the model does not hold, "
+                "how large, and whether u already includes it.\n"
+                "Correction: what the profile applies to raw readings, a = C (raw - b).  Parameters: what the method "
+                "estimated.  Every u is a standard uncertainty (k = 1); a coverage factor, where one is stated, "
+                "is named next to it.\n"
+                "The figure below the tables shows the fit against the data (n for the next one); the quality "
+                "figures after it are the checks that were made (noise, lack of fit, drift) and what u is made "
+                "of.\n"
+                "s saves the device profile to the store, c writes a certificate, f (when the device can take "
+                "it) flashes the profile to it; escape goes back to the wizard, where the captured data are kept.")
+
     def quality_text(self) -> str:
         """Scalar and short numeric quality figures; tables (lists of rows) are shown separately."""
         parts = []
