@@ -218,6 +218,23 @@ def test_rotary_a_clock_that_moves_keeps_its_mean_rate_with_a_u_that_holds_the_r
         assert warming.sensitivity[axis].value == pytest.approx(steady.sensitivity[axis].value, rel=1e-3)
 
 
+def test_rotary_clock_wander_from_the_fewest_stretches_the_phase_test_takes():
+    """A short record gives the phase test only 4 stretches: the smoothing still fits (degree 2), and a
+    rate moving linearly is found at both ends."""
+    from accelrig.procedures.rotary.bench import clock_wander
+
+    nu, n = 0.003, 4000.0
+    centre = np.array([500.0, 1500.0, 2500.0, 3500.0])
+    e = 2e-4   # the rate moves from -e to +e over the record: phase deviation -pi nu e (c - n/2)^2 / (n/2), less its line
+    deviation = -np.pi * nu * e * (centre - n / 2) ** 2 / (n / 2)
+    deviation -= np.polyval(np.polyfit(centre, deviation, 1), centre)
+    wander = {"p_value": 1e-9, "deviation_rad": deviation.tolist(), "uncertainty_rad": [1e-6] * 4,
+              "centre": centre.tolist(), "span": [0.0, n]}
+    moved = clock_wander(wander, nu)
+    assert moved["degree"] == 2
+    assert moved["start_relative"] == pytest.approx(-e, rel=0.01) and moved["end_relative"] == pytest.approx(e, rel=0.01)
+
+
 def test_rotary_gaps_from_the_gap_list_are_placed_and_the_sensitivity_holds():
     rec, enc, truth = rotary_run(2)
     test = analyse_test(lose(rec, gap_list=True), enc, "x", "y", NOMINAL, setup=SETUP)

@@ -613,7 +613,7 @@ def clock_wander(wander: dict, nu: float) -> dict | None:
     half = (last - first) / 2.0
     x = (centre - first) / half - 1.0
     k = deviation.size
-    for degree in range(2, min(WANDER_DEGREE, k - 3) + 1):
+    for degree in range(2, min(WANDER_DEGREE, k - 2) + 1):   # k >= 4 stretches: degree 2 always fits
         design = np.polynomial.legendre.legvander(x, degree) / sd[:, None]
         coef, *_ = np.linalg.lstsq(design, deviation / sd, rcond=None)
         chi2 = float(np.sum((design @ coef - deviation / sd) ** 2))
