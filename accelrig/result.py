@@ -24,6 +24,12 @@ class Estimate:
     def to_dict(self) -> dict:
         return {"value": to_plain(self.value), "uncertainty": to_plain(self.uncertainty), "unit": self.unit}
 
+    def for_display(self) -> tuple[float | list[float], float | list[float], str]:
+        """(value, uncertainty, unit) as a person reads them: angles in degrees (estimated in radians)."""
+        if self.unit == "rad":
+            return (to_plain(np.degrees(self.value)), to_plain(np.degrees(self.uncertainty)), "deg")
+        return self.value, self.uncertainty, self.unit
+
 
 @dataclass
 class Correction:
@@ -107,6 +113,9 @@ class CalibrationResult:
     warnings    things the operator should know that did not stop the calibration.
     details     procedure-specific tables as plain data (per-step rows, an uncertainty budget, a verdict),
                 for reports and JSON.
+    parameter_meaning  what the parameters are, in one sentence: the procedures estimate in different
+                forms (a static fit's gain and offset correct the reading; the wheel's are the sensor's own,
+                the reading's side), so every display names its form next to the canonical correction.
     """
 
     procedure: str
@@ -121,6 +130,7 @@ class CalibrationResult:
     settings: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     details: dict = field(default_factory=dict)
+    parameter_meaning: str = ""
 
     def with_local_gravity(self, gravity) -> CalibrationResult:
         """Record the local gravity used (``accelrig.units.LocalGravity``: g, u(g), where it came from) and put
@@ -131,8 +141,10 @@ class CalibrationResult:
         self.settings.update(gravity.to_dict())
         if gravity.u:
             note = f"local gravity u(g) {gravity.u:.2g} m/s^2 ({gravity.u / gravity.value:.1e} of the gains)"
-            source = self.quality.get("uncertainty_source")
-            self.quality["uncertainty_source"] = f"{source}; + {note}" if source else f"+ {note}"
+            # appended to what the procedure says u holds, under the key it uses (the wheel's is "uncertainty")
+            key = "uncertainty" if "uncertainty" in self.quality else "uncertainty_source"
+            source = self.quality.get(key)
+            self.quality[key] = f"{source}; + {note}" if source else f"+ {note}"
         return self
 
     def to_json_dict(self, include_arrays: bool = False) -> dict:
@@ -142,6 +154,7 @@ class CalibrationResult:
             "model": self.model,
             "correction": self.correction.to_dict() if self.correction is not None else None,
             "parameters": {k: v.to_dict() for k, v in self.parameters.items()},
+            "parameter_meaning": self.parameter_meaning,
             "residual_rms": to_plain(self.quality.get("residual_rms")),
             "quality": {k: to_plain(v) for k, v in self.quality.items()},
             "settings": {k: to_plain(v) for k, v in self.settings.items()},

@@ -1,6 +1,8 @@
 """The static wizard end to end on a simulated rig, keyboard only: the saved profile matches the truth."""
 
 
+from pathlib import Path
+
 import numpy as np
 
 from accelrig.profiles import load_profile  # noqa: E402
@@ -36,7 +38,8 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         await pilot.press("k")
         await pilot.press("enter")  # the first wizard: static
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
-        assert app.screen.field("g").placeholder == "9.80665"
+        assert app.screen.field("g").placeholder == "9.80665"   # a blank field takes the default shown
+        assert app.screen.field("latitude").placeholder == "e.g. 48.1"   # an example, not a default
         await pilot.press("enter")  # the settings as they are: the defaults
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))
         wizard = app.screen_stack[-2]
@@ -130,3 +133,46 @@ async def test_a_source_that_ends_after_six_faces_computes_without_the_drift_che
         assert wizard.procedure.done and not wizard.procedure.complete and wizard.source_ended
         shown = str(app.screen.query_one("#results-warnings").render())
         assert "offset drift not checked along x, y and z" in shown
+
+
+@async_test
+async def test_results_read_their_checks_and_a_second_save_offers_the_first_file():
+    """The results say what u holds and whether the model fits in sentences, name the parameters' form, show
+    angles in degrees; a second s offers the file saved first (replaced after asking), not a new name."""
+    from textual.widgets import Input
+
+    from accelrig.acquisition.driver import driver_for
+    from accelrig.acquisition.recorder import record
+    from accelrig.procedures.static.procedure import calibrate_static
+
+    with driver_for(DEVICE) as driver:
+        recording = record(driver)
+    result = calibrate_static(recording)
+    app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        app.push_screen(ResultsScreen(result, recording, None))
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and app.screen.profile is not None)
+        results = app.screen
+        checks = str(results.query_one("#results-checks").render())
+        assert "uncertainty:" in checks and "lack of fit:" in checks and "gravity: g = 9.80665" in checks
+        assert "calibrated = G R(angle) raw + c" in str(results.query_one("#parameters-title").render())
+        table = results.query_one("#parameters")
+        angle_row = table.get_row_at(0)
+        assert angle_row[0] == "angle_x" and angle_row[3] == "deg"
+        assert abs(float(angle_row[1]) - np.degrees(result.parameters["angle_x"].value)) < 1e-4
+
+        await pilot.press("s")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        first = app.screen.query_one(Input).value
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: "profile saved" in status(app))
+        await pilot.press("s")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        assert app.screen.query_one(Input).value == first
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        await pilot.press("y")
+        await wait_for(pilot, lambda: "profile saved" in status(app))
+    saved = list(Path(first).parent.glob("*.yaml"))
+    assert saved == [Path(first)]

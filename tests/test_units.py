@@ -23,3 +23,18 @@ def test_m_s2_with_a_known_scale_follow_the_same_rule():
 def test_a_margin_can_be_stated():
     assert saturated(np.array([32760, -32761]), margin=7).tolist() == [True, True]
     assert saturated(np.array([32760, -32761]), margin=6).tolist() == [False, False]
+
+
+def test_local_gravity_joins_what_the_procedure_says_u_holds_under_its_own_key():
+    """The wheel says what u holds under quality.uncertainty, static under uncertainty_source: u(g) is
+    appended to that one sentence (it once went to a second key the wheel's report never showed)."""
+    from accelrig.result import CalibrationResult, Correction
+    from accelrig.units import LocalGravity
+
+    gravity = LocalGravity(9.80665, 0.015, "standard gravity")
+    for key in ("uncertainty", "uncertainty_source"):
+        result = CalibrationResult("p", "m", "model", Correction.identity(), {}, quality={key: "white noise"})
+        result.with_local_gravity(gravity)
+        assert list(result.quality) == [key]
+        assert result.quality[key].startswith("white noise; + local gravity u(g) 0.015")
+        assert np.allclose(result.correction.matrix_uncertainty, np.eye(3) * 0.015 / 9.80665)

@@ -65,7 +65,7 @@ def run(args) -> int:
 def text_report(result) -> str:
     """What a person reads: every still pose and its fate, parameters with k = 1 uncertainties, the
     correction, what the uncertainty holds, warnings."""
-    import numpy as np
+    from accelrig.report.checks import check_lines
 
     q = result.quality
     lines = [f"static calibration: model {result.model}, method {result.method}, "
@@ -77,25 +77,16 @@ def text_report(result) -> str:
         lines.append(f"  {r['index']:4d} {r['start']:7.2f} {r['stop']:7.2f} {r['n']:6d}  {r['face']:>4} "
                      f"{r['angle_deg']:5.1f} deg  "
                      f"{r['fate']:10s}  {fit}")
-    lines.append("parameters (standard uncertainty, k = 1):")
+    lines.append("parameters (standard uncertainty, k = 1): " + result.parameter_meaning)
     for name, est in result.parameters.items():
-        value, unc, unit = est.value, est.uncertainty, est.unit
-        if unit == "rad":
-            value, unc, unit = np.degrees(value), np.degrees(unc), "deg"
+        value, unc, unit = est.for_display()
         lines.append(f"  {name:10s} {value:+.6f} +- {unc:.6f} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C @ (raw - b)")
     for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):
         lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
     lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
-    lines.append(f"lack of fit: chi2 {q['chi2']:.1f} for {q['dof']} dof (p = {q['p_value']:.3g})")
-    settings = result.settings
-    if "g_u" in settings:
-        lines.append(f"gravity: g = {settings['g']:.5f} +- {settings['g_u']:.2g} m/s^2 ({settings['g_source']})")
-    if "noise" in q:
-        lines.append(f"noise: {q['noise']['description']}")
-    lines.append(f"uncertainty: {q['uncertainty_source']}")
-    lines.append(f"residual rms {q['residual_rms']:.4f} m/s^2, largest |g| residual of a pose "
-                 f"{q['max_magnitude_residual']:.4f} m/s^2")
+    lines += [f"{what}: {sentence}" for what, sentence in check_lines(result.to_json_dict())]
+    lines.append(f"largest |g| residual of a pose {q['max_magnitude_residual']:.4f} m/s^2")
     lines += [f"warning: {w}" for w in result.warnings]
     return "\n".join(lines)

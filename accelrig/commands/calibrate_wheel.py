@@ -68,9 +68,12 @@ def run_calibrate(args) -> int:
 def _human(result) -> str:
     import numpy as np
 
+    from accelrig.report.checks import check_lines
+
     q = result.quality
     lines = [f"wheel calibration, method {result.method}: {q['n_samples']} samples, {q['duration_s']:.1f} s, "
              f"{q['turns']:.1f} turns, residual rms {q['residual_rms']:.4f} m/s^2"]
+    lines.append(f"parameters: {result.parameter_meaning}")
     lines.append("parameter            value                          uncertainty (k=1)")
     for name, est in result.parameters.items():
         if isinstance(est.value, list):
@@ -85,7 +88,8 @@ def _human(result) -> str:
                  + "   u " + " ".join(f"{x:.2g}" for x in np.diag(c.matrix_uncertainty)))
     lines.append("  b      " + " ".join(f"{x:+.5f}" for x in c.bias)
                  + "   u " + " ".join(f"{x:.2g}" for x in c.bias_uncertainty) + " m/s^2")
-    lines.append(f"uncertainties: {q['uncertainty']}; {q['time_s']:.2f} s")
+    lines += [f"{what}: {sentence}" for what, sentence in check_lines(result.to_json_dict())]
+    lines.append(f"fit time {q['time_s']:.2f} s")
     for w in result.warnings:
         lines.append(f"warning: {w}")
     return "\n".join(lines)

@@ -177,6 +177,7 @@ def profile_from_result(
             "settings": settings,
             "correction": corr.to_dict(),
             "parameters": {k: v.to_dict() for k, v in result.parameters.items()},
+            **({"parameter_meaning": result.parameter_meaning} if result.parameter_meaning else {}),
             "parameter_names": names,
             "parameter_covariance": pcov,
         },

@@ -130,6 +130,9 @@ PROFILE_V1 = Object(
                     additional=ESTIMATE, key_pattern=NAME,
                     description="the method's parameters by name, with standard uncertainties and units",
                 )),
+                "parameter_meaning": optional(String(description=(
+                    "what the parameters are, in one sentence (static's gain and offset correct the reading; "
+                    "the wheel's are the sensor's own): the correction is the same form for every procedure"))),
                 "parameter_names": Field(ListOf(String(pattern=NAME), description=(
                     "free parameters in the order of parameter_covariance"))),
                 "parameter_covariance": Field(Nullable(Array((None, None), description=(

@@ -14,7 +14,9 @@ from datetime import UTC, datetime
 from html import escape
 
 from accelrig import __version__
+from accelrig.report.checks import lack_of_fit_sentence
 from accelrig.report.source import METHOD_REFERENCES, Source
+from accelrig.result import Estimate
 
 DEFAULT_K = 2.0
 CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
@@ -82,11 +84,7 @@ def parameter_rows(src: Source, k: float) -> list[list[str]]:
     """One row per scalar parameter (a vector estimate gives one row per axis): name, value, u, U, unit."""
     rows = []
     for name, est in src.result["parameters"].items():
-        values, uncs, unit = est["value"], est["uncertainty"], est["unit"]
-        if unit == "rad":   # angles read in degrees
-            values = [math.degrees(v) for v in values] if isinstance(values, list) else math.degrees(values)
-            uncs = [math.degrees(v) for v in uncs] if isinstance(uncs, list) else math.degrees(uncs)
-            unit = "deg"
+        values, uncs, unit = Estimate(est["value"], est["uncertainty"], est["unit"]).for_display()
         if isinstance(values, list):
             labels = [f"{name}[{a}]" for a in ("x", "y", "z")] if len(values) == 3 else [
                 f"{name}[{i}]" for i in range(len(values))]
@@ -165,16 +163,8 @@ def verdicts_html(src: Source) -> str:
         style = {"holds": "pass", "does not hold": "fail"}.get(str(d["verdict"]), "open")
         parts.append(f'<p>Slider-crank verification: <span class="verdict-{style}">'
                      f'{escape(str(d["verdict"]))}</span> — {escape(str(d.get("verdict_reason", "")))}</p>')
-    if "chi2" in q and "dof" in q:
-        p = q.get("p_value")
-        if not q["dof"] or p is None or not math.isfinite(p):
-            lof = "no degrees of freedom are left over, so the lack of fit cannot be tested"
-        elif p < 0.01:
-            lof = "the data disagree with the model beyond their noise (see the warnings)"
-        else:
-            lof = "the data agree with the model within their noise"
-        parts.append(f"<p>Lack of fit: χ² = {q['chi2']:.3g} for {q['dof']} degrees of freedom "
-                     f"(p = {_plain(p)}): {lof}.</p>")
+    if "chi2" in q and "dof" in q and q["chi2"] is not None:
+        parts.append(f"<p>Lack of fit: {escape(lack_of_fit_sentence(q['chi2'], q['dof'], q.get('p_value')))}.</p>")
     if "radius_chi2" in q and q.get("radius_dof"):
         parts.append(f"<p>Radius consistency across steps: χ² = {q['radius_chi2']:.3g} for {q['radius_dof']} "
                      "degrees of freedom.</p>")
@@ -287,6 +277,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
         html.append('<p class="note">No canonical correction: this method does not determine all of C and b, '
                     "and accelrig does not fill them with guesses.</p>")
     html.append("<h3>Method parameters</h3>")
+    if r.get("parameter_meaning"):
+        html.append(f'<p class="note">{escape(r["parameter_meaning"])}.</p>')
     html.append(_table(head, parameter_rows(src, k)))
     html.append(groups_html(src, k))
 

@@ -136,6 +136,7 @@ def _from_profile(data: dict, path: str) -> Source:
         "model": cal["model"],
         "correction": cal["correction"],
         "parameters": cal["parameters"],
+        "parameter_meaning": cal.get("parameter_meaning", ""),
         "parameter_names": cal["parameter_names"],
         "quality": data["quality"],
         "settings": {**cal["settings"], "g": cal["g"]},

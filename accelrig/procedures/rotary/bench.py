@@ -279,6 +279,9 @@ class RotaryTest:
                       "nominal_rate": self.nominal_rate},
             warnings=list(self.warnings),
             details={k: v for k, v in table.items() if k not in ("procedure", "quality", "warnings")},
+            parameter_meaning=("sensitivity_k: counts per m/s^2 of the axis against the bench's encoder "
+                               "reference (q = S a_ref); the MEMS sample rate and the excitation frequency are "
+                               "measured on the way (no correction: one test gives two gains and no offsets)"),
         )
 
 

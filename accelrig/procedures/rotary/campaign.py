@@ -362,6 +362,8 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
         model="q_o = S q_i + b",
         correction=None,
         parameters=parameters,
+        parameter_meaning=("sensitivity_SENSOR_AXIS: the mean over the campaign's tests, counts per m/s^2, with "
+                           "the overall uncertainty of the tests' spread and the reference"),
         quality={"n_tests": len(results)},
         settings={"components": list(campaign.components), "correlation": campaign.correlation,
                   "coverage_factor": k},

@@ -1397,6 +1397,8 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         model="A_1 = r omega^2",
         correction=None,
         parameters={"radius": radius},
+        parameter_meaning=("the crank radius the calibrated motion shows, from each step's first harmonic "
+                           "A_1 = r omega^2, combined over the steps: a verification of a correction, not one"),
         quality={"radius_chi2": chi2, "radius_dof": dof, "n_steps": len(steps), "radius_k": radius_k},
         arrays=frequency_response(steps),
         settings=geometry,

@@ -331,6 +331,16 @@ def _units(name: str) -> str:
     return "rad" if name.startswith("angle") else "m/s^2" if name[0] in "ob" else "1"
 
 
+def parameter_meaning(names: list[str]) -> str:
+    """What the fitted parameters are (the fits estimate in three forms; the correction is one form)."""
+    if names[0].startswith("angle_"):
+        return ("the paper's form calibrated = G R(angle) raw + c: gain_k (G) and offset_k (c) correct the "
+                "reading, so offset_k is the correction's shift after the gain, about -b_k (C = G R, b = -C^-1 c)")
+    if names[0].startswith("K_"):
+        return "the sensor's own form raw = K a + o: K = C^-1 and o = b of the correction"
+    return "the correction itself: C_ij and b_k of calibrated = C (raw - b)"
+
+
 def _drift_rates(noise: StillNoise, poses: list[Pose], first: Correction) -> bool:
     """Each raw offset's drift rate from the faces held again (``noise.drift["revisits"]``); False if none.
 
@@ -643,6 +653,7 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         settings={**settings, "faces": list(data.faces)},
         warnings=warnings,
         details={"poses": rows},
+        parameter_meaning=parameter_meaning(list(names)),
     ).with_local_gravity(LocalGravity(g, u_g, settings.get("g_source", "")))
 
 

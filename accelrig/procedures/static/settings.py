@@ -16,8 +16,10 @@ SETTINGS = (
             "paper / affine = exact faces (9 / 12 parameters, no tilt); auto = six-face when every pose is "
             "near a face, multi-position when not", kind="choice", choices=MODEL_CHOICES, default="auto",
             label="model (multi-position: hold it still in any orientation)"),
-    Setting("method", "vp = variable projection + Levenberg-Marquardt; paper = the paper's Nelder-Mead over "
-            "the angles (9-parameter model only)", kind="choice", choices=METHODS, default="vp", label="method"),
+    Setting("method", "for the exact-face models (paper, affine): vp = variable projection + "
+            "Levenberg-Marquardt; paper = the paper's Nelder-Mead over the angles (paper model only).  six-face "
+            "and multi-position have one fit each, named in the result: map (tilts with their flatness prior) "
+            "and lm", kind="choice", choices=METHODS, default="vp", label="method (paper/affine models only)"),
     *GRAVITY_SETTINGS,
     Setting("pose_flatness_deg", "sd of each pose's tilt from its face (six-face Type B term); a pose more "
             "than 5 x this from a face is refused in six-face mode", unit="deg", default=POSE_FLATNESS_DEG,

@@ -339,6 +339,10 @@ def _build_result(method, state, cov, free, sigma, resid, t, steps: PaperSteps, 
         procedure="wheel", method=method, model=MODEL, correction=correction, parameters=params,
         covariance=cov, parameter_names=names, quality=quality, arrays=arrays, settings=settings,
         warnings=list(warnings),
+        parameter_meaning=("the sensor's own form v = o + diag(gain) R a (Pedersini eq. 6): gain and offset are "
+                           "what the sensor does to the acceleration, so the correction is C = 1/gain and b = "
+                           "offset; misalignment_deg is how it sits on the wheel, tilt_deg the wheel's tilt, omega0-3 its "
+                           "speed law"),
     )
 
 

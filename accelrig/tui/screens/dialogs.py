@@ -130,7 +130,7 @@ class SettingsForm(ModalScreen):
             for s in self.settings:
                 with Horizontal(classes="setting-row"):
                     yield Label(s.describe(s.title), classes="setting-label")
-                    field = Input(value=self.texts.get(s.name, ""), placeholder=s.example or s.default_text(),
+                    field = Input(value=self.texts.get(s.name, ""), placeholder=f"e.g. {s.example}" if s.example else s.default_text(),
                                   id=f"setting-{s.name}", classes="setting-input")
                     field.tooltip = s.describe()
                     yield field

@@ -267,11 +267,13 @@ class ResultsScreen(Screen):
                          + ", n shows the next plot, c writes the certificate", id="results-status")
             # warnings first: what the operator must read before saving (the quality figures follow the plot)
             yield Static(self.warnings_text(), id="results-warnings")
+            # then what the checks found and what u holds, in sentences (the raw figures come last)
+            yield Static(self.checks_text(), id="results-checks")
             if r.correction is not None:
                 yield Label("[b]Correction[/b] a = C (raw − b), b in m/s², u at k = 1 (what the profile applies)")
                 yield DataTable(id="correction", show_cursor=False, zebra_stripes=True)
-            yield Label("[b]Parameters[/b] as the method estimates them (the sensor's view: gain, offset, ...), "
-                        "u at k = 1")
+            yield Static("[b]Parameters[/b] as the method estimates them, u at k = 1"
+                         + (f": {escape(r.parameter_meaning)}" if r.parameter_meaning else ""), id="parameters-title")
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
             with Vertical(id="plot-box"):
                 yield LinePlot("", id="result-plot")
@@ -291,8 +293,8 @@ class ResultsScreen(Screen):
         table = self.query_one("#parameters", DataTable)
         table.add_columns("parameter", "value", "u (k=1)", "unit")
         for name, estimate in self.result.parameters.items():
-            value, uncertainty = format_value(estimate.value, estimate.uncertainty)
-            table.add_row(name, value, uncertainty, estimate.unit)
+            value, uncertainty, unit = estimate.for_display()
+            table.add_row(name, *format_value(value, uncertainty), unit)
         for key, rows in self.quality_tables():
             table = self.query_one(f"#quality-{key}", DataTable)
             columns = list(rows[0])
@@ -313,17 +315,17 @@ class ResultsScreen(Screen):
 
     def help_text(self) -> str:
         """What ? shows on the results: how to read them, then this screen's keys (listed by the help)."""
-        from rich.markup import escape
-
         return (f"[b]Results of the {escape(self.result.procedure)}[/b]\n"
                 "Read the warnings at the top first: each says what the data showed that the model does not hold, "
                 "how large, and whether u already includes it.\n"
                 "Correction: what the profile applies to raw readings, a = C (raw - b).  Parameters: what the method "
                 "estimated.  Every u is a standard uncertainty (k = 1); a coverage factor, where one is stated, "
                 "is named next to it.\n"
-                "The figure below the tables shows the fit against the data (n for the next one); the quality "
-                "figures after it are the checks that were made (noise, lack of fit, drift) and what u is made "
-                "of.\n"
+                "Below the warnings, the checks say what u holds, whether the model fits, the noise found and "
+                "the local gravity the gains are scaled to.  Parameters name their form: a static gain and offset "
+                "correct the reading, the wheel's are the sensor's own; the correction is the same form for all.\n"
+                "The figure below the tables shows the fit against the data (n for the next one); every quality "
+                "figure follows at the end, as the profile keeps it.\n"
                 "s saves the device profile to the store, c writes a certificate, f (when the device can take "
                 "it) flashes the profile to it; escape goes back to the wizard, where the captured data are kept.")
 
@@ -344,13 +346,21 @@ class ResultsScreen(Screen):
                     continue  # a table or a nested structure
                 if numbers.size <= 12:
                     parts.append(f"{key} [" + ", ".join(f"{v:.3g}" for v in numbers) + "]")
-        return "[b]Quality:[/b] " + ("   ".join(parts) if parts else "none reported")
+        return ("[b]All quality figures[/b] (as the profile and --json keep them): "
+                + (escape("   ".join(parts)) if parts else "none reported"))
+
+    def checks_text(self) -> str:
+        """What the checks found and what u holds, one sentence each (accelrig.report.checks)."""
+        from accelrig.report.checks import check_lines
+
+        lines = check_lines(self.result.to_json_dict())
+        return "\n".join(f"[b]{what}:[/b] {escape(sentence)}" for what, sentence in lines) or "no checks reported"
 
     def warnings_text(self) -> str:
         """The result's warnings, one per line (or that there are none)."""
         if not self.result.warnings:
             return "[green]no warnings[/]"
-        return "\n".join(f"[yellow]warning:[/] {warning}" for warning in self.result.warnings)
+        return "\n".join(f"[yellow]warning:[/] {escape(warning)}" for warning in self.result.warnings)
 
     def quality_tables(self) -> list[tuple[str, list[dict]]]:
         """Quality entries that are lists of rows (e.g. per face): shown as tables."""
@@ -391,7 +401,9 @@ class ResultsScreen(Screen):
         from accelrig.profiles import save_profile
         from accelrig.profiles.store import ProfileStore
 
-        if self.app.profile_dir is not None:
+        if self.saved_path is not None:
+            default = str(self.saved_path)   # saving again replaces it (after asking), not a second file
+        elif self.app.profile_dir is not None:
             default = str(Path(self.app.profile_dir) / default_profile_name(self.result, self.session))
         else:
             try:

@@ -1,0 +1,62 @@
+"""What a result's checks say, in sentences: the one wording the TUI, the text reports and certificates use.
+
+A result's ``quality`` holds figures (chi^2, dof, p, the noise found, what u is made of) keyed by what the
+procedure measured; a person needs them read: whether the model fits, what the noise was, what u holds and
+which local gravity the gains are scaled to.  ``check_lines`` reads them from the plain result (a
+``CalibrationResult.to_json_dict()`` or a profile's), so a saved result says the same as the live one.
+"""
+
+from __future__ import annotations
+
+import math
+
+LACK_OF_FIT_ALPHA = 0.01   # the level every procedure's lack-of-fit test warns at (estimation.residuals.ALPHA)
+
+
+def lack_of_fit_sentence(chi2, dof, p) -> str:
+    """chi^2 for dof (p) and what it means for the model."""
+    if not dof or p is None or not math.isfinite(p):
+        return (f"χ² = {chi2:.3g} for {dof} degrees of freedom: none are left over once the model's unknowns are "
+                "fitted, so the lack of fit cannot be tested (more poses or steps would test it)")
+    verdict = ("the data disagree with the model beyond their noise (see the warnings)" if p < LACK_OF_FIT_ALPHA
+               else "the data agree with the model within their noise")
+    return f"χ² = {chi2:.3g} for {dof} degrees of freedom (p = {p:.3g}): {verdict}"
+
+
+def _per_axis(value) -> str:
+    """One figure, or three as x/y/z."""
+    if isinstance(value, list) and len(value) == 3:
+        return "x/y/z " + "/".join(f"{v:.3g}" for v in value)
+    if isinstance(value, list):
+        return ", ".join(f"{v:.3g}" for v in value)
+    return f"{value:.3g}"
+
+
+def check_lines(result: dict) -> list[tuple[str, str]]:
+    """(what, sentence) for each check the result reports, in reading order; nothing for figures it lacks."""
+    q = result.get("quality") or {}
+    settings = result.get("settings") or {}
+    lines = []
+    source = q.get("uncertainty_source", q.get("uncertainty"))
+    if isinstance(source, str) and source:
+        lines.append(("uncertainty", source))
+    if "chi2" in q and "dof" in q and q["chi2"] is not None:
+        lines.append(("lack of fit", lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))))
+    if q.get("radius_chi2") is not None and q.get("radius_dof"):
+        lines.append(("steps agree", f"the radius of the steps: χ² = {q['radius_chi2']:.3g} for {q['radius_dof']} "
+                                     f"degrees of freedom; the combined radius is stated with k = "
+                                     f"{q.get('radius_k', 2):.3g}"))
+    noise = q.get("noise")
+    if isinstance(noise, dict) and noise.get("description"):
+        lines.append(("noise", str(noise["description"])))
+    sd = q.get("noise_sd_axes", q.get("noise_sd"))
+    if sd is not None and q.get("residual_rms") is not None:
+        lines.append(("residuals", f"rms {q['residual_rms']:.3g} m/s² against a noise sd of {_per_axis(sd)} m/s² "
+                                   "(a model that holds leaves about the noise)"))
+    if settings.get("g_u") is not None and settings.get("g") is not None:
+        lines.append(("gravity", f"g = {settings['g']:.5f} ± {settings['g_u']:.2g} m/s² "
+                                 f"({settings.get('g_source') or 'as given'})"))
+    missing = q.get("samples_missing")
+    if missing:
+        lines.append(("samples", f"{missing} samples missing from the record (see the warnings for what was done)"))
+    return lines
