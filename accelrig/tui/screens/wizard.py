@@ -105,6 +105,7 @@ class ProcedureWizard(Screen):
         self._generation = 0       # a pump begun for an earlier procedure reports to nobody
         self._timer = None
         self._stream_line = ""
+        self._last_logged = ""      # the last line of the log: a headline already there is not written twice
         self._alarm_key = None
         self.written_samples = 0   # samples written to a file so far (w)
         self.capture_path: Path | None = None       # where this run's capture streams to (segments)
@@ -252,9 +253,13 @@ class ProcedureWizard(Screen):
         self.ask_settings(filled)
 
     def set_instruction(self, text: str, style: str = "bold") -> None:
+        """The headline, kept in the log too: a message that is soon replaced can still be read there."""
         self.query_one("#instruction", Static).update(f"[{style}]{text}[/]")
+        if text != self._last_logged:
+            self.log_event(text, "" if style == "bold" else style)
 
     def log_event(self, text: str, style: str = "") -> None:
+        self._last_logged = text
         self.query_one("#events", RichLog).write(f"[{style}]{text}[/]" if style else text)
 
     # ------------------------------------------------------------------ settings
@@ -299,6 +304,7 @@ class ProcedureWizard(Screen):
         self._alarm_key = None
         self.query_one("#progress", ProgressBar).update(progress=0)
         self.query_one("#events", RichLog).clear()
+        self._last_logged = ""
         self.alarm_clear()
         self.reset_body()
         self.show_procedure([])
@@ -413,7 +419,6 @@ class ProcedureWizard(Screen):
             self.handle(events)
         if error is not None:
             self.set_instruction(error, "bold red")
-            self.log_event(error, "bold red")
             self.stop_feeding()
         elif done and not self.finished:
             self.stop_feeding()
@@ -543,7 +548,6 @@ class ProcedureWizard(Screen):
             return
         self.computing = False
         self.set_instruction(f"calibration failed: {message}", "bold red")
-        self.log_event(f"calibration failed: {message}", "bold red")
 
     def _show(self, generation: int, result, recording) -> None:
         if generation != self._generation:
