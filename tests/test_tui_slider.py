@@ -45,6 +45,10 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, SliderCrankWizard)
         assert wizard.recorder.reader.lost_total == 0
+        # a word per key in the footer (it fits 80 columns); the whole description is in ?
+        assert [wizard._bindings.key_to_bindings[k][0].description for k in ("space", "x", "v")] == [
+            "capture", "skip", "verify"]
+        assert "skip the step due (its speed is left out" in wizard.help_text()
         verification = app.screen.verification.details
         assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
         screen = app.screen

@@ -111,7 +111,9 @@ class ProcedureWizard(Screen):
         self.capture_path: Path | None = None       # where this run's capture streams to (segments)
         self.results_screen: Screen | None = None   # the last results shown (its saved_path: saved)
         for key, action in self.ACTION_KEYS.items():
-            self._bindings.bind(key, f"procedure_action({action!r})", self.procedure_class.actions[action])
+            # the footer has room for a word per key at 80 columns; ? shows the whole description
+            what = self.procedure_class.actions[action]
+            self._bindings.bind(key, f"procedure_action({action!r})", what if len(what) <= 20 else action)
 
     @property
     def unsaved(self) -> str | None:
@@ -202,6 +204,7 @@ class ProcedureWizard(Screen):
             lines.append(f"Now: {escape(self.procedure.instruction())}")
         lines.append("The headline says what to do; w writes the samples captured so far at any time; escape "
                      "leaves (asking first when something is unsaved).")
+        lines += [f"[b]{escape(key)}[/b]: {escape(cls.actions[action])}" for key, action in self.ACTION_KEYS.items()]
         return "\n".join(lines)
 
     def use_device(self, session: Session) -> None:
