@@ -218,6 +218,32 @@ def test_rotary_a_clock_that_moves_keeps_its_mean_rate_with_a_u_that_holds_the_r
         assert warming.sensitivity[axis].value == pytest.approx(steady.sensitivity[axis].value, rel=1e-3)
 
 
+def test_rotary_a_clock_that_moves_by_several_samples_is_re_timed_not_refused():
+    """3000 ppm over 10 s: the phase, counted in samples, wanders by about 5 samples with no step in it.  The
+    samples are re-timed from the smooth phase path: the sensitivities hold, the rate is the mean with a u
+    that holds the rates at both ends, and the warning says what was done.  The paper's scan, which needs
+    a uniform grid, refuses and says the fit method re-times."""
+    rng = np.random.default_rng(4)
+    sensor = paper_sensor(rng, noise_sd=0.03, rate=NOMINAL)
+    rig = RotaryRig(frequency=5.0, amplitude_deg=34.0, duration=SECONDS, phase=0.3)
+    clock = SimClock(NOMINAL, 0.003, 0.0, rate_drift=3e-4)
+    rec = simulate(rig, sensor, clock, seconds=SECONDS, seed=4, units="counts")
+    truth = true_sensitivity(rec.meta["truth"])
+    rec.channels, rec.t = {}, np.arange(len(rec)) / NOMINAL
+    enc = EncoderLog(**encoder_samples(rig, SECONDS, 1000.0))
+    test = analyse_test(rec, enc, "x", "y", NOMINAL, setup=SETUP)
+    timing = test.quality["sample_timing"]
+    assert timing["max_deviation_samples"] > 3 and timing["after_retiming"]["max_deviation_samples"] < 0.1
+    assert [w for w in test.warnings if "re-timed from the smoothed phase path" in w]
+    for axis in ("x", "y"):
+        s = test.sensitivity[axis]
+        assert abs(s.value - truth[axis]) < 3 * s.uncertainty
+    rate, u = test.sample_rate.value, test.sample_rate.uncertainty
+    assert abs(rate - clock.true_rate) < 2 * u and abs(rate - clock.true_rate * (1 + 3e-4 * SECONDS)) < 2 * u
+    with pytest.raises(CalibrationError, match="--rate-method fit re-times"):
+        analyse_test(rec, enc, "x", "y", NOMINAL, rate_method="scan", setup=SETUP)
+
+
 def test_rotary_clock_wander_from_the_fewest_stretches_the_phase_test_takes():
     """A short record gives the phase test only 4 stretches: the smoothing still fits (degree 2), and a
     rate moving linearly is found at both ends."""

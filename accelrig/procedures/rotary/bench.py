@@ -34,11 +34,12 @@ Processing, as the paper and with its known weaknesses made explicit:
    residuals checked for whiteness (estimation.residuals: correlated noise
    gets the sandwich covariance, and the warnings say so).
    Before stage 3 the sample timing is checked: a record that lost samples
-   without a trace is refused, however they were lost (the residual steps by
-   whole sample periods between consecutive samples, or the phase in sample
-   index wanders); a clock that is merely slow or fast spaces every sample
-   alike and passes; one whose rate moved during the record by less than
-   that gives the record's mean rate, its u widened to hold every rate seen.  Gaps the record knows of (the recorder's gap list, or
+   without a trace is refused (the residual steps by whole sample periods
+   between consecutive samples); a phase in sample index that wanders by more
+   than a sample with no step is re-timed from its smooth path (a clock whose
+   rate wandered), and refused when it is no smooth path; a clock that is
+   merely slow or fast spaces every sample alike and passes; one whose rate
+   moved gives the record's mean rate, its u widened to hold every rate seen.  Gaps the record knows of (the recorder's gap list, or
    its timestamps) are placed on the sample grid and only real samples enter
    the fits.
 5. Sensitivity in counts per m/s^2: tangential axis from the f component,
@@ -393,6 +394,10 @@ def analyse_test(
         # the paper scans the filtered, whole-period record: filter at nominal rate first to find the periods
         fs_for_filter = nominal_rate
     timing = check_sample_timing(index, real[:, i_t], rate_fit.frequency if rate_fit else nu_peak, source, rate_fit)
+    if timing.get("retime"):
+        index, rate_fit, nu, fs, u_fs = retime(index, real[:, i_t], timing, rate_method, nu_peak, f, ref.u_f_rel,
+                                               source, warnings)
+        fs_for_filter = fs
     sos, filtered, seg, periods = filter_and_trim(counts, i_t, f, fs_for_filter, setup.filter_cutoff,  # 3
                                                   nominal_rate, source)
     if rate_method == "scan":
@@ -595,22 +600,11 @@ def phase_wander(t: np.ndarray, y: np.ndarray, frequency: float, segments: int =
             "uncertainty_rad": sds.tolist(), "centre": centres.tolist(), "span": [float(t[0]), float(t[-1])]}
 
 
-def clock_wander(wander: dict, nu: float) -> dict | None:
-    """How far the sample clock's rate strayed from the record's mean rate, from the phase wander.
-
-    A clock running locally fast by a fraction e packs more samples into each period, so the phase
-    per sample falls behind the whole-record line: e = -(d phase deviation / d sample) / (2 pi nu).
-    The stretches' deviations are smoothed by a weighted Legendre polynomial in the sample position
-    (degree 2 up, the first whose chi-square passes at 1 %, at most WANDER_DEGREE): a stretch's phase
-    is far noisier than the whole record's, and differences of neighbours would pass their noise for a
-    move; the polynomial's slope follows a warming crystal's smooth drift to the record's two ends.
-    The rate the fit reports is the record's mean; the rate at any moment of the record lay within
-    the largest |e| of it.  GUM type B, rectangular with that half-width: u_r = half-width / sqrt 3,
-    so +-2u holds every rate the clock took (at the start, at the end).  Only when the phases
-    disagree (p below WANDER_LEVEL): a steady clock adds nothing.  None then.
-    """
-    if wander is None or wander["p_value"] >= WANDER_LEVEL:
-        return None
+def smooth_phase_path(wander: dict):
+    """The stretches' phase deviations smoothed by a weighted Legendre polynomial in the sample position
+    (degree 2 up, the first whose chi-square passes at 1 %, at most WANDER_DEGREE): a stretch's phase is
+    far noisier than the whole record's, and differences of neighbours would pass their noise for a move.
+    Returns (coefficients, degree, chi2, to_x) with ``to_x`` mapping positions onto the polynomial's [-1, 1]."""
     deviation, sd, centre = (np.asarray(wander[key]) for key in ("deviation_rad", "uncertainty_rad", "centre"))
     first, last = wander["span"]
     half = (last - first) / 2.0
@@ -622,13 +616,81 @@ def clock_wander(wander: dict, nu: float) -> dict | None:
         chi2 = float(np.sum((design @ coef - deviation / sd) ** 2))
         if chi2_dist.sf(chi2, k - degree - 1) > 0.01:
             break
+    return coef, degree, chi2, (lambda positions: (np.asarray(positions, dtype=float) - first) / half - 1.0)
+
+
+def clock_wander(wander: dict, nu: float) -> dict | None:
+    """How far the sample clock's rate strayed from the record's mean rate, from the phase wander.
+
+    A clock running locally fast by a fraction e packs more samples into each period, so the phase
+    per sample falls behind the whole-record line: e = -(d phase deviation / d sample) / (2 pi nu),
+    from the smoothed phase path (``smooth_phase_path``: its slope follows a warming crystal's smooth
+    drift to the record's two ends).  The rate the fit reports is the record's mean; the rate at any
+    moment of the record lay within the largest |e| of it.  GUM type B, rectangular with that
+    half-width: u_r = half-width / sqrt 3, so +-2u holds every rate the clock took (at the start, at
+    the end).  Only when the phases disagree (p below WANDER_LEVEL): a steady clock adds nothing.
+    None then.
+    """
+    if wander is None or wander["p_value"] >= WANDER_LEVEL:
+        return None
+    coef, degree, chi2, _ = smooth_phase_path(wander)
+    first, last = wander["span"]
     grid = np.linspace(-1.0, 1.0, 201)
-    slope = np.polynomial.legendre.legval(grid, np.polynomial.legendre.legder(coef)) / half
+    slope = np.polynomial.legendre.legval(grid, np.polynomial.legendre.legder(coef)) / ((last - first) / 2.0)
     local = -slope / (2 * np.pi * nu)
     largest = float(np.max(np.abs(local)))
     return {"largest_relative": largest, "relative_uncertainty": largest / np.sqrt(3.0), "degree": degree,
-            "chi2": chi2, "dof": k - degree - 1, "p_value": wander["p_value"],
+            "chi2": chi2, "dof": len(wander["deviation_rad"]) - degree - 1, "p_value": wander["p_value"],
             "start_relative": float(local[0]), "end_relative": float(local[-1])}
+
+
+def retimed_positions(positions: np.ndarray, wander: dict, nu: float) -> np.ndarray:
+    """Each sample's place in time, in mean sample periods, from the smoothed phase path.
+
+    A stretch whose phase runs ahead of the whole-record line by d rad was sampled d / (2 pi nu)
+    sample periods later than its index says (the clock ran slow before it, or samples were lost
+    where the signal is too flat for a step to show).  The correction's own line is taken out, so
+    the record's mean rate stays what the whole-record fit finds."""
+    coef, _, _, to_x = smooth_phase_path(wander)
+    shift = np.polynomial.legendre.legval(to_x(positions), coef) / (2 * np.pi * nu)
+    shift -= np.polyval(np.polyfit(positions, shift, 1), positions)
+    return positions + shift
+
+
+def retime(index: np.ndarray, y_t: np.ndarray, timing: dict, rate_method: str, nu_peak: float, f: float,
+           u_f_rel: float, source: str, warnings: list[str]):
+    """A phase that wanders by more than a sample with no whole-sample step: the samples are placed in time
+    from the smooth phase path (``retimed_positions``) and the rate fitted again on those places.  Refused
+    when the re-timed phase still wanders beyond a sample (the path is no smooth curve: a step the jump
+    test could not see), or with the paper's scan, which needs a uniform grid.  Returns (index, rate_fit,
+    nu, fs, u_fs) on the new places; the warning says what was done and why the rate is the record's mean."""
+    if rate_method != "fit":
+        raise timing_refusal(source, timing, "the paper's rate scan filters a uniform sample grid and cannot follow "
+                                             "it (--rate-method fit re-times the samples from the phase path)")
+    before = timing["max_deviation_samples"]
+    index = retimed_positions(index, timing, timing["nu"])
+    rate_fit, nu, fs, u_fs = sample_rate_by_fit(y_t, nu_peak, f, u_f_rel, index)
+    after = phase_wander(index, y_t, nu)
+    if after is not None:
+        after["max_deviation_samples"] = float(after["max_deviation_rad"] / (2 * np.pi * nu))
+        if wanders_beyond_a_sample(after):
+            raise timing_refusal(source, timing, "re-timing the samples from the smooth phase path left "
+                                                 f"{after['max_deviation_samples']:.1f} sample periods of it: the "
+                                                 "path has a step, not a smooth curve (samples lost where the "
+                                                 "signal is too flat to show a step)")
+        timing["after_retiming"] = {k: after[k] for k in ("p_value", "chi2", "dof", "max_deviation_samples")}
+    judged = timing["jumps"]["judged_share"]
+    cause = ("no whole-sample step was seen where the signal is steep enough to show one "
+             f"({judged:.0%} of the record), so the clock's rate wandered"
+             if judged >= 0.3 else
+             f"the signal is steep enough to show a lost sample in only {judged:.0%} of the record, so a clock "
+             "that wandered cannot be told from samples lost (then the rate is not the device's)")
+    warnings.append(
+        f"the phase of the motion, counted in samples, wandered by up to {before:.1f} sample periods over the "
+        f"record: {cause}. The samples were re-timed from the smoothed phase path before the amplitudes were "
+        "fitted, so the sensitivities are those of the motion as it was; the rate is the record's mean "
+        "(record with timestamps to follow the clock, or keep the device's temperature steady)")
+    return index, rate_fit, nu, fs, u_fs
 
 
 def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, source: str,
@@ -666,22 +728,34 @@ def check_sample_timing(positions: np.ndarray, y_t: np.ndarray, nu: float, sourc
     wander = phase_wander(positions, y_t, nu)
     if wander is None:
         return {"jumps": jumps}
-    samples = wander["max_deviation_rad"] / (2 * np.pi * nu)
-    wander["max_deviation_samples"] = float(samples)
+    wander["max_deviation_samples"] = float(wander["max_deviation_rad"] / (2 * np.pi * nu))
+    wander["nu"] = float(nu)
     wander["jumps"] = jumps
-    if wander["p_value"] < TIMING_FALSE_ALARM and samples > 1.0:
-        raise CalibrationError(
-            f"{source}: the sample count does not match the motion: samples were lost without a trace, or the "
-            f"sample clock's rate wandered during the record. Counted in samples, the phase of the tangential "
-            f"axis's oscillation wanders by up to {samples:.0f} sample periods "
-            f"({wander['max_deviation_rad']:.2f} rad) between stretches of the record (chi-square "
-            f"{wander['chi2']:.3g} for {wander['dof']} degrees of freedom) with no whole-sample step in it; a "
-            "sample-index fit would report a sensitivity several per cent low",
-            "record the MEMS with its timestamps or its recorder's gap list (accelrig record keeps both) so the "
-            "gaps can be placed, or re-record over a steady link; a clock that wanders (temperature) needs the "
-            "timestamps too",
-        )
+    # beyond a sample with no step in it: the samples are re-timed from the smooth phase path (analyse_test)
+    wander["retime"] = bool(wanders_beyond_a_sample(wander))
     return wander
+
+
+def wanders_beyond_a_sample(wander: dict | None) -> bool:
+    """The phase, counted in samples, wanders by more than a sample (at TIMING_FALSE_ALARM): a sample-index
+    fit would smear the oscillation and report a sensitivity several per cent low."""
+    return (wander is not None and wander["p_value"] < TIMING_FALSE_ALARM
+            and wander["max_deviation_samples"] > 1.0)
+
+
+def timing_refusal(source: str, wander: dict, why: str) -> CalibrationError:
+    """The refusal of a record whose phase, counted in samples, wanders by more than a sample; ``why``: what
+    was tried."""
+    return CalibrationError(
+        f"{source}: the sample count does not match the motion: samples were lost without a trace, or the "
+        f"sample clock's rate wandered during the record. Counted in samples, the phase of the tangential "
+        f"axis's oscillation wanders by up to {wander['max_deviation_samples']:.0f} sample periods "
+        f"({wander['max_deviation_rad']:.2f} rad) between stretches of the record (chi-square "
+        f"{wander['chi2']:.3g} for {wander['dof']} degrees of freedom) with no whole-sample step in it; {why}",
+        "record the MEMS with its timestamps or its recorder's gap list (accelrig record keeps both) so the "
+        "gaps can be placed, or re-record over a steady link; a clock that wanders (temperature) needs the "
+        "timestamps too",
+    )
 
 
 # Sample jumps: a sample lost (or repeated) between two recorded ones moves the rest of the record by
@@ -908,7 +982,7 @@ def axis_amplitudes(index, real, filtered, seg, f, fs, nu, rate_method, gain):
     its residuals checked for whiteness.  ``index`` places the ``real`` samples on the sample grid
     of ``filtered`` (gaps kept: only real samples enter a fit; a record with gaps takes its
     amplitudes from the unfiltered fit).  Returns (amplitudes, raw fits)."""
-    gapped = bool(index.size and index[-1] != index.size - 1)
+    gapped = not np.array_equal(index, np.arange(index.size))   # gaps placed, or samples re-timed
     inside = (index >= seg.start) & (index < seg.stop)
     k_seg = index[inside]
     n_seg = seg.stop - seg.start
