@@ -42,6 +42,13 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
         lines.append(("uncertainty", source))
     if "chi2" in q and "dof" in q and q["chi2"] is not None:
         lines.append(("lack of fit", lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))))
+    tilt_p = q.get("tilt_p_value")
+    if tilt_p is not None and math.isfinite(tilt_p) and q.get("stated_flatness_deg"):
+        within = ("beyond it: the flatness the tilts show is used instead (see the uncertainty)"
+                  if tilt_p < LACK_OF_FIT_ALPHA else "within it")
+        lines.append(("pose tilts", f"the tilts the poses need to fit, against the stated flatness "
+                                    f"{q['stated_flatness_deg']:g} deg: χ² = {q['chi2_tilts']:.3g} for "
+                                    f"{q['tilt_dof']:.3g} degrees of freedom (p = {tilt_p:.3g}), {within}"))
     if q.get("radius_chi2") is not None and q.get("radius_dof"):
         lines.append(("steps agree", f"the radius of the steps: χ² = {q['radius_chi2']:.3g} for {q['radius_dof']} "
                                      f"degrees of freedom; the combined radius is stated with k = "
