@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from accelrig.errors import CalibrationError
+from accelrig.procedures.wheel import assumptions, paper, start
 from accelrig.procedures.wheel import fit as wheel_fit
-from accelrig.procedures.wheel import paper, start
 from accelrig.procedures.wheel.checks import survey
 from accelrig.procedures.wheel.fit import free_set, wheel_crb
-from accelrig.procedures.wheel.model import TABLE_I_OMEGA, WheelState
+from accelrig.procedures.wheel.model import TABLE_I_OMEGA, WheelState, model_and_jacobian
 from accelrig.procedures.wheel.procedure import calibrate_wheel
 from accelrig.recording import Recording
 from accelrig.sim.device import simulate
@@ -38,6 +38,38 @@ def z_scores(result, offset_truth=OFFSET):
     p = result.parameters
     z = (np.array(p["gain"].value) - GAIN) / np.array(p["gain"].uncertainty)
     return np.concatenate([z, (np.array(p["offset"].value) - offset_truth) / np.array(p["offset"].uncertainty)])
+
+
+def exact_sd(rec, rig, result, walk_step=0.0):
+    """The sd of the gains and offsets (offsets less the noise's mean over the run, which is part of the truth) of
+    the model the checks ended with (the joint model and the structure they took in), linearised at the
+    estimate, under the sensor's white noise (0.08) plus a random walk of ``walk_step`` per sample: the exact
+    value u should be near, from the noise the simulation drew, not from residuals."""
+    checks = result.quality["residual_checks"]
+    p = result.parameters
+    t = rec.t - rec.t[0]
+    state = WheelState(np.deg2rad(p["theta0_deg"].value), [p[f"omega{k}"].value for k in range(4)],
+                       np.deg2rad(p["tilt_deg"].value), 0.28, rig.rotation, np.array(p["gain"].value),
+                       np.array(p["offset"].value))
+    free = free_set(0.28, None)
+    _, jac = model_and_jacobian(t, state, free, t[-1])
+    added = assumptions._extra_columns(t, state, jac[:, :, 0], t[-1], 9.80665, segments=True)
+    law, angle = assumptions.N_SPEED_LAW, assumptions.N_ANGLE
+    causes = checks["angle_locked_causes"]
+    taken = ((list(range(law)) if "speed law" in causes else []) + (list(range(law, angle)) if "wobble" in causes else [])
+             + (list(range(angle, angle + 3)) + list(range(assumptions.N_EXTRA, assumptions.N_ALL))
+                if "offset_drift_m_s2" in checks else []))
+    x = np.concatenate([jac, added[:, :, taken]], axis=2)
+    reported = [free.names.index(f"{kind}_{a}") for kind in ("gain", "offset") for a in "xyz"]
+    # each estimate's weight on each sample's noise
+    weights = np.einsum("ep,nkp->enk", np.linalg.inv(np.einsum("nkp,nkq->pq", x, x))[reported], x)
+    weights[3:] -= np.eye(3)[:, None, :] / t.size
+    walked = np.cumsum(weights[:, ::-1], axis=1)[:, ::-1]        # a walk's step counts in every later sample
+    return np.sqrt(0.08**2 * np.sum(weights**2, axis=(1, 2)) + walk_step**2 * np.sum(walked**2, axis=(1, 2)))
+
+
+def u_of(result):
+    return np.concatenate([result.parameters["gain"].uncertainty, result.parameters["offset"].uncertainty])
 
 
 def test_correlated_noise_widens_u_with_the_sandwich_and_says_so():
@@ -121,7 +153,7 @@ def test_a_drift_taken_in_by_a_false_alarm_keeps_its_move_in_u():
 
 
 def test_an_unbalanced_wheel_is_seen_and_taken_in():
-    rec, _ = record(seed=6, rig_options={"imbalance": 0.15, "imbalance_deg": 40.0})
+    rec, rig = record(seed=6, rig_options={"imbalance": 0.15, "imbalance_deg": 40.0})
     result = calibrate_wheel(rec, radius=0.28)
     assert any("did not follow the model's smooth speed law" in w for w in result.warnings)
     assert result.quality["residual_checks"]["speed_law_test"]["significant"]
@@ -130,6 +162,10 @@ def test_an_unbalanced_wheel_is_seen_and_taken_in():
     # it is not mistaken for correlated noise, and the gains and offsets lose its bias
     assert result.quality["residual_checks"]["noise"] == "white"
     assert np.all(np.abs(z_scores(result)) < 3)
+    # u is what the model with the swing in costs, not more: the residuals before the take-in held the swing, and
+    # batch means over them counted it once more as noise (u up to 3.2x the exact sd here, stress u/sd 3.99)
+    ratio = u_of(result) / exact_sd(rec, rig, result)
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), ratio
 
 
 def test_a_grossly_unbalanced_wheel_is_refused_with_the_cause():
@@ -167,8 +203,8 @@ def test_an_offset_that_settles_is_taken_in_whatever_its_shape():
 def test_a_random_walk_taken_in_as_drift_keeps_the_noise_in_u():
     """Held-out audit: a random walk in the offsets passes for a drift; taken in as an offset per segment, what
     is left looks white at short lags, and the white covariance after it left the gains 3-4 u off (coverage 55 %
-    over 25 runs).  Correlated residuals before the take-in keep the sandwich that counts the walk as noise."""
-    rec, _ = record(seed=4)
+    over 25 runs).  Correlated residuals before the take-in keep the sandwich and the power law below its blocks."""
+    rec, rig = record(seed=4)
     steps = np.random.default_rng(1004).normal(0.0, 0.005 / np.sqrt(RATE), rec.acc.shape)
     walk = np.cumsum(steps, axis=0)          # 0.005 m/s^2 per sqrt(s)
     walked = Recording(rec.t, rec.acc + walk, rec.units, dict(rec.channels), dict(rec.meta))
@@ -176,6 +212,10 @@ def test_a_random_walk_taken_in_as_drift_keeps_the_noise_in_u():
     assert any("offsets drifted" in w for w in result.warnings)
     assert "were correlated in time before the structure was taken in" in result.quality["uncertainty"]
     assert np.all(np.abs(z_scores(result, OFFSET + walk.mean(axis=0))[:3]) < 3)
+    # u of the gains is the walk's own effect on them (the sandwich and the power law below its blocks, from the
+    # residuals of the model reported), not that of the residuals before the offsets per segment took part of it
+    ratio = (u_of(result) / exact_sd(rec, rig, result, 0.005 / np.sqrt(RATE)))[:3]
+    assert np.all((ratio > 0.7) & (ratio < 1.6)), ratio
 
 
 def test_a_wobbling_wheel_is_named_as_play_not_as_the_speed_law():

@@ -450,12 +450,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     keep = list(range(p)) + [p + i for i in taken]
     moved, extra_step = state, np.zeros(N_ALL)
     segments = drifting
-    before = (correlated, None if segments else scores_all[:, keep], block)
+    correlated_before = correlated
     if taken:
-        if segments and correlated:
-            # the sandwich "before" needs the first pass's block scores of the segment columns too
-            _, first = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(N_ALL), block, segments=True)
-            before = (correlated, first[:, keep], block)
         moved, extra_step = _take_in(t, v, state, free, time_scale, g, weight, taken, residuals)
         # judge the noise on what is left once the structure is in: the structure itself is no noise
         white_before, white = white, whiteness_by_column(residuals)
@@ -472,15 +468,15 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # passes for a drift), so what was taken in may be noise, whether or not the residuals after it still look
     # correlated (an offset per segment absorbs a random walk's slow part and leaves residuals that look white
     # at short lags: held-out random walk, the gains covered in 48 % of runs with the white covariance after).
-    noisy_before = bool(taken) and before[0]
+    # u then comes from the sandwich and the power law below its blocks all the same, both made from the residuals
+    # of the larger model, the one whose estimates are reported.  Not from the residuals before the take-in: each
+    # estimate of the larger model is blind to what its added columns absorb (its influence sums to zero over
+    # every segment), but those residuals still hold it, and batch means count it once more, as independent noise
+    # in every block (an earlier version kept the wider of the two sandwiches: u 12-28x the sd on held-out
+    # pink, red and random-walk noise, 2-4x on an unbalanced wheel, whose swing the before residuals hold).
+    noisy_before = bool(taken) and correlated_before
     if correlated or noisy_before:
         sandwich, block_used, blocks_used, longest = _widest_sandwich(full, block_scores, block, full_inv)
-        if noisy_before:
-            # the sandwich from the residuals before the structure was taken in counts it as noise; the wider
-            # of the two is kept
-            other = _widest_sandwich(full, before[1], before[2], full_inv)
-            if np.mean(np.diag(other[0]) / np.diag(full_inv)) > np.mean(np.diag(sandwich) / np.diag(full_inv)):
-                sandwich, block_used, blocks_used, longest = other
         # the noise slower than the longest blocks: a power law fitted to the residuals' lowest octaves
         low_cov, low_noise = _low_frequency(low, keep, longest, n, full_inv, slice(p - 3, p),
                                            1.0 / weight)
