@@ -158,10 +158,11 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
     """The free coast the speed law (eq. 2, a cubic in t) can follow: (t, v, gap times, notes, the time of its
     first sample in the recording).
 
-    Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand, then let it
-    coast; keep the recording running"); after it the wheel may stop and rest.  Neither is a coast-down: the fit
-    takes the coast, t counted from its first sample, and a note says what was left out and why.  Nothing is
-    dropped from the recording itself."""
+    Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand after holding
+    it still for 5 s, then let it coast; keep the recording running"); after it the wheel may stop and rest.
+    Neither is a coast-down: the fit takes the coast, t counted from its first sample, and a note says what was
+    left out and why.  Nothing is dropped from the recording itself.  The rests (before the push, after the stop)
+    are returned for the check against the fit (rest.py)."""
     start = coasting_from(t, v, look.noise_sd, look.period)
     stop = stopped_at(t, v, look.noise_sd, look.period)
     if stop is not None and start is not None and stop <= start:
@@ -432,7 +433,9 @@ class WheelProcedure(Procedure):
         events = []
         if not self._started:
             self._started = True
-            events.append(Event("instruction", "spin the wheel by hand, then let it coast; keep the recording running"))
+            # the rest before the spin reads the offsets and gravity alone: it checks the coast's fit (rest.py)
+            events.append(Event("instruction", "spin the wheel by hand after holding it still for 5 s, then let it "
+                                "coast; keep the recording running"))
         t = np.asarray(chunk.t, dtype=float).reshape(-1)
         if t.size:
             self._t.append(t)

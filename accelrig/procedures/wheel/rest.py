@@ -9,7 +9,8 @@ or tangential term: the sensor reads its offset plus gravity at the resting angl
     v_rest = o + Gamma R (g sin(alpha) cos(phi), g sin(alpha) sin(phi), g cos(alpha)),
 
 exact physics with one unknown, the resting angle phi.  The wizard's record starts with the wheel at rest
-("spin the wheel by hand, then let it coast; keep the recording running"), and may end with it at rest after
+("spin the wheel by hand after holding it still for 5 s, then let it coast; keep the
+recording running"), and may end with it at rest after
 it stopped, so the rest's mean, set against the fit's prediction at the best resting angle, tests the offsets
 the fit found along the two directions the angle does not absorb (a chi^2 test at ALPHA, 2 degrees
 of freedom per rest, the fit's own covariance and the rest's noise in its variance).
