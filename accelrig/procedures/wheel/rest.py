@@ -54,8 +54,8 @@ class RestCheck:
     statistic: float
     dof: int
     p_value: float
-    allowance: np.ndarray              # covariance of the bias a drift that size would make (internal parameters)
-    drift: float                       # the drift's size the largest miss asks for, m/s^2 over the coast
+    allowance: np.ndarray              # covariance of the bias a drift that size would make (internal parameters;
+    drift: float                       # zero when not significant) and the drift's size, m/s^2 over the coast
 
     @property
     def significant(self) -> bool:
@@ -135,8 +135,11 @@ def check_rests(rests: list[Rest], t: np.ndarray, state: WheelState,
     project = inv - inv @ jac_angle @ np.linalg.solve(angle_info, jac_angle.T @ inv)
     statistic = float(miss @ project @ miss)
     dof = 2 * k
-    allowance, drift = _allowance(miss, t, state, free, time_scale, sigma, g)
-    return RestCheck(found, statistic, dof, float(_sps.chi2.sf(statistic, dof)), allowance, drift)
+    p_value = float(_sps.chi2.sf(statistic, dof))
+    allowance, drift = np.zeros((p, p)), 0.0
+    if p_value < ALPHA:     # only then is u widened: the pass over the coast is spared otherwise
+        allowance, drift = _allowance(miss, t, state, free, time_scale, sigma, g)
+    return RestCheck(found, statistic, dof, p_value, allowance, drift)
 
 
 def _allowance(miss: np.ndarray, t: np.ndarray, state: WheelState, free: FreeSet, time_scale: float,
