@@ -174,6 +174,11 @@ def wheel_conditions() -> list[Condition]:
         # running", so the wheel rests, is pushed, then coasts: no refusal is right
         ("rest 5 s then a 2 s push", WheelCase(rest_s=5.0, push_s=2.0), ()),
         ("rest 3 s then two pushes over 3 s", WheelCase(rest_s=3.0, push_s=3.0, pushes=2), ()),
+        # a sensor powered up with the recording: it warms up from the first sample, through the rest and the
+        # push, so the rest before the spin reads the offset before the coast's (issue 18: the rest is what shows
+        # a drift along the wheel's plane that the coast alone confounds with the centripetal term)
+        ("warm-up 0.02, tau 1/4 run, rest 5 s then a 2 s push",
+         WheelCase(drift=Drift("warmup", 0.02, at=0.25), rest_s=5.0, push_s=2.0), ("drift",)),
     ]
     return [Condition("wheel", name, _wheel(case), must) for name, case, must in rows]
 

@@ -251,6 +251,25 @@ def stopped_at(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> f
     return stop
 
 
+def rested_until(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -> float | None:
+    """Time until which the wheel stood still from the recording's first sample (the rest before the push the
+    wizard asks for), or None when the record starts turning or rests less than REST_WINDOW_S.  The mirror of
+    ``stopped_at``, windows looked at from the start; the last still window before the motion is left out too,
+    since a hand's push starts gently and may move the wheel a little within it."""
+    width = max(int(round(REST_WINDOW_S / period)), 5)
+    limit = REST_SCATTER * max(noise, 1e-12)
+    still = 0
+    for lo in range(0, t.size - width + 1, width):
+        if np.max(np.std(acc[lo:lo + width], axis=0)) > limit:
+            break
+        still += 1
+    else:
+        return None          # never seen turning: not a rest before a spin
+    if still < 2:
+        return None
+    return float(t[(still - 1) * width])
+
+
 # The free coast's start.  Over REST_WINDOW_S windows the points in the wheel plane lie on the circle gravity
 # draws, whose centre is the centripetal term r w^2 (plus the offsets): it moves only one way while the wheel
 # coasts (towards the centre of the slowest turns), and away from it while a hand drives the wheel.  A window

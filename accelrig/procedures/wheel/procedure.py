@@ -21,10 +21,12 @@ from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SYSTEMATIC, Checks, check_residuals
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
+    REST_WINDOW_S,
     WheelSurvey,
     check_capture,
     coasting_from,
     noise_sd,
+    rested_until,
     stopped_at,
     survey,
     timestamp_figures,
@@ -44,6 +46,7 @@ from accelrig.procedures.wheel.fit import (
 )
 from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
+from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
 from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
@@ -97,7 +100,7 @@ def calibrate_wheel(
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g, keep_angle=False)
-    t, v, gap_times, cut_notes, origin = _free_coast(t, v, gap_times, look)
+    t, v, gap_times, cut_notes, origin, rests = _free_coast(t, v, gap_times, look)
     if cut_notes:
         look = survey(t, v, recording.meta, g, keep_angle=False)
     warnings = cut_notes + check_capture(look, radius, g)
@@ -111,10 +114,12 @@ def calibrate_wheel(
         # the structure the checks found and took in: the estimates moved by its step, and ``resid`` (the
         # one residual array) now holds what is left after it
         state = checks.state
+        cov_internal, rest_quality, rest_source, rest_warnings = _rest_check(rests, t, checks, free, fit, g)
+        warnings.extend(rest_warnings)
         m = reporting_map(state, free, fit.time_scale)
-        cov = m @ checks.covariance_internal @ m.T
-        quality = {"iterations": fit.iterations, "residual_checks": checks.to_dict()}
-        uncertainty_source = checks.source
+        cov = m @ cov_internal @ m.T
+        quality = {"iterations": fit.iterations, "residual_checks": checks.to_dict(), "rest_check": rest_quality}
+        uncertainty_source = checks.source + rest_source
     else:
         steps = paper_calibrate(t, v, look, radius, tilt, g, gap_times)
         state = steps.state
@@ -153,16 +158,27 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
     """The free coast the speed law (eq. 2, a cubic in t) can follow: (t, v, gap times, notes, the time of its
     first sample in the recording).
 
-    Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand, then let it
-    coast; keep the recording running"); after it the wheel may stop and rest.  Neither is a coast-down: the fit
-    takes the coast, t counted from its first sample, and a note says what was left out and why.  Nothing is
-    dropped from the recording itself."""
+    Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand after holding
+    it still for 5 s, then let it coast; keep the recording running"); after it the wheel may stop and rest.
+    Neither is a coast-down: the fit takes the coast, t counted from its first sample, and a note says what was
+    left out and why.  Nothing is dropped from the recording itself.  The rests (before the push, after the stop)
+    are returned for the check against the fit (rest.py)."""
     start = coasting_from(t, v, look.noise_sd, look.period)
     stop = stopped_at(t, v, look.noise_sd, look.period)
     if stop is not None and start is not None and stop <= start:
         stop = None
     if start is None and stop is None:
-        return t, v, gap_times, [], 0.0
+        return t, v, gap_times, [], 0.0, []
+    # the wheel at rest before the push and after the stop reads the offsets and gravity alone (rest.py)
+    rests = []
+    until = rested_until(t, v, look.noise_sd, look.period) if start is not None else None
+    if until is not None and until < start:
+        rests.append(Rest("before the spin", t[t < until], v[t < until]))
+    if stop is not None:
+        # a window's margin: the wheel may rock a little as it comes to rest
+        after = t >= stop + REST_WINDOW_S
+        if np.count_nonzero(after) >= MIN_LOOK_SAMPLES:
+            rests.append(Rest("after the stop", t[after], v[after]))
     lo = 0.0 if start is None else start
     hi = np.inf if stop is None else stop
     kept = (t >= lo) & (t < hi)
@@ -179,7 +195,46 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
                      "warning)")
     origin = float(t[kept][0])
     gap_times = gap_times[(gap_times > lo) & (gap_times < hi)] - origin
-    return t[kept] - origin, v[kept], gap_times, notes, origin
+    return t[kept] - origin, v[kept], gap_times, notes, origin, rests
+
+
+def _rest_check(rests: list[Rest], t: np.ndarray, checks: Checks, free, fit, g: float):
+    """The fit against the wheel at rest (rest.py): (the internal covariance u comes from, the quality entry,
+    what the uncertainty line adds, warnings).  Found, u includes the move the rests would make; with no rest,
+    or with a drift taken in per segment (the offset at the coast's ends is then known only roughly), the
+    quality and the uncertainty line say the check was not made."""
+    cov = checks.covariance_internal
+    if not rests:
+        why = ("the recording holds no rest (the wheel held still a few seconds before the push, with the recording "
+               "running, would show a drift of the offsets along the wheel's plane that the coast alone takes for "
+               "the centripetal term)")
+        return cov, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
+    if checks.drift_per_axis is not None:
+        why = ("the offsets drifted during the coast and the fit took the drift in, so the offset at the coast's "
+               "ends is known too roughly for the rest to test it")
+        return cov, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
+    tau = np.array([w.tau for w in checks.whiteness]) if checks.correlated else np.ones(3)
+    found = check_rests(rests, t, checks.state, cov, free, fit.time_scale, fit.sigma, tau, g)
+    where = " and ".join(f"{r['where']} ({r['to_s'] - r['from_s']:.1f} s)" for r in found.rests)
+    quality = {"made": True, **found.to_dict()}
+    if not found.significant:
+        return cov, quality, f"; checked against the wheel at rest {where}: it agrees (p = {found.p_value:.2g})", []
+    cov = cov + found.allowance
+    return cov, quality, (f"; the wheel at rest {where} disagrees with the fit (p = {found.p_value:.2g}): u "
+                          f"includes the bias of a drift along the wheel's plane that size ({found.drift:.2g} m/s^2 "
+                          "over the coast, shaped like w^2, in any direction within the plane)"), [_rest_warning(found)]
+
+
+def _rest_warning(found: RestCheck) -> str:
+    read = "; ".join(f"{r['where']} ({r['from_s']:.1f}-{r['to_s']:.1f} s) by "
+                     + ", ".join(f"{x:+.3g}" for x in r["read_off_m_s2"]) + " m/s^2"
+                     for r in found.rests)
+    return ("the wheel at rest read off what the fit of the coast predicts, beyond what the resting angle explains: "
+            f"{read} (x, y, z; chi^2 test p = {found.p_value:.1g}): the offsets moved between the rest and the coast, "
+            "or drifted during the coast along the wheel's plane, where a drift looks like the centripetal term the "
+            f"gains are scaled by; the data cannot tell which, so u of the gains, offsets and tilt includes the bias "
+            f"a drift of {found.drift:.2g} m/s^2 over the coast would make; a sensor still warming up drifts like "
+            "this, let it settle powered before calibrating")
 
 
 def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
@@ -382,7 +437,9 @@ class WheelProcedure(Procedure):
         events = []
         if not self._started:
             self._started = True
-            events.append(Event("instruction", "spin the wheel by hand, then let it coast; keep the recording running"))
+            # the rest before the spin reads the offsets and gravity alone: it checks the coast's fit (rest.py)
+            events.append(Event("instruction", "spin the wheel by hand after holding it still for 5 s, then let it "
+                                "coast; keep the recording running"))
         t = np.asarray(chunk.t, dtype=float).reshape(-1)
         if t.size:
             self._t.append(t)

@@ -1,0 +1,84 @@
+"""The wheel at rest before the push (and after the stop) checks the coast's fit (issue 18, accelrig/procedures/wheel/rest.py).
+
+The rest reads the offsets plus gravity at one unknown wheel angle: exact physics with no speed law in it, so a drift
+of the offsets between the rest and the coast, or during the coast along the wheel's plane (where it looks like the
+centripetal term), shows there."""
+
+import numpy as np
+
+from accelrig.geometry import rotation_xyz
+from accelrig.procedures.wheel.fit import free_set
+from accelrig.procedures.wheel.model import TABLE_I_OMEGA, WheelState
+from accelrig.procedures.wheel.procedure import calibrate_wheel
+from accelrig.procedures.wheel.rest import Rest, _at_rest, check_rests
+from accelrig.recording import Recording, time_range
+from accelrig.sim.device import simulate
+from accelrig.sim.rigs.wheel import WheelRig
+from accelrig.sim.sensor import SensorModel, SimClock
+
+RATE = 200.0
+GAIN = np.array([0.98, 1.0, 1.02])
+OFFSET = np.array([0.3, -0.2, 0.25])
+OMEGA = TABLE_I_OMEGA * 6.0 / 9.0
+
+
+def _state() -> WheelState:
+    return WheelState(0.3, OMEGA, np.deg2rad(45.0), 0.28, rotation_xyz(np.deg2rad([30.0, 20.0, 25.0])), GAIN, OFFSET)
+
+
+def test_the_resting_angle_absorbs_one_direction_and_only_that_one():
+    """A shift of the rest along gravity's tangent at the resting angle is the angle itself; along the wheel axis
+    or gravity's own in-plane direction it is a miss the test sees."""
+    state = _state()
+    free = free_set(0.28, None)
+    t = np.arange(0.0, 40.0, 1.0 / RATE)
+    cov = np.eye(free.size) * 1e-12
+    angle = np.deg2rad(40.0)
+    at_rest = _at_rest(state, angle, 9.80665)
+    tangent = _at_rest(state, angle + 1e-4, 9.80665) - _at_rest(state, angle - 1e-4, 9.80665)
+    tangent /= np.linalg.norm(tangent)
+    noise = np.random.default_rng(1).standard_normal((600, 3)) * 0.08
+    t_rest = np.arange(600) / RATE
+    sigma, tau = np.full(3, 0.08), np.ones(3)
+    for shift, fires in ((0.0, False), (0.03, False), (-0.03, False)):
+        rest = Rest("before the spin", t_rest, at_rest + noise + shift * tangent)
+        found = check_rests([rest], t, state, cov, free, 1.0, sigma, tau)
+        assert found.significant == fires
+    axis = state.gain * state.rotation[:, 2]
+    axis /= np.linalg.norm(axis)
+    rest = Rest("before the spin", t_rest, at_rest + noise + 0.03 * axis)
+    found = check_rests([rest], t, state, cov, free, 1.0, sigma, tau)
+    assert found.significant and found.dof == 2
+    assert abs(np.dot(found.rests[0]["read_off_m_s2"], axis) - 0.03) < 0.01
+    assert abs(found.rests[0]["resting_angle_deg"] - 40.0) < 1.0
+
+
+def test_a_record_with_a_rest_is_checked_against_it_and_a_drift_from_the_rest_is_warned_with_its_size():
+    rig = WheelRig(radius=0.28, duration=40.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    clean = calibrate_wheel(rec, radius=0.28)
+    check = clean.quality["rest_check"]
+    assert check["made"] and not check["significant"]
+    assert check["rests"][0]["where"] == "before the spin" and check["rests"][0]["to_s"] < 3.0
+    assert "checked against the wheel at rest before the spin" in clean.quality["uncertainty"]
+    assert not any("wheel at rest read off" in w for w in clean.warnings)
+
+    # the sensor's offsets moved by 0.04 m/s^2 between the rest and the push
+    moved = rec.acc.copy()
+    moved[rec.t - rec.t[0] < 3.0] -= 0.04 / np.sqrt(3.0)
+    drifted = calibrate_wheel(Recording(rec.t, moved, rec.units, {}, rec.meta), radius=0.28)
+    warning = [w for w in drifted.warnings if "wheel at rest read off" in w]
+    assert len(warning) == 1 and "before the spin (0.0-" in warning[0]
+    assert drifted.quality["rest_check"]["significant"]
+    # the coast is the same, so the estimates are; u grows by the bias such a drift would make
+    assert np.allclose(drifted.parameters["gain"].value, clean.parameters["gain"].value, rtol=1e-6)
+    assert np.all(np.array(drifted.parameters["gain"].uncertainty) > 1.5 * np.array(clean.parameters["gain"].uncertainty))
+
+    # calibrated from the coast alone there is no rest to check: said in the uncertainty line, not warned
+    start = float(clean.settings["time_origin"].split("first sample of the free coast, ")[1].split(" s")[0])
+    quiet = calibrate_wheel(time_range(rec, start, None), radius=0.28)
+    assert quiet.quality["rest_check"]["made"] is False
+    assert "not checked against the wheel at rest: the recording holds no rest" in quiet.quality["uncertainty"]
+    assert not any("at rest" in w for w in quiet.warnings)
