@@ -13,13 +13,14 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Label, Static
+from textual.widgets import DataTable, Header, Label, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 AXIS_STYLES = {"x": "red", "y": "green", "z": "dodger_blue1"}
@@ -113,7 +114,7 @@ class CampaignScreen(Screen):
             for i, (title, _, _) in enumerate(campaign_tables(self.report.details)):
                 yield Label(f"[b]{title}[/b]")
                 yield DataTable(id=f"campaign-{i}", show_cursor=False, zebra_stripes=True, classes="quality-table")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "campaign"
