@@ -26,7 +26,7 @@ from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -380,7 +380,9 @@ class ResultsScreen(Screen):
         plot.set_series(view.series)
 
     def set_status(self, text: str) -> None:
-        self.query_one("#results-status", Static).update(text)
+        """The outcome of s, c or f: on the status line at the top, and as a notification, which shows
+        wherever the operator has scrolled to."""
+        tell(self.query_one("#results-status", Static), text)
 
     def check_action(self, action: str, parameters) -> bool | None:
         # flash is offered only where the device can store a calibration

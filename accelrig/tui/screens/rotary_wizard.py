@@ -18,7 +18,7 @@ from textual.widgets import DataTable, Header, Label, Static
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
@@ -146,16 +146,16 @@ class CampaignScreen(Screen):
         status = self.query_one("#campaign-status", Static)
         if target.exists() and not await self.app.push_screen_wait(
                 ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
-            status.update(f"not saved: {escape(str(target))} kept as it was")
+            tell(status, f"not saved: {escape(str(target))} kept as it was")
             return
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             write_report(self.report, target)
         except (AccelrigError, OSError) as exc:
-            status.update(f"[red]not saved:[/] {escape(str(exc))}")
+            tell(status, f"[red]not saved:[/] {escape(str(exc))}")
             return
         self.saved_path = target
-        status.update(f"[green]report saved to[/] {escape(str(target))}")
+        tell(status, f"[green]report saved to[/] {escape(str(target))}")
 
     def action_certificate(self) -> None:
         self.certificate_flow()
@@ -165,7 +165,7 @@ class CampaignScreen(Screen):
         from accelrig.tui.screens.certificate import write_certificate_flow
 
         status = self.query_one("#campaign-status", Static)
-        written = await write_certificate_flow(self, self.report, None, self.device, status.update)
+        written = await write_certificate_flow(self, self.report, None, self.device, lambda text: tell(status, text))
         if written is not None:
             self.certificate_path = written
 
