@@ -533,7 +533,7 @@ class ProcedureWizard(Screen):
         if self.computing:
             return
         self.computing = True
-        self.set_instruction("enough data: computing the calibration ...", "bold green")
+        self.set_instruction(f"enough data: computing the {self.procedure_class.title} ...", "bold green")
         self._fit(self._generation, self.procedure)
 
     @work(thread=True, exclusive=True, group="wizard-fit")
