@@ -48,6 +48,10 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
         assert "span only" in str(campaign.query_one("#campaign-warnings").render())
         budget = campaign.query_one("#campaign-1")
         assert budget.row_count == 2 and "left out" in budget.get_row_at(0)
+        # the budget's u_c is Table 2's combination of the contributions shown, as in the saved report
+        entry = campaign.report.details["per_axis"]
+        entry = entry[next(iter(entry))]["x"]["budget"]
+        assert budget.get_row_at(0)[5] == f"{100 * entry['combined_standard_uncertainty']:.3f}"
         assert campaign.query_one("#campaign-0").row_count == 4   # 2 steps x 2 axes
         # the report is saved as Markdown
         await pilot.press("s")

@@ -13,7 +13,7 @@ import math
 LACK_OF_FIT_ALPHA = 0.01   # the level every procedure's lack-of-fit test warns at (estimation.residuals.ALPHA)
 
 
-def lack_of_fit_sentence(chi2, dof, p) -> str:
+def _lack_of_fit_sentence(chi2, dof, p) -> str:
     """chi^2 for dof (p) and what it means for the model."""
     if not dof or p is None or not math.isfinite(p):
         return (f"χ² = {chi2:.3g} for {dof} degrees of freedom: none are left over once the model's unknowns are "
@@ -41,7 +41,7 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
     if isinstance(source, str) and source:
         lines.append(("uncertainty", source))
     if "chi2" in q and "dof" in q and q["chi2"] is not None:
-        lines.append(("lack of fit", lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))))
+        lines.append(("lack of fit", _lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))))
     tilt_p = q.get("tilt_p_value")
     if tilt_p is not None and math.isfinite(tilt_p) and q.get("stated_flatness_deg"):
         within = ("beyond it: the flatness the tilts show is used instead (see the uncertainty)"

@@ -14,7 +14,7 @@ from datetime import UTC, datetime
 from html import escape
 
 from accelrig import __version__
-from accelrig.report.checks import lack_of_fit_sentence
+from accelrig.report.checks import check_lines
 from accelrig.report.source import METHOD_REFERENCES, Source
 from accelrig.result import Estimate
 
@@ -156,18 +156,15 @@ def budgets_html(src: Source) -> str:
 
 
 def verdicts_html(src: Source) -> str:
-    q, d = src.result.get("quality") or {}, src.details
+    d = src.details
     parts = []
     if "verdict" in d:
         # the verdicts of procedures/slider_crank/analysis.verdict_for: holds, does not hold, inconclusive
         style = {"holds": "pass", "does not hold": "fail"}.get(str(d["verdict"]), "open")
         parts.append(f'<p>Slider-crank verification: <span class="verdict-{style}">'
                      f'{escape(str(d["verdict"]))}</span> — {escape(str(d.get("verdict_reason", "")))}</p>')
-    if "chi2" in q and "dof" in q and q["chi2"] is not None:
-        parts.append(f"<p>Lack of fit: {escape(lack_of_fit_sentence(q['chi2'], q['dof'], q.get('p_value')))}.</p>")
-    if "radius_chi2" in q and q.get("radius_dof"):
-        parts.append(f"<p>Radius consistency across steps: χ² = {q['radius_chi2']:.3g} for {q['radius_dof']} "
-                     "degrees of freedom.</p>")
+    # what the checks found, in the words of the results screen and the text reports
+    parts += [f"<p>{escape(what[0].upper() + what[1:])}: {escape(sentence)}.</p>" for what, sentence in check_lines(src.result)]
     en = d.get("normalized_error") or []
     if en:
         rows = [[" / ".join(e["sensors"]), f"{e['E_n']:.3f}", "yes" if e["consistent"] else "NO"] for e in en]
@@ -235,7 +232,13 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
                 f"{issued.strftime('%Y-%m-%d %H:%M UTC')} by accelrig {escape(__version__)}</p>")
 
-    html.append("<h2>1. Item calibrated</h2>")
+    sections = iter(range(1, 100))
+
+    def heading(title: str) -> str:
+        """Sections numbered as shown: one a certificate leaves out (no budget, no figures) leaves no gap."""
+        return f"<h2>{next(sections)}. {title}</h2>"
+
+    html.append(heading("Item calibrated"))
     if src.is_campaign:
         html.append(_kv([("campaign", src.details.get("campaign")), ("campaign file", src.details.get("source")),
                          ("sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
@@ -247,13 +250,13 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
                          ("driver / URL", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x)
                           or None)]))
 
-    html.append("<h2>2. Method</h2>")
+    html.append(heading("Method"))
     html.append(_kv([("procedure", r["procedure"]), ("method", r["method"]), ("model", r["model"]),
                      ("reference", METHOD_REFERENCES.get(r["procedure"], "—")),
                      ("settings", {kk: v for kk, v in (r.get("settings") or {}).items() if not isinstance(v, list)
                                    or len(v) <= 12})]))
 
-    html.append("<h2>3. Conditions</h2>")
+    html.append(heading("Conditions"))
     cond_rows = [(label, conditions.get(key)) for key, label in CONDITION_FIELDS
                  if key in conditions and key != "certificate_number"]
     if prov.get("temperature_c") is not None:
@@ -261,13 +264,13 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     cond_rows.append(("date of calibration", prov.get("recording_start") or prov.get("created")))
     html.append(_kv(cond_rows))
 
-    html.append("<h2>4. Traceability and records</h2>")
+    html.append(heading("Traceability and records"))
     html.append(_kv([("software", f"accelrig {prov.get('software_version') or __version__} (calibration), "
                                   f"accelrig {__version__} (this certificate)"),
                      ("recording hash", prov.get("recording_hash")), ("recording", prov.get("recording_source")),
                      ("samples", prov.get("recording_samples")), ("source of this certificate", src.path)]))
 
-    html.append("<h2>5. Results</h2>")
+    html.append(heading("Results"))
     html.append(f'<p class="note">{escape(coverage_statement(k, src.details.get("coverage_dof")))}</p>')
     head = ["quantity", "value", "u (k = 1)", f"U (k = {k:g})", "unit"]
     if r.get("correction"):
@@ -284,20 +287,20 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
 
     budgets = budgets_html(src)
     if budgets:
-        html.append("<h2>6. Uncertainty budget</h2>" + budgets)
-    html.append("<h2>7. Quality figures and verdicts</h2>")
+        html.append(heading("Uncertainty budget") + budgets)
+    html.append(heading("Quality figures and verdicts"))
     html.append(verdicts_html(src))
     quality = {kk: v for kk, v in (r.get("quality") or {}).items() if not isinstance(v, (list, dict))
                or len(str(v)) < 400}
     html.append(_kv(list(quality.items())))
 
-    html.append("<h2>8. Warnings</h2>")
+    html.append(heading("Warnings"))
     warnings = r.get("warnings") or []
     html.append("<ul>" + "".join(f'<li class="warn">{escape(w)}</li>' for w in warnings) + "</ul>"
                 if warnings else "<p>None.</p>")
 
     if figures is not None:
-        html.append("<h2>9. Figures</h2>")
+        html.append(heading("Figures"))
         for fig in figures:
             html.append(f"<figure>{fig.svg}<figcaption><b>{escape(fig.title)}.</b> {escape(fig.caption)}"
                         "</figcaption></figure>")

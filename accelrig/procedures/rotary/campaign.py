@@ -432,7 +432,7 @@ def report_markdown(result: CalibrationResult) -> str:
         lines.append(f"| 2 | {sensor} | {e['mean_sensitivity']:.3f} | {100 * e['overall_relative_uncertainty']:.3f} | "
                      f"{e['expanded_uncertainty']:.3f} |")
     b = report["batch"]
-    lines.append(f"| 3 | batch ({len(b['sensors'])} sensors) | {b['mean_sensitivity']:.3f} | "
+    lines.append(f"| 3 | batch ({len(b['sensors'])} sensor{'' if len(b['sensors']) == 1 else 's'}) | {b['mean_sensitivity']:.3f} | "
                  f"{100 * b['overall_relative_uncertainty']:.3f} | {b['expanded_uncertainty']:.3f} |")
     lines += ["", "## ANOVA", "", "| groups | F | p | means differ (5 %) |", "|---|---|---|---|"]
     for sensor, a in report["anova"]["across_axes"].items():

@@ -1316,10 +1316,12 @@ def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used:
         return "inconclusive", f"only {n_used} step(s) where the motor followed steadily: need at least 2"
     lo, hi = crank_radius - clearance, crank_radius + clearance
     bounds = f"[{lo * 1e3:.3f}, {hi * 1e3:.3f}] mm" if clearance > 0 else f"{crank_radius * 1e3:.3f} mm"
-    measured = f"{radius.value * 1e3:.4f} +- {radius.uncertainty * 1e3:.4f} mm"
+    measured = f"{radius.value * 1e3:.4f} mm (u {radius.uncertainty * 1e3:.4f} mm at k = 1)"
     if abs(radius.value - crank_radius) > clearance + k * radius.uncertainty:
-        return "does not hold", f"radius from the measured motion {measured} lies outside the caliper radius {bounds} (k = {k:.2f})"
-    return "holds", f"radius from the measured motion {measured} agrees with the caliper radius {bounds} (k = {k:.2f})"
+        return "does not hold", (f"radius from the measured motion {measured} lies outside the caliper radius "
+                                 f"{bounds} by more than k u (k = {k:.2f})")
+    return "holds", (f"radius from the measured motion {measured} agrees with the caliper radius {bounds} "
+                     f"within k u (k = {k:.2f})")
 
 
 def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:

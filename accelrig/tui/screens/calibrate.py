@@ -9,8 +9,10 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Label, OptionList, Static
+from textual.widgets import Header, Label, OptionList, Static
 from textual.widgets.option_list import Option
+
+from accelrig.tui.widgets.keys import KeyFooter
 
 # (key, title, procedure module the wizard drives, wizard screen "module:Class")
 WIZARDS = (
@@ -57,7 +59,7 @@ class CalibrateMenu(Screen):
             else:
                 yield Static("No calibration procedure is installed in this version of accelrig.")
             yield Static("", id="calibrate-status")
-        yield Footer()
+        yield KeyFooter()
 
     @on(OptionList.OptionSelected, "#wizards")
     def start(self, event: OptionList.OptionSelected) -> None:

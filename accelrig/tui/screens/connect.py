@@ -7,7 +7,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Button, Footer, Header, Input, Label, OptionList, Static
+from textual.widgets import Button, Header, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from accelrig.acquisition.driver import load_drivers
@@ -15,6 +15,7 @@ from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import flash_url_profile
 from accelrig.tui.rigs import fits, suggested_urls
+from accelrig.tui.widgets.keys import KeyFooter
 
 URL_HINT = "sim://static?seed=1   replay://run.csv   i2c://1/0x68   serial:///dev/ttyUSB0   ble://AA:BB:..."
 
@@ -42,7 +43,7 @@ class ConnectScreen(Screen):
                 yield Button("Connect", id="do-connect", variant="primary")
             yield Static("", id="connect-status")
             yield Static("", id="connected-device")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.query_one("#url", Input).value = self.app.device

@@ -8,10 +8,11 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Static
+from textual.widgets import DataTable, Header, Static
 
 from accelrig.daemon.status import COLUMNS, device_row, query
 from accelrig.errors import AccelrigError
+from accelrig.tui.widgets.keys import KeyFooter
 
 
 class DaemonScreen(Screen):
@@ -30,7 +31,7 @@ class DaemonScreen(Screen):
         yield Static(f"daemon status socket {self.socket_path} (read-only)", id="daemon-title")
         yield DataTable(id="daemon-devices", show_cursor=False, zebra_stripes=True)
         yield Static("", id="daemon-errors")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         table = self.query_one("#daemon-devices", DataTable)

@@ -14,6 +14,13 @@ from accelrig.errors import AccelrigError, DataError
 from accelrig.settings import Setting, values_from_texts
 
 
+def tell(status: Static, text: str) -> None:
+    """An outcome (saved, written, refused) on a screen's ``status`` line and as a notification: the status
+    line sits at the top, and an operator who scrolled down to read would not see it change."""
+    status.update(text)
+    status.app.notify(text, severity="error" if text.startswith("[red]") else "information")
+
+
 class ConfirmScreen(ModalScreen[bool]):
     """Ask a yes/no question; dismisses with True only on an explicit yes."""
 

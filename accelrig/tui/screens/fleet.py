@@ -15,9 +15,10 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Static
+from textual.widgets import DataTable, Header, Static
 
 from accelrig.errors import AccelrigError
+from accelrig.tui.widgets.keys import KeyFooter
 
 
 @dataclass
@@ -51,7 +52,7 @@ class FleetScreen(Screen):
         yield Static(f"fleet at {escape(self.options.broker)}: connecting ...", id="fleet-title")
         yield DataTable(id="fleet-devices", show_cursor=False, zebra_stripes=True)
         yield Static("", id="fleet-note")
-        yield Footer()
+        yield KeyFooter()
 
     def help_text(self) -> str:
         return ("[b]The fleet[/b]: every device publishing to the broker, from its retained status and meta "

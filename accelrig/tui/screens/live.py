@@ -6,12 +6,13 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import Footer, Header
+from textual.widgets import Header
 
 from accelrig.tui.screens.calibrate import CalibrateMenu
 from accelrig.tui.screens.connect import ConnectScreen
 from accelrig.tui.screens.dialogs import PathScreen
 from accelrig.tui.screens.fleet import FleetOptions, FleetScreen
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.live import LiveView
 
 
@@ -30,7 +31,7 @@ class LiveScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header()
         yield LiveView(id="live")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.refresh_view()

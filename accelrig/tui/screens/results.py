@@ -16,7 +16,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Label, Static
+from textual.widgets import DataTable, Header, Label, Static
 
 from accelrig.acquisition.driver import Driver
 from accelrig.acquisition.flash import FlashPlan
@@ -26,7 +26,8 @@ from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 SERIES_STYLES = ("red", "green", "dodger_blue1", "yellow", "magenta", "cyan")
@@ -281,7 +282,7 @@ class ResultsScreen(Screen):
             for key, _ in self.quality_tables():
                 yield Label(f"[b]{key}[/b]")
                 yield DataTable(id=f"quality-{key}", show_cursor=False, classes="quality-table")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "results"
@@ -379,7 +380,9 @@ class ResultsScreen(Screen):
         plot.set_series(view.series)
 
     def set_status(self, text: str) -> None:
-        self.query_one("#results-status", Static).update(text)
+        """The outcome of s, c or f: on the status line at the top, and as a notification, which shows
+        wherever the operator has scrolled to."""
+        tell(self.query_one("#results-status", Static), text)
 
     def check_action(self, action: str, parameters) -> bool | None:
         # flash is offered only where the device can store a calibration

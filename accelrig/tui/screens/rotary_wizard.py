@@ -13,13 +13,14 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Label, Static
+from textual.widgets import DataTable, Header, Label, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 AXIS_STYLES = {"x": "red", "y": "green", "z": "dodger_blue1"}
@@ -59,9 +60,12 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
             def percent(symbol, parts=parts):
                 return f"{100 * parts[symbol]:.3f}" if symbol in parts else "left out"
 
+            # the budget's own combination (Table 2, with the campaign's correlation), not the group result
+            # (Table 3, which adds the spread of the results and has its own table below)
+            b = e["budget"]
             budget.append((f"{sensor} {axis}", f"{e['mean_sensitivity']:.3f}", percent("u_r"), percent("u_l"),
-                           percent("u_ref"), f"{100 * e['overall_relative_uncertainty']:.3f}",
-                           f"{e['expanded_uncertainty']:.3f}"))
+                           percent("u_ref"), f"{100 * b['combined_standard_uncertainty']:.3f}",
+                           f"{b['expanded_uncertainty_absolute']:.3f}"))
             line = e["linearity"]
             linearity.append((f"{sensor} {axis}", *((f"{line['slope']:.3f}", f"{line['slope_sd']:.2g}",
                                                      f"{line['intercept']:.2f}", f"{line['r_squared']:.6f}",
@@ -75,7 +79,8 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
     return [
         ("Sensitivity per step (counts per m/s², u at k = 1)",
          ("step", "label", "rate Hz", "axis", "component", "S", "u"), steps),
-        (f"Budget per axis (relative u in %, k = 1; U at k = {k:g} in counts per m/s²)",
+        (f"Budget per axis (Table 2: relative u in %, k = 1, combined with correlation "
+         f"{report['correlation']:g}; U at k = {k:g} in counts per m/s²)",
          ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_c %", f"U (k={k:g})"), budget),
         ("Linearity q_o = S q_i + b (S in counts per m/s², b in counts)",
          ("axis", "S", "u(S)", "b", "R²", "n"), linearity),
@@ -109,7 +114,7 @@ class CampaignScreen(Screen):
             for i, (title, _, _) in enumerate(campaign_tables(self.report.details)):
                 yield Label(f"[b]{title}[/b]")
                 yield DataTable(id=f"campaign-{i}", show_cursor=False, zebra_stripes=True, classes="quality-table")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "campaign"
@@ -141,16 +146,16 @@ class CampaignScreen(Screen):
         status = self.query_one("#campaign-status", Static)
         if target.exists() and not await self.app.push_screen_wait(
                 ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
-            status.update(f"not saved: {escape(str(target))} kept as it was")
+            tell(status, f"not saved: {escape(str(target))} kept as it was")
             return
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             write_report(self.report, target)
         except (AccelrigError, OSError) as exc:
-            status.update(f"[red]not saved:[/] {escape(str(exc))}")
+            tell(status, f"[red]not saved:[/] {escape(str(exc))}")
             return
         self.saved_path = target
-        status.update(f"[green]report saved to[/] {escape(str(target))}")
+        tell(status, f"[green]report saved to[/] {escape(str(target))}")
 
     def action_certificate(self) -> None:
         self.certificate_flow()
@@ -160,7 +165,7 @@ class CampaignScreen(Screen):
         from accelrig.tui.screens.certificate import write_certificate_flow
 
         status = self.query_one("#campaign-status", Static)
-        written = await write_certificate_flow(self, self.report, None, self.device, status.update)
+        written = await write_certificate_flow(self, self.report, None, self.device, lambda text: tell(status, text))
         if written is not None:
             self.certificate_path = written
 

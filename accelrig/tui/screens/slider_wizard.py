@@ -13,7 +13,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Static
+from textual.widgets import DataTable, Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.files import atomic_write
@@ -21,8 +21,9 @@ from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
 from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
 from accelrig.result import to_plain
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.wizard import ProcedureWizard
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
 
@@ -102,10 +103,10 @@ class VerificationScreen(Screen):
             target.parent.mkdir(parents=True, exist_ok=True)
             atomic_write(target, lambda fh: fh.write(text), text=True)
         except (AccelrigError, OSError) as exc:
-            status.update(f"[red]not saved:[/] {escape(str(exc))}")
+            tell(status, f"[red]not saved:[/] {escape(str(exc))}")
             return
         self.saved_path = target
-        status.update(f"[green]verification saved to[/] {escape(str(target))}")
+        tell(status, f"[green]verification saved to[/] {escape(str(target))}")
 
     def compose(self) -> ComposeResult:
         v, r = self.verification.details, self.verification.parameters["radius"]
@@ -124,7 +125,7 @@ class VerificationScreen(Screen):
             yield LinePlot("frequency response: first harmonic (m/s²)", x_label="frequency (Hz)", id="verification-plot")
             yield Static("\n".join(f"[yellow]warning:[/] {w}" for w in self.verification.warnings),
                          id="verification-warnings")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "verification"

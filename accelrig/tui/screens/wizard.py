@@ -44,7 +44,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Label, ProgressBar, RichLog, Static
+from textual.widgets import Header, Label, ProgressBar, RichLog, Static
 
 from accelrig.acquisition.recorder import Recorder, streaming_writer
 from accelrig.acquisition.session import Session, State
@@ -53,6 +53,7 @@ from accelrig.procedures.contract import Event, Procedure
 from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
+from accelrig.tui.widgets.keys import KeyFooter
 
 EVENT_STYLES = {"problem": "bold red", "ready": "bold green", "instruction": "bold", "captured": "green"}
 # Event kinds that replace the instruction line (progress only goes to the log and the bar).
@@ -178,7 +179,7 @@ class ProcedureWizard(Screen):
             yield Static("", id="wizard-stream")
             yield Static("", id="wizard-alarm")
             yield RichLog(id="events", max_lines=200, wrap=True, markup=True)
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = self.procedure_class.title
@@ -532,7 +533,7 @@ class ProcedureWizard(Screen):
         if self.computing:
             return
         self.computing = True
-        self.set_instruction("enough data: computing the calibration ...", "bold green")
+        self.set_instruction(f"enough data: computing the {self.procedure_class.title} ...", "bold green")
         self._fit(self._generation, self.procedure)
 
     @work(thread=True, exclusive=True, group="wizard-fit")
