@@ -53,6 +53,7 @@ import numpy as np
 from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.residuals import ALPHA, Whiteness, pooled_whiteness, whiteness
 from accelrig.geometry import AXES
+from accelrig.result import Correction
 
 
 @dataclass
@@ -81,6 +82,29 @@ class StillNoise:
     pose_slopes: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     pose_slope_u: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     pose_centres: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # the drift tests made (trend, revisits, shape, bend): name -> (p value, the warning if it is to be given)
+    drift_tests: dict[str, tuple[float, str]] = field(default_factory=dict)
+
+    def drift_test(self, name: str, p: float, warning: str) -> None:
+        """Record one drift test's p value and the warning it gives when the family rejects it."""
+        self.drift_tests[name] = (p, warning)
+
+    def drift_warnings(self) -> list[str]:
+        """The drift tests' warnings, at a family-wise level ALPHA (Holm): up to four tests of one question
+        (did the offset move?) each at ALPHA would warn a steady sensor in about 4 % of runs, not 1 %.
+        Holm: the k-th smallest of the m p values rejects at ALPHA / (m - k + 1), as long as all smaller ones
+        did.  Recorded in ``drift["family"]``.  Only the warnings go through the family: a test that rejects
+        on its own still widens u where it does (``procedure._referred_to_middle``, ``drift_bend``)."""
+        order = sorted(self.drift_tests, key=lambda name: self.drift_tests[name][0])
+        rejected = set()
+        for k, name in enumerate(order):
+            if self.drift_tests[name][0] >= ALPHA / (len(order) - k):
+                break
+            rejected.add(name)
+        self.drift["family"] = {"method": "Holm", "alpha": ALPHA,
+                                "tests": {name: p for name, (p, _) in self.drift_tests.items()},
+                                "warned": [name for name in self.drift_tests if name in rejected]}
+        return [w for name, (_, w) in self.drift_tests.items() if name in rejected]
 
     @property
     def tau(self) -> np.ndarray:
@@ -127,9 +151,9 @@ class StillNoise:
                 "drift": self.drift, "description": self.describe()}
 
 
-def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[str | None],
-                g: float, flatness_deg: float) -> StillNoise:
-    """Check the still samples of the poses used (raw m/s^2, (n, 3) each, with their times)."""
+def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[str | None]) -> StillNoise:
+    """Check the still samples of the poses used (raw m/s^2, (n, 3) each, with their times).  The faces held
+    again are checked once a first fit's calibration reads them free of the hand's tilt (``drift_checks``)."""
     centred = [x - x.mean(axis=0) for x in samples]
     axes = [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
     dof = sum(len(c) - 1 for c in centred)
@@ -140,8 +164,6 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     pose_seconds = float(np.mean([t[-1] - t[0] for t in times])) if times else 0.0
     _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
-    _revisits(noise, samples, times, faces, g, flatness_deg)
-    _shape(noise, samples, times, faces, g, flatness_deg)
     _unchecked(noise, times, faces)
     return noise
 
@@ -207,42 +229,65 @@ def _trend(noise: StillNoise, samples, times) -> None:
     chi2 = float(np.sum((slope / u) ** 2))
     p = float(chi2_dist.sf(chi2, 3))
     noise.drift["trend"] = {"slope": slope.tolist(), "u": u.tolist(), "chi2": chi2, "p_value": p}
+    warning = ""
     if p < ALPHA:
         k = int(np.argmax(np.abs(slope / u)))
-        noise.warnings.append(
+        warning = (
             f"the offset drifts during the poses: {AXES[k]} moves {slope[k] * 60:+.3g} m/s^2 per minute "
             f"({abs(slope[k] / u[k]):.1f} u; all axes chi^2 {chi2:.1f} for 3, p = {p:.1g}): warming up? "
             "Let the sensor settle powered, or calibrate again later; the offsets hold for the middle of the run")
+    noise.drift_test("trend", p, warning)
 
 
-def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: float) -> None:
-    """A face held twice: the change of its mean along gravity between the first and the last hold.
+def offset_readings(samples: list[np.ndarray], faces: list[str | None], first: Correction) -> np.ndarray:
+    """Per pose, its face axis's raw offset as the calibrated gravity magnitude reads it (m/s^2; NaN without a
+    face): |C (m - b)| / s, s = d|C (m - b)| / d m_k of the face's first hold (about +-1 for -+k down).
 
-    A tilt of either hold shortens the reading along gravity by g (1 - cos theta) ~ g |theta|^2 / 2, where
-    theta is the hold's tilt (a 2-vector).  The two holds' tilt difference d = theta_b - theta_a is
-    measured (the cross-axis change over g, precise to 1e-4 rad); only theta_a is unknown, with sd s per
-    component (the stated flatness).  Then |theta_b|^2 - |theta_a|^2 = |d|^2 + 2 theta_a . d: the
-    change expected from the tilts is g |d|^2 / 2 towards zero, with sd g s |d|.  Conditioning on the
-    measured d keeps the test normal and exact at its level: two holds placed alike are compared tightly,
-    two placed differently loosely (the unconditional allowance, Laplace-tailed, raised false alarms)."""
+    |C (m - b)| is g whatever the tilt, so the change of this reading between two holds of a face is the
+    offset's change alone, without the hand's re-placement tilt, which the raw reading along gravity carries
+    at first order through the axes' misalignment (g K_kj dtheta_j: 1 degree against 0.5 degree of
+    misalignment moves it 1.5e-3 m/s^2, a pose mean's noise) and at second order through the tilt itself.
+    The first fit's errors change it by a part in 1e4 of the tilt at most: far below the noise."""
+    readings = np.full(len(samples), np.nan)
+    for face in dict.fromkeys(f for f in faces if f is not None):
+        idx = [k for k, f in enumerate(faces) if f == face]
+        axis = AXES.index(face[1])
+        vectors = [first.apply(samples[k].mean(axis=0)) for k in idx]
+        sensitivity = float(vectors[0] @ first.matrix[:, axis]) / float(np.linalg.norm(vectors[0]))
+        readings[idx] = [float(np.linalg.norm(v)) / sensitivity for v in vectors]
+    return readings
+
+
+def drift_checks(noise: StillNoise, samples: list[np.ndarray], times: list[np.ndarray], faces: list[str | None],
+                 first: Correction) -> bool:
+    """The faces held again, read on a first fit's calibrated magnitudes (``offset_readings``): the change
+    between a face's first and last holds (``_revisits``) and the middle hold of a face held three times
+    against the line through the other two (``_shape``).  False when no face was held again."""
+    readings = offset_readings(samples, faces, first)
+    _revisits(noise, readings, samples, times, faces)
+    _shape(noise, readings, samples, times, faces)
+    return bool(noise.drift.get("revisits"))
+
+
+def _revisits(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> None:
+    """A face held twice: the change of its axis's offset between the first and the last hold.
+
+    The change is read on the calibrated magnitudes (``offset_readings``), so the two holds' different tilts
+    do not enter it: its sd is the two means' noise along that axis (n / tau) and the slow-noise wander
+    between poses.  The tilt change between the holds (the cross-axis change over g) is recorded."""
     found = []
     tau = noise.tau_any
-    s = np.radians(flatness_deg)
     for face in dict.fromkeys(f for f in faces if f is not None):
         idx = [k for k, f in enumerate(faces) if f == face]
         if len(idx) < 2:
             continue
         a, b = idx[0], idx[-1]
         axis = AXES.index(face[1])
-        mean_a, mean_b = samples[a].mean(axis=0), samples[b].mean(axis=0)
         cross = [k for k in range(3) if k != axis]
-        d = (mean_b[cross] - mean_a[cross]) / g
-        # the reading along gravity is about -+g: its size shrinks with the tilt, so the tilt's expected
-        # change moves it towards zero by g |d|^2 / 2
-        towards_zero = -np.sign(mean_a[axis]) * g * float(d @ d) / 2.0
-        change = float(mean_b[axis] - mean_a[axis]) - towards_zero
+        d = (samples[b].mean(axis=0)[cross] - samples[a].mean(axis=0)[cross]) / np.linalg.norm(samples[a].mean(axis=0))
+        change = float(readings[b] - readings[a])
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[a]) + 1 / len(samples[b]))
-        var += (g * s) ** 2 * float(d @ d) + 2.0 * noise.wander_var   # the two means' slow noise (1/f) too
+        var += 2.0 * noise.wander_var   # the two means' slow noise (1/f) too
         z = change / np.sqrt(var)
         found.append({"face": face, "first_pose": a, "last_pose": b,
                       "first": float(times[a].mean()), "last": float(times[b].mean()),
@@ -254,15 +299,17 @@ def _revisits(noise: StillNoise, samples, times, faces, g: float, flatness_deg: 
     chi2 = float(sum(f["z"] ** 2 for f in found))
     p = float(chi2_dist.sf(chi2, len(found)))
     noise.drift["revisit_p_value"] = p
+    warning = ""
     if p < ALPHA:
         worst = max(found, key=lambda f: abs(f["z"]))
         span = worst["last"] - worst["first"]
-        noise.warnings.append(
+        warning = (
             f"the offset drifted during the run: {worst['face']} down read {worst['change']:+.4f} m/s^2 "
             f"along {worst['face'][1]} at t = {worst['last']:.0f} s against t = {worst['first']:.0f} s "
             f"({abs(worst['z']):.1f} u, {span:.0f} s apart): warming up? The offsets are referred to the middle "
             "of the run with the drift measured (as a straight line, its u included); let the sensor settle "
             "powered and calibrate again for the best result")
+    noise.drift_test("revisits", p, warning)
 
 
 # The middle hold of a face held three times must lie in the middle three fifths of the span between its first
@@ -274,23 +321,21 @@ MIDDLE_SHARE = (0.2, 0.8)
 SHAPE_MIN_COVER = 0.5
 
 
-def _shape(noise: StillNoise, samples, times, faces, g: float, flatness_deg: float) -> None:
+def _shape(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> None:
     """A face held three times, far apart: is its offset on the straight line through the first and last?
 
     The middle hold m (the one nearest the middle of the span, at share w of it from the first hold a to the
-    last b) reads, along gravity, the first hold's value plus the offset's change; a straight-line drift puts
-    that change at w times the change to b, so the departure  D = (m - a) - w (b - a)  is zero whatever the
-    rate.  Each hold's tilt relative to a is measured (the cross-axis change over g, as in ``_revisits``); its
-    expected shortening of the reading is removed and the unknown tilt of a enters as g theta_a . (d_m - w d_b),
-    sd g s |d_m - w d_b|.  Noise: sigma^2 tau (1/n_m + (1 - w)^2/n_a + w^2/n_b), plus the slow-noise wander of
-    the three means.  D is the drift's curvature kappa (m/s^2 per s^2) times (t_m - t_a)(t_m - t_b) / 2: a
-    thermal cycle that has come back by the last hold shows here at the offsets' own precision (the poses' own
-    trends, ``drift_bend``, are about 5x coarser).  Per axis the face with the most central middle hold is
-    used; the departures are tested together (chi^2, one dof per axis, at ALPHA) and recorded in
-    ``drift["shape"]``; the procedure fits the curvature on these axes (``procedure._referred_to_middle``).
-    Axes held again without such a face are listed as ``unchecked_axes``."""
+    last b) reads the first hold's offset plus its change (``offset_readings``: on the calibrated magnitudes,
+    whatever the holds' tilts); a straight-line drift puts that change at w times the change to b, so the
+    departure  D = (m - a) - w (b - a)  is zero whatever the rate.  Noise: sigma^2 tau (1/n_m + (1 - w)^2/n_a
+    + w^2/n_b), plus the slow-noise wander of the three means.  D is the drift's curvature kappa (m/s^2 per
+    s^2) times (t_m - t_a)(t_m - t_b) / 2: a thermal cycle that has come back by the last hold shows here at
+    the offsets' own precision (the poses' own trends, ``drift_bend``, are about 5x coarser).  Per axis the
+    face with the most central middle hold is used; the departures are tested together (chi^2, one dof per
+    axis, at ALPHA) and recorded in ``drift["shape"]``; the procedure fits the curvature on these axes
+    (``procedure._referred_to_middle``).  Axes held again without such a face are listed as
+    ``unchecked_axes``."""
     tau = noise.tau_any
-    s = np.radians(flatness_deg)
     run = float(max(np.mean(t) for t in times) - min(np.mean(t) for t in times)) if times else 0.0
     best: dict[int, dict] = {}
     for face in dict.fromkeys(f for f in faces if f is not None):
@@ -307,19 +352,10 @@ def _shape(noise: StillNoise, samples, times, faces, g: float, flatness_deg: flo
             continue
         axis = AXES.index(face[1])
         a, m, b = idx[0], idx[j], idx[-1]
-        mean = {k: samples[k].mean(axis=0) for k in (a, m, b)}
-        cross = [k for k in range(3) if k != axis]
-        d = {k: (mean[k][cross] - mean[a][cross]) / g for k in (m, b)}
-
-        # the change along gravity from hold a, less the shortening the measured tilt change explains (towards
-        # zero by g |d|^2 / 2)
-        change = {k: float(mean[k][axis] - mean[a][axis]) + np.sign(mean[a][axis]) * g * float(d[k] @ d[k]) / 2.0
-                  for k in (m, b)}
-        departure = change[m] - w * change[b]
-        lever = d[m] - w * d[b]
+        departure = float(readings[m] - readings[a]) - w * float(readings[b] - readings[a])
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[m]) + (1 - w) ** 2 / len(samples[a])
                                                   + w**2 / len(samples[b]))
-        var += (g * s) ** 2 * float(lever @ lever) + noise.wander_var * (1 + (1 - w) ** 2 + w**2)
+        var += noise.wander_var * (1 + (1 - w) ** 2 + w**2)
         shape = (centre[j] - t_a) * (centre[j] - t_b) / 2.0
         entry = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, centre[j], t_b],
                  "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
@@ -337,16 +373,18 @@ def _shape(noise: StillNoise, samples, times, faces, g: float, flatness_deg: flo
     chi2 = float(sum(e["z"] ** 2 for e in found))
     p = float(chi2_dist.sf(chi2, len(found)))
     record.update(chi2=chi2, dof=len(found), p_value=p)
+    warning = ""
     if p < ALPHA:
         worst = max(found, key=lambda e: abs(e["z"]))
         t_a, t_m, t_b = worst["times"]
-        noise.warnings.append(
+        warning = (
             f"the offset drift is not a straight line: {worst['face']} down read {worst['departure']:+.4f} m/s^2 "
             f"along {worst['axis']} at t = {t_m:.0f} s off the line through its holds at t = {t_a:.0f} and "
             f"{t_b:.0f} s ({abs(worst['z']):.1f} u; all axes chi^2 {chi2:.1f} for {len(found)}, p = {p:.1g}): "
             "a drift that comes and goes (temperature changing?). The offsets are referred to the middle of "
             "the run with the curve measured (its u included); let the sensor's temperature settle and "
             "calibrate again for the best result")
+    noise.drift_test("shape", p, warning)
 
 
 def _unchecked(noise: StillNoise, times, faces) -> None:
@@ -356,7 +394,7 @@ def _unchecked(noise: StillNoise, times, faces) -> None:
     same).  The offset of axis k comes from the poses of its two faces, so it is the offset at their mean
     time; the result stands for the middle of the run.  A drift rate up to 2 u of the pooled within-pose
     trend goes unseen and shifts offset k by that rate times the distance of its face pair from the middle."""
-    checked = sorted({r["face"][1] for r in noise.drift.get("revisits", [])})
+    checked = sorted({f[1] for f in faces if f is not None and faces.count(f) >= 2})
     noise.drift["checked_axes"] = checked
     if not faces or any(f is None for f in faces) or "trend" not in noise.drift:
         return
@@ -457,9 +495,10 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
                             "anchors_s": [list(anchors[k]) for k in axes], "largest_departure": departure,
                             "measured_axes": [AXES[k] for k in axes if k in measured]}}
     noise.drift["bend"] = record
+    warning = ""
     if seen:
         j = int(np.argmax(np.abs(z_kappa)))
-        noise.warnings.append(
+        warning = (
             f"the offset drift is not a straight line: along {AXES[axes[j]]} its rate changes by "
             f"{kappa[j] * 60:+.2g} m/s^2 per s each minute ({abs(z_kappa[j]):.1f} u; the poses' own trends, all "
             f"axes chi^2 {chi2:.1f} for {len(axes)}, p = {p:.1g}). "
@@ -469,4 +508,5 @@ def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middl
                "The u holds the curve the faces held three times measured, but a drift that turns back faster "
                "can be larger: ")
             + "let the sensor settle powered (temperature steady) and calibrate again")
+    noise.drift_test("bend", p, warning)
     return record

@@ -44,7 +44,7 @@ from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
-from accelrig.procedures.static.noise import StillNoise, drift_bend, still_noise
+from accelrig.procedures.static.noise import StillNoise, drift_bend, drift_checks, still_noise
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
@@ -239,9 +239,8 @@ class StaticProcedure(Procedure):
                 rows[k - 1].update(face=tilt.face, angle_deg=tilt.angle_deg)
         poses = [p for _, p in used]
         # the noise within the poses: correlation (u of each mean from n / tau), per-axis sd, drift
-        noise = still_noise([p.samples for p in poses], [p.t for p in poses],
-                            [s.face if model != "multi-position" else None for s in stats],
-                            self.detector.g, self.pose_flatness_deg)
+        faces = [s.face if model != "multi-position" else None for s in stats]
+        noise = still_noise([p.samples for p in poses], [p.t for p in poses], faces)
         scale = noise.mean_covariance_scale()
         for s in stats:
             s.cov = s.cov * scale
@@ -252,8 +251,10 @@ class StaticProcedure(Procedure):
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
         result = build_result(poses, stats, rows, model, self.method, settings, noise)
-        if not _drift_rates(noise, poses, result.correction):
+        # the faces held again, read on this first fit's calibrated magnitudes (free of the hand's tilt)
+        if not drift_checks(noise, [p.samples for p in poses], [p.t for p in poses], faces, result.correction):
             return result
+        _drift_rates(noise)
         return _referred_to_middle(poses, stats, rows, model, self.method, settings, noise)
 
     def _require_six_faces(self, present: set[str]) -> None:
@@ -341,31 +342,15 @@ def parameter_meaning(names: list[str]) -> str:
     return "the correction itself: C_ij and b_k of calibrated = C (raw - b)"
 
 
-def _drift_rates(noise: StillNoise, poses: list[Pose], first: Correction) -> bool:
-    """Each raw offset's drift rate from the faces held again (``noise.drift["revisits"]``); False if none.
-
-    Measured on the calibrated magnitudes of a first, drift-free fit: |C (m - b)| is g whatever the tilt,
-    so the two holds' difference is the offset's change alone (projected on the direction of gravity, the
-    face's axis), without the hand's tilt, which the raw reading along gravity carries at second order
-    (1 degree: up to 0.01 m/s^2).  The u: the two means' noise along that axis (n / tau) and the slow-noise
-    wander between poses."""
-    revisits = noise.drift.get("revisits") or []
-    if not revisits:
-        return False
-    tau = noise.tau_any
+def _drift_rates(noise: StillNoise) -> None:
+    """Each raw offset's drift rate from the faces held again (``noise.drift["revisits"]``, their offset
+    changes read on a first fit's calibrated magnitudes, free of the hand's tilt), weighted by their u."""
     weights, rates = [[] for _ in range(3)], [[] for _ in range(3)]
-    for r in revisits:
+    for r in noise.drift["revisits"]:
         k = AXES.index(r["face"][1])
-        a, b = poses[r["first_pose"]], poses[r["last_pose"]]
-        g_a, g_b = first.apply(a.mean), first.apply(b.mean)
-        # d|C (m - b)| / d o_k: how the magnitude moves per unit of raw offset k, about -+1 for -+k down
-        sensitivity = float(g_a @ -first.matrix[:, k]) / float(np.linalg.norm(g_a))
-        change = (float(np.linalg.norm(g_b)) - float(np.linalg.norm(g_a))) / sensitivity
-        var = noise.sd[k] ** 2 * tau[k] * (1 / len(a.samples) + 1 / len(b.samples)) + 2.0 * noise.wander_var
         span = r["last"] - r["first"]
-        r["offset_change"], r["offset_change_u"] = change, float(np.sqrt(var))
-        weights[k].append(span**2 / var)
-        rates[k].append(change / span)
+        weights[k].append(span**2 / r["u"] ** 2)
+        rates[k].append(r["change"] / span)
     for k in range(3):
         if weights[k]:
             w = np.array(weights[k])
@@ -373,7 +358,6 @@ def _drift_rates(noise: StillNoise, poses: list[Pose], first: Correction) -> boo
             noise.drift_rate_u[k] = float(1.0 / np.sqrt(np.sum(w)))
     noise.drift["rate"] = noise.drift_rate.tolist()
     noise.drift["rate_u"] = noise.drift_rate_u.tolist()
-    return True
 
 
 def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
@@ -468,9 +452,10 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     else:
         theta, theta_cov, from_ = start, np.diag((steps / 2.0) ** 2), "revisits"
     rate, bend_fitted = split(theta)
-    # a drift that the middle holds show is not a line (noise._shape rejected): the parabola through three
-    # holds fixes it at those holds only; between and beyond them the drift may leave the parabola by as much
-    # as the curve it had to bend (type B, normal): each measured curvature's u grows by its own size
+    # a drift that the middle holds show is not a line (noise._shape rejected at ALPHA on its own, whether or
+    # not the drift family warns): the parabola through three holds fixes it at those holds only; between and
+    # beyond them the drift may leave the parabola by as much as the curve it had to bend (type B, normal):
+    # each measured curvature's u grows by its own size
     off_line = q > 0 and noise.drift["shape"].get("p_value", 1.0) < ALPHA
     if off_line:
         theta_cov = theta_cov + np.diag(np.r_[np.zeros(m), theta[m:] ** 2])
@@ -620,7 +605,7 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         source += ("; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
                    if noise.short_correlated else
                    f"; each pose mean's u widened {np.sqrt(noise.slow_factor):.1f}x for noise slower than a pose")
-    warnings += noise.warnings
+    warnings += noise.warnings + noise.drift_warnings()
     quality = {
         "residual_rms": float(np.sqrt(np.mean(all_res**2))),
         "noise": noise.to_dict(),
