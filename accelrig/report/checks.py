@@ -16,8 +16,9 @@ LACK_OF_FIT_ALPHA = 0.01   # the level every procedure's lack-of-fit test warns 
 def _lack_of_fit_sentence(chi2, dof, p) -> str:
     """chi^2 for dof (p) and what it means for the model."""
     if not dof or p is None or not math.isfinite(p):
-        return (f"χ² = {chi2:.3g} for {dof} degrees of freedom: none are left over once the model's unknowns are "
-                "fitted, so the lack of fit cannot be tested (more poses or steps would test it)")
+        # no chi^2 printed: with no degrees of freedom it is rounding of the fit, not a figure
+        return ("no degrees of freedom are left over once the model's unknowns are fitted, so the lack of fit "
+                "cannot be tested (more poses or steps would test it)")
     verdict = ("the data disagree with the model beyond their noise (see the warnings)" if p < LACK_OF_FIT_ALPHA
                else "the data agree with the model within their noise")
     return f"χ² = {chi2:.3g} for {dof} degrees of freedom (p = {p:.3g}): {verdict}"
