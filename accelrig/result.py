@@ -132,12 +132,18 @@ class CalibrationResult:
     details: dict = field(default_factory=dict)
     parameter_meaning: str = ""
 
-    def with_local_gravity(self, gravity) -> CalibrationResult:
+    def with_local_gravity(self, gravity, scaled: dict[str, int] | None = None) -> CalibrationResult:
         """Record the local gravity used (``accelrig.units.LocalGravity``: g, u(g), where it came from) and put
-        u(g) into the correction's covariance (``Correction.with_gravity_uncertainty``), in place.  A
-        procedure whose own parameters scale with g adds their term itself (the static one does)."""
+        u(g) into the correction's covariance (``Correction.with_gravity_uncertainty``), in place.
+
+        ``scaled``: the parameters that scale with g, and the power they scale by (the wheel's gains +1:
+        gravity is their reference; its radius -1: the centripetal term is read in the gains' scale); u(g)
+        enters their u and the parameter covariance, fully correlated.  The static procedure adds its
+        term while it builds its parameters."""
         if self.correction is not None:
             self.correction = self.correction.with_gravity_uncertainty(gravity.value, gravity.u)
+        if gravity.u and scaled:
+            self._scale_with_gravity(gravity.u / gravity.value, scaled)
         self.settings.update(gravity.to_dict())
         if gravity.u:
             note = f"local gravity u(g) {gravity.u:.2g} m/s^2 ({gravity.u / gravity.value:.1e} of the gains)"
@@ -146,6 +152,28 @@ class CalibrationResult:
             source = self.quality.get(key)
             self.quality[key] = f"{source}; + {note}" if source else f"+ {note}"
         return self
+
+    def _scale_with_gravity(self, relative: float, scaled: dict[str, int]) -> None:
+        """Add u(g)/g x |value| to the u of each ``scaled`` parameter (scalar or per axis), and the fully
+        correlated term to the covariance rows named ``NAME`` or ``NAME_x/y/z``."""
+        def value_of(name: str):
+            for base, est in ((base, self.parameters.get(base)) for base in scaled):
+                if est is None:
+                    continue
+                if name == base:
+                    return float(np.ravel(est.value)[0]), scaled[base]
+                if name.startswith(base + "_") and name[-1] in "xyz" and len(name) == len(base) + 2:
+                    return float(np.ravel(est.value)["xyz".index(name[-1])]), scaled[base]
+            return 0.0, 0
+        for base in scaled:
+            est = self.parameters.get(base)
+            if est is None:
+                continue
+            u = np.hypot(np.asarray(est.uncertainty, dtype=float), np.abs(np.asarray(est.value, dtype=float)) * relative)
+            self.parameters[base] = Estimate(est.value, to_plain(u), est.unit)
+        if self.covariance is not None and np.size(self.covariance) and self.parameter_names:
+            d = np.array([value * power * relative for value, power in map(value_of, self.parameter_names)])
+            self.covariance = np.asarray(self.covariance, dtype=float) + np.outer(d, d)
 
     def to_json_dict(self, include_arrays: bool = False) -> dict:
         out = {

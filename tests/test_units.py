@@ -38,3 +38,22 @@ def test_local_gravity_joins_what_the_procedure_says_u_holds_under_its_own_key()
         assert list(result.quality) == [key]
         assert result.quality[key].startswith("white noise; + local gravity u(g) 0.015")
         assert np.allclose(result.correction.matrix_uncertainty, np.eye(3) * 0.015 / 9.80665)
+
+
+def test_local_gravity_enters_the_parameters_that_scale_with_it():
+    """The wheel's gains (g is their reference) and radius (read in the gains' scale) carry u(g) too, fully
+    correlated and in opposite directions; the others do not."""
+    from accelrig.result import CalibrationResult, Correction, Estimate
+    from accelrig.units import LocalGravity
+
+    params = {"gain": Estimate([2.0, 1.0, 0.5], [0.0, 0.0, 0.0], "1"), "radius": Estimate(0.1, 0.0, "m"),
+              "offset": Estimate([0.1, 0.2, 0.3], [0.01, 0.01, 0.01], "m/s^2")}
+    names = ["radius", "gain_x", "gain_y", "gain_z", "offset_x"]
+    result = CalibrationResult("wheel", "joint", "m", Correction.identity(), params, covariance=np.zeros((5, 5)),
+                               parameter_names=names)
+    result.with_local_gravity(LocalGravity(9.8, 0.0098, "test"), {"gain": 1, "radius": -1})
+    assert np.allclose(result.parameters["gain"].uncertainty, [2e-3, 1e-3, 5e-4])
+    assert np.isclose(result.parameters["radius"].uncertainty, 1e-4)
+    assert result.parameters["offset"].uncertainty == [0.01, 0.01, 0.01]
+    cov = result.covariance
+    assert np.isclose(cov[1, 1], 4e-6) and np.isclose(cov[0, 1], -2e-7) and cov[4, 4] == 0.0

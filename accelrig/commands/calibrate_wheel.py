@@ -41,7 +41,7 @@ def register(sub, groups) -> None:
 
 
 def run_calibrate(args) -> int:
-    from accelrig.procedures.wheel.procedure import calibrate_wheel
+    from accelrig.procedures.wheel.procedure import GRAVITY_SCALED, calibrate_wheel
     from accelrig.recording import load_recording
     from accelrig.result import to_json
 
@@ -55,7 +55,7 @@ def run_calibrate(args) -> int:
     with Progress(f"fitting the wheel ({v['method']} method)") as progress:
         result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
                                  g=gravity.value, bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"],
-                                 on_progress=progress.step).with_local_gravity(gravity)
+                                 on_progress=progress.step).with_local_gravity(gravity, GRAVITY_SCALED)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:

@@ -54,6 +54,9 @@ from accelrig.result import CalibrationResult, Correction, Estimate
 from accelrig.units import STANDARD_GRAVITY, local_gravity
 
 MODEL = "v = o + diag(gain) R a(t); Pedersini eq. 1-7, cubic angular velocity"
+# what scales with the local g the fit assumed (CalibrationResult.with_local_gravity): the gains have gravity as
+# their reference; the radius is read from the centripetal term in the gains' scale, so it goes the other way
+GRAVITY_SCALED = {"gain": 1, "radius": -1}
 # A gain known worse than this (relative, k = 1) earns a warning about the mounting.
 POOR_GAIN = 5e-3
 # The speed trace is shown from this many turns on: before, the circle gravity draws is seen
@@ -505,4 +508,4 @@ class WheelProcedure(Procedure):
         gravity = local_gravity(v["g"], v.get("latitude"), v.get("height"), v.get("g_u"))
         return calibrate_wheel(self.recording(), radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
                                g=gravity.value, bootstrap=v["bootstrap"],
-                               cross_axis_sd=v["cross_axis_sd"]).with_local_gravity(gravity)
+                               cross_axis_sd=v["cross_axis_sd"]).with_local_gravity(gravity, GRAVITY_SCALED)
