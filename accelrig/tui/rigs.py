@@ -38,9 +38,10 @@ NEEDS: dict[str, RigNeeds] = {
         "a sensor put on its six faces in turn, then one face of each axis again, twice, 4 s each (about 70 s)"),
     "wheel": RigNeeds(
         "wheel", "rotation (a wheel spun and left to coast)",
-        "sim://wheel?range=4&pace=fast&seconds=40",
+        "sim://wheel?range=4&pace=fast&seconds=45&rest=5&push=2",
         {"radius": "0.28"},
-        "a wheel of 0.28 m radius coasting for 40 s, played fast"),
+        "a wheel of 0.28 m radius held still 5 s, pushed by hand, then coasting for 45 s, played fast: "
+        "what the wizard asks of a real wheel"),
     "slider-crank": RigNeeds(
         "slider-crank", "a slider-crank stand's motion (with or without step marks)",
         "sim://slider-crank?range=8&rate=2048&pace=fast&steps=3,6,9&truth=ideal",
