@@ -109,3 +109,19 @@ def test_the_flexing_link_check_judges_steady_steps_with_every_term_of_their_u()
     _, cov = _displacement_harmonics(steps[0])
     _, rippled = _displacement_harmonics(replace(steps[0], ripple_radius_uncertainty_m=2e-6))
     assert np.isclose(rippled[0, 0], cov[0, 0] + 4e-12, rtol=1e-12, atol=0) and rippled[1, 1] == cov[1, 1]
+
+
+def test_a_motor_cogging_six_times_per_turn_is_named_with_its_size(tmp_path):
+    """Cogging modulates the crank angle at 6 times the crank's rate: named as such, with the speed ripple it makes
+    (the held-out stand: torque ripple 5 rad/s^2, so a relative speed ripple of 5 / (6 omega^2)), not only as
+    'correlated' residuals; a rigid stand on a steady motor names nothing."""
+    case = SliderCase(steps=(3.0, 6.0), seconds=1.0, settle=0.3, cogging=5.0, cogging_n=6)
+    _, result, _ = _verify(tmp_path, case)
+    named = [w for w in result["warnings"] if "times per turn" in w]
+    assert len(named) == 1 and "ripples 6 times per turn" in named[0] and "lines at 5 and 7" in named[0]
+    for s in result["details"]["steps"]:
+        truth = 5.0 / (6 * (2 * np.pi * s["frequency_hz"]["value"]) ** 2)
+        assert s["crank_locked_per_turn"] == 6 and abs(s["crank_locked_ripple"] / truth - 1) < 0.3
+    _, steady, _ = _verify(tmp_path, replace(case, cogging=0.0))
+    assert not any("per turn" in w for w in steady["warnings"])
+    assert all(s["crank_locked_per_turn"] == 0 for s in steady["details"]["steps"])
