@@ -27,7 +27,8 @@ def register(sub, groups) -> None:
         "record",
         description="Record a device to disk. Samples stream to segment files as they arrive (memory stays "
         "bounded however long it runs); Ctrl+C (or SIGTERM) stops and keeps everything recorded so far. "
-        "A progress line is shown on a terminal; nothing but the output is written otherwise.",
+        "On a terminal a progress line is shown, and at the end where the samples went; nothing but the output "
+        "is written otherwise.",
     )
     p.add_argument("url", help="device URL, e.g. 'sim://static?seed=1' or replay://run.csv")
     length = p.add_mutually_exclusive_group()
@@ -158,6 +159,8 @@ def run(args) -> int:
         print(f"accelrig record: stopped by {stopped_by}; kept {kept} in {output}", file=sys.stderr)
         # Ctrl+C is how an open-ended recording ends; cutting a requested length short is not success
         return 0 if args.seconds is None and args.samples is None else 130
+    if show:   # a person at a terminal sees where it went; a script gets the output alone
+        print(f"accelrig record: kept {kept} in {output}", file=sys.stderr)
     return 0
 
 
