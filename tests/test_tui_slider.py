@@ -56,6 +56,11 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
         radius = app.screen.verification.parameters["radius"]
         truth = app.session.info.truth["rig"]
+        # two plots, as on the results screen: the amplitude against its band, then the radius per step
+        plot = screen.query_one("#verification-plot")
+        assert plot.title.startswith("first-harmonic amplitude") and "(1/2, n: next)" in plot.title
+        await pilot.press("n")
+        assert plot.title.startswith("crank radius per step (mm)")
     # the radius seen in the motion is the stand's effective radius (inside the clearance), within 4 u
     assert abs(radius.value - truth["effective_radius"]) < 4 * radius.uncertainty
     assert verification["verdict"] == "holds"

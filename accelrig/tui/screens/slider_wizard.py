@@ -22,6 +22,7 @@ from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
 from accelrig.result import to_plain
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.results import result_views
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
@@ -76,12 +77,16 @@ class SliderCrankWizard(ProcedureWizard):
 class VerificationScreen(Screen):
     """A slider-crank verification: verdict, radius from the motion, steps, frequency response."""
 
-    BINDINGS = [Binding("s", "save", "Save verification"), Binding("escape", "close", "Close")]
+    BINDINGS = [Binding("s", "save", "Save verification"), Binding("n", "next_plot", "Next plot"),
+                Binding("escape", "close", "Close")]
 
     def __init__(self, verification):
         super().__init__()
         self.verification = verification
         self.saved_path: Path | None = None
+        # the results screen's plots of a verification (amplitude against the band, radius per step)
+        self.plots = result_views(verification)
+        self.plot_index = 0
 
     def action_save(self) -> None:
         self.save_flow()
@@ -94,7 +99,7 @@ class VerificationScreen(Screen):
         if path is None:
             return
         target = Path(path).expanduser()
-        status = self.query_one("#verification-warnings", Static)
+        status = self.query_one("#verification-status", Static)
         if target.exists() and not await self.app.push_screen_wait(
                 ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
             return
@@ -115,6 +120,10 @@ class VerificationScreen(Screen):
         with VerticalScroll(id="results"):
             yield Static(f"[b]slider-crank verification: [{colour}]{v['verdict']}[/][/b]\n{v['verdict_reason']}",
                          id="verdict")
+            yield Static("s saves the verification, n shows the next plot", id="verification-status")
+            # warnings first, as on the results screen: what to read before trusting the verdict
+            yield Static("\n".join(f"[yellow]warning:[/] {escape(w)}" for w in self.verification.warnings)
+                         or "[green]no warnings[/]", id="verification-warnings")
             yield Static(f"radius from the motion {r.value * 1e3:.4f} ± {r.uncertainty * 1e3:.2g} mm "
                          f"(k = 1, chi² {v['radius_chi2']:.3g} for {v['radius_dof']} dof; judged at "
                          f"k = {v.get('radius_k', 2.0):.2f}); caliper "
@@ -122,9 +131,7 @@ class VerificationScreen(Screen):
                          + (f"; motor tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else ""),
                          id="verification-radius")
             yield DataTable(id="steps", show_cursor=False, zebra_stripes=True)
-            yield LinePlot("frequency response: first harmonic (m/s²)", x_label="frequency (Hz)", id="verification-plot")
-            yield Static("\n".join(f"[yellow]warning:[/] {w}" for w in self.verification.warnings),
-                         id="verification-warnings")
+            yield LinePlot("", id="verification-plot")
         yield KeyFooter()
 
     def on_mount(self) -> None:
@@ -139,9 +146,18 @@ class VerificationScreen(Screen):
                           f"{s['amplitude']['uncertainty']:.2g}", f"{s['model_amplitude']:.4g}",
                           f"{s['radius_m']['value'] * 1e3:.4f}", f"{s['radius_m']['uncertainty'] * 1e3:.2g}",
                           f"{s.get('radius_k', 2.0):.2f}", " ".join(flags))
-        response = self.verification.arrays
-        self.query_one("#verification-plot", LinePlot).set_series(response_series(
-            response["frequency_hz"], response["amplitude"], response["model_amplitude"]))
+        self.show_plot()
+
+    def show_plot(self) -> None:
+        view = self.plots[self.plot_index % len(self.plots)]
+        plot = self.query_one("#verification-plot", LinePlot)
+        plot.title = f"{view.title}  ({self.plot_index % len(self.plots) + 1}/{len(self.plots)}, n: next)"
+        plot.x_label = view.x_label
+        plot.set_series(view.series)
+
+    def action_next_plot(self) -> None:
+        self.plot_index += 1
+        self.show_plot()
 
     def action_close(self) -> None:
         self.app.pop_screen()
