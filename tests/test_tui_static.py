@@ -162,6 +162,9 @@ async def test_results_read_their_checks_and_a_second_save_offers_the_first_file
         angle_row = table.get_row_at(0)
         assert angle_row[0] == "angle_x" and angle_row[3] == "deg"
         assert abs(float(angle_row[1]) - np.degrees(result.parameters["angle_x"].value)) < 1e-4
+        # every pose found, as the text report lists them
+        poses = results.query_one("#poses")
+        assert poses.row_count == len(result.details["poses"]) and poses.get_row_at(0)[6] == "used"
 
         await pilot.press("s")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))

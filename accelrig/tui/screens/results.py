@@ -278,6 +278,10 @@ class ResultsScreen(Screen):
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
             with Vertical(id="plot-box"):
                 yield LinePlot("", id="result-plot")
+            if self.result.details.get("poses"):
+                yield Label("[b]Poses[/b] found in the recording and what became of each (as the text report lists "
+                            "them)")
+                yield DataTable(id="poses", show_cursor=False, zebra_stripes=True)
             yield Static(self.quality_text(), id="quality")
             for key, _ in self.quality_tables():
                 yield Label(f"[b]{key}[/b]")
@@ -296,6 +300,14 @@ class ResultsScreen(Screen):
         for name, estimate in self.result.parameters.items():
             value, uncertainty, unit = estimate.for_display()
             table.add_row(name, *format_value(value, uncertainty), unit)
+        if self.result.details.get("poses"):
+            table = self.query_one("#poses", DataTable)
+            table.add_columns("pose", "start s", "stop s", "n", "nearest face", "off it deg", "fate",
+                              "|g| residual m/s² (or why not used)")
+            for r in self.result.details["poses"]:
+                fit = f"{r['magnitude_residual']:+.4f}" if "magnitude_residual" in r else str(r.get("reason", ""))
+                table.add_row(str(r["index"]), f"{r['start']:.2f}", f"{r['stop']:.2f}", str(r["n"]), str(r["face"]),
+                              f"{r['angle_deg']:.1f}", str(r["fate"]), fit)
         for key, rows in self.quality_tables():
             table = self.query_one(f"#quality-{key}", DataTable)
             columns = list(rows[0])
