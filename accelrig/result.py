@@ -137,9 +137,9 @@ class CalibrationResult:
         u(g) into the correction's covariance (``Correction.with_gravity_uncertainty``), in place.
 
         ``scaled``: the parameters that scale with g, and the power they scale by (the wheel's gains +1:
-        gravity is their reference; its radius -1: the centripetal term is read in the gains' scale); u(g)
-        enters their u and the parameter covariance, fully correlated.  The static procedure adds its
-        term while it builds its parameters."""
+        gravity is their reference; its radius -1: the centripetal term is read in the gains' scale; static's
+        gains, C_ij and calibrated-domain offsets +1, K_ij -1); u(g) enters their u and the parameter
+        covariance, fully correlated."""
         if self.correction is not None:
             self.correction = self.correction.with_gravity_uncertainty(gravity.value, gravity.u)
         if gravity.u and scaled:

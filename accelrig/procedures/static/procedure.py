@@ -593,14 +593,11 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
     for r, m in zip(used_rows, magnitudes, strict=True):
         r["magnitude_residual"] = float(m)
     all_res = np.concatenate([np.ravel(r) for r in calibrated_residuals])
-    # u(g): C scales with the g used (b does not), and so do the parameters that are C's (gains, C_ij,
-    # the paper model's calibrated-domain offsets c = -G R b)
+    # u(g) (with_local_gravity below): C scales with the g used (b does not), and so do the parameters that
+    # are C's (gains, C_ij, the paper model's calibrated-domain offsets c = -G R b); K = C^-1 the other way
     u_g = float(settings.get("g_u") or 0.0)
-    if u_g:
-        d = np.array([v if n.startswith(("gain_", "C_", "offset_")) else 0.0
-                      for n, v in zip(names, values, strict=True)]) * (u_g / g)
-        cov = np.asarray(cov) + np.outer(d, d)
-        uncertainty = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    scaled = {n: 1 if n.startswith(("gain_", "C_", "offset_")) else -1
+              for n in names if n.startswith(("gain_", "C_", "offset_", "K_"))}
     if noise.correlated and model not in MODELS:
         source += ("; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
                    if noise.short_correlated else
@@ -639,7 +636,7 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         warnings=warnings,
         details={"poses": rows},
         parameter_meaning=parameter_meaning(list(names)),
-    ).with_local_gravity(LocalGravity(g, u_g, settings.get("g_source", "")))
+    ).with_local_gravity(LocalGravity(g, u_g, settings.get("g_source", "")), scaled)
 
 
 # ------------------------------------------------------------------ files
