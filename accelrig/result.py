@@ -156,23 +156,19 @@ class CalibrationResult:
     def _scale_with_gravity(self, relative: float, scaled: dict[str, int]) -> None:
         """Add u(g)/g x |value| to the u of each ``scaled`` parameter (scalar or per axis), and the fully
         correlated term to the covariance rows named ``NAME`` or ``NAME_x/y/z``."""
-        def value_of(name: str):
-            for base, est in ((base, self.parameters.get(base)) for base in scaled):
-                if est is None:
-                    continue
-                if name == base:
-                    return float(np.ravel(est.value)[0]), scaled[base]
-                if name.startswith(base + "_") and name[-1] in "xyz" and len(name) == len(base) + 2:
-                    return float(np.ravel(est.value)["xyz".index(name[-1])]), scaled[base]
-            return 0.0, 0
-        for base in scaled:
+        d = np.zeros(len(self.parameter_names))
+        for base, power in scaled.items():
             est = self.parameters.get(base)
             if est is None:
                 continue
+            values = np.ravel(np.asarray(est.value, dtype=float))
+            rows = {base: values[0]} if values.size == 1 else dict(zip((f"{base}_{a}" for a in "xyz"), values, strict=True))
+            for j, name in enumerate(self.parameter_names):
+                if name in rows:
+                    d[j] = rows[name] * power * relative
             u = np.hypot(np.asarray(est.uncertainty, dtype=float), np.abs(np.asarray(est.value, dtype=float)) * relative)
             self.parameters[base] = Estimate(est.value, to_plain(u), est.unit)
-        if self.covariance is not None and np.size(self.covariance) and self.parameter_names:
-            d = np.array([value * power * relative for value, power in map(value_of, self.parameter_names)])
+        if self.covariance is not None and np.size(self.covariance) and d.any():
             self.covariance = np.asarray(self.covariance, dtype=float) + np.outer(d, d)
 
     def to_json_dict(self, include_arrays: bool = False) -> dict:

@@ -27,9 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as _sps
 
 from accelrig.estimation.crb import numerical_jacobian
+from accelrig.estimation.distributions import chi2
 from accelrig.estimation.residuals import ALPHA
 from accelrig.procedures.wheel.fit import chunks
 from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, pack, phase, unpack
@@ -100,7 +100,7 @@ def check_rests(rests: list[Rest], t: np.ndarray, state: WheelState,
                 cov_internal: np.ndarray, free: FreeSet, time_scale: float, sigma: np.ndarray, tau: np.ndarray,
                 g: float = STANDARD_GRAVITY) -> RestCheck | None:
     """Test the fit (``state``, its covariance ``cov_internal`` over the internal parameters of ``pack``) against
-    the rests' means, and find the move the rests would make.  ``t`` and ``residuals`` are the coast's; ``sigma``
+    the rests' means, and find the move the rests would make.  ``t`` is the coast's times; ``sigma``
     each axis' noise sd of the fit, ``tau`` its integrated correlation time in samples (1 when white): the
     variance of a rest's mean is the larger of that noise and the rest's own scatter, times tau, over its
     samples.  None when there is no rest."""
@@ -135,7 +135,7 @@ def check_rests(rests: list[Rest], t: np.ndarray, state: WheelState,
     project = inv - inv @ jac_angle @ np.linalg.solve(angle_info, jac_angle.T @ inv)
     statistic = float(miss @ project @ miss)
     dof = 2 * k
-    p_value = float(_sps.chi2.sf(statistic, dof))
+    p_value = float(chi2.sf(statistic, dof))
     allowance, drift = np.zeros((p, p)), 0.0
     if p_value < ALPHA:     # only then is u widened: the pass over the coast is spared otherwise
         allowance, drift = _allowance(miss, t, state, free, time_scale, sigma, g)
