@@ -157,6 +157,9 @@ async def test_results_read_their_checks_and_a_second_save_offers_the_first_file
         checks = str(results.query_one("#results-checks").render())
         assert "uncertainty:" in checks and "lack of fit:" in checks and "gravity: g = 9.80665" in checks
         assert "pose tilts:" in checks and "within it" in checks   # the six-face model's own test of fit
+        # twelve numbers from twelve holds: no chi-square p, and the raw figures say so rather than "nan"
+        quality = str(results.query_one("#quality").render())
+        assert "p_value not computed" in quality and "nan" not in quality
         assert "calibrated = G R(angle) raw + c" in str(results.query_one("#parameters-title").render())
         table = results.query_one("#parameters")
         angle_row = table.get_row_at(0)

@@ -32,3 +32,7 @@ async def wait_for(pilot, condition, timeout=40.0):
         if loop.time() > deadline:
             raise AssertionError("timed out waiting for the app")
         await pilot.pause(0.05)
+    # the condition may hold on a screen pushed during the last pause: let that screen and its widgets take
+    # their first events (Textual's Header sets its title on a queued callback that fails with NoMatches when
+    # the app exits before it runs, as a test does right after its last wait)
+    await pilot.pause(0)

@@ -349,7 +349,8 @@ class ResultsScreen(Screen):
             if isinstance(value, bool) or value is None:
                 parts.append(f"{key} {value}")
             elif isinstance(value, (int, float, np.floating, np.integer)):
-                parts.append(f"{key} {value:.4g}")
+                # NaN is how a figure that could not be computed is kept (a p-value with no degrees of freedom)
+                parts.append(f"{key} not computed" if np.isnan(value) else f"{key} {value:.4g}")
             elif isinstance(value, str):
                 parts.append(f"{key} {value}")
             else:
