@@ -41,6 +41,8 @@ class Setting:
     label    short form label (default: the help text)
     example  placeholder text for an empty field
     hint     what to do when the value is refused (e.g. "give it in metres")
+    remembered  offered again in the next session's form (False for an override such as ``force``, which
+             must be a decision about this run, not inherited by the next operator)
     """
 
     name: str
@@ -55,6 +57,7 @@ class Setting:
     label: str = ""
     example: str = ""
     hint: str | None = None
+    remembered: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:

@@ -1,7 +1,6 @@
 """The slider-crank wizard end to end on sim://slider-crank, keyboard only: the radius matches the truth."""
 
-
-
+import yaml
 
 from accelrig.recording import Recording, save_recording  # noqa: E402
 from accelrig.sim.device import simulate  # noqa: E402
@@ -173,3 +172,8 @@ async def test_a_profile_for_another_range_is_refused_as_on_the_command_line_unl
         warnings = app.screen.verification.warnings
         await pilot.pause(0.2)
     assert any(w.startswith("forced: ") and "+-2 g range" in w for w in warnings)
+    # the override was this run's decision: the next operator's form starts without it
+    from accelrig.tui.app import settings_file
+
+    kept = yaml.safe_load(settings_file().read_text())["slider-crank"]
+    assert kept["profile"] == str(profile) and "force" not in kept

@@ -22,7 +22,7 @@ PROFILE = Setting("profile", "device profile whose calibration is applied first 
                   kind="path", example="sensor.yaml")
 # The one compatibility override of accelrig.profiles.apply.check_compatible (CLI flag and TUI field alike).
 FORCE = Setting("force", "apply the profile even if it names another device, chip, range or unit (warned)",
-                kind="flag", default=False)
+                kind="flag", default=False, remembered=False)
 # Seconds of steady running captured per key press: the analysis needs at least 1 s; twice that halves the
 # variance of the first harmonic and is still quick at the bench.
 SECONDS = Setting("seconds", "seconds captured per step on a key press, for a stand that marks no steps", unit="s",

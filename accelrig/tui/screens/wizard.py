@@ -278,7 +278,8 @@ class ProcedureWizard(Screen):
             self.app.pop_screen()
             return
         self.values, texts = answer
-        self.app.remember_settings(cls.name, texts)
+        forgotten = {s.name for s in cls.settings if not s.remembered}
+        self.app.remember_settings(cls.name, {name: text for name, text in texts.items() if name not in forgotten})
         self.start()
 
     def make_procedure(self, values: dict) -> Procedure:
