@@ -92,8 +92,8 @@ def local_gravity(g: float | None = None, latitude: float | None = None, height:
         value = STANDARD_GRAVITY
         u, source = STANDARD_GRAVITY_U, ("standard gravity, standing for anywhere on Earth "
                                          f"({EARTH_GRAVITY_RANGE[0]:.3f}-{EARTH_GRAVITY_RANGE[1]:.3f} m/s^2, "
-                                         "rectangular): give the local g or the latitude for 1e-4, with --g or "
-                                         "--latitude, or in the form's fields")
+                                         "rectangular): give the local g, or the latitude and height, for 1e-4 "
+                                         "(the local gravity settings: --g, --latitude, --height)")
     if g_u is not None:
         u, source = float(g_u), source.split(";")[0] + f"; u(g) {float(g_u):g} m/s^2 given (--g-u)"
     if not 9.76 <= value <= 9.84:

@@ -164,7 +164,9 @@ async def test_results_read_their_checks_and_a_second_save_offers_the_first_file
         table = results.query_one("#parameters")
         angle_row = table.get_row_at(0)
         assert angle_row[0] == "angle_x" and angle_row[3] == "deg"
-        assert abs(float(angle_row[1]) - np.degrees(result.parameters["angle_x"].value)) < 1e-4
+        # rounded with its u (GUM 7.2.6: u to two significant digits, the value to the same digit)
+        assert abs(float(angle_row[1]) - np.degrees(result.parameters["angle_x"].value)) <= 0.005 + 1e-9
+        assert float(angle_row[2]) == float(f"{np.degrees(result.parameters['angle_x'].uncertainty):.2g}")
         # every pose found, as the text report lists them
         poses = results.query_one("#poses")
         assert poses.row_count == len(result.details["poses"]) and poses.get_row_at(0)[6] == "used"

@@ -80,21 +80,28 @@ def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1) -> str
     return f"<table><tr>{h}</tr>{body}</table>"
 
 
-def parameter_rows(src: Source, k: float) -> list[list[str]]:
-    """One row per scalar parameter (a vector estimate gives one row per axis): name, value, u, U, unit."""
+def scalar_estimates(estimates: dict[str, Estimate]) -> list[tuple[str, float, float, str]]:
+    """(label, value, u, unit) per scalar, as shown: a vector estimate gives one row per axis, angles in
+    degrees (Estimate.for_display), the unit with a superscript square."""
     rows = []
-    for name, est in src.result["parameters"].items():
-        values, uncs, unit = Estimate(est["value"], est["uncertainty"], est["unit"]).for_display()
+    for name, estimate in estimates.items():
+        values, uncs, unit = estimate.for_display()
+        unit = unit.replace("^2", "²")
         if isinstance(values, list):
             labels = [f"{name}[{a}]" for a in ("x", "y", "z")] if len(values) == 3 else [
                 f"{name}[{i}]" for i in range(len(values))]
-            pairs = list(zip(labels, values, uncs, strict=True))
+            rows += [(label, v, u, unit) for label, v, u in zip(labels, values, uncs, strict=True)]
         else:
-            pairs = [(name, values, uncs)]
-        for label, v, u in pairs:
-            value_text, u_text = format_value(v, u)
-            rows.append([label, value_text, u_text, format_value(v, k * u)[1], unit.replace("^2", "²")])
+            rows.append((name, values, uncs, unit))
     return rows
+
+
+def parameter_rows(src: Source, k: float) -> list[list[str]]:
+    """One row per scalar parameter (a vector estimate gives one row per axis): name, value, u, U, unit."""
+    estimates = {name: Estimate(est["value"], est["uncertainty"], est["unit"])
+                 for name, est in src.result["parameters"].items()}
+    return [[label, *format_value(v, u), format_value(v, k * u)[1], unit]
+            for label, v, u, unit in scalar_estimates(estimates)]
 
 
 def correction_rows(correction: dict, k: float) -> list[list[str]]:

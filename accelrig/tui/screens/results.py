@@ -16,7 +16,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Header, Label, Static
+from textual.widgets import DataTable, Header, Static
 
 from accelrig.acquisition.driver import Driver
 from accelrig.acquisition.flash import FlashPlan
@@ -24,6 +24,7 @@ from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
 from accelrig.profiles.flash import format_plan, plan_flash
 from accelrig.recording import Recording
+from accelrig.report.html import format_value, scalar_estimates
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
@@ -201,12 +202,6 @@ def plottable(arrays: dict) -> list[str]:
     return names
 
 
-def format_value(value, uncertainty) -> tuple[str, str]:
-    if np.ndim(value):
-        return (", ".join(f"{v:.6g}" for v in np.ravel(value)), ", ".join(f"{u:.2g}" for u in np.ravel(uncertainty)))
-    return f"{value:.6g}", f"{uncertainty:.2g}"
-
-
 def cell_text(value) -> str:
     if isinstance(value, (float, np.floating)):
         return f"{value:.4g}"
@@ -225,13 +220,18 @@ def can_flash(session: Session | None) -> bool:
 
 
 def correction_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
-    """The canonical correction a = C (raw - b) as rows per axis: C's row, b, with u (k = 1)."""
+    """The canonical correction a = C (raw - b) per axis: C's row and b, each followed by a row of their u
+    (k = 1), rounded together (GUM 7.2.6); value and u in one cell would not fit 80 columns."""
     c = result.correction
     if c is None:
         return []
-    u_c, u_b = c.matrix_uncertainty, c.bias_uncertainty
-    return [(axis, *(f"{c.matrix[i, j]:.6f} ± {u_c[i, j]:.2g}" for j in range(3)),
-             f"{c.bias[i]:+.5f} ± {u_b[i]:.2g}") for i, axis in enumerate("xyz")]
+    rows = []
+    for i, axis in enumerate("xyz"):
+        cells = [format_value(float(c.matrix[i, j]), float(c.matrix_uncertainty[i, j])) for j in range(3)]
+        cells.append(format_value(float(c.bias[i]), float(c.bias_uncertainty[i])))
+        rows.append((axis, *(value for value, _ in cells)))
+        rows.append(("  u", *(u for _, u in cells)))
+    return rows
 
 
 def default_profile_name(result: CalibrationResult, session: Session | None) -> str:
@@ -271,7 +271,8 @@ class ResultsScreen(Screen):
             # then what the checks found and what u holds, in sentences (the raw figures come last)
             yield Static(self.checks_text(), id="results-checks")
             if r.correction is not None:
-                yield Label("[b]Correction[/b] a = C (raw − b), b in m/s², u at k = 1 (what the profile applies)")
+                yield Static("[b]Correction[/b] a = C (raw − b), what the profile applies; under each axis its u "
+                            "(k = 1), values rounded to it")
                 yield DataTable(id="correction", show_cursor=False, zebra_stripes=True)
             yield Static("[b]Parameters[/b] as the method estimates them, u at k = 1"
                          + (f": {escape(r.parameter_meaning)}" if r.parameter_meaning else ""), id="parameters-title")
@@ -279,12 +280,13 @@ class ResultsScreen(Screen):
             with Vertical(id="plot-box"):
                 yield LinePlot("", id="result-plot")
             if self.result.details.get("poses"):
-                yield Label("[b]Poses[/b] found in the recording and what became of each (as the text report lists "
-                            "them)")
+                yield Static("[b]Poses[/b] found in the recording and what became of each, as the text report lists "
+                            "them: the nearest face and how far off it, and the |g| residual in m/s² (or why the "
+                            "pose was not used)")
                 yield DataTable(id="poses", show_cursor=False, zebra_stripes=True)
             yield Static(self.quality_text(), id="quality")
             for key, _ in self.quality_tables():
-                yield Label(f"[b]{key}[/b]")
+                yield Static(f"[b]{key}[/b]")
                 yield DataTable(id=f"quality-{key}", show_cursor=False, classes="quality-table")
         yield KeyFooter()
 
@@ -292,18 +294,16 @@ class ResultsScreen(Screen):
         self.sub_title = "results"
         if self.result.correction is not None:
             table = self.query_one("#correction", DataTable)
-            table.add_columns("axis", "C ·x", "C ·y", "C ·z", "b (m/s²)")
+            table.add_columns("axis", "C ·x", "C ·y", "C ·z", "b m/s²")
             for row in correction_rows(self.result):
                 table.add_row(*row)
         table = self.query_one("#parameters", DataTable)
         table.add_columns("parameter", "value", "u (k=1)", "unit")
-        for name, estimate in self.result.parameters.items():
-            value, uncertainty, unit = estimate.for_display()
-            table.add_row(name, *format_value(value, uncertainty), unit)
+        for label, value, uncertainty, unit in scalar_estimates(self.result.parameters):
+            table.add_row(label, *format_value(value, uncertainty), unit)
         if self.result.details.get("poses"):
             table = self.query_one("#poses", DataTable)
-            table.add_columns("pose", "start s", "stop s", "n", "nearest face", "off it deg", "fate",
-                              "|g| residual m/s² (or why not used)")
+            table.add_columns("pose", "from s", "to s", "n", "face", "off °", "fate", "|g| resid.")
             for r in self.result.details["poses"]:
                 fit = f"{r['magnitude_residual']:+.4f}" if "magnitude_residual" in r else str(r.get("reason", ""))
                 table.add_row(str(r["index"]), f"{r['start']:.2f}", f"{r['stop']:.2f}", str(r["n"]), str(r["face"]),

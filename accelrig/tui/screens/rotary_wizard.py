@@ -13,7 +13,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Header, Label, Static
+from textual.widgets import DataTable, Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
@@ -112,7 +112,7 @@ class CampaignScreen(Screen):
                              id="campaign-warnings")
             yield LinePlot("", id="campaign-plot")
             for i, (title, _, _) in enumerate(campaign_tables(self.report.details)):
-                yield Label(f"[b]{title}[/b]")
+                yield Static(f"[b]{title}[/b]")
                 yield DataTable(id=f"campaign-{i}", show_cursor=False, zebra_stripes=True, classes="quality-table")
         yield KeyFooter()
 
