@@ -63,3 +63,31 @@ async def test_any_orientation_before_enough_says_how_many_more():
         text = str(wizard.query_one("#instruction").render())
         assert "4 distinct orientations: 5 more needed" in text
         assert "5 more needed" in str(wizard.query_one("#sphere").render())
+
+
+@async_test
+async def test_multi_position_on_the_six_face_rig_offers_the_rig_that_has_the_orientations():
+    """sim://static plays six faces (6 distinct orientations of the 9 needed): multi-position there would end
+    in 'the source ended'; the wizard says so before it starts and offers the any-orientation rig."""
+    from accelrig.tui.rigs import ORIENTATIONS_DEMO_URL
+    from accelrig.tui.screens.dialogs import ChoiceScreen
+
+    app = AccelrigApp(device="sim://static?seed=5&pace=fast", refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        app.screen.field("model").value = "multi-position"
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
+        assert "6 distinct orientations" in str(app.screen.query_one("#question").render())
+        options = app.screen.query_one("#choices")
+        assert options.get_option_at_index(0).id == "demo"
+        options.highlighted = 0
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))   # the rig plays fast
+        wizard = app.screen_stack[-2]
+        assert isinstance(wizard, StaticWizard) and wizard.url == ORIENTATIONS_DEMO_URL
+        assert wizard.sub_title == "multi-position static calibration"
+        assert wizard.check_action("procedure_action", ("redo",)) is False   # no face to redo: not in the keys
+        assert app.screen.result.model == "multi-position"

@@ -55,6 +55,22 @@ NEEDS: dict[str, RigNeeds] = {
 }
 
 
+# The static wizard's multi-position model needs >= 9 distinct orientations; sim://static plays the six faces.
+ORIENTATIONS_DEMO_URL = "sim://static?orientations=12&pace=fast"
+ORIENTATIONS_DEMO_NOTE = "12 still poses in orientations drawn over all rotations, 4 s each, played fast"
+
+
+def plays_faces_only(url: str) -> bool:
+    """A simulated static rig that plays the six faces (and repeats of them): six distinct orientations,
+    fewer than the multi-position model needs."""
+    if simulated_rig(url) != "static":
+        return False
+    try:
+        return "orientations" not in DeviceURL.parse(url).params
+    except AccelrigError:
+        return False
+
+
 def simulated_rig(url: str) -> str | None:
     """The rig a simulated device plays (None: a real device or a replay, which could be anything)."""
     try:

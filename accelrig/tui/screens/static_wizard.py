@@ -16,7 +16,7 @@ procedure computes once it has enough.
 
 from __future__ import annotations
 
-from textual import on
+from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
@@ -25,6 +25,8 @@ from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
 from accelrig.procedures.static.procedure import StaticProcedure
+from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
+from accelrig.tui.screens.dialogs import ChoiceScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
 from accelrig.tui.widgets.sphere import SphereMap
@@ -56,6 +58,36 @@ class StaticWizard(ProcedureWizard):
     procedure_class = StaticProcedure
     ACTION_KEYS = {"r": "redo"}
     progress_label = "faces"
+    faces_rig_accepted = False   # the operator chose to run multi-position on a six-face rig anyway
+
+    def start(self) -> None:
+        """As the generic wizard, but multi-position on a simulated rig that plays only the six faces would run
+        out of orientations (6 of the 9 needed) at the end of its script: offer the rig that fits first."""
+        if (self.values.get("model") == "multi-position" and plays_faces_only(self.url)
+                and not self.faces_rig_accepted):
+            self.offer_orientations_rig()
+            return
+        super().start()
+
+    @work(exclusive=True, group="wizard-rig")
+    async def offer_orientations_rig(self) -> None:
+        question = (f"{self.url} plays the six faces: 6 distinct orientations, and the multi-position model "
+                    "needs at least 9.")
+        choices = [("demo", f"Use {ORIENTATIONS_DEMO_URL}: {ORIENTATIONS_DEMO_NOTE}"),
+                   ("faces", "Keep this rig and calibrate on its faces (model auto)"),
+                   ("anyway", "Use this device anyway (it will run out of orientations)")]
+        choice = await self.app.push_screen_wait(ChoiceScreen(question, choices))
+        if choice == "demo":
+            if not await self.switch_device(ORIENTATIONS_DEMO_URL):
+                return
+        elif choice == "faces":
+            self.values = {**self.values, "model": "auto"}
+        elif choice == "anyway":
+            self.faces_rig_accepted = True
+        else:   # escape: back to the settings
+            self.ask_settings()
+            return
+        self.start()
 
     def compose_body(self) -> ComposeResult:
         yield FaceGrid(id="faces")
@@ -67,9 +99,17 @@ class StaticWizard(ProcedureWizard):
             yield Label("this pose", classes="bar-label")
             yield ProgressBar(total=1.0, show_eta=False, id="pose-progress")
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Any orientation keeps every pose: 'redo a face' is not offered (hidden from the keys)."""
+        if action == "procedure_action" and parameters == ("redo",) and self.procedure is not None:
+            return not self.procedure.any_orientation
+        return True
+
     def reset_body(self) -> None:
-        """Faces or the sphere, as the settings chose."""
+        """Faces or the sphere, as the settings chose, with the title and keys to match."""
         any_orientation = self.procedure.any_orientation
+        self.sub_title = "multi-position static calibration" if any_orientation else self.procedure_class.title
+        self.refresh_bindings()
         self.query_one("#faces", FaceGrid).display = not any_orientation
         self.query_one("#sphere", SphereMap).display = any_orientation
         self.query(".bar-label").last().update("orientations" if any_orientation else self.progress_label)

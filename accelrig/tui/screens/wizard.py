@@ -213,12 +213,26 @@ class ProcedureWizard(Screen):
         self.url = session.url
         self.device = device_facts(session.info)
 
+    async def switch_device(self, url: str) -> bool:
+        """Open ``url`` (a simulated rig the wizard offered) and run on it from now on; False when it cannot
+        be opened (the headline says why)."""
+        import asyncio
+
+        self.set_instruction(f"opening {url} ...")
+        try:
+            session = await asyncio.to_thread(Session.open_and_start, url, self.app.buffer_seconds,
+                                              prepare=flash_url_profile)
+        except AccelrigError as exc:
+            self.set_instruction(f"cannot open {url}: {exc}", "bold red")
+            return False
+        self.app.use_session(session)
+        self.use_device(session)
+        return True
+
     @work(exclusive=True, group="wizard-rig")
     async def find_rig(self) -> None:
         """A device of the wrong kind is said, with the matching simulated rig or the connect list offered;
         then the settings form (filled in for the simulated rig when that was taken)."""
-        import asyncio
-
         from accelrig.tui.rigs import NEEDS, rig_problem
         from accelrig.tui.screens.connect import ConnectScreen
         from accelrig.tui.screens.dialogs import ChoiceScreen
@@ -234,15 +248,8 @@ class ProcedureWizard(Screen):
                 choices.insert(0, ("demo", f"Use the simulated {needs.sim_rig} rig: {needs.demo_note}"))
             choice = await self.app.push_screen_wait(ChoiceScreen(f"{problem}.", choices))
             if choice == "demo":
-                self.set_instruction(f"opening {needs.demo_url} ...")
-                try:
-                    session = await asyncio.to_thread(Session.open_and_start, needs.demo_url,
-                                                      self.app.buffer_seconds, prepare=flash_url_profile)
-                except AccelrigError as exc:
-                    self.set_instruction(f"cannot open {needs.demo_url}: {exc}", "bold red")
+                if not await self.switch_device(needs.demo_url):
                     continue
-                self.app.use_session(session)
-                self.use_device(session)
                 filled = dict(needs.demo_texts)
             elif choice == "connect":
                 await self.app.push_screen_wait(ConnectScreen(wizard=cls.name))
