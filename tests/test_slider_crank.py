@@ -516,3 +516,14 @@ def test_play_taken_up_where_the_link_force_reverses_is_backlash_too():
     for seed in range(20):   # noise alone: searching every angle must not turn into false alarms
         t, residuals, frequency = _ringing_take_ups(95.0, seed=seed, amplitude=0.0)
         assert not detect_backlash(t, residuals, frequency, 0.0, SIGMA)[0]
+
+
+def test_a_still_recording_is_refused_as_no_crank_motion_not_judged(tmp_path):
+    """Six faces held by hand fit a slow 'sine' from gravity turning (0.05 Hz, thousands of times r w^2):
+    that is no crank's motion, and the verdict must not blame the motor or the clearance."""
+    with driver_for("sim://static?seed=5&pace=fast") as driver:
+        still = record(driver)
+    with pytest.raises(DataError) as refused:
+        verify_slider_crank([("six-face.csv", still)], crank_radius=0.00635, rod_length=0.0353)
+    assert "not the motion of a 6.35 mm crank" in str(refused.value) and "times the crank's r w^2" in str(refused.value)
+    assert "crank radius" in refused.value.hint

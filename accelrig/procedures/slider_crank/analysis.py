@@ -584,8 +584,16 @@ def _peak_of_waveform(amps_phases: np.ndarray, harmonics: int) -> float:
     return float(np.max(np.abs(wave)))
 
 
-def check_crank_motion(where: str, fit: SineFit, t: np.ndarray) -> None:
-    """Refuse a step with no crank motion in it (a still or static recording given as a step)."""
+# A step's first harmonic against the crank's r w^2 at the speed measured: a sensitivity error, even a profile
+# for another range (a factor 4), stays within this factor; beyond it the record is not this crank's motion (a
+# still or hand-turned record fits a slow "sine" from gravity turning; or the radius or the axis is wrong), and
+# a verdict on it would blame the motor or the clearance for what is not there.
+MOTION_RATIO = 8.0
+
+
+def check_crank_motion(where: str, fit: SineFit, t: np.ndarray, crank_radius: float) -> None:
+    """Refuse a step with no crank motion in it (a still or static recording given as a step), or with a
+    motion that is not this crank's (its first harmonic far from r w^2: see MOTION_RATIO)."""
     amp1, u_amp1 = float(fit.amplitude[0]), float(fit.amplitude_uncertainty[0])
     if not amp1 >= MIN_AMPLITUDE_SNR * u_amp1:
         raise DataError(
@@ -601,6 +609,14 @@ def check_crank_motion(where: str, fit: SineFit, t: np.ndarray) -> None:
             f"{fit.frequency:.4g} Hz (needs {MIN_STEP_CYCLES:g})",
             "record at least 2 (better 3) crank turns per step while the crank turns steadily",
         )
+    expected = crank_radius * (2 * np.pi * fit.frequency) ** 2   # the first harmonic of x'' (any rod length)
+    if not 1 / MOTION_RATIO <= amp1 / expected <= MOTION_RATIO:
+        raise DataError(
+            f"{where}: not the motion of a {1e3 * crank_radius:g} mm crank: the first harmonic along the slider is "
+            f"{amp1:.3g} m/s^2 at {fit.frequency:.3g} Hz, {amp1 / expected:.3g} times the crank's r w^2 "
+            f"({expected:.3g} m/s^2)",
+            "check the crank radius (in metres), that the motor turned the crank during the step, and that the "
+            "sensor's axis of motion lies along the slider")
 
 
 def analyse_step(
@@ -637,7 +653,7 @@ def analyse_step(
     except DataError as exc:
         raise DataError(f"{where}: {exc.message}", exc.hint) from None
     if not fit.converged:
-        check_crank_motion(where, fit, t)  # a "fit" of noise alone often wanders: name the real cause
+        check_crank_motion(where, fit, t, crank_radius)  # a "fit" of noise alone often wanders: name the real cause
         raise CalibrationError(
             f"{where}: the sine fit did not converge (start {start:.4g} Hz, ended at {fit.frequency:.4g} Hz)",
             "check that the stand ran steadily and the record holds the motion",
@@ -647,7 +663,7 @@ def analyse_step(
                                                               noise_sd)
     if backlash:
         fit = _noise_only_covariance(t, fit, take_up)
-    check_crank_motion(where, fit, t)
+    check_crank_motion(where, fit, t, crank_radius)
 
     # The radius and the mean speed from the crank-angle model (motion_fit): identical to the sine
     # fit when the motor runs steadily, and still right (with a wider u) when its speed wanders.
