@@ -53,6 +53,19 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
         entry = entry[next(iter(entry))]["x"]["budget"]
         assert budget.get_row_at(0)[5] == f"{100 * entry['combined_standard_uncertainty']:.3f}"
         assert campaign.query_one("#campaign-0").row_count == 4   # 2 steps x 2 axes
+        # numbered as the wizard numbered the steps (from 1), the device named, each step's recording traced
+        assert [campaign.query_one("#campaign-0").get_row_at(i)[0] for i in range(4)] == ["1", "1", "2", "2"]
+        identity = app.session.info.identity
+        assert campaign.report.details["campaign"] == f"{identity}: live session"
+        records = campaign.report.details["records"]
+        assert [r["test"] for r in records] == [1, 2] and all(r["recording_hash"].startswith("sha256:")
+                                                               and r["samples"] >= 2000 for r in records)
+        from accelrig.report.html import render_html
+        from accelrig.report.source import from_result
+
+        certificate = render_html(from_result(campaign.report))
+        assert "Recordings of the tests" in certificate and records[1]["recording_hash"] in certificate
+        assert "date of calibration" in certificate and records[0]["captured"] in certificate
         # the report is saved as Markdown
         await pilot.press("s")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))

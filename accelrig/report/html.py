@@ -268,7 +268,9 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
                  if key in conditions and key != "certificate_number"]
     if prov.get("temperature_c") is not None:
         cond_rows.append(("sensor temperature", f"{prov['temperature_c']:g} °C"))
-    cond_rows.append(("date of calibration", prov.get("recording_start") or prov.get("created")))
+    records = src.details.get("records") or []   # a live campaign: one recording per test
+    cond_rows.append(("date of calibration", prov.get("recording_start") or prov.get("created")
+                      or (records[0].get("captured") if records else None)))
     html.append(_kv(cond_rows))
 
     html.append(heading("Traceability and records"))
@@ -276,6 +278,11 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
                                   f"accelrig {__version__} (this certificate)"),
                      ("recording hash", prov.get("recording_hash")), ("recording", prov.get("recording_source")),
                      ("samples", prov.get("recording_samples")), ("source of this certificate", src.path)]))
+    if records:
+        html.append("<h3>Recordings of the tests</h3>")
+        html.append(_table(["test", "captured", "samples", "recording hash"],
+                           [[str(rec.get("test", i + 1)), str(rec.get("captured") or "—"), str(rec.get("samples")),
+                             str(rec.get("recording_hash"))] for i, rec in enumerate(records)]))
 
     html.append(heading("Results"))
     html.append(f'<p class="note">{escape(coverage_statement(k, src.details.get("coverage_dof")))}</p>')

@@ -170,7 +170,7 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
         }
         encoder = merged.get("encoder")
         out.append(CampaignTest(
-            index=i,
+            index=i + 1,   # numbered from 1 in reports and certificates, as the TUI numbers its steps
             sensor=str(merged.get("sensor", "sensor")),
             label=str(merged.get("label", Path(merged["mems"]).stem)),
             mems=str(path.parent / merged["mems"]),

@@ -10,6 +10,7 @@ analysis as ``accelrig calibrate rotary --campaign``.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,10 @@ class RotaryProcedure(Procedure):
         self.steps = [RotaryStep(i * repeats + r, float(f), float(a), r + 1, float(seconds))
                       for i, (f, a) in enumerate(parse_plan(values["plan"])) for r in range(repeats)]
         self.results: list[tuple[RotaryStep, RotaryTest]] = []
+        # what each kept step was computed from, for the certificate's traceability (hash, samples, when)
+        self.records: list[dict] = []
+        # the device's name stands for the sensor in the campaign's tables and its certificate
+        self.sensor = str(device.get("identity") or device.get("url") or "sensor")
         self.capture = StepCapture(device)
         self._finish_requested = False
 
@@ -140,6 +145,9 @@ class RotaryProcedure(Procedure):
         except AccelrigError as exc:
             return [Event("problem", f"step {step.index + 1} not kept: {exc}; press space to record it again")]
         self.results.append((step, result))
+        self.records.append({"test": step.index + 1, "recording_hash": recording.content_hash(),
+                             "samples": len(recording),
+                             "captured": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
         figures = "   ".join(f"{axis}: {s.value:.2f} ± {s.uncertainty:.2g}" for axis, s in result.sensitivity.items())
         events = [Event("captured", f"step {step.index + 1} ({step.frequency:g} Hz, {step.amplitude_deg:g} deg, "
                                     f"repeat {step.repeat}): sensitivity {figures} counts per m/s²", self.progress,
@@ -153,14 +161,15 @@ class RotaryProcedure(Procedure):
         if not self.results:
             raise DataError("no step of this rotary session is done yet")
         tests = [
-            CampaignTest(step.index, "sensor", f"{step.frequency:g}hz_{step.amplitude_deg:g}deg_r{step.repeat}",
+            CampaignTest(step.index + 1, self.sensor, f"{step.frequency:g}hz_{step.amplitude_deg:g}deg_r{step.repeat}",
                          "(live)", None, {"tangential": self.tangential, "radial": self.radial,
                                           "nominal_rate": self.nominal_rate, "rate_method": self.rate_method},
                          self.setup)
             for step, _ in self.results
         ]
-        campaign = Campaign(name="sensor live session", tests=tests)
+        campaign = Campaign(name=f"{self.sensor}: live session", tests=tests)
         result = analyse_campaign(campaign, [r for _, r in self.results])
+        result.details["records"] = [dict(r) for r in self.records]
         if len(self.results) < len(self.steps):
             result.warnings.insert(0, f"{len(self.results)} of the {len(self.steps)} planned steps were recorded: "
                                       "the campaign covers those only")

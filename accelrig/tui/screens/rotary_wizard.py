@@ -49,7 +49,7 @@ class RotaryWizard(ProcedureWizard):
 def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple[str, ...]]]]:
     """The campaign's tables for people: (title, columns, rows), units and k in the titles."""
     k = report["coverage_factor"]
-    steps = [(str(t["index"] + 1), t["label"], f"{t['sample_rate_hz']['value']:.3f}", axis, s["component"],
+    steps = [(str(t["index"]), t["label"], f"{t['sample_rate_hz']['value']:.3f}", axis, s["component"],
               f"{s['value']:.3f}", f"{s['uncertainty']:.2g}")
              for t in report["tests"] for axis, s in t["sensitivity"].items()]
     budget, linearity = [], []
