@@ -105,6 +105,9 @@ class BleDriver(FirmwareDriver):
             raise DeviceError("BLE scan did not finish", "is a Bluetooth adapter present and powered?")
         if "error" in result:
             exc = result["error"]
+            if isinstance(exc, FileNotFoundError):   # bleak on Linux: no D-Bus system bus socket to talk to BlueZ
+                raise DeviceError("BLE not searched: no Bluetooth service on this machine (no D-Bus system bus)",
+                                  "BLE devices need BlueZ running and an adapter")
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise DeviceError(f"BLE scan failed: {text}", "is a Bluetooth adapter present and powered?")
         return [f"ble://{d.address}" + (f"  ({d.name})" if d.name else "") for d in result.get("devices", [])]

@@ -41,9 +41,12 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
     source = q.get("uncertainty_source", q.get("uncertainty"))
     if isinstance(source, str) and source:
         lines.append(("uncertainty", source))
-    if "chi2" in q and "dof" in q and q["chi2"] is not None:
-        lines.append(("lack of fit", _lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))))
     tilt_p = q.get("tilt_p_value")
+    if "chi2" in q and "dof" in q and q["chi2"] is not None:
+        sentence = _lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))
+        if not q["dof"] and tilt_p is not None:   # the six-face model: its tilts carry the test instead
+            sentence += "; the pose tilts below test the model instead"
+        lines.append(("lack of fit", sentence))
     if tilt_p is not None and math.isfinite(tilt_p) and q.get("stated_flatness_deg"):
         within = ("beyond it: the flatness the tilts show is used instead (see the uncertainty)"
                   if tilt_p < LACK_OF_FIT_ALPHA else "within it")

@@ -250,7 +250,7 @@ def slider_crank_figure(src: Source) -> Figure:
                 label=f"measured (U, {k_label})")
     ax.set_xlabel("crank frequency (Hz)")
     ax.set_ylabel("first-harmonic amplitude (m/s²)")
-    ax.set_title("Amplitude vs frequency: points inside the band", fontsize=9)
+    ax.set_title("Amplitude vs frequency: points should lie inside the band", fontsize=9)
     ax.legend(fontsize=7)
     ax = axs[1]
     r0, clearance = d.get("crank_radius_m"), d.get("clearance_m") or 0.0
@@ -262,7 +262,7 @@ def slider_crank_figure(src: Source) -> Figure:
                 label=f"radius from the motion (U, {k_label})")
     ax.set_xlabel("crank frequency (Hz)")
     ax.set_ylabel("crank radius (mm)")
-    ax.set_title("Radius per step: inside the clearance band", fontsize=9)
+    ax.set_title("Radius per step: should lie inside the clearance band", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     return Figure("slider-crank", "Slider-crank verification", "Measured first-harmonic amplitude against the "

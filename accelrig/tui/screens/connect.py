@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from rich.markup import escape
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -78,7 +79,8 @@ class ConnectScreen(Screen):
         if self.wizard is not None:   # what certainly fits the wizard first (a stable sort keeps the order)
             found = sorted(found, key=lambda item: not fits(self.wizard, item[0]))
         options.add_options([Option(f"{url}  [dim]{why}[/dim]", id=url) for url, why in found])
-        self._set_status("\n".join(problems) if problems else f"{len(found)} device(s) found")
+        # a driver that could not search (no Bluetooth here) is a note under the count, not an alarm
+        self._set_status("\n".join([f"{len(found)} device(s) found", *(f"[dim]{escape(p)}[/dim]" for p in problems)]))
 
     def _set_status(self, text: str) -> None:
         self.query_one("#connect-status", Static).update(text)

@@ -146,7 +146,7 @@ def slider_crank_views(src) -> list[PlotView]:
     order = np.argsort(f)
     band = [Series(f[order], s[k][order], "grey50", label) for k, label in
             (("model_lower", "clearance band"), ("model_upper", ""))]
-    views = [PlotView("first-harmonic amplitude (m/s²): measured inside the band", "crank frequency (Hz)",
+    views = [PlotView("first-harmonic amplitude (m/s²): should lie inside the band", "crank frequency (Hz)",
                       [*band, Series(f[order], s["model_amplitude"][order], "dodger_blue1", "model"),
                        _points(f, s["amplitude"], "yellow", "measured")])]
     r0, clearance = src.details.get("crank_radius_m"), src.details.get("clearance_m") or 0.0
@@ -154,7 +154,7 @@ def slider_crank_views(src) -> list[PlotView]:
     if r0 is not None:
         radius = [Series(f[order], np.full(f.size, 1e3 * (r0 + sign * clearance)), "grey50",
                          "caliper ± clearance" if sign > 0 else "") for sign in (1, -1)] + radius
-    views.append(PlotView("crank radius per step (mm): inside the clearance band", "crank frequency (Hz)", radius))
+    views.append(PlotView("crank radius per step (mm): should lie inside the clearance band", "crank frequency (Hz)", radius))
     return views
 
 

@@ -19,7 +19,9 @@ class FaceGrid(Horizontal):
 
     def show(self, progress: dict) -> None:
         done = set(progress["faces_done"])
-        current = progress["current_face"] if progress["still"] else None
+        # a face held to the end of its hold is captured: it shows as done, not "holding 100%" (the last face
+        # of a run stays still while the result is computed)
+        current = progress["current_face"] if progress["still"] and progress["hold_fraction"] < 1.0 else None
         missing = progress["missing"]
         again_done = set(progress.get("again_done", ()))
         third_done = set(progress.get("third_done", ()))
