@@ -252,3 +252,15 @@ def test_cli_validate_refuses_each_malformed_profile(tmp_path, cli, dotted, valu
     r = cli("profile", "validate", path)
     assert r.returncode == 6 and r.stdout == ""
     assert r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+
+
+def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
+    """The profile keeps radians; `profile show`, like calibrate, the TUI and the certificate, shows degrees."""
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parent.parent / "profiles" / "example-static_faces-vp.yaml"
+    r = cli("profile", "show", str(example))
+    assert r.returncode == 0, r.stderr
+    angle = next(line for line in r.stdout.splitlines() if line.strip().startswith("angle_x"))
+    stored = load_profile(example).data["calibration"]["parameters"]["angle_x"]
+    assert angle.endswith(" deg") and f"{np.degrees(stored['value']):.6g}" in angle

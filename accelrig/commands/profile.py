@@ -21,7 +21,7 @@ from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
 from accelrig.recording import load_recording, save_recording
-from accelrig.result import to_json
+from accelrig.result import Estimate, to_json
 from accelrig.units import STANDARD_GRAVITY
 
 
@@ -171,7 +171,9 @@ def run_show(args) -> int:
         say("parameters")
         width = max(len(n) for n in cal["parameters"])
         for name, est in cal["parameters"].items():
-            say(f"  {name.ljust(width)}  {_fmt(est['value'], est['uncertainty'])} {est['unit']}")
+            # angles in degrees, as the calibrate command, the TUI and the certificate show them
+            value, u, unit = Estimate(est["value"], est["uncertainty"], est["unit"]).for_display()
+            say(f"  {name.ljust(width)}  {_fmt(value, u)} {unit}")
     q = d["quality"]
     for key, value in q.items():
         if value is None:
