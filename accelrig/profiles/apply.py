@@ -61,8 +61,8 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
         problems.append(f"the data are in {units} but {who} applies to raw {profile.units} (counts x nominal scale)")
     if problems:
         if not force:
-            more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-            raise ProfileError(problems[0] + more, "pass --force (in the TUI: force yes) to use it anyway")
+            # every problem named: the person decides on --force knowing all of them
+            raise ProfileError("; ".join(problems), "pass --force (in the TUI: force yes) to use it anyway")
         warnings.extend(f"forced: {p}" for p in problems)
     return warnings
 
