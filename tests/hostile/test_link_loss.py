@@ -72,7 +72,7 @@ def test_a_rotary_campaign_with_a_lossy_test_says_so_on_stderr_and_in_the_report
     result = cli("calibrate", "rotary", "--campaign", campaign, "--json")
     assert result.returncode == 0, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.startswith("accelrig: warning:")]
-    assert len(lines) == 1 and lines[0].startswith("accelrig: warning: test 1 (lossy): the link lost ")
+    assert len(lines) == 1 and lines[0].startswith("accelrig: warning: test 2 (lossy): the link lost ")   # numbered from 1
     tests = json.loads(result.stdout)["details"]["tests"]
     assert any("the link lost" in w for w in tests[1]["warnings"])
     assert not any("the link lost" in w for w in tests[0]["warnings"])
