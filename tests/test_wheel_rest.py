@@ -82,3 +82,28 @@ def test_a_record_with_a_rest_is_checked_against_it_and_a_drift_from_the_rest_is
     assert quiet.quality["rest_check"]["made"] is False
     assert "not checked against the wheel at rest: the recording holds no rest" in quiet.quality["uncertainty"]
     assert not any("at rest" in w for w in quiet.warnings)
+
+
+def test_the_papers_four_steps_are_checked_against_the_rest_too():
+    """``--method paper`` has the same rest before the spin: the four steps' coast is set against it with their
+    bootstrap covariance, and a drift from the rest is warned and taken into u as for the joint fit."""
+    rig = WheelRig(radius=0.28, duration=25.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    clean = calibrate_wheel(rec, radius=0.28, method="paper", bootstrap=5)
+    check = clean.quality["rest_check"]
+    assert check["made"] and not check["significant"]
+    assert "checked against the wheel at rest before the spin" in clean.quality["uncertainty"]
+    assert not any("wheel at rest read off" in w for w in clean.warnings)
+
+    moved = rec.acc.copy()
+    moved[rec.t - rec.t[0] < 3.0] -= 0.04 / np.sqrt(3.0)
+    drifted = calibrate_wheel(Recording(rec.t, moved, rec.units, {}, rec.meta), radius=0.28, method="paper",
+                              bootstrap=5)
+    assert drifted.quality["rest_check"]["significant"]
+    assert len([w for w in drifted.warnings if "wheel at rest read off" in w]) == 1
+    assert np.allclose(drifted.parameters["gain"].value, clean.parameters["gain"].value, rtol=1e-6)
+    # the same coast and bootstrap draws: u grows by the allowance alone
+    ratio = np.array(drifted.parameters["gain"].uncertainty) / np.array(clean.parameters["gain"].uncertainty)
+    assert np.all(ratio > 1.1)
