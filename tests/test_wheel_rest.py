@@ -107,3 +107,24 @@ def test_the_papers_four_steps_are_checked_against_the_rest_too():
     # the same coast and bootstrap draws: u grows by the allowance alone
     ratio = np.array(drifted.parameters["gain"].uncertainty) / np.array(clean.parameters["gain"].uncertainty)
     assert np.all(ratio > 1.1)
+
+
+def test_a_coast_given_with_start_is_still_checked_against_the_rest_before_it():
+    """``--start`` at the coast (as the cut warning suggests) leaves the rest out of the fit, not out of the check:
+    the part before the start is handed over and its rest read."""
+    rig = WheelRig(radius=0.28, duration=30.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=4)
+    moved = rec.acc.copy()
+    moved[rec.t - rec.t[0] < 3.0] -= 0.04 / np.sqrt(3.0)
+    drifted = Recording(rec.t, moved, rec.units, {}, rec.meta)
+    start = 5.5
+    alone = calibrate_wheel(time_range(drifted, start, None), radius=0.28)
+    assert alone.quality["rest_check"]["made"] is False
+    given = calibrate_wheel(time_range(drifted, start, None), radius=0.28, before=time_range(drifted, None, start))
+    check = given.quality["rest_check"]
+    assert check["made"] and check["significant"]
+    assert check["rests"][0]["where"] == "before the spin" and check["rests"][0]["to_s"] < 3.0
+    assert any("wheel at rest read off" in w for w in given.warnings)
+    assert np.allclose(given.parameters["gain"].value, alone.parameters["gain"].value, rtol=1e-9)

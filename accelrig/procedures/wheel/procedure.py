@@ -89,8 +89,12 @@ def calibrate_wheel(
     seed: int = 0,
     cross_axis_sd: float = DEFAULT_CROSS_AXIS_SD,
     on_progress: Callable[[str], None] | None = None,
+    before: Recording | None = None,
 ) -> CalibrationResult:
     """Calibrate from a wheel recording.  ``radius`` in m and/or ``tilt_deg`` must be given.
+
+    ``before`` is what the recording held before ``recording`` when that is a part of it (``--start``): it is
+    not fitted, but a rest at its beginning (the wheel held still before the push) still checks the coast.
 
     ``cross_axis_sd`` is the prior sd given to the off-diagonal terms of the correction matrix,
     which the wheel does not observe (they are set to 0 with that uncertainty).  ``on_progress``
@@ -105,6 +109,8 @@ def calibrate_wheel(
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g, keep_angle=False)
     t, v, gap_times, cut_notes, origin, rests = _free_coast(t, v, gap_times, look)
+    if before is not None and not any(r.where == "before the spin" for r in rests):
+        rests = _rest_before(before, recording, look) + rests
     if cut_notes:
         look = survey(t, v, recording.meta, g, keep_angle=False)
     warnings = cut_notes + check_capture(look, radius, g)
@@ -215,6 +221,25 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
     origin = float(t[kept][0])
     gap_times = gap_times[(gap_times > lo) & (gap_times < hi)] - origin
     return t[kept] - origin, v[kept], gap_times, notes, origin, rests
+
+
+def _rest_before(before: Recording, recording: Recording, look: WheelSurvey) -> list[Rest]:
+    """The rest before the spin in the part of the recording left out before ``recording`` (``--start``): the
+    still windows from its first sample, as ``_free_coast`` finds them in a whole record (the wheel must be seen
+    turning after them, in ``before`` or in ``recording``).  Times count from ``before``'s first sample, the
+    whole recording's."""
+    if len(before) == 0 or len(recording) == 0:
+        return []
+    t0 = before.t[0]
+    tb, vb = before.t - t0, before.to_si().acc
+    t, v = recording.t - t0, recording.to_si().acc
+    until = rested_until(np.concatenate([tb, t]), np.concatenate([vb, v]), look.noise_sd, look.period)
+    if until is None:
+        return []
+    inside = tb < until
+    if np.count_nonzero(inside) < MIN_LOOK_SAMPLES:
+        return []
+    return [Rest("before the spin", tb[inside], vb[inside])]
 
 
 def _rest_check(rests: list[Rest], t: np.ndarray, state, cov: np.ndarray, free, time_scale: float,
