@@ -128,3 +128,28 @@ def test_a_coast_given_with_start_is_still_checked_against_the_rest_before_it():
     assert check["rests"][0]["where"] == "before the spin" and check["rests"][0]["to_s"] < 3.0
     assert any("wheel at rest read off" in w for w in given.warnings)
     assert np.allclose(given.parameters["gain"].value, alone.parameters["gain"].value, rtol=1e-9)
+
+
+def test_a_coast_without_a_rest_states_the_drift_it_could_miss_and_three_times_that_is_found():
+    """No rest: the result states the in-plane drift the drift tests would miss half the time, and what it would do
+    to the estimates (not added to u); a steady in-plane drift three times the stated size is found."""
+    rig = WheelRig(radius=0.28, duration=30.0, omega=OMEGA)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    bare = calibrate_wheel(rec, radius=0.28)
+    unseen = bare.quality["rest_check"]["unseen_drift"]
+    assert bare.quality["rest_check"]["made"] is False
+    steady, settling = unseen["steady"], unseen["settling"]
+    assert 0 < settling["size_m_s2"] < steady["size_m_s2"] < 1.0
+    assert steady["largest_move_over_u"] > 3.0
+    assert "u does not include it" in bare.quality["uncertainty"]
+    assert not any("drift" in w or "at rest" in w for w in bare.warnings)
+
+    # along the wheel's radius as the sensor sees it (Gamma R's first column)
+    radial = GAIN * rotation_xyz(np.deg2rad(bare.parameters["misalignment_deg"].value))[:, 0]
+    radial /= np.linalg.norm(radial)
+    x = (rec.t - rec.t[0]) / (rec.t[-1] - rec.t[0])
+    drifting = rec.acc + 3.0 * steady["size_m_s2"] * x[:, None] * radial[None, :]
+    found = calibrate_wheel(Recording(rec.t, drifting, rec.units, {}, rec.meta), radius=0.28)
+    assert any("offsets drifted" in w for w in found.warnings)

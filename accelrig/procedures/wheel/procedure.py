@@ -47,7 +47,7 @@ from accelrig.procedures.wheel.fit import (
 )
 from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
-from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests
+from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests, unseen_drift
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
 from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
@@ -254,7 +254,16 @@ def _rest_check(rests: list[Rest], t: np.ndarray, state, cov: np.ndarray, free, 
         why = ("the recording holds no rest (the wheel held still a few seconds before the push, with the recording "
                "running, would show a drift of the offsets along the wheel's plane that the coast alone takes for "
                "the centripetal term)")
-        return nothing, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
+        # what the coast alone could miss: stated with its effect, not added to u (it would make u 5-300 times the
+        # noise's on every record without a rest: docs/wheel.md, "Not solved")
+        unseen = unseen_drift(t, state, cov, free, time_scale, sigma, g)
+        said = " or ".join(f"{d['size_m_s2']:.2g} m/s^2 {d['shape'].split(' (')[0]}" for d in unseen.values())
+        worst = max(unseen.values(), key=lambda d: d["largest_move_over_u"])
+        limit = (f"; a drift along the wheel's plane of {said} would go unseen (the drift tests find it half the "
+                 f"time) and would move {worst['moves_most']} by up to {worst['largest_move_over_u']:.2g} u; u does "
+                 "not include it: record 5 s with the wheel still before the push")
+        return nothing, {"made": False, "why": why, "unseen_drift": unseen}, \
+            f"; not checked against the wheel at rest: {why}{limit}", []
     if drift_taken:
         why = ("the offsets drifted during the coast and the fit took the drift in, so the offset at the coast's "
                "ends is known too roughly for the rest to test it")
