@@ -87,7 +87,7 @@ def test_a_record_with_a_rest_is_checked_against_it_and_a_drift_from_the_rest_is
 def test_the_papers_four_steps_are_checked_against_the_rest_too():
     """``--method paper`` has the same rest before the spin: the four steps' coast is set against it with their
     bootstrap covariance, and a drift from the rest is warned and taken into u as for the joint fit."""
-    rig = WheelRig(radius=0.28, duration=25.0, omega=OMEGA, rest=3.0, push=2.0)
+    rig = WheelRig(radius=0.28, duration=15.0, omega=OMEGA, rest=3.0, push=2.0)
     sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
                          noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
     rec = simulate(rig, sensor, SimClock(RATE), seed=3)
