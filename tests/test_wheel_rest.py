@@ -82,3 +82,74 @@ def test_a_record_with_a_rest_is_checked_against_it_and_a_drift_from_the_rest_is
     assert quiet.quality["rest_check"]["made"] is False
     assert "not checked against the wheel at rest: the recording holds no rest" in quiet.quality["uncertainty"]
     assert not any("at rest" in w for w in quiet.warnings)
+
+
+def test_the_papers_four_steps_are_checked_against_the_rest_too():
+    """``--method paper`` has the same rest before the spin: the four steps' coast is set against it with their
+    bootstrap covariance, and a drift from the rest is warned and taken into u as for the joint fit."""
+    rig = WheelRig(radius=0.28, duration=15.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    clean = calibrate_wheel(rec, radius=0.28, method="paper", bootstrap=5)
+    check = clean.quality["rest_check"]
+    assert check["made"] and not check["significant"]
+    assert "checked against the wheel at rest before the spin" in clean.quality["uncertainty"]
+    assert not any("wheel at rest read off" in w for w in clean.warnings)
+
+    moved = rec.acc.copy()
+    moved[rec.t - rec.t[0] < 3.0] -= 0.04 / np.sqrt(3.0)
+    drifted = calibrate_wheel(Recording(rec.t, moved, rec.units, {}, rec.meta), radius=0.28, method="paper",
+                              bootstrap=5)
+    assert drifted.quality["rest_check"]["significant"]
+    assert len([w for w in drifted.warnings if "wheel at rest read off" in w]) == 1
+    assert np.allclose(drifted.parameters["gain"].value, clean.parameters["gain"].value, rtol=1e-6)
+    # the same coast and bootstrap draws: u grows by the allowance alone
+    ratio = np.array(drifted.parameters["gain"].uncertainty) / np.array(clean.parameters["gain"].uncertainty)
+    assert np.all(ratio > 1.1)
+
+
+def test_a_coast_given_with_start_is_still_checked_against_the_rest_before_it():
+    """``--start`` at the coast (as the cut warning suggests) leaves the rest out of the fit, not out of the check:
+    the part before the start is handed over and its rest read."""
+    rig = WheelRig(radius=0.28, duration=30.0, omega=OMEGA, rest=3.0, push=2.0)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=4)
+    moved = rec.acc.copy()
+    moved[rec.t - rec.t[0] < 3.0] -= 0.04 / np.sqrt(3.0)
+    drifted = Recording(rec.t, moved, rec.units, {}, rec.meta)
+    start = 5.5
+    alone = calibrate_wheel(time_range(drifted, start, None), radius=0.28)
+    assert alone.quality["rest_check"]["made"] is False
+    given = calibrate_wheel(time_range(drifted, start, None), radius=0.28, before=time_range(drifted, None, start))
+    check = given.quality["rest_check"]
+    assert check["made"] and check["significant"]
+    assert check["rests"][0]["where"] == "before the spin" and check["rests"][0]["to_s"] < 3.0
+    assert any("wheel at rest read off" in w for w in given.warnings)
+    assert np.allclose(given.parameters["gain"].value, alone.parameters["gain"].value, rtol=1e-9)
+
+
+def test_a_coast_without_a_rest_states_the_drift_it_could_miss_and_three_times_that_is_found():
+    """No rest: the result states the in-plane drift the drift tests would miss half the time, and what it would do
+    to the estimates (not added to u); a steady in-plane drift three times the stated size is found."""
+    rig = WheelRig(radius=0.28, duration=30.0, omega=OMEGA)
+    sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,
+                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
+    rec = simulate(rig, sensor, SimClock(RATE), seed=3)
+    bare = calibrate_wheel(rec, radius=0.28)
+    unseen = bare.quality["rest_check"]["unseen_drift"]
+    assert bare.quality["rest_check"]["made"] is False
+    steady, settling = unseen["steady"], unseen["settling"]
+    assert 0 < settling["size_m_s2"] < steady["size_m_s2"] < 1.0
+    assert steady["largest_move_over_u"] > 3.0
+    assert "u does not include it" in bare.quality["uncertainty"]
+    assert not any("drift" in w or "at rest" in w for w in bare.warnings)
+
+    # along the wheel's radius as the sensor sees it (Gamma R's first column)
+    radial = GAIN * rotation_xyz(np.deg2rad(bare.parameters["misalignment_deg"].value))[:, 0]
+    radial /= np.linalg.norm(radial)
+    x = (rec.t - rec.t[0]) / (rec.t[-1] - rec.t[0])
+    drifting = rec.acc + 3.0 * steady["size_m_s2"] * x[:, None] * radial[None, :]
+    found = calibrate_wheel(Recording(rec.t, drifting, rec.units, {}, rec.meta), radius=0.28)
+    assert any("offsets drifted" in w for w in found.warnings)

@@ -21,7 +21,7 @@ def register(sub, groups) -> None:
     p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     add_time_range(p, start_note="the wheel's free coast from T (without it the fit finds where the last push "
-                   "ended and leaves the rest and the push before it out, with a warning)",
+                   "ended and leaves the rest and the push before it out, with a warning; a rest before T still checks the coast)",
                    stop_note="the spin before T (without it a stop and rest at the end are found and left out, "
                    "with a warning)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -48,6 +48,13 @@ def run_calibrate(args) -> int:
     v = values_from_args(SETTINGS, args)
     check_profile_target(args)   # an -o that would be refused is refused before the fit
     rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
+    # the part before --start is not fitted, but a rest at its beginning still checks the coast (rest.py)
+    before = None
+    if args.start is not None:
+        try:
+            before = load_recording(args.recording, units=args.units, rate=args.rate, stop=args.start)
+        except DataError:     # nothing before --start
+            before = None
     from accelrig.commands.progress import Progress
     from accelrig.units import local_gravity
 
@@ -55,7 +62,7 @@ def run_calibrate(args) -> int:
     with Progress(f"fitting the wheel ({v['method']} method)") as progress:
         result = calibrate_wheel(rec, radius=v["radius"], tilt_deg=v["tilt_deg"], method=v["method"],
                                  g=gravity.value, bootstrap=v["bootstrap"], cross_axis_sd=v["cross_axis_sd"],
-                                 on_progress=progress.step).with_local_gravity(gravity, GRAVITY_SCALED)
+                                 on_progress=progress.step, before=before).with_local_gravity(gravity, GRAVITY_SCALED)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:

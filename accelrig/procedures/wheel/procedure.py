@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
+from accelrig.estimation.residuals import whiteness_by_column
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SYSTEMATIC, Checks, check_residuals
 from accelrig.procedures.wheel.checks import (
@@ -46,7 +47,7 @@ from accelrig.procedures.wheel.fit import (
 )
 from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
-from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests
+from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests, unseen_drift
 from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
 from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
@@ -88,8 +89,12 @@ def calibrate_wheel(
     seed: int = 0,
     cross_axis_sd: float = DEFAULT_CROSS_AXIS_SD,
     on_progress: Callable[[str], None] | None = None,
+    before: Recording | None = None,
 ) -> CalibrationResult:
     """Calibrate from a wheel recording.  ``radius`` in m and/or ``tilt_deg`` must be given.
+
+    ``before`` is what the recording held before ``recording`` when that is a part of it (``--start``): it is
+    not fitted, but a rest at its beginning (the wheel held still before the push) still checks the coast.
 
     ``cross_axis_sd`` is the prior sd given to the off-diagonal terms of the correction matrix,
     which the wheel does not observe (they are set to 0 with that uncertainty).  ``on_progress``
@@ -104,6 +109,8 @@ def calibrate_wheel(
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g, keep_angle=False)
     t, v, gap_times, cut_notes, origin, rests = _free_coast(t, v, gap_times, look)
+    if before is not None and not any(r.where == "before the spin" for r in rests):
+        rests = _rest_before(before, recording, look) + rests
     if cut_notes:
         look = survey(t, v, recording.meta, g, keep_angle=False)
     warnings = cut_notes + check_capture(look, radius, g)
@@ -117,10 +124,13 @@ def calibrate_wheel(
         # the structure the checks found and took in: the estimates moved by its step, and ``resid`` (the
         # one residual array) now holds what is left after it
         state = checks.state
-        cov_internal, rest_quality, rest_source, rest_warnings = _rest_check(rests, t, checks, free, fit, g)
+        tau = np.array([w.tau for w in checks.whiteness]) if checks.correlated else np.ones(3)
+        drift_taken = checks.drift_per_axis is not None
+        allowance, rest_quality, rest_source, rest_warnings = _rest_check(
+            rests, t, state, checks.covariance_internal, free, fit.time_scale, fit.sigma, tau, g, drift_taken)
         warnings.extend(rest_warnings)
         m = reporting_map(state, free, fit.time_scale)
-        cov = m @ cov_internal @ m.T
+        cov = m @ (checks.covariance_internal + allowance) @ m.T
         quality = {"iterations": fit.iterations, "residual_checks": checks.to_dict(), "rest_check": rest_quality}
         uncertainty_source = checks.source + rest_source
     else:
@@ -131,9 +141,21 @@ def calibrate_wheel(
         cov = _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, bootstrap, seed,
                                on_progress)
         crb = wheel_crb(t, state, free, sigma, g)
+        # the rest checks the four steps' coast as it checks the joint fit's: their covariance (the bootstrap's)
+        # taken to the internal parameters the check works in, the noise's correlation time from the residuals
+        time_scale = max(float(t[-1]), 1e-6)
+        m = reporting_map(state, free, time_scale)
+        m_inv = np.linalg.inv(m)
+        white = whiteness_by_column(resid)
+        tau = np.array([w.tau for w in white]) if any(w.correlated for w in white) else np.ones(3)
+        allowance, rest_quality, rest_source, rest_warnings = _rest_check(
+            rests, t, state, m_inv @ cov @ m_inv.T, free, time_scale, sigma, tau, g, False)
+        warnings.extend(rest_warnings)
+        cov = cov + m @ allowance @ m.T
         quality = {"bootstrap_runs": bootstrap,
-                   "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb)), strict=True))}
-        uncertainty_source = f"parametric bootstrap of the four steps ({bootstrap} runs)"
+                   "sd_over_crb": dict(zip(reported_names(free), np.sqrt(np.diag(cov) / np.diag(crb)), strict=True)),
+                   "rest_check": rest_quality}
+        uncertainty_source = f"parametric bootstrap of the four steps ({bootstrap} runs)" + rest_source
     elapsed = time.perf_counter() - started
     names = reported_names(free)
     # the mounting's part of u: the white-noise covariance (a correlated noise widens u for another reason)
@@ -201,31 +223,60 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
     return t[kept] - origin, v[kept], gap_times, notes, origin, rests
 
 
-def _rest_check(rests: list[Rest], t: np.ndarray, checks: Checks, free, fit, g: float):
-    """The fit against the wheel at rest (rest.py): (the internal covariance u comes from, the quality entry,
-    what the uncertainty line adds, warnings).  Found, u includes the move the rests would make; with no rest,
-    or with a drift taken in per segment (the offset at the coast's ends is then known only roughly), the
-    quality and the uncertainty line say the check was not made."""
-    cov = checks.covariance_internal
+def _rest_before(before: Recording, recording: Recording, look: WheelSurvey) -> list[Rest]:
+    """The rest before the spin in the part of the recording left out before ``recording`` (``--start``): the
+    still windows from its first sample, as ``_free_coast`` finds them in a whole record (the wheel must be seen
+    turning after them, in ``before`` or in ``recording``).  Times count from ``before``'s first sample, the
+    whole recording's."""
+    if len(before) == 0 or len(recording) == 0:
+        return []
+    t0 = before.t[0]
+    tb, vb = before.t - t0, before.to_si().acc
+    t, v = recording.t - t0, recording.to_si().acc
+    until = rested_until(np.concatenate([tb, t]), np.concatenate([vb, v]), look.noise_sd, look.period)
+    if until is None:
+        return []
+    inside = tb < until
+    if np.count_nonzero(inside) < MIN_LOOK_SAMPLES:
+        return []
+    return [Rest("before the spin", tb[inside], vb[inside])]
+
+
+def _rest_check(rests: list[Rest], t: np.ndarray, state, cov: np.ndarray, free, time_scale: float,
+                sigma: np.ndarray, tau: np.ndarray, g: float, drift_taken: bool):
+    """The coast's fit (``state``, its covariance ``cov`` over the internal parameters) against the wheel at rest
+    (rest.py): (what u adds, internal; the quality entry; what the uncertainty line adds; warnings).  Found, u
+    includes the move the rests would make; with no rest, or with a drift taken in per segment (the offset at the
+    coast's ends is then known only roughly), the quality and the uncertainty line say the check was not made.
+    ``sigma`` is each axis' noise sd, ``tau`` its correlation time in samples (ones when white)."""
+    nothing = np.zeros_like(cov)
     if not rests:
         why = ("the recording holds no rest (the wheel held still a few seconds before the push, with the recording "
                "running, would show a drift of the offsets along the wheel's plane that the coast alone takes for "
                "the centripetal term)")
-        return cov, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
-    if checks.drift_per_axis is not None:
+        # what the coast alone could miss: stated with its effect, not added to u (it would make u 5-300 times the
+        # noise's on every record without a rest: docs/wheel.md, "Not solved")
+        unseen = unseen_drift(t, state, cov, free, time_scale, sigma, g)
+        said = " or ".join(f"{d['size_m_s2']:.2g} m/s^2 {d['shape'].split(' (')[0]}" for d in unseen.values())
+        worst = max(unseen.values(), key=lambda d: d["largest_move_over_u"])
+        limit = (f"; a drift along the wheel's plane of {said} would go unseen (the drift tests find it half the "
+                 f"time) and would move {worst['moves_most']} by up to {worst['largest_move_over_u']:.2g} u; u does "
+                 "not include it: record 5 s with the wheel still before the push")
+        return nothing, {"made": False, "why": why, "unseen_drift": unseen}, \
+            f"; not checked against the wheel at rest: {why}{limit}", []
+    if drift_taken:
         why = ("the offsets drifted during the coast and the fit took the drift in, so the offset at the coast's "
                "ends is known too roughly for the rest to test it")
-        return cov, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
-    tau = np.array([w.tau for w in checks.whiteness]) if checks.correlated else np.ones(3)
-    found = check_rests(rests, t, checks.state, cov, free, fit.time_scale, fit.sigma, tau, g)
+        return nothing, {"made": False, "why": why}, f"; not checked against the wheel at rest: {why}", []
+    found = check_rests(rests, t, state, cov, free, time_scale, sigma, tau, g)
     where = " and ".join(f"{r['where']} ({r['to_s'] - r['from_s']:.1f} s)" for r in found.rests)
     quality = {"made": True, **found.to_dict()}
     if not found.significant:
-        return cov, quality, f"; checked against the wheel at rest {where}: it agrees (p = {found.p_value:.2g})", []
-    cov = cov + found.allowance
-    return cov, quality, (f"; the wheel at rest {where} disagrees with the fit (p = {found.p_value:.2g}): u "
-                          f"includes the bias of a drift along the wheel's plane that size ({found.drift:.2g} m/s^2 "
-                          "over the coast, shaped like w^2, in any direction within the plane)"), [_rest_warning(found)]
+        return nothing, quality, f"; checked against the wheel at rest {where}: it agrees (p = {found.p_value:.2g})", []
+    return found.allowance, quality, (f"; the wheel at rest {where} disagrees with the fit (p = {found.p_value:.2g}): u "
+                                      f"includes the bias of a drift along the wheel's plane that size ({found.drift:.2g} "
+                                      "m/s^2 over the coast, shaped like w^2, in any direction within the plane)"), \
+        [_rest_warning(found)]
 
 
 def _rest_warning(found: RestCheck) -> str:

@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import special
 
 from accelrig.estimation.crb import numerical_jacobian
 from accelrig.estimation.distributions import chi2
@@ -168,3 +169,80 @@ def _allowance(miss: np.ndarray, t: np.ndarray, state: WheelState, free: FreeSet
     per_unit = np.linalg.solve(normal, cross)                    # bias per unit b along each in-plane direction
     size = float(np.max(np.linalg.norm(miss.reshape(-1, 3), axis=1))) / mean_sq
     return size**2 / 2.0 * per_unit @ per_unit.T, size * mean_sq
+
+
+# Without a rest, what a drift along the wheel's plane could be and go unseen: the drift tests (assumptions.py, a
+# line per axis, then Legendre degrees 2-3 in time beyond it, each at ALPHA) with the model projected out, at this
+# power.  A drift shaped exactly like w^2 is missed at any size; these shapes are not w^2, so each has a size the
+# tests find half the time.
+UNSEEN_POWER = 0.5
+UNSEEN_SHAPES = {
+    "steady": ("steady over the coast (a line)", lambda x: x),
+    "settling": ("settling with a time constant of a quarter of the coast (a warm-up)",
+                 lambda x: -np.expm1(-4.0 * x) / -np.expm1(-4.0)),
+}
+JUDGED = ("gain_x", "gain_y", "gain_z", "offset_x", "offset_y", "offset_z", "tilt")
+
+
+def _noncentrality_for_power(dof: int) -> float:
+    """The noncentrality at which a chi^2 test of ``dof`` degrees of freedom at ALPHA rejects with UNSEEN_POWER."""
+    return float(special.chndtrinc(special.chdtri(dof, ALPHA), dof, 1.0 - UNSEEN_POWER))
+
+
+def unseen_drift(t: np.ndarray, state: WheelState, cov_internal: np.ndarray, free: FreeSet, time_scale: float,
+                 sigma: np.ndarray, g: float = STANDARD_GRAVITY) -> dict:
+    """The detection limit of a drift along the wheel's plane on a coast with no rest to check it: for each of
+    UNSEEN_SHAPES, the size (m/s^2 over the coast) the drift tests find with UNSEEN_POWER, in the worse of two
+    in-plane directions, and how far a drift that size moves the estimates (largest |bias| / u over gains,
+    offsets and tilt, at the white noise ``sigma``; a correlated noise raises the limit).  Stated, not added to
+    u: on a coast-down of 9 to 5 rad/s the limits are 0.05-0.2 m/s^2 steady and about 0.02 settling, moving the
+    gains by 5 to 40 u (docs/wheel.md)."""
+    p = free.size
+    weight = 1.0 / sigma
+    x = t / max(float(t[-1]), 1e-12)
+    legendre = 2.0 * t / time_scale - 1.0
+    response = state.gain[:, None] * state.rotation
+    plane = np.linalg.qr(response[:, :2])[0]
+    shapes = list(UNSEEN_SHAPES)
+    q = 9 + 2 * len(shapes)
+    normal = np.zeros((p + q, p + q))
+    for part in chunks(t.size):
+        _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
+        added = np.zeros((jac.shape[0], 3, q))
+        for d in range(3):
+            shape = np.polynomial.legendre.legval(legendre[part], [0] * (d + 1) + [1])
+            for k in range(3):
+                added[:, k, 3 * d + k] = shape
+        for j, name in enumerate(shapes):
+            shape = UNSEEN_SHAPES[name][1](x[part])
+            for e in range(2):
+                added[:, :, 9 + 2 * j + e] = shape[:, None] * plane[:, e][None, :]
+        columns = np.concatenate([jac, added], axis=2) * weight[None, :, None]
+        normal += np.einsum("nki,nkj->ij", columns, columns)
+    a, b = normal[:p, :p], normal[:p, p:]
+    a_inv = np.linalg.inv(a)
+    schur = normal[p:, p:] - b.T @ a_inv @ b          # every added column with the model projected out
+    line, bend = list(range(3)), list(range(3, 9))
+    to_line = np.linalg.solve(schur[np.ix_(line, line)], schur[np.ix_(line, bend)])
+    bend_given_line = schur[np.ix_(bend, bend)] - schur[np.ix_(bend, line)] @ to_line
+    need_line, need_bend = _noncentrality_for_power(3), _noncentrality_for_power(6)
+    judged = [free.names.index(n) for n in JUDGED if n in free.names]
+    u = np.sqrt(np.diag(cov_internal))
+    out = {}
+    for j, name in enumerate(shapes):
+        sizes, moves = [], []
+        for e in range(2):                              # two directions within the plane, each on its own
+            c = 9 + 2 * j + e
+            g_line = schur[line, c]
+            g_bend = schur[bend, c] - to_line.T @ g_line
+            # the test that sees this drift better sets the limit
+            per_unit = max(g_line @ np.linalg.solve(schur[np.ix_(line, line)], g_line) / need_line,
+                           g_bend @ np.linalg.solve(bend_given_line, g_bend) / need_bend)
+            size = float(np.sqrt(1.0 / per_unit)) if per_unit > 0 else float("inf")
+            sizes.append(size)
+            moves.append(np.abs(a_inv @ b[:, c])[judged] * size / u[judged])
+        move = np.max(moves, axis=0)
+        k = int(np.argmax(move))
+        out[name] = {"shape": UNSEEN_SHAPES[name][0], "size_m_s2": max(sizes),
+                     "largest_move_over_u": float(move[k]), "moves_most": free.names[judged[k]]}
+    return out
