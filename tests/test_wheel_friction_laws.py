@@ -27,7 +27,8 @@ from accelrig.procedures.wheel.start import joint_start  # noqa: E402
 from accelrig.recording import Recording  # noqa: E402
 
 G = 9.80665
-# low enough for the pair to be quick to fit and still above the refusal (the misfit is ~0.016 m/s^2 rms)
+# any level serves (the pair cancels the noise's first-order effect); at 0.02 and below the tool refuses this coast
+# today, as its misfit (~0.016 m/s^2 rms) is then more than half the fitted noise sd (MAX_SYSTEMATIC)
 NOISE = 0.04
 BENCH_NOISE = 0.08
 
