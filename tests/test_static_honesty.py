@@ -202,8 +202,7 @@ def test_a_drift_that_turns_back_between_the_holds_is_named_as_untested_on_twelv
     result = calibrate_static(_with_offset_path(twelve, bump(rig)), pose_flatness_deg=0.1, g_u=0.0)
     assert result.quality["dof"] == 0
     assert result.quality["noise"]["drift"]["shape"]["fitted"]["tested_between_holds"] is False
-    assert "u holds for a drift that follows that curve between and beyond the holds" in result.quality[
-        "uncertainty_source"]
+    assert "u assumes the drift follows that curve between the holds" in result.quality["uncertainty_source"]
     fifteen, _, rig = _record(9, order=(*DEFAULT_ORDER, "-x", "-y", "-z"))
     again = calibrate_static(_with_offset_path(fifteen, bump(rig)), pose_flatness_deg=0.1, g_u=0.0)
     assert again.quality["dof"] > 0 and "tested_between_holds" not in again.quality["noise"]["drift"]["shape"]["fitted"]

@@ -519,11 +519,9 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         # opposite face's) leaves no misfit to see, and the poses' own trends are about 5x too coarse to bound it
         # (docs/static.md, "What twelve holds cannot see"): say what u assumes
         noise.drift["shape"]["fitted"]["tested_between_holds"] = False
-        base.quality["uncertainty_source"] += (
-            "; u holds for a drift that follows that curve between and beyond the holds: the drift's rates and "
-            "curvatures take the fit's last degrees of freedom, so nothing is left to test it (a temperature "
-            "cycle shorter than the run can leave errors of several u unwarned; holding -x, -y and -z once more "
-            "at the end leaves degrees of freedom to test it)")
+        base.quality["uncertainty_source"] += ("; u assumes the drift follows that curve between the holds: no "
+                                               "degree of freedom is left to test it (-x, -y, -z held once more "
+                                               "at the end would leave some)")
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 
