@@ -513,6 +513,15 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     # fewer (none left with the wizard's sequence of six faces and three again, twice)
     dof = int(base.quality["dof"]) - m - q
     base.quality["dof"] = dof
+    if q and dof <= 0:
+        # per axis the face held three times and its opposite face fix the offset, the gain, the rate and the
+        # curvature exactly: what the parabola misses between and beyond those holds (the run's other holds, the
+        # opposite face's) leaves no misfit to see, and the poses' own trends are about 5x too coarse to bound it
+        # (docs/static.md, "What twelve holds cannot see"): say what u assumes
+        noise.drift["shape"]["fitted"]["tested_between_holds"] = False
+        base.quality["uncertainty_source"] += ("; u assumes the drift follows that curve between the holds: no "
+                                               "degree of freedom is left to test it (-x, -y, -z held once more "
+                                               "at the end would leave some)")
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 
