@@ -111,14 +111,15 @@ def test_a_wheel_that_stops_is_fitted_on_its_spin_and_the_result_says_so():
     rec, _ = record(seed=5, rig_options={"friction": "coulomb-viscous", "omega": np.array([6.0, 0, 0, 0]),
                                          "coulomb": coulomb, "viscous": viscous})
     result = calibrate_wheel(rec, radius=0.28)
-    stop = [w for w in result.warnings if "stopped turning" in w]
-    assert stop and "--stop" in stop[0]
+    # a stop is what friction does: said with the checks (quality.coast), not as a warning
+    assert not any("stood still" in w or "stopped turning" in w for w in result.warnings)
+    assert "stood still" in result.quality["coast"]["note"]
     assert 70.0 < result.quality["duration_s"] < 76.0
 
 
 def test_a_record_that_starts_at_rest_and_pushed_is_fitted_on_its_free_coast():
     """The wizard's record: the wheel rests 3 s, a hand spins it up over 2 s, then it coasts.  The speed law holds
-    only for the coast, so the fit starts after the push and says so; --start there calibrates alike, quietly."""
+    only for the coast, so the fit starts after the push and says so; --start there calibrates alike."""
     from accelrig.recording import time_range
 
     rig = WheelRig(radius=0.28, duration=40.0, omega=OMEGA, rest=3.0, push=2.0)
@@ -126,13 +127,17 @@ def test_a_record_that_starts_at_rest_and_pushed_is_fitted_on_its_free_coast():
                          noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
     rec = simulate(rig, sensor, SimClock(RATE), seed=3)
     result = calibrate_wheel(rec, radius=0.28)
-    note = [w for w in result.warnings if "coasted freely only from" in w]
-    assert len(note) == 1 and "--start" in note[0]
-    start = float(note[0].split("--start ")[1].split()[0])
+    # the record the wizard asks for: the cut is said with the checks, not as a warning
+    from accelrig.report.checks import check_lines
+
+    assert not any("pushed by hand" in w for w in result.warnings)
+    coast = result.quality["coast"]
+    start = coast["from_s"]
     assert 5.0 <= start <= 8.0   # the push ends at 5 s; the cut leaves a margin of a turn and half a window
+    assert ("coast", coast["note"]) in check_lines(result.to_json_dict()) and "pushed by hand" in coast["note"]
     assert np.all(np.abs(z_scores(result)) < 4)
     quiet = calibrate_wheel(time_range(rec, start, None), radius=0.28)
-    assert not any("coasted freely" in w for w in quiet.warnings)
+    assert "coast" not in quiet.quality
     assert np.allclose(quiet.parameters["gain"].value, result.parameters["gain"].value, rtol=1e-9)
 
 

@@ -110,7 +110,7 @@ def test_the_papers_four_steps_are_checked_against_the_rest_too():
 
 
 def test_a_coast_given_with_start_is_still_checked_against_the_rest_before_it():
-    """``--start`` at the coast (as the cut warning suggests) leaves the rest out of the fit, not out of the check:
+    """``--start`` at the coast (where quality.coast says it begins) leaves the rest out of the fit, not out of the check:
     the part before the start is handed over and its rest read."""
     rig = WheelRig(radius=0.28, duration=30.0, omega=OMEGA, rest=3.0, push=2.0)
     sensor = SensorModel(offset=OFFSET, gain=GAIN, range_g=4.0,

@@ -41,6 +41,9 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
     source = q.get("uncertainty_source", q.get("uncertainty"))
     if isinstance(source, str) and source:
         lines.append(("uncertainty", source))
+    coast = q.get("coast")
+    if isinstance(coast, dict) and coast.get("note"):   # the wheel: the part of the record the fit used
+        lines.append(("coast", str(coast["note"])))
     tilt_p = q.get("tilt_p_value")
     if "chi2" in q and "dof" in q and q["chi2"] is not None:
         sentence = _lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))

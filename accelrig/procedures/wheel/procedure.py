@@ -108,12 +108,12 @@ def calibrate_wheel(
     free = free_set(radius, tilt)
     t, v, gap_times = _prepare(recording)
     look = survey(t, v, recording.meta, g, keep_angle=False)
-    t, v, gap_times, cut_notes, origin, rests = _free_coast(t, v, gap_times, look)
+    t, v, gap_times, coast, origin, rests = _free_coast(t, v, gap_times, look)
     if before is not None and not any(r.where == "before the spin" for r in rests):
         rests = _rest_before(before, recording, look) + rests
-    if cut_notes:
+    if coast is not None:
         look = survey(t, v, recording.meta, g, keep_angle=False)
-    warnings = cut_notes + check_capture(look, radius, g)
+    warnings = check_capture(look, radius, g)
     started = time.perf_counter()
     if method == "joint":
         steps = joint_start(t, v, look, radius, tilt, g, gap_times)
@@ -171,6 +171,8 @@ def calibrate_wheel(
         "the wheel does not observe cross-axis terms (the sensor's own axis misalignment is absorbed in the "
         f"mounting rotation): the correction's off-diagonal entries are set to 0 with an assumed prior sd of "
         f"{cross_axis_sd:.3g} ({assumed}); a static calibration measures them")
+    if coast is not None:
+        quality["coast"] = coast
     result = _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
                            elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
     if origin:
@@ -180,20 +182,21 @@ def calibrate_wheel(
 
 
 def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: WheelSurvey):
-    """The free coast the speed law (eq. 2, a cubic in t) can follow: (t, v, gap times, notes, the time of its
+    """The free coast the speed law (eq. 2, a cubic in t) can follow: (t, v, gap times, the cut (None: the whole
+    record is the coast; else its bounds and a note for quality.coast), the time of its
     first sample in the recording).
 
     Before it the wheel may rest and be pushed by hand (the wizard says "spin the wheel by hand after holding
     it still for 5 s, then let it coast; keep the recording running"); after it the wheel may stop and rest.
-    Neither is a coast-down: the fit takes the coast, t counted from its first sample, and a note says what was
-    left out and why.  Nothing is dropped from the recording itself.  The rests (before the push, after the stop)
+    Neither is a coast-down: the fit takes the coast, t counted from its first sample, and the cut says what was
+    left out and why (with the checks, not as a warning: it is what the wizard asks for).  Nothing is dropped from the recording itself.  The rests (before the push, after the stop)
     are returned for the check against the fit (rest.py)."""
     start = coasting_from(t, v, look.noise_sd, look.period)
     stop = stopped_at(t, v, look.noise_sd, look.period)
     if stop is not None and start is not None and stop <= start:
         stop = None
     if start is None and stop is None:
-        return t, v, gap_times, [], 0.0, []
+        return t, v, gap_times, None, 0.0, []
     # the wheel at rest before the push and after the stop reads the offsets and gravity alone (rest.py)
     rests = []
     until = rested_until(t, v, look.noise_sd, look.period) if start is not None else None
@@ -207,20 +210,20 @@ def _free_coast(t: np.ndarray, v: np.ndarray, gap_times: np.ndarray, look: Wheel
     lo = 0.0 if start is None else start
     hi = np.inf if stop is None else stop
     kept = (t >= lo) & (t < hi)
-    used = f"the fit uses the coast from {lo:.1f} s to {min(hi, t[-1]):.1f} s ({np.count_nonzero(kept)} of {t.size} samples)"
-    notes = []
+    # What the wizard asks for (a rest, a push, a coast, perhaps a stop) is no warning: the cut is reported with
+    # the checks (quality.coast), and the rests check the coast (rest.py)
+    end = float(min(hi, t[-1]))
+    parts = [f"the fit uses the free coast from {lo:.1f} s to {end:.1f} s ({np.count_nonzero(kept)} of {t.size} "
+             "samples), where the speed law holds"]
     if start is not None:
-        notes.append(f"the wheel coasted freely only from {start:.1f} s: before it the wheel rested or was pushed by "
-                     f"hand, and the speed law holds only for a free coast-down; {used}; the first {start:.1f} s stay "
-                     f"in the recording (give --start {start:.1f} to calibrate from the coast alone without this "
-                     "warning)")
+        parts.append(f"before {start:.1f} s the wheel rested or was pushed by hand")
     if stop is not None:
-        notes.append(f"the wheel stopped turning at {stop:.1f} s of {t[-1]:.1f} s: {used}; the {t[-1] - stop:.1f} s "
-                     f"at rest hold no rotation (give --stop {stop:.1f} to calibrate from the spin alone without this "
-                     "warning)")
+        parts.append(f"from {stop:.1f} s it stood still")
+    coast = {"from_s": float(lo), "to_s": end, "samples_used": int(np.count_nonzero(kept)), "samples": int(t.size),
+             "note": "; ".join(parts) + "; the whole recording is kept"}
     origin = float(t[kept][0])
     gap_times = gap_times[(gap_times > lo) & (gap_times < hi)] - origin
-    return t[kept] - origin, v[kept], gap_times, notes, origin, rests
+    return t[kept] - origin, v[kept], gap_times, coast, origin, rests
 
 
 def _rest_before(before: Recording, recording: Recording, look: WheelSurvey) -> list[Rest]:
