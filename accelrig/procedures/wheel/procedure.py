@@ -19,7 +19,7 @@ import numpy as np
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.residuals import whiteness_by_column
 from accelrig.procedures.contract import Event, Procedure
-from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SYSTEMATIC, Checks, check_residuals
+from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SECOND_ORDER, MAX_WOBBLE, Checks, check_residuals
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     REST_WINDOW_S,
@@ -295,7 +295,7 @@ def _rest_warning(found: RestCheck) -> str:
 
 
 def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
-    """What the residual checks found, in the operator's words; a refusal beyond MAX_SYSTEMATIC."""
+    """What the residual checks found, in the operator's words; a refusal beyond MAX_SECOND_ORDER."""
     out = list(checks.notes)
     angle = checks.angle
     if angle is not None and angle.significant:
@@ -323,8 +323,13 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
     """Structure locked to the wheel's angle, named by its cause: the speed law (imbalance, friction), the
     wheel's wobble (play, an axle that does not run true), or both when the data cannot tell them apart.
 
-    Taken into the fit, it widens u; beyond MAX_SYSTEMATIC of the noise sd the first-order model of it (a small
-    speed swing, a small wobble) is no longer enough for the estimates to be trusted within any u: refused."""
+    Taken into the fit, it widens u.  The take-in models it to first order (a small speed swing, a small
+    wobble); what that leaves out is computed from what the take-in fitted, and when its bias exceeds
+    MAX_SECOND_ORDER of an estimate's u the estimates cannot be trusted within any u: refused.  Not the
+    structure's size against the noise: that ratio tends to one for a quiet sensor, which was refused where a
+    noisier one passed, though the take-in held the structure as well.  A wobble is still refused beyond
+    MAX_WOBBLE of the noise: there the first-order model is not what fails (its remainder is small) but the
+    wobble family itself (see MAX_WOBBLE)."""
     angle, causes = checks.angle, checks.causes
     size = angle.systematic_rms * float(np.mean(sigma))
     found = (f"{size:.3g} m/s^2 rms ({100 * angle.systematic_rms:.0f} % of the noise sd; score test "
@@ -349,10 +354,16 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
                    "the data cannot tell which; ")
                 + f"a wobble of about {checks.wobble_deg:.2g} deg rms")
         hint, cause = PLAY_HINT + "; " + BALANCE_HINT, "the fit takes both in"
-    if angle.systematic_rms > MAX_SYSTEMATIC:
+    missed = checks.second_order_over_u
+    if missed is not None and missed > MAX_SECOND_ORDER:
         raise CalibrationError(
-            seen + f"; beyond {100 * MAX_SYSTEMATIC:.0f} % of the noise the gains and offsets are off by many times "
-            "any u the fit can state", hint)
+            seen + f"; the structure is too large for the fit to take in: what its first-order model leaves out "
+            f"alone moves the estimates by up to {missed:.2g} times their u", hint)
+    if "wobble" in causes and checks.wobble.systematic_rms > MAX_WOBBLE:
+        raise CalibrationError(
+            seen + f"; a wobble beyond {100 * MAX_WOBBLE:.0f} % of the noise sd: the wobble the fit takes in (a "
+            "rotation of the wheel at harmonics 1-2 of its angle) does not hold a real nodding axis that large, the "
+            "gains and offsets are then off by more than any u the fit can state", hint)
     return [seen + f": {cause}; the fit takes the structure in and u grows with it, but a wheel that runs true and "
             "smoothly gives a calibration to trust more"]
 
