@@ -186,3 +186,14 @@ def test_a_step_keeps_its_own_u_where_the_pooled_bands_fall_short(monkeypatch):
     assert steps[0].checks.pooled["own_u_kept"] is True
     assert np.isclose(steps[0].radius_m.uncertainty, own, rtol=1e-9)
     assert any("its own u is kept" in note for note in steps[0].notes)
+
+
+def test_a_dwell_whose_spectral_peak_moves_with_speed_is_play_not_a_ring():
+    """The project simulator's 50 um of play (a dwell at the dead centres, no ringing): its take-up's spectral peak
+    moves with speed (66-174 Hz over the five steps of this run), so it is no spring's resonance, and it stays
+    backlash even where the trend's u would admit the median as a link's."""
+    from stress_slider_crank import _run
+
+    out = _run(100003 + 2, {"play": 5e-5})
+    assert not any("rings the link" in w for w in out.warnings)
+    assert sum("backlash (play taken up at the dead centres" in w for w in out.warnings) == 5

@@ -106,6 +106,10 @@ MIN_COMPLIANCE_STEPS = 3
 # compliance its own ring frequency implies, c = 1 / (2 pi f_ring)^2, agrees with the harmonics' trend within this
 # many times their combined u: a spring rings at its own resonance, a contact with play at the contact's.
 RING_AGREE = 3.0
+# ... and only when every flagged step rings within this share of their median: a spring rings at one frequency at
+# every speed (held-out links: 299-301 Hz, 449-454 Hz); a take-up's own shape (a dwell, a free flight) has no one
+# frequency, and its spectrum's peak moves with speed (the project simulator's 50 um dwell: 66-174 Hz)
+RING_SPREAD = 0.05
 # A dead-centre event counts as mirrored (odd harmonics only, _mirrored) when the power of its part that repeats
 # half a turn on is below this share of the power of its part that flips.
 MIRROR_SHARE = 0.1
@@ -1214,7 +1218,8 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     which the link's harmonics need not show.  So a dead-centre event is the link ringing when the compliance its
     ring frequency implies (ring_frequency, the median over the flagged steps: one cause for all) agrees with the
     trend's c within RING_AGREE times their combined u (the trend's, and the ring frequencies' scatter), that u
-    below c_ring itself (a trend that could tell that compliance from none).  An event
+    below c_ring itself (a trend that could tell that compliance from none), and every flagged step rings within
+    RING_SPREAD of the median (one resonance at every speed; a take-up's own shape has none).  An event
     after the dead centres is play whatever it rings at: friction does not reverse there, so a link without play
     takes no force step there.  (A lost-motion size cannot decide it: play at a stiff contact and a ringing
     compliant link shift the slider alike within a factor of 2-4.)
@@ -1228,6 +1233,8 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     if rings.size == 0:
         return False
     f_ring = float(np.median(rings))
+    if np.max(np.abs(rings / f_ring - 1.0)) > RING_SPREAD:
+        return False
     u_f = float(np.std(rings, ddof=1) / np.sqrt(rings.size)) if rings.size > 1 else 0.05 * f_ring
     c_ring = 1.0 / (2 * np.pi * f_ring) ** 2
     u_both = float(np.hypot(u_c, 2 * c_ring * u_f / f_ring))
