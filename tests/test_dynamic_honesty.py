@@ -367,9 +367,11 @@ def test_a_step_the_model_misses_is_warned_and_kept_out_of_the_pooled_noise():
 def test_a_white_step_that_takes_the_pooled_noise_keeps_its_own_lack_of_fit_warning():
     # under 1/f noise every step takes the pooled u, a step whose residuals passed as white too; the warning
     # that step's own lack-of-fit test gave must stay beside the note on where its u now comes from
+    # (seed 12: at seed 11 the bands' 6-8 Hz level came out a third of its neighbours' and the 6 Hz step's own u,
+    # twice theirs, is kept: test_a_step_keeps_its_own_u_where_the_pooled_bands_fall_short)
     rig = SliderCrankRig(steps=(2.5, 6.0, 10.0))
     sensor = SensorModel(range_g=8.0, noise_density=SensorModel.noise_density_for_sd(0.08, FS), flicker=0.01)
-    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=11)
+    rec = simulate(rig, sensor, SimClock(FS, 0.003, 20e-6), seed=12)
     alone, _, _ = _steps_before_and_after_pooling(rec)
     misfit = "step 2: the residuals hold more than the noise (stands for the lack-of-fit warning)"
     white = replace(alone[1].checks, tested=None, notes=[misfit])   # as motion_checks leaves a white step's misfit

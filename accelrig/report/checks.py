@@ -33,6 +33,19 @@ def _per_axis(value) -> str:
     return f"{value:.3g}"
 
 
+def _flexing_link_sentence(link: dict) -> str:
+    """The slider-crank's flexing-link check: made or not (and why), and what it found."""
+    if not link.get("made"):
+        return (f"not checked: {link.get('why') or 'too few steps'}; a link or mounting that flexes would go unseen "
+                "and its bias would not be in u (verify with more steady speed steps)")
+    if not link.get("found"):
+        return (f"checked over {link['steps']} steady steps: the harmonics keep the rigid crank's law, no flexing "
+                "link or mounting seen")
+    resonance = link.get("resonance_hz")
+    seen = f"a resonance near {resonance:.0f} Hz" if resonance else "harmonics that shrink with speed"
+    return (f"checked over {link['steps']} steady steps: {seen} (p = {link['p_value']:.1g}, see the warnings)")
+
+
 def check_lines(result: dict) -> list[tuple[str, str]]:
     """(what, sentence) for each check the result reports, in reading order; nothing for figures it lacks."""
     q = result.get("quality") or {}
@@ -60,6 +73,9 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
         lines.append(("steps agree", f"the radius of the steps: χ² = {q['radius_chi2']:.3g} for {q['radius_dof']} "
                                      f"degrees of freedom; the combined radius is stated with k = "
                                      f"{q.get('radius_k', 2):.3g}"))
+    link = q.get("compliance_check")
+    if isinstance(link, dict):
+        lines.append(("flexing link", _flexing_link_sentence(link)))
     noise = q.get("noise")
     if isinstance(noise, dict) and noise.get("description"):
         lines.append(("noise", str(noise["description"])))

@@ -20,6 +20,7 @@ from accelrig.files import atomic_write
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
 from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
+from accelrig.report.checks import check_lines
 from accelrig.result import to_plain
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.results import result_views
@@ -124,6 +125,10 @@ class VerificationScreen(Screen):
             # warnings first, as on the results screen: what to read before trusting the verdict
             yield Static("\n".join(f"[yellow]warning:[/] {escape(w)}" for w in self.verification.warnings)
                          or "[green]no warnings[/]", id="verification-warnings")
+            # the checks in sentences (accelrig.report.checks), as on the results screen: a check not made says so
+            yield Static("\n".join(f"[b]{what}:[/b] {escape(sentence)}"
+                                   for what, sentence in check_lines(self.verification.to_json_dict())),
+                         id="verification-checks")
             yield Static(f"radius from the motion {r.value * 1e3:.4f} ± {r.uncertainty * 1e3:.2g} mm "
                          f"(k = 1, chi² {v['radius_chi2']:.3g} for {v['radius_dof']} dof; judged at "
                          f"k = {v.get('radius_k', 2.0):.2f}); caliper "
