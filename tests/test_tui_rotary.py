@@ -62,7 +62,10 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
                                                                and r["samples"] >= 2000 for r in records)
         from accelrig.report.html import render_html
         from accelrig.report.source import from_result
+        from accelrig.tui.screens.results import rotary_views
 
+        (view,) = rotary_views(from_result(campaign.report))
+        assert sorted({float(x) for series in view.series for x in series.x}) == [1.0, 2.0]   # as the table
         certificate = render_html(from_result(campaign.report))
         assert "Recordings of the tests" in certificate and records[1]["recording_hash"] in certificate
         assert "date of calibration" in certificate and records[0]["captured"] in certificate

@@ -27,8 +27,8 @@ from accelrig.procedures.wheel.start import joint_start  # noqa: E402
 from accelrig.recording import Recording  # noqa: E402
 
 G = 9.80665
-# any level serves (the pair cancels the noise's first-order effect); at 0.02 and below the tool refuses this coast
-# today, as its misfit (~0.016 m/s^2 rms) is then more than half the fitted noise sd (MAX_SYSTEMATIC)
+# any level serves (the pair cancels the noise's first-order effect); a quieter coast is tested in
+# test_wheel_assumptions (test_a_quiet_sensor_on_an_air_drag_coast_is_taken_in_not_refused)
 NOISE = 0.04
 BENCH_NOISE = 0.08
 

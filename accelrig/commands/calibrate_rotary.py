@@ -87,7 +87,7 @@ def _run_campaign(args) -> int:
     losses = []   # heavy link loss per test: in the report, and said on stderr as the single test says it
 
     def on_test(test, result):
-        progress.step(f"test {test.index + 1} done: {test.label}")
+        progress.step(f"test {test.index} done: {test.label}")
         if result.quality.get("link_loss"):
             losses.append(f"test {test.index} ({test.label}): {result.quality['link_loss']}")
 

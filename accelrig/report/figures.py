@@ -278,7 +278,7 @@ def rotary_sensitivity_series(src: Source) -> tuple[list[str], dict[str, np.ndar
     d = src.details
     tests = d.get("tests")
     if tests is None and "sensitivity" in d:
-        tests = [{"index": 0, "label": "test", "sensor": "sensor", **d}]
+        tests = [{"index": 1, "label": "test", "sensor": "sensor", **d}]   # numbered from 1, as campaigns
     if not tests:
         raise LookupError("the source carries no per-test table (a profile keeps none)")
     rows = [(t["index"], f"{t['sensor']} {axis}", s["value"], s["uncertainty"])

@@ -165,7 +165,7 @@ def rotary_views(src) -> list[PlotView]:
     series = []
     for k, group in enumerate(dict.fromkeys(groups)):
         sel = [i for i, g in enumerate(groups) if g == group]
-        series.append(_points(s["test"][sel] + 1, s["sensitivity"][sel], SERIES_STYLES[k % len(SERIES_STYLES)],
+        series.append(_points(s["test"][sel], s["sensitivity"][sel], SERIES_STYLES[k % len(SERIES_STYLES)],
                               group))
     return [PlotView("sensitivity per test (counts per m/s²): the same axis should agree", "test number", series)]
 
