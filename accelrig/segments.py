@@ -674,7 +674,8 @@ class RecoveryReport:
             return f"{self.segment.name}: {self.problem}"
         kept = f"{self.samples} samples in {self.blocks} complete blocks kept"
         if not self.lost_bytes:
-            return f"{self.segment.name}: closed after a crash: {kept}; nothing lost"
+            # the file's blocks, not the time the writer was down (a gap record states that)
+            return f"{self.segment.name}: closed after a crash: {kept}; no block lost"
         torn = ("an incomplete block of unknown size" if self.lost_samples is None
                 else f"an incomplete block of {self.lost_samples} samples")
         return f"{self.segment.name}: closed after a crash: {kept}; {self.lost_bytes} trailing bytes lost ({torn})"
@@ -914,7 +915,7 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
                 index = int(np.searchsorted(t, (np.int64(g_ns) - origin_ns) / NS, "left"))
             gaps.append({"index": index, "missing": g["samples"], "cause": g["cause"],
                          "seconds": g.get("seconds"), "segment": part.path.name})
-    meta = dict(parts[0].info["meta"])
+    meta = _current_meta(parts[0].info["meta"])
     # over what was read: the gap records between its first and last sample
     meta.update(_rates(total, origin_ns, origin_ns + int(round(float(t[-1]) * NS)),
                        [{"samples": g["missing"]} for g in gaps if 0 < g["index"] < total]))
@@ -922,6 +923,29 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
                 time_origin_ns=origin_ns, segments=list(dict.fromkeys(p.path.name for p, _, _, _ in plan)),
                 source=str(path))
     return t, acc, units, channels, meta
+
+
+def _current_meta(stored: dict) -> dict:
+    """A segment's metadata in the shape recordings have now.
+
+    Earlier daemons (and the collector, which keeps what a daemon announced) wrote the device as a
+    dict under "device"; recordings name it at the top level (identity, chip,
+    range, scale, flashed offsets), which is where profile checks look.  Without this, weeks of
+    older daemon output would not name their device: the check would be skipped and flashed
+    offsets subtracted twice.
+    """
+    meta = dict(stored)
+    old = meta.get("device")
+    if isinstance(old, dict):
+        facts = dict(old.get("extra") or {})
+        meta["device"] = old.get("url")
+        for key in ("identity", "driver", "chip", "who_am_i", "range_g", "scale", "requested_rate", "nominal_rate"):
+            meta.setdefault(key, old.get(key))
+        for key in ("hardware_bias_removed", "truth"):
+            if facts.get(key) is not None:
+                meta.setdefault(key, facts.pop(key))
+        meta.setdefault("device_facts", facts)
+    return meta
 
 
 def resolve_range(path: str | os.PathLike, start: float | str | None,

@@ -168,7 +168,7 @@ def _shared_sim_options(url: DeviceURL) -> set[str]:
         raise DeviceError(f"unknown simulated rig {url.target!r} in {url.raw!r}",
                           f"available: {', '.join(sorted(RIGS))}")
     # options that mean the same as for sim:// go to its parser; rate and range the host asks for
-    return (SENSOR_OPTIONS - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
+    return (set(SENSOR_OPTIONS) - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
 
 
 def sim_firmware_options(url: DeviceURL, extra_faults: set[str] = frozenset()) -> set[str]:

@@ -1,20 +1,7 @@
 """sim://RIG?options: a simulated sensor on a simulated rig, with known ground truth.
 
-Sensor and pacing options (every rig):
-    seed=N          deterministic run (default 0)
-    pace=realtime   deliver at the device rate (default; TUI, daemon), a block at a time: every
-                    block=N samples or 50 ms, whichever comes first
-    pace=fast       as fast as possible (tests, benchmarks)
-    rate=HZ         nominal sample rate (default 200)
-    rate_error=X    relative error of the true rate (default 0.004, i.e. +0.4 %)
-    jitter=S        timestamp jitter sd, s (default 20e-6)
-    range=G         full scale +-G (default 2)
-    noise=SD        white noise sd per sample, m/s^2 (default: MPU-9250 density)
-    truth=random|ideal   imperfect sensor drawn from the seed, or a perfect one
-    block=N         samples per block (default 256)
-    drop=P          probability that a block is lost on the link (default 0)
-    disconnect_after=S   the device vanishes after S s of device time
-Rig options: see ``accelrig devices --verbose``.
+Sensor and pacing options (every rig): SENSOR_OPTIONS below; rig options: each rig's ``options``.
+Both are listed by ``accelrig devices --verbose``.
 """
 
 from __future__ import annotations
@@ -32,9 +19,20 @@ from accelrig.sim.sensor import SensorModel, SimClock
 
 FIFO_PERIOD = 0.05   # s: realtime pace delivers at least this often (a block may be due sooner)
 
+# every rig's sensor and pacing options, with what people read in `accelrig devices --verbose`
 SENSOR_OPTIONS = {
-    "seed", "pace", "rate", "rate_error", "jitter", "range", "noise", "truth", "block", "drop",
-    "disconnect_after",
+    "seed": "deterministic run (default 0)",
+    "pace": "realtime: deliver at the device rate, a block at a time (default; TUI, daemon); "
+            "fast: as fast as possible (tests, benchmarks)",
+    "rate": "nominal sample rate, Hz (default 200)",
+    "rate_error": "relative error of the true rate (default 0.004, i.e. +0.4 %)",
+    "jitter": "timestamp jitter sd, s (default 20e-6)",
+    "range": "full scale +-G, g (default 2)",
+    "noise": "white noise sd per sample, m/s^2 (default: MPU-9250 density)",
+    "truth": "random: an imperfect sensor drawn from the seed (default); ideal: a perfect one",
+    "block": "samples per block (default 256; realtime pace delivers at least every 50 ms)",
+    "drop": "probability that a block is lost on the link, 0-0.99 (default 0)",
+    "disconnect_after": "seconds of device time after which the device is gone (an unplugged cable)",
 }
 
 
@@ -46,7 +44,7 @@ def sim_options(url) -> set[str]:
             f"unknown simulated rig {url.target!r} in {url.raw!r}",
             f"available: {', '.join('sim://' + r for r in sorted(RIGS))}",
         )
-    return SENSOR_OPTIONS | set(rig_cls.options)
+    return set(SENSOR_OPTIONS) | set(rig_cls.options)
 
 
 def build_device(url) -> tuple[SimDevice, str]:
@@ -79,6 +77,7 @@ def build_device(url) -> tuple[SimDevice, str]:
 
 class SimDriver(Driver):
     scheme = "sim"
+    sensor_options = SENSOR_OPTIONS
     description = "simulated sensor on a simulated rig (" + ", ".join(sorted(RIGS)) + ")"
 
     def __init__(self, url):

@@ -84,3 +84,14 @@ def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsy
         err = capsys.readouterr().err
         assert code != 0, args
         assert "look like g" in err and "--units g" in err and err.count("\n") == 1, (args, err)
+
+
+def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
+    """README sends people to `devices -v` for the simulator's options: each one the URL accepts is there."""
+    from accelrig_drivers.sim import SENSOR_OPTIONS
+
+    assert main(["devices", "-v"]) == 0
+    out = capsys.readouterr().out
+    for option in SENSOR_OPTIONS:
+        assert f"        {option}: " in out, option
+    driver_for("sim://still?disconnect_after=5&drop=0.1").check_url()   # the listed options are accepted

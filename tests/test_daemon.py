@@ -134,7 +134,7 @@ def test_faults_reload_and_term(tmp_path):
             proc.kill()
             proc.wait(timeout=10)
     log = config_path.with_suffix(".log").read_text()
-    assert "reloaded" in log and "removed ['stall']" in log and "restarted ['ser']" in log
+    assert "reloaded" in log and "removed stall;" in log and "restarted ser;" in log
 
     gaps, _ = check_accounting(out / "steady", 500)
     assert gaps == []   # unchanged by the reload: streamed without a gap
@@ -229,7 +229,7 @@ def test_calibrated_output_and_offsets_flashed_on_every_connect(tmp_path):
         {"name": "cal", "url": "sim://still?seed=11&rate=200", "profile": str(example), "output": "calibrated",
          "uncertainty": True},
         {"name": "chip", "url": "i2c-sim://mpu9250?rig=still&rate=200&seed=3", "profile": str(chip_profile),
-         "flash": True},
+         "flash": True, "output": "calibrated"},
     ]}
     config_path = tmp_path / "daemon.yaml"
     for _ in range(2):   # two runs: the chip is connected twice
@@ -256,6 +256,18 @@ def test_calibrated_output_and_offsets_flashed_on_every_connect(tmp_path):
         np.testing.assert_allclose(event["hardware_bias_removed"], bias, atol=0.0097)   # one register step
     check_accounting(out / "chip", 200)
     check_accounting(out / "cal", 200)
+    # `profile apply` on the daemon's output: the device is recognised (no "cannot check" warning)
+    # and a flashed chip's offsets are not subtracted twice: it gives the daemon's own cal channels
+    from accelrig.profiles.apply import apply_profile
+    from accelrig.recording import load_recording
+
+    for name, path in (("cal", example), ("chip", chip_profile)):
+        raw = load_recording(out / name)
+        assert raw.meta["identity"] and raw.meta["chip"]
+        applied, warnings = apply_profile(load_profile(path), raw)
+        assert warnings == [], warnings
+        daemon_cal = np.column_stack([raw.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
+        np.testing.assert_allclose(applied.acc, daemon_cal, atol=1e-9)
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="mounting a tmpfs needs root (CI runs as root)")
@@ -283,6 +295,12 @@ def test_disk_full_drops_counted_samples_and_resumes(tmp_path):
                     pass
             full = wait_until(proc, config_path, lambda d: d["a"]["dropped"] > 0)
             assert {d["name"]: d for d in full["devices"]}["a"]["state"] == "disk full"
+            # full across two retries (DISK_RETRY 2 s): a retry that finds no room is not a recovery
+            # (a gap record fits in the open segment's last page where a data block does not)
+            time.sleep(4.5)
+            still = {d["name"]: d for d in status(config_path)["devices"]}["a"]
+            assert still["state"] == "disk full" and still["gaps"] == 0, still
+            assert "writing again" not in config_path.with_suffix(".log").read_text()
             filler.unlink()   # space returns
             wait_until(proc, config_path, lambda d: d["a"]["state"] == "streaming" and d["a"]["gaps"] >= 1)
             terminate(proc)

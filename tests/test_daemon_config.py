@@ -227,3 +227,14 @@ def test_a_reload_with_a_broken_config_keeps_the_running_one(tmp_path, capsys):
     daemon.reload()
     assert "reload refused, the running configuration is kept" in capsys.readouterr().err
     assert daemon.config.devices[0].output == "raw" and daemon.reloads == 0
+
+
+def test_check_says_an_empty_store_leaves_a_calibrated_device_recording_nothing(tmp_path):
+    config = {**MINIMAL, "output": str(tmp_path / "out"), "profile_store": str(tmp_path / "store"),
+              "devices": [{"url": "sim://still", "name": "pier", "profile": "store", "output": "calibrated"},
+                          {"url": "sim://still", "name": "raw", "profile": "store"}]}
+    notes = check_config(parse_config(config))
+    pier = next(n for n in notes if n.startswith("pier:"))
+    assert "output calibrated needs one" in pier and "records nothing" in pier and "no profile at all" in pier
+    raw = next(n for n in notes if n.startswith("raw:"))
+    assert "records nothing" not in raw

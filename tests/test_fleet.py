@@ -352,7 +352,7 @@ def test_meta_and_profile_are_retained(broker, tmp_path):
     (tmp_path / "pw").write_text(DAEMON_PASSWORD)
     settings = MqttConfig(broker=broker.url, site="north", username=DAEMON_USER, password_file=str(tmp_path / "pw"))
     publisher = Publisher(settings, "a", tmp_path / "spool", dict, lambda line: None)
-    publisher.announce({"device": {"identity": "sim-1"}}, 0.0006, "sim-1@2026", {"format": "accelrig-profile"})
+    publisher.announce({"identity": "sim-1"}, 0.0006, "sim-1@2026", {"format": "accelrig-profile"})
     publisher.start()
     wait_for(lambda: publisher.connected, 10, "the publisher to connect")
     publisher.close()
@@ -369,5 +369,5 @@ def test_meta_and_profile_are_retained(broker, tmp_path):
         reader.disconnect()
         reader.loop_stop()
     assert json.loads(got["profile"]) == {"format": "accelrig-profile"}
-    assert json.loads(got["meta"])["device"] == {"identity": "sim-1"}
+    assert json.loads(got["meta"])["identity"] == "sim-1"
     assert json.loads(got["status"])["state"] == "stopped"

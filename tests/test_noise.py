@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -89,9 +90,12 @@ def test_random_walk_and_flicker_are_found_when_present():
 
 def test_gaps_and_short_records_are_refused():
     rec = still(300, seconds=30)
-    rec.meta["gaps"] = [[100, 5]]
-    with pytest.raises(DataError, match="gap"):
+    rec.meta["gaps"] = [{"index": 2000, "missing": 5}]    # at 10 s of 30 (200 Hz)
+    with pytest.raises(DataError, match="gap") as err:
         noise_figures(rec)
+    # the hint names the longer side of the gap
+    a, b = (float(x) for x in re.search(r"t = ([\d.]+)-([\d.]+) s", err.value.hint).groups())
+    assert abs(a - rec.t[2000]) < 0.1 and abs(b - rec.t[-1]) < 0.1 and "--start/--stop" in err.value.hint
     rec = still(300, seconds=30)
     t = rec.t.copy()
     t[500:] += 1.0

@@ -224,7 +224,7 @@ def test_yaml_timestamp_and_binary_are_not_plain_data(tmp_path, profile):
 @pytest.mark.parametrize(
     "text,message",
     [
-        ("", "not a profile (expected a mapping at the top level, got NoneType)"),
+        ("", "not a profile (the file is empty)"),
         ("- 1\n- 2\n", "not a profile (expected a mapping at the top level, got list)"),
         ("schema_version: 1\ndevice: {identity: [\n", "not valid YAML"),
         ("schema_version: '1'\n", "schema_version: expected an integer, got '1'"),

@@ -111,7 +111,7 @@ def test_record_into_a_directory_a_crash_left_open_recovers_it_first(tmp_path, c
     w.write(np.arange(10) / 100.0 + 1.7e9, np.zeros((10, 3), np.int16))
     os.close(w._fd)                                   # the recording process died here
     assert main(["record", "sim://still?seed=1&pace=fast", "--seconds", "1", "-o", str(out)]) == 0
-    assert "closed after a crash: 10 samples in 1 complete blocks kept; nothing lost" in capsys.readouterr().err
+    assert "closed after a crash: 10 samples in 1 complete blocks kept; no block lost" in capsys.readouterr().err
     assert sorted(p.suffix for p in out.iterdir()) == [".parquet", ".parquet"]
 
 

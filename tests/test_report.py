@@ -195,6 +195,11 @@ def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_r
     html = out.read_text()
     assert_every_parameter_with_its_u_and_U(result, html)
     assert "B. Lab" in html and rec.content_hash() in html
+    # an issued certificate is not replaced unasked (the operator's name would be gone)
+    assert main(["report", str(profile), "-o", str(out)]) != 0
+    assert "B. Lab" in out.read_text()
+    assert main(["report", str(profile), "-o", str(out), "--force"]) == 0
+    assert "B. Lab" not in out.read_text()
     # a profile keeps no arrays: the figure it cannot draw is named, not faked
     assert "Figure not shown" in html
 

@@ -27,7 +27,7 @@ def publisher(broker, tmp_path, device: str, status: dict):
     settings = MqttConfig(broker=broker.url, site="north", username=DAEMON_USER, password_file=str(tmp_path / "pw"),
                           status_seconds=0.2)
     pub = Publisher(settings, device, tmp_path / f"spool-{device}", lambda: dict(status), lambda line: None)
-    pub.announce({"device": {"identity": f"sim-{device}", "nominal_rate": 500.0}}, 0.0006, "",
+    pub.announce({"identity": f"sim-{device}", "nominal_rate": 500.0}, 0.0006, "",
                  {"calibration": {"procedure": "static", "method": "map"}})
     pub.start()
     return pub

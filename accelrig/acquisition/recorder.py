@@ -263,10 +263,17 @@ def streaming_writer(info: DeviceInfo, directory, **options) -> SegmentWriter:
 
     from accelrig.segments import SegmentWriter
 
-    meta = recording_meta(info, np.zeros(0), [], 0)
-    meta.update(time_base="utc", delivered_rate=None, device_rate=None)
+    meta = stream_meta(info)
     stem = re.sub(r"[^A-Za-z0-9_-]+", "-", info.identity or info.driver).strip("-_") or "device"
     return SegmentWriter(directory, stem=stem, meta=meta, scale=info.scale, channels=info.channels, **options)
+
+
+def stream_meta(info: DeviceInfo) -> dict:
+    """The metadata segments streamed from a device start with (``record -o``, the TUI's captures, the
+    daemon): a recording's, in UTC; the rates are measured over what is read back (segments.read_arrays)."""
+    meta = recording_meta(info, np.zeros(0), [], 0)
+    meta.update(time_base="utc", delivered_rate=None, device_rate=None)
+    return meta
 
 
 def recording_meta(info: DeviceInfo, t: np.ndarray, gaps: list[dict], missing: int) -> dict:

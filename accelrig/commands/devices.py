@@ -7,7 +7,7 @@ from accelrig.errors import AccelrigError
 
 def register(sub, groups) -> None:
     p = sub.add_parser("devices")
-    p.add_argument("--verbose", "-v", action="store_true", help="also list each simulated rig's options")
+    p.add_argument("--verbose", "-v", action="store_true", help="also list the simulator's options (every rig's, and each rig's own)")
     p.set_defaults(func=run)
 
 
@@ -29,6 +29,9 @@ def run(args) -> int:
         if args.verbose and scheme == "sim":
             from accelrig.sim.rigs import RIGS
 
+            print("    sim:// options of every rig:")
+            for option, help_text in cls.sensor_options.items():
+                print(f"        {option}: {help_text}")
             for name in sorted(RIGS):
                 rig = RIGS[name]
                 print(f"    sim://{name}: {rig.description}")

@@ -26,6 +26,8 @@ def register(sub, groups) -> None:
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="certificate to write: .html or .pdf")
     p.add_argument("--noise", metavar="NOISE.json", help="Allan curves from 'accelrig noise REC --json' (the "
                    "same recording as the profile's noise figures) to plot the measured curve")
+    p.add_argument("--force", action="store_true", help="replace FILE if it exists (an issued certificate is "
+                   "never overwritten by accident)")
     p.add_argument("--no-figures", action="store_true", help="leave the figures out (no matplotlib needed)")
     p.add_argument("--reference", metavar="DEVICE", help="batch report: compare every device with this one "
                    "(its identity) instead of with the weighted mean of the others")
@@ -42,7 +44,10 @@ def run(args) -> int:
     from pathlib import Path
 
     from accelrig.errors import DataError
+    from accelrig.files import writable_target
 
+    # before anything is rendered: an issued certificate (its number, operator) is not replaced unasked
+    writable_target(args.output, args.force, inputs=list(args.source) + ([args.noise] if args.noise else []))
     conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
                   "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
     if len(args.source) > 1 or Path(args.source[0]).is_dir():

@@ -110,6 +110,7 @@ class Collector:
     def close(self) -> None:
         client = self._client
         if client is not None:
+            self._connected.clear()   # our own disconnect: not a lost broker to reconnect to
             client.disconnect()
             client.loop_stop()
         with self._lock:

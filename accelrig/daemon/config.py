@@ -309,8 +309,17 @@ def check_config(config: DaemonConfig) -> list[str]:
                 raise ConfigError(f"{device.field('profile')}: {exc}") from None
         elif device.profile == "store":
             store = ProfileStore(config.profile_store)
-            notes.append(f"{device.name}: profile from the store {store.root} by the device's identity "
-                         "(looked up when it connects)")
+            note = (f"{device.name}: profile from the store {store.root} by the device's identity "
+                    "(looked up when it connects)")
+            if device.output == "calibrated" or device.flash:
+                # the identity is known only once the device answers, but an empty store is sure
+                # to fail: say so now rather than when the deployment starts
+                held = store.identities()
+                need = "output calibrated" if device.output == "calibrated" else "flash"
+                note += (f"; {need} needs one, and without it this device records nothing: the store holds "
+                         + (f"profiles for {', '.join(held)}" if held else "no profile at all")
+                         + " (`accelrig profile add PROFILE` files one; `output: raw` records without one)")
+            notes.append(note)
     if config.mqtt is not None:
         notes.append(check_mqtt(config.mqtt))
     check_output_writable(config.output)

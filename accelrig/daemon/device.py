@@ -44,7 +44,7 @@ import numpy as np
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
-from accelrig.acquisition.recorder import Recorder
+from accelrig.acquisition.recorder import Recorder, stream_meta
 from accelrig.acquisition.session import Session, State
 from accelrig.daemon.clock import UtcClock
 from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
@@ -413,11 +413,12 @@ class DeviceRunner:
     def _open_writer(self, info: DeviceInfo, clock: UtcClock, flashed: dict | None) -> None:
         from accelrig.segments import SegmentWriter
 
-        device = info.to_dict()
-        if info.link_stats is not None:   # what the link got wrong so far, as plain numbers
-            device["extra"]["link_stats"] = info.link_stats.as_dict()
-        meta = {
-            "device": device,
+        # the device stated as every recording states it (identity, chip, range, scale, flashed
+        # offsets at the top level), so `profile apply` and the calibrate commands read daemon
+        # output like any recording; the driver's other facts under "device_facts"
+        meta = stream_meta(info)
+        meta.update({
+            "device_facts": {k: v for k, v in info.to_dict()["extra"].items() if k not in meta},
             "name": self.device.name,
             "nominal_rate": info.nominal_rate,
             "connection": self.counts.connects + 1,
@@ -426,7 +427,7 @@ class DeviceRunner:
             "profile": self._profile_reference(),
             "output": self.device.output,
             "flashed": flashed,
-        }
+        })
         if self.device.output == "calibrated":
             meta["calibrated_channels"] = {
                 "cal_x, cal_y, cal_z": "calibrated acceleration, m/s^2: C @ (counts x scale - b) of the profile",
@@ -532,22 +533,36 @@ class DeviceRunner:
         if self.publisher is not None:
             self.publisher.block(t, counts)
         try:
-            if full is not None:
-                seconds = float(t[0]) - full["since"]
-                self.writer.gap(full["since"], full["samples"], full["cause"], seconds)
-                self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
-                              seconds=seconds)
-                self.counts.gaps += 1
-                self._disk_full = None
-                self._set("streaming", None)
-                self.log(f"{self.device.name}: writing again after {full['cause']} "
-                         f"({full['samples']} samples dropped over {seconds:.1f} s)")
             self.writer.write(t_ns, counts, self._channels(t, counts, channels))
             self.counts.written += n
         except StorageFull as exc:
             self._drop(t, n, "disk full", str(exc), tried=True)
+            return
         except StorageError as exc:   # an I/O error: the same care, its own cause
             self._drop(t, n, "write failed", str(exc), tried=True)
+            return
+        if full is not None:
+            self._writing_again(full, float(t[0]))
+
+    def _writing_again(self, full: dict, resumed: float) -> None:
+        """The one gap record of a full disk, once samples are written again.
+
+        Only after a data block went in: a gap record is small enough to fit where a block does
+        not, and writing it first declared every retry a recovery (one record and one log line
+        per retry while the disk stayed full).  It is placed by its time, before the first
+        sample written again."""
+        seconds = resumed - full["since"]
+        self._disk_full = None
+        self._set("streaming", None)
+        self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
+                      seconds=seconds)
+        self.log(f"{self.device.name}: writing again after {full['cause']} "
+                 f"({full['samples']} samples dropped over {seconds:.1f} s)")
+        try:
+            self.writer.gap(full["since"], full["samples"], full["cause"], seconds)
+            self.counts.gaps += 1
+        except StorageError as exc:   # the journal has it
+            self.log(f"{self.device.name}: gap record not written ({exc}); the journal has it")
 
     def gap(self, t_ns: int, samples: int, cause: str, seconds: float | None = None) -> None:
         """A gap the driver reported (or a reader overrun, which a lossless reader never has)."""

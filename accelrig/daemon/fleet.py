@@ -135,7 +135,6 @@ def rows(devices: dict, now: datetime | None = None, recalibrate_days: float | N
         status, meta = (v if isinstance(v, dict) else {} for v in (d.get("status"), d.get("meta")))
         seen = _parse_utc(status.get("utc"))
         profile = meta.get("profile") if isinstance(meta.get("profile"), dict) else {}
-        about = meta.get("device") if isinstance(meta.get("device"), dict) else {}
         created = _parse_utc(profile.get("created"))
         age = (now - created).total_seconds() if created else None
         due = None
@@ -146,7 +145,7 @@ def rows(devices: dict, now: datetime | None = None, recalibrate_days: float | N
             "site": site, "device": device, "host": status.get("host") or meta.get("host"),
             "state": status.get("state"), "last_seen": status.get("utc"),
             "seconds_since_seen": (now - seen).total_seconds() if seen else None,
-            "rate": status.get("delivered_rate"), "nominal_rate": about.get("nominal_rate"),
+            "rate": status.get("delivered_rate"), "nominal_rate": meta.get("nominal_rate"),
             "gaps": status.get("gaps"), "missing": status.get("missing"),
             "spooled": mqtt.get("spooled"), "spool_dropped_samples": mqtt.get("dropped_samples"),
             "profile": f"{profile.get('procedure')}/{profile.get('method')}" if profile else None,

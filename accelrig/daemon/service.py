@@ -183,8 +183,11 @@ class Daemon:
         restarted = [n for n in stop if n in new_devices]
         added = [n for n in started if n not in restarted]
         kept = [n for n in new_devices if n not in started]
-        log(f"reloaded {self.config_path}: added {added or 'none'}, removed {removed or 'none'}, "
-            f"restarted {restarted or 'none'}, unchanged {kept or 'none'}")
+        def names(group: list[str]) -> str:
+            return ", ".join(group) or "none"
+
+        log(f"reloaded {self.config_path}: added {names(added)}; removed {names(removed)}; "
+            f"restarted {names(restarted)}; unchanged {names(kept)}")
 
     # ------------------------------------------------------------------ health
     def snapshot(self) -> dict:

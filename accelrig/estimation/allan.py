@@ -351,9 +351,14 @@ def noise_figures(rec: Recording, span: tuple[float, float] | None = None) -> No
                         "record a few minutes of the sensor lying still")
     gaps = rec.meta.get("gaps") or []
     if gaps:
+        # the longest unbroken stretch is often long enough (a daemon's weeks hold hours between gaps)
+        cuts = sorted({0, n, *(min(max(int(g["index"]), 0), n) for g in gaps)})
+        a, b = max(zip(cuts[:-1], cuts[1:], strict=True), key=lambda ab: rec.t[ab[1] - 1] - rec.t[ab[0]])
         raise DataError(
             f"the recording has {len(gaps)} gap(s) in its samples; an Allan deviation needs an unbroken record",
-            "record again (a still run of a few minutes) without lost samples",
+            f"the longest unbroken stretch is t = {rec.t[a]:.1f}-{rec.t[b - 1]:.1f} s "
+            f"({rec.t[b - 1] - rec.t[a]:.0f} s, seconds from the first sample read): pass --start/--stop to "
+            "analyse it, or record again without lost samples",
         )
     dt = np.diff(rec.t)
     median = float(np.median(dt))

@@ -257,7 +257,8 @@ def parse_profile_text(text: str, source: str = "<profile>") -> dict:
 
 def _checked(data, source: str) -> dict:
     if not isinstance(data, dict):
-        raise ProfileError(f"{source}: not a profile (expected a mapping at the top level, got {type(data).__name__})")
+        raise ProfileError(f"{source}: not a profile (" + ("the file is empty" if data is None else
+                           f"expected a mapping at the top level, got {type(data).__name__}") + ")")
     _check_version(data, source)
     try:
         validate(data)

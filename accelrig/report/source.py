@@ -105,7 +105,8 @@ def load_source(path: str | os.PathLike) -> Source:
         raise DataError(f"{path}: no such file", "give a profile, a saved result (--json) or a rotary campaign")
     data = _parse(path)
     if not isinstance(data, dict):
-        raise DataError(f"{path}: expected a mapping at the top level, got {type(data).__name__}",
+        raise DataError(f"{path}: " + ("the file is empty" if data is None else
+                                       f"expected a mapping at the top level, got {type(data).__name__}"),
                         "give a profile, a saved result (--json) or a rotary campaign")
     if "schema_version" in data and "calibration" in data:
         from accelrig.profiles import load_profile
