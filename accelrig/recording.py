@@ -468,6 +468,10 @@ def load_recording(path: str | os.PathLike, units: str | None = None, rate: floa
         if units:
             rec = Recording(rec.t, rec.acc, units, rec.channels, rec.meta)
         return rec
+    if path.suffix.lower() in (".yaml", ".yml", ".json"):
+        # the usual slip: a profile or a saved result where the recording belongs
+        raise DataError(f"{path}: a {path.suffix[1:].upper()} file (a profile or a saved result?), not a recording",
+                        "give the recording: a CSV, a .npz or segments (a .parquet/.seg file or their folder)")
     return read_csv(path, units=units, rate=rate)
 
 

@@ -182,3 +182,16 @@ def test_replay_keeps_the_device_its_gaps_and_flashed_offsets(tmp_path):
     assert [(g["index"], g["missing"]) for g in back.meta["gaps"]] == \
         [(g["index"], g["missing"]) for g in original.meta["gaps"]]
     assert len(original.meta["gaps"]) > 0
+
+
+def test_a_profile_given_as_the_recording_is_named_for_what_it_is(tmp_path):
+    from pathlib import Path
+
+    import pytest
+
+    from accelrig.errors import DataError
+    from accelrig.recording import load_recording
+
+    profile = Path(__file__).resolve().parents[1] / "profiles" / "example-static_faces-vp.yaml"
+    with pytest.raises(DataError, match="a YAML file .*not a recording"):
+        load_recording(profile)
