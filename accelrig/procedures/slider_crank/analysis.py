@@ -44,7 +44,7 @@ from scipy import optimize, stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.distributions import student_t_quantile
-from accelrig.estimation.gum import coverage_factor
+from accelrig.estimation.gum import COVERAGE_PROBABILITY, coverage_factor
 from accelrig.estimation.residuals import (
     PooledNoise,
     Whiteness,
@@ -1544,6 +1544,36 @@ def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used:
                      f"within k u (k = {k:.2f})")
 
 
+# How the CLI and the verification screen label coverage_factors' keys (the JSON keeps the field names)
+COVERAGE_FACTOR_LABELS = {"radius_k": "k (verdict, expanded U)", "steps[].radius_k": "k for U (per step)",
+                          "steps[].clearance_k": "k (in clearance)"}
+
+
+def coverage_factors(steps: list[StepResult], radius_k: float, radius_dof: float) -> dict[str, str]:
+    """What each coverage factor a slider-crank result states is, and why they differ (for the JSON, the CLI
+    and the verification screen alike: one text).  Three k, three questions: the combined radius's U and the
+    verdict (about 95 % for that one number), each step's own U (about 95 % for that step alone), and the
+    per-step clearance flag (5 % over all the steps judged together, so it is larger)."""
+    judged = [s for s in steps if not s.motor_limited]
+    dof = _plain_dof(radius_dof)
+    level = f"{100 * COVERAGE_PROBABILITY:.2f} %"
+    out = {"radius_k": (f"k = {radius_k:.2f}: the combined radius's U and the verdict, Student's t for {level} on "
+                        + (f"its effective degrees of freedom (nu_eff {dof:.0f})" if dof is not None else
+                           "a u that rests on much data (the normal's 2.00)")),
+           "steps[].radius_k": (f"each step's own U, Student's t for {level} on that step's nu_eff (2.00 when its u "
+                                "rests on much data); it is above the verdict's k when a step's u rests on fewer "
+                                "data than the combined radius's")}
+    if judged:
+        ks = [s.clearance_k for s in judged]
+        span = f"{min(ks):.2f}" if max(ks) - min(ks) < 0.005 else f"{min(ks):.2f}-{max(ks):.2f}"
+        out["steps[].clearance_k"] = (
+            f"k = {span}: each step's 'in clearance' flag, one test at {100 * CLEARANCE_ALPHA:g} % over the "
+            f"{len(judged)} step{'s' if len(judged) != 1 else ''} judged together (Sidak, Student's t on the step's "
+            "nu_eff): larger than the verdict's k so that sound steps raise a false 'outside' in "
+            f"{100 * CLEARANCE_ALPHA:g} % of runs, not in each step's 5 %")
+    return out
+
+
 def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
     """What the operator should know about single steps: outside the clearance, backlash, wandering speed, roll-off."""
     warnings = []
@@ -1633,6 +1663,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
                  "radius_chi2": chi2, "radius_dof": dof, "radius_nu_eff": _plain_dof(radius_dof), "radius_k": radius_k,
                  # what a certificate states U of the radius with (report.html): the same k the verdict used
                  "coverage_factor": radius_k, "coverage_dof": _plain_dof(radius_dof),
+                 "coverage_factors": coverage_factors(steps, radius_k, radius_dof),
                  "used_steps": used, "rolloff_hz": rolloff,
                  "compliance": None if compliance is None else {k: v for k, v in compliance.items() if k != "warning"},
                  "verdict": verdict, "verdict_reason": reason},
