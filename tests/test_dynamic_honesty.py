@@ -438,6 +438,15 @@ def test_u_from_the_pooled_bands_is_expanded_with_students_t_on_its_effective_do
     assert d["coverage_factor"] == d["radius_k"] and f"(k = {d['radius_k']:.2f})" in d["verdict_reason"]
     report = format_report(result)
     assert f"{d['steps'][0]['radius_k']:.2f} (nu_eff {d['steps'][0]['radius_dof']:.0f})" in report
+    # three k, each labelled with what it is for: the step's U, the step's clearance flag, the verdict
+    assert f"{'yes' if d['steps'][0]['within_clearance'] else 'NO'} ({d['steps'][0]['clearance_k']:.2f})" in report
+    assert all(s["clearance_k"] > s["radius_k"] for s in d["steps"])   # 5 % over the steps, not each step's
+    meaning = d["coverage_factors"]
+    assert set(meaning) == {"radius_k", "steps[].radius_k", "steps[].clearance_k"}
+    assert f"k = {d['radius_k']:.2f}" in meaning["radius_k"] and f"nu_eff {d['radius_nu_eff']:.0f}" in meaning["radius_k"]
+    assert "over the 3 steps judged together" in meaning["steps[].clearance_k"]
+    for text in meaning.values():
+        assert text in report
     # white noise: u^2 from the n - p residuals of the step, k = 2.00 as before
     _, white = crank(seed=1)
     for s in white.details["steps"]:

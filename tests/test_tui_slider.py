@@ -53,6 +53,10 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         screen = app.screen
         await wait_for(pilot, lambda: screen.query_one("#steps").row_count == 3)   # filled once mounted
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
+        # the step table's k, the clearance flag's and the verdict's are told apart under the table
+        meaning = str(screen.query_one("#verification-k").render())
+        assert "k for U (per step):" in meaning and "k (in clearance):" in meaning
+        assert f"k = {verification['radius_k']:.2f}" in meaning
         radius = app.screen.verification.parameters["radius"]
         truth = app.session.info.truth["rig"]
         # two plots, as on the results screen: the amplitude against its band, then the radius per step

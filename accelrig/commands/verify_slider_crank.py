@@ -86,6 +86,8 @@ def coverage_text(k: float, dof: float | None) -> str:
 
 def format_report(result) -> str:
     """Human-readable frequency response table and verdict (mm and degrees at the edge)."""
+    from accelrig.procedures.slider_crank.analysis import COVERAGE_FACTOR_LABELS
+
     v = result.details
     lines = [
         f"slider-crank verification: r = {v['crank_radius_m'] * 1e3:.3f} mm ("
@@ -94,7 +96,7 @@ def format_report(result) -> str:
         + (f", profile {v['profile']}" if v["profile"] else ""),
         "",
         "| step | f / Hz | u(f) / Hz | FFT peak / Hz | A1 / m/s^2 | model r w^2 | ratio | radius / mm | u / mm | "
-        "k (nu_eff) | in clearance | backlash | motor | axis angle x,y,z / deg |",
+        "k for U (nu_eff) | in clearance (k) | backlash | motor | axis angle x,y,z / deg |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in v["steps"]:
@@ -106,9 +108,12 @@ def format_report(result) -> str:
             f"{s['ratio']['value']:.5f} +- {s['ratio']['uncertainty']:.5f} | "
             f"{s['radius_m']['value'] * 1e3:.4f} | {s['radius_m']['uncertainty'] * 1e3:.4f} | "
             f"{coverage_text(s.get('radius_k', 2.0), s.get('radius_dof'))} | "
-            f"{'yes' if s['within_clearance'] else 'NO'} | {'YES' if s['backlash'] else 'no'} | {motor} | {angles} |"
+            f"{'yes' if s['within_clearance'] else 'NO'} ({s['clearance_k']:.2f}) | "
+            f"{'YES' if s['backlash'] else 'no'} | {motor} | {angles} |"
         )
     lines.append("")
+    # three k, three questions (analysis.coverage_factors): say which is which, once
+    lines.extend(f"{COVERAGE_FACTOR_LABELS.get(key, key)}: {text}" for key, text in v.get("coverage_factors", {}).items())
     r = result.parameters["radius"]
     lines.append(
         f"radius from the motion: {r.value * 1e3:.4f} +- {r.uncertainty * 1e3:.4f} mm (k = 1) over steps "

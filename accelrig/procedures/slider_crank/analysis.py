@@ -44,7 +44,7 @@ from scipy import optimize, stats
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.crb import propagate_covariance
 from accelrig.estimation.distributions import student_t_quantile
-from accelrig.estimation.gum import coverage_factor
+from accelrig.estimation.gum import COVERAGE_PROBABILITY, coverage_factor
 from accelrig.estimation.residuals import (
     PooledNoise,
     Whiteness,
@@ -110,6 +110,15 @@ RING_AGREE = 3.0
 # every speed (held-out links: 299-301 Hz, 449-454 Hz); a take-up's own shape (a dwell, a free flight) has no one
 # frequency, and its spectrum's peak moves with speed (the project simulator's 50 um dwell: 66-174 Hz)
 RING_SPREAD = 0.05
+# ... and, where the trend cannot rule out a rigid link (c below RING_AGREE times the combined u: a 450 Hz link's
+# trend sits 0.8-4.7 u from zero over 5 steps at 3-10 Hz, so a trend alone cannot tell it from a rigid link whose
+# play knocks at one contact frequency), only when the ring does not grow with speed: the rail's friction steps by
+# the same force at every speed (at the dead centres the rod lies along the rail, so the normal load is the
+# slider's weight and its preload), so a link's ring keeps its size (amplitude ~ f^0: held-out links 0.06-0.35),
+# while play's knock is an impact whose closing speed grows with the crank's (~ f^1 or faster: the project
+# simulator's dwell 1.7-1.9, held-out play taken up at the dead centres of a braked slider 0.9-1.2).  The exponent
+# of the knock's size against the step's speed is judged against the midpoint of the two laws.
+RING_GROWTH = 0.5
 # A dead-centre event counts as mirrored (odd harmonics only, _mirrored) when the power of its part that repeats
 # half a turn on is below this share of the power of its part that flips.
 MIRROR_SHARE = 0.1
@@ -1045,8 +1054,9 @@ def _mirrored(step: StepResult) -> bool:
     return bool(flips > 0 and repeats < MIRROR_SHARE * flips)
 
 
-def ring_frequency(step: StepResult) -> tuple[float, float]:
-    """The frequency a step's phase-locked event rings at (Hz) and the power of that ring (for weighting).
+def ring_frequency(step: StepResult) -> tuple[float, float, float]:
+    """The frequency a step's phase-locked event rings at (Hz), the power of that ring (for weighting) and the
+    bin it is read on (Hz: the zero-padded periodogram's spacing, the floor of its u).
 
     The sine fit's residuals folded by crank angle, one sample per bin (the fold's Nyquist is the sampling's), in
     the window after each take-up (``dead_centre_window``): its mean removed, each window's periodogram (zero-padded
@@ -1064,7 +1074,7 @@ def ring_frequency(step: StepResult) -> tuple[float, float]:
     before = 0.02 * 2 * np.pi
     length = int((after + before) / (2 * np.pi) * n_bins)
     if length < 8:
-        return float("nan"), 0.0
+        return float("nan"), 0.0, float("nan")
     n_fft = int(2 ** np.ceil(np.log2(max(2 * state.rate, 2 * length))))
     freqs = np.fft.rfftfreq(n_fft, dt)
     power = np.zeros(freqs.size)
@@ -1075,9 +1085,9 @@ def ring_frequency(step: StepResult) -> tuple[float, float]:
         power += np.abs(np.fft.rfft(window * np.hanning(length), n_fft)) ** 2
     band = (freqs >= 2.5 / (length * dt)) & (freqs <= 0.45 * state.rate)
     if not band.any():
-        return float("nan"), 0.0
+        return float("nan"), 0.0, float("nan")
     k = int(np.argmax(np.where(band, power, -np.inf)))
-    return float(freqs[k]), float(power[k])
+    return float(freqs[k]), float(power[k]), float(freqs[1] - freqs[0])
 
 
 def _fit_compliance(steps: list[StepResult], judged: list[int]) -> tuple[float, float, float] | None:
@@ -1233,9 +1243,12 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     Play is crossed where the force through the link reverses, and its knock rings at the contact's frequency,
     which the link's harmonics need not show.  So a dead-centre event is the link ringing when the compliance its
     ring frequency implies (ring_frequency, the median over the flagged steps: one cause for all) agrees with the
-    trend's c within RING_AGREE times their combined u (the trend's, and the ring frequencies' scatter), that u
-    below c_ring itself (a trend that could tell that compliance from none), and every flagged step rings within
-    RING_SPREAD of the median (one resonance at every speed; a take-up's own shape has none).  An event
+    trend's c within RING_AGREE times their combined u (the trend's, and the ring frequencies' scatter, never below
+    the bin they are read on), that u below c_ring itself (a trend that could tell that compliance from none), and
+    every flagged step rings within RING_SPREAD of the median (one resonance at every speed; a take-up's own shape
+    has none).  Where the trend does not also rule out a rigid link (c within RING_AGREE u of 0: a rigid link's
+    trend then agrees with a knock at one contact frequency too), the event must also keep its size with speed
+    (knock_growth below RING_GROWTH): a friction step is the same force at every speed, an impact is not.  An event
     after the dead centres is play whatever it rings at: friction does not reverse there, so a link without play
     takes no force step there.  (A lost-motion size cannot decide it: play at a stiff contact and a ringing
     compliant link shift the slider alike within a factor of 2-4.)
@@ -1244,19 +1257,40 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
                and s.state.times is not None]
     if not flagged or not (np.isfinite(c) and np.isfinite(u_c)):
         return False
-    rings = np.array([ring_frequency(s)[0] for s in flagged])
-    rings = rings[np.isfinite(rings)]
-    if rings.size == 0:
+    found = [(ring_frequency(s), s) for s in flagged]
+    found = [(ring, s) for ring, s in found if np.isfinite(ring[0])]
+    if not found:
         return False
+    rings = np.array([ring[0] for ring, _ in found])
     f_ring = float(np.median(rings))
     if np.max(np.abs(rings / f_ring - 1.0)) > RING_SPREAD:
         return False
-    u_f = float(np.std(rings, ddof=1) / np.sqrt(rings.size)) if rings.size > 1 else 0.05 * f_ring
+    # the scatter of the steps' rings, but never below the bin they are read on: steps that all peak in one bin
+    # have a scatter of 0, not a frequency known to 0
+    bin_hz = max(ring[2] for ring, _ in found)
+    u_f = max(float(np.std(rings, ddof=1) / np.sqrt(rings.size)), bin_hz) if rings.size > 1 else 0.05 * f_ring
     c_ring = 1.0 / (2 * np.pi * f_ring) ** 2
     u_both = float(np.hypot(u_c, 2 * c_ring * u_f / f_ring))
     # and only where the trend could tell that compliance from none (u below c_ring): steps too few or too close
     # in speed admit any ring, and then the event stays play, as without a trend
-    return bool(u_both < c_ring and abs(c - c_ring) <= RING_AGREE * u_both)
+    if not (u_both < c_ring and abs(c - c_ring) <= RING_AGREE * u_both):
+        return False
+    if c > RING_AGREE * u_both:   # the trend rules out a rigid link: its ring is the link's
+        return True
+    # a trend that cannot rule out a rigid link agrees with a knock at one contact frequency as well: the link's
+    # ring is a friction step's, the same size at every speed; a knock grows with speed (RING_GROWTH)
+    return knock_growth(flagged) < RING_GROWTH
+
+
+def knock_growth(steps: list[StepResult]) -> float:
+    """The exponent of the dead-centre event's size against the crank's speed over the steps (knock_peak ~ f^g,
+    least squares in logs); NaN with fewer than two speeds."""
+    speeds = np.array([s.frequency_hz.value for s in steps])
+    knocks = np.array([s.knock_peak for s in steps])
+    keep = (speeds > 0) & (knocks > 0)
+    if keep.sum() < 2 or np.ptp(np.log(speeds[keep])) == 0:
+        return float("nan")
+    return float(np.polyfit(np.log(speeds[keep]), np.log(knocks[keep]), 1)[0])
 
 
 def _name_link_ringing(steps: list[StepResult], c: float, u_c: float) -> None:
@@ -1544,6 +1578,36 @@ def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used:
                      f"within k u (k = {k:.2f})")
 
 
+# How the CLI and the verification screen label coverage_factors' keys (the JSON keeps the field names)
+COVERAGE_FACTOR_LABELS = {"radius_k": "k (verdict, expanded U)", "steps[].radius_k": "k for U (per step)",
+                          "steps[].clearance_k": "k (in clearance)"}
+
+
+def coverage_factors(steps: list[StepResult], radius_k: float, radius_dof: float) -> dict[str, str]:
+    """What each coverage factor a slider-crank result states is, and why they differ (for the JSON, the CLI
+    and the verification screen alike: one text).  Three k, three questions: the combined radius's U and the
+    verdict (about 95 % for that one number), each step's own U (about 95 % for that step alone), and the
+    per-step clearance flag (5 % over all the steps judged together, so it is larger)."""
+    judged = [s for s in steps if not s.motor_limited]
+    dof = _plain_dof(radius_dof)
+    level = f"{100 * COVERAGE_PROBABILITY:.2f} %"
+    out = {"radius_k": (f"k = {radius_k:.2f}: the combined radius's U and the verdict, Student's t for {level} on "
+                        + (f"its effective degrees of freedom (nu_eff {dof:.0f})" if dof is not None else
+                           "a u that rests on much data (the normal's 2.00)")),
+           "steps[].radius_k": (f"each step's own U, Student's t for {level} on that step's nu_eff (2.00 when its u "
+                                "rests on much data); it is above the verdict's k when a step's u rests on fewer "
+                                "data than the combined radius's")}
+    if judged:
+        ks = [s.clearance_k for s in judged]
+        span = f"{min(ks):.2f}" if max(ks) - min(ks) < 0.005 else f"{min(ks):.2f}-{max(ks):.2f}"
+        out["steps[].clearance_k"] = (
+            f"k = {span}: each step's 'in clearance' flag, one test at {100 * CLEARANCE_ALPHA:g} % over the "
+            f"{len(judged)} step{'s' if len(judged) != 1 else ''} judged together (Sidak, Student's t on the step's "
+            "nu_eff): larger than the verdict's k so that sound steps raise a false 'outside' in "
+            f"{100 * CLEARANCE_ALPHA:g} % of runs, not in each step's 5 %")
+    return out
+
+
 def step_warnings(steps: list[StepResult], rolloff: float | None) -> list[str]:
     """What the operator should know about single steps: outside the clearance, backlash, wandering speed, roll-off."""
     warnings = []
@@ -1633,6 +1697,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
                  "radius_chi2": chi2, "radius_dof": dof, "radius_nu_eff": _plain_dof(radius_dof), "radius_k": radius_k,
                  # what a certificate states U of the radius with (report.html): the same k the verdict used
                  "coverage_factor": radius_k, "coverage_dof": _plain_dof(radius_dof),
+                 "coverage_factors": coverage_factors(steps, radius_k, radius_dof),
                  "used_steps": used, "rolloff_hz": rolloff,
                  "compliance": None if compliance is None else {k: v for k, v in compliance.items() if k != "warning"},
                  "verdict": verdict, "verdict_reason": reason},

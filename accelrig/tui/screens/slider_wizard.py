@@ -17,6 +17,7 @@ from textual.widgets import DataTable, Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.files import atomic_write
+from accelrig.procedures.slider_crank.analysis import COVERAGE_FACTOR_LABELS
 from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
 from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
@@ -136,13 +137,17 @@ class VerificationScreen(Screen):
                          + (f"; motor tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else ""),
                          id="verification-radius")
             yield DataTable(id="steps", show_cursor=False, zebra_stripes=True)
+            # which k is which (analysis.coverage_factors, the same text as the CLI's and the JSON's)
+            yield Static("\n".join(f"[b]{escape(label)}:[/b] {escape(v.get('coverage_factors', {})[key])}"
+                                   for key, label in COVERAGE_FACTOR_LABELS.items() if key in v.get("coverage_factors", {})),
+                         id="verification-k")
             yield LinePlot("", id="verification-plot")
         yield KeyFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "verification"
         table = self.query_one("#steps", DataTable)
-        table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k", "flags")
+        table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k for U", "flags")
         for s in self.verification.details["steps"]:
             flags = [name for name, on_ in (("motor-limited", s["motor_limited"]), ("backlash", s["backlash"]),
                                             ("link rings", s["link_ringing"]), ("unsteady", s["speed_unsteady"]),
