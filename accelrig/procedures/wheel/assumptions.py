@@ -467,13 +467,15 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     schur = c - projection @ b
     g_all = xs.sum(axis=0) - projection @ js.sum(axis=0)
     scores = xs - js @ projection.T
-    if correlated:
+    if correlated and n // (4 * block) < N_ANGLE + MIN_BLOCKS:
         # Correlated noise, or a structure locked to the wheel angle?  A large one (an axis that nods) is as
         # correlated in time as a slow noise, and the batch means that noise asks for leave too few blocks to test
         # the angle-locked regressors at all (held-out axis nodding 1.5 deg per turn: blocks of 6000 samples, 3 of
         # them for 21 regressors, nothing found, gains and offsets covered in 34 % of runs).  The noise is what is
         # left once those regressors are fitted out: when that is much less correlated, its blocks are the ones to
-        # test with (and u, once the structure is taken in, is judged again on what is left).
+        # test with (and u, once the structure is taken in, is judged again on what is left).  Asked only when the
+        # tests' blocks (4 of these) are too few for the angle-locked regressors to be tested with MIN_BLOCKS to
+        # spare: a short memory (AR(1) 0.9: 40-50 blocks) leaves the tests their power, and costs no extra pass.
         left = _whiteness_without_angle(t, residuals, state, free, time_scale, g, full_normal, scores_all.sum(axis=0))
         shorter = _block_for(left, any(w.correlated for w in left), period)
         if shorter * STRUCTURE_BLOCK_RATIO < block:
