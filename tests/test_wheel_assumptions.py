@@ -276,12 +276,52 @@ def test_a_gross_wobble_is_refused_naming_the_bearing():
     assert "bearing play" in str(err.value) and "bearing" in err.value.hint
 
 
+def nodding_coast(nod_deg, seed, sd=0.08, seconds=90.0, rate=RATE, tilt_deg=45.0):
+    """A coast whose axis nods in space once per turn (bearing play): the tilt swings by ``nod_deg`` cos(theta),
+    so gravity's share along the axis and across it changes with the wheel angle while the centripetal and
+    tangential terms stay where they are; a slowing spin w = 9 - 0.045 t, white noise ``sd``."""
+    t = np.arange(int(seconds * rate)) / rate
+    w = 9.0 - 0.045 * t
+    theta = 1.0 + 9.0 * t - 0.0225 * t**2
+    alpha = np.radians(tilt_deg + nod_deg * np.cos(theta))
+    bench = np.stack([0.28 * w**2 + 9.80665 * np.sin(alpha) * np.cos(theta),
+                      0.28 * -0.045 + 9.80665 * np.sin(alpha) * np.sin(theta), 9.80665 * np.cos(alpha)], axis=1)
+    raw = OFFSET + bench @ WheelRig().rotation.T * GAIN + np.random.default_rng(seed).normal(0.0, sd, (t.size, 3))
+    return Recording(t, raw, meta={"range_g": 4.0})
+
+
+@pytest.mark.parametrize("nod_deg", [0.5, 1.5])
+def test_an_axis_that_nods_is_refused_naming_the_bearing(nod_deg):
+    """Held-out audit: an axis nodding 0.5 deg per turn was taken in as a wobble and the offsets were covered in 79 %
+    of runs (the nod's other half turns gravity as the mounting does and was left in the offsets); at 1.5 deg the
+    nod read as correlated noise, whose long blocks left no test to find it (covered in 34 %, not warned)."""
+    with pytest.raises(CalibrationError) as err:
+        calibrate_wheel(nodding_coast(nod_deg, seed=41), radius=0.28)
+    said = str(err.value)
+    assert "the wheel's axis nods about" in said and "deg once per turn" in said
+    seen = float(said.split("axis nods about ")[1].split(" deg")[0])
+    assert abs(seen - nod_deg) < 0.15 * nod_deg
+    assert "check the bearing" in err.value.hint
+
+
+def test_a_slight_nod_widens_u_by_its_unseen_half():
+    """A nod of 0.1 deg is taken in: the half the wobble shows in the model, the other half's possible move in u."""
+    result = calibrate_wheel(nodding_coast(0.1, seed=42), radius=0.28)
+    checks = result.quality["residual_checks"]
+    assert "wobble" in checks["angle_locked_causes"]
+    assert 0.06 < checks["axis_nod_deg"] < 0.15
+    assert 0.1 < checks["axis_nod_move_over_u"] < assumptions.MAX_NOD_MOVE
+    assert any("axis nodding about" in w and "once per turn" in w for w in result.warnings)
+    assert np.all(np.abs(z_scores(result)) < 3)
+
+
 def test_white_noise_keeps_the_crb_and_stays_quiet():
     rec, _ = record(seed=9)
     result = calibrate_wheel(rec, radius=0.28)
     assert result.quality["residual_checks"]["noise"] == "white"
     assert "CRB" in result.quality["uncertainty"]
     assert [w for w in result.warnings if "cross-axis" not in w] == []
+    assert "axis_nod_deg" not in result.quality["residual_checks"]
 
 
 def test_start_is_closed_form_and_failures_are_checked(monkeypatch):

@@ -170,6 +170,10 @@ def wheel_conditions() -> list[Condition]:
         ("warm-up 0.02, tau 1/4 run", WheelCase(drift=Drift("warmup", 0.02, at=0.25)), ("drift",)),
         ("tilt creeps 0.3 deg over the run", WheelCase(tilt_wander_deg=0.3), lack + ("tilt",)),
         ("bearing play: axis nods 0.1 deg per turn", WheelCase(wobble_deg=0.1), lack + ("tilt",)),
+        # larger play: the nod's first order is a wobble at twice the wheel angle the fit can take in, but the
+        # bearing's own shape is not known (issue 18): warned or refused "the wheel's axis nods"
+        ("bearing play: axis nods 0.5 deg per turn", WheelCase(wobble_deg=0.5), ("nods", "bearing")),
+        ("bearing play: axis nods 1.5 deg per turn", WheelCase(wobble_deg=1.5), ("nods", "bearing")),
         # the operator's record: the wizard says "spin the wheel by hand, then let it coast; keep the recording
         # running", so the wheel rests, is pushed, then coasts: no refusal is right
         ("rest 5 s then a 2 s push", WheelCase(rest_s=5.0, push_s=2.0), ()),

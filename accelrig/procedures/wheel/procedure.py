@@ -19,7 +19,14 @@ import numpy as np
 from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.residuals import whiteness_by_column
 from accelrig.procedures.contract import Event, Procedure
-from accelrig.procedures.wheel.assumptions import DRIFT_SEGMENTS, MAX_SECOND_ORDER, MAX_WOBBLE, Checks, check_residuals
+from accelrig.procedures.wheel.assumptions import (
+    DRIFT_SEGMENTS,
+    MAX_NOD_MOVE,
+    MAX_SECOND_ORDER,
+    MAX_WOBBLE,
+    Checks,
+    check_residuals,
+)
 from accelrig.procedures.wheel.checks import (
     MIN_TURNS,
     REST_WINDOW_S,
@@ -328,6 +335,9 @@ BALANCE_HINT = ("balance the wheel (an unbalanced wheel speeds up and slows down
 PLAY_HINT = ("check the wheel's bearing for play and that the wheel runs true on its axle (a dial gauge on the rim "
              "shows a wobble), tighten or replace the bearing and record again")
 
+NOD_HINT = ("check the bearing for play (rock the wheel by its rim across its plane: it should not click or give), "
+            "tighten or replace it so the axis holds still, and record again")
+
 
 def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
     """Structure locked to the wheel's angle, named by its cause: the speed law (imbalance, friction), the
@@ -369,11 +379,23 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
         raise CalibrationError(
             seen + f"; the structure is too large for the fit to take in: what its first-order model leaves out "
             f"alone moves the estimates by up to {missed:.2g} times their u", hint)
+    nod = checks.nod_move_over_u
+    if nod is not None and nod > MAX_NOD_MOVE:
+        raise CalibrationError(
+            f"the wheel's axis nods about {checks.nod_deg:.2g} deg once per turn (bearing play): the wobble turns "
+            f"twice per turn with the wheel, as half of a nodding axis does ({found}); the other half turns gravity "
+            "on the wheel as a mounting rotation would but leaves the centripetal term alone, which the fit cannot "
+            f"tell from the mounting and the offsets, and it could move the estimates by up to {nod:.2g} times "
+            f"their u (beyond {MAX_NOD_MOVE:g} the calibration would measure the bearing more than the sensor)",
+            NOD_HINT)
     if "wobble" in causes and checks.wobble.systematic_rms > MAX_WOBBLE:
         raise CalibrationError(
             seen + f"; a wobble beyond {100 * MAX_WOBBLE:.0f} % of the noise sd: the wobble the fit takes in (a "
             "rotation of the wheel at harmonics 1-2 of its angle) does not hold a real nodding axis that large, the "
             "gains and offsets are then off by more than any u the fit can state", hint)
+    if nod is not None:
+        seen += (f"; as an axis nodding about {checks.nod_deg:.2g} deg once per turn shows it, and u includes what "
+                 f"the nod's other half, which the fit cannot tell from the mounting, could do (up to {nod:.2g} u)")
     return [seen + f": {cause}; the fit takes the structure in and u grows with it, but a wheel that runs true and "
             "smoothly gives a calibration to trust more"]
 
