@@ -43,16 +43,33 @@ def significant(u: float, digits: int = 2) -> int:
     return max(0, digits - 1 - math.floor(math.log10(u)))
 
 
+# Numbers this small or this large are written with a power of ten, the value and its u sharing the
+# exponent: "1.3156e-6  0.0041e-6 rad/s⁴" reads where "0.0000013156  0.0000000041" hides the digits in zeros.
+# From 1e-3 down (not 1e-4): the wheel's omega2 (about 3e-4 rad/s³) read "0.000333313  0.000000055".
+SCIENTIFIC_BELOW = 1e-3
+SCIENTIFIC_FROM = 1e6
+
+
 def format_value(value: float, u: float) -> tuple[str, str]:
-    """The value and its uncertainty, rounded together (GUM 7.2.6: u to two significant digits)."""
+    """The value and its uncertainty, rounded together (GUM 7.2.6: u to two significant digits, the value to
+    the same place); below SCIENTIFIC_BELOW or from SCIENTIFIC_FROM both as mantissa e exponent, one exponent
+    (the larger of the two's), so they still line up digit for digit.  Every face (TUI, CLI text,
+    certificate) formats an estimate here."""
     if not (isinstance(value, (int, float)) and isinstance(u, (int, float))):
         return str(value), str(u)
     if not math.isfinite(u) or u <= 0:
         return f"{value:.6g}", ("0" if u == 0 else str(u))
-    if abs(value) >= 1e6 or u < 1e-9:
-        return f"{value:.6e}", f"{u:.2e}"
-    d = significant(u)
-    return f"{value:.{d}f}", f"{u:.{d}f}"
+    size = max(abs(value), u)
+    if not math.isfinite(size) or SCIENTIFIC_BELOW <= size < SCIENTIFIC_FROM:
+        d = significant(u)
+        return f"{value:.{d}f}", f"{u:.{d}f}"
+    exponent = math.floor(math.log10(size))
+    d = significant(u / 10.0 ** exponent)
+    if round(size / 10.0 ** exponent, d) >= 10.0:   # 9.99996e-5 rounds to 10.000e-5: one place up
+        exponent += 1
+        d = significant(u / 10.0 ** exponent)
+    scale = 10.0 ** exponent
+    return f"{value / scale:.{d}f}e{exponent:+d}", f"{u / scale:.{d}f}e{exponent:+d}"
 
 
 def _plain(value) -> str:
@@ -82,11 +99,11 @@ def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1) -> str
 
 def scalar_estimates(estimates: dict[str, Estimate]) -> list[tuple[str, float, float, str]]:
     """(label, value, u, unit) per scalar, as shown: a vector estimate gives one row per axis, angles in
-    degrees (Estimate.for_display), the unit with a superscript square."""
+    degrees (Estimate.for_display), the unit's powers as superscripts."""
     rows = []
     for name, estimate in estimates.items():
         values, uncs, unit = estimate.for_display()
-        unit = unit.replace("^2", "²")
+        unit = unit.replace("^2", "²").replace("^3", "³").replace("^4", "⁴")
         if isinstance(values, list):
             labels = [f"{name}[{a}]" for a in ("x", "y", "z")] if len(values) == 3 else [
                 f"{name}[{i}]" for i in range(len(values))]
