@@ -8,9 +8,46 @@ becomes JSON or YAML.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+
+def significant(u: float, digits: int = 2) -> int:
+    """Decimals that show ``u`` to ``digits`` significant digits (the value is shown to the same place)."""
+    if not math.isfinite(u) or u <= 0:
+        return 6
+    return max(0, digits - 1 - math.floor(math.log10(u)))
+
+
+# Numbers this small or this large are written with a power of ten, the value and its u sharing the
+# exponent: "1.3156e-6  0.0041e-6 rad/s⁴" reads where "0.0000013156  0.0000000041" hides the digits in zeros.
+# From 1e-3 down (not 1e-4): the wheel's omega2 (about 3e-4 rad/s³) read "0.000333313  0.000000055".
+SCIENTIFIC_BELOW = 1e-3
+SCIENTIFIC_FROM = 1e6
+
+
+def format_value(value: float, u: float) -> tuple[str, str]:
+    """The value and its uncertainty, rounded together (GUM 7.2.6: u to two significant digits, the value to
+    the same place); below SCIENTIFIC_BELOW or from SCIENTIFIC_FROM both as mantissa e exponent, one exponent
+    (the larger of the two's), so they still line up digit for digit.  Every face (TUI, CLI text,
+    certificate, the procedures' own sentences) formats an estimate here."""
+    if not (isinstance(value, (int, float)) and isinstance(u, (int, float))):
+        return str(value), str(u)
+    if not math.isfinite(u) or u <= 0:
+        return f"{value:.6g}", ("0" if u == 0 else str(u))
+    size = max(abs(value), u)
+    if not math.isfinite(size) or SCIENTIFIC_BELOW <= size < SCIENTIFIC_FROM:
+        d = significant(u)
+        return f"{value:.{d}f}", f"{u:.{d}f}"
+    exponent = math.floor(math.log10(size))
+    d = significant(u / 10.0 ** exponent)
+    if round(size / 10.0 ** exponent, d) >= 10.0:   # 9.99996e-5 rounds to 10.000e-5: one place up
+        exponent += 1
+        d = significant(u / 10.0 ** exponent)
+    scale = 10.0 ** exponent
+    return f"{value / scale:.{d}f}e{exponent:+d}", f"{u / scale:.{d}f}e{exponent:+d}"
 
 
 @dataclass

@@ -24,12 +24,36 @@ def test_record_sim_static_writes_csv(tmp_path):
     out = tmp_path / "x.csv"
     r = run_cli("record", "sim://still?seed=1&pace=fast", "--seconds", "2", "-o", str(out))
     assert r.returncode == 0, r.stderr
-    assert r.stdout == "" and r.stderr == ""  # not on a terminal: nothing but the file
+    # stdout stays empty; stderr, a pipe here, still says what was kept
+    assert r.stdout == "" and r.stderr.count("\n") == 1
+    assert r.stderr.startswith("accelrig record: kept ") and f"in {out}; no samples lost" in r.stderr
     lines = [l for l in out.read_text().splitlines() if not l.startswith("#")]
     assert lines[0] == "t,ax,ay,az"
     rec = read_csv(out)
     assert abs(len(rec) - 2 * 200 * 1.004) <= 2
     assert rec.duration < 2.0
+
+
+def test_record_into_a_pipe_shows_progress_lines_and_says_what_was_lost(tmp_path, monkeypatch, capsys):
+    """A piped or logged record is not silent for minutes: whole progress lines, then one summary."""
+    import accelrig.commands.record as record_command
+
+    monkeypatch.setattr(record_command, "LOG_PROGRESS_SECONDS", 0.0)   # a line at every progress call
+    out = tmp_path / "lossy.csv"
+    assert main(["record", "sim://still?seed=4&pace=fast&rate=1000&block=50&drop=0.2", "--seconds", "3",
+                 "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert "\r" not in captured.err   # a log gets whole lines, not a line rewritten in place
+    progress = [line for line in lines if line.endswith("gaps)")]
+    assert progress and all(line.startswith("accelrig record: ") and " Hz  missing " in line for line in progress)
+    summary = lines[-1]
+    rec = read_csv(out)
+    missing = sum(g["missing"] for g in rec.meta["gaps"])
+    assert missing > 0
+    assert summary.startswith(f"accelrig record: kept {len(rec)} samples (") and f" Hz) in {out}; " in summary
+    assert summary.endswith(f"{missing} samples lost in {len(rec.meta['gaps'])} gaps (kept as gaps, never filled in)")
 
 
 def test_unknown_scheme_one_line_error():

@@ -465,6 +465,10 @@ def test_the_verdict_judges_the_mean_radius_at_the_k_it_states():
     assert verdict_for(radius, RADIUS, 0.0, 3, k=2.0)[0] == "does not hold"
     verdict, reason = verdict_for(radius, RADIUS, 0.0, 3, k=2.3)
     assert verdict == "holds" and "(k = 2.30)" in reason
+    # the verdict's u is rounded as every figure is (two significant digits): a fine crank's u of 0.04 um was
+    # written "u 0.0000 mm"
+    verdict, reason = verdict_for(Estimate(RADIUS + 1e-8, 4.04e-8, "m"), RADIUS, 0.0, 3)
+    assert verdict == "holds" and f"radius from the measured motion {RADIUS * 1e3 + 1e-5:.6f} mm (u 0.000040 mm" in reason
 
 
 def _flexing_crank_steps(resonance_hz, speeds=(4.0, 7.0, 10.0), seconds=1.0, seed=0):

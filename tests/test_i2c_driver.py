@@ -219,6 +219,7 @@ def test_cli_records_from_an_emulated_chip_and_reports_a_missing_bus_in_one_line
     rec = read_csv(out)
     assert rec.meta["chip"] == "mpu9250" and rec.meta["nominal_rate"] == 2048.0
     assert abs(len(rec) - 2 * 2048 * 1.004) <= 2
+    assert capsys.readouterr().err.startswith(f"accelrig record: kept {len(rec)} samples")   # what was recorded
     assert main(["record", "i2c://97/0x68?chip=mpu9250", "--seconds", "1", "-o", str(tmp_path / "no.csv")]) == 3
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot open I2C bus 97" in err[0]

@@ -88,6 +88,16 @@ def test_u_is_rounded_to_two_significant_digits_and_the_value_with_it():
     assert format_value(1234.5, 23.0) == ("1234", "23")
 
 
+def test_tiny_numbers_share_a_power_of_ten_with_their_u():
+    """Below 1e-3 the value and u are written with one exponent, u still to two significant digits."""
+    assert format_value(0.000001315, 0.0000000123) == ("1.315e-6", "0.012e-6")
+    assert format_value(0.000333313, 0.000000055) == ("3.33313e-4", "0.00055e-4")
+    assert format_value(-2.5e-5, 3.04e-5) == ("-2.5e-5", "3.0e-5")          # the larger of the two sets it
+    assert format_value(9.9996e-5, 2.1e-7) == ("1.0000e-4", "0.0021e-4")    # not a mantissa of 10.000
+    assert format_value(0.0012, 0.000015) == ("0.001200", "0.000015")     # from 1e-3 up: plain decimals
+    assert format_value(12345000.0, 23.0) == ("1.2345000e+7", "0.0000023e+7")
+
+
 def test_static_certificate_holds_device_method_hash_every_parameter_and_warnings(static_run):
     result, rec = static_run
     src = from_result(result, rec, device=DEVICE)

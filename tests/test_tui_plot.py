@@ -74,3 +74,26 @@ def test_result_arrays_are_drawn_against_their_time_or_frequency_with_units():
     label, series = plot_series("pose_means", arrays)
     assert label == "pose number" and series[0].x.tolist() == [1, 2, 3, 4, 5, 6] and len(series) == 3
     assert ARRAY_UNITS["speed_samples"] == "rad/s" and ARRAY_UNITS["residuals"] == "m/s²"
+
+
+def test_a_title_wider_than_the_plot_wraps_and_the_x_axis_stays_on_screen():
+    """At 80 columns the results' plot title and legend take two rows: the dots give one up, not the x axis."""
+    from textual.geometry import Region
+
+    async def run():
+        app = PlotApp()
+        async with app.run_test(size=(76, 10)) as pilot:
+            plot = app.query_one("#plot")
+            plot.styles.height = 10
+            plot.title = "|a| − g per pose (m/s²): after should sit near 0  (1/1, n: next)"
+            plot.x_label = "time (s), middle of each pose"
+            x = np.linspace(1.89, 64.9, 12)
+            plot.set_series([Series(x, np.sin(x), "red", "before"), Series(x, np.cos(x), "green", "after")])
+            await pilot.pause()
+            # what the screen shows, after Textual has laid the widget's text into its 76 x 10 cells
+            shown = ["".join(segment.text for segment in strip) for strip in plot.render_lines(Region(0, 0, 76, 10))]
+            assert shown[0].rstrip().endswith("━ before") and shown[1].strip() == "━ after"
+            assert "1.89" in shown[-1] and "64.9" in shown[-1] and "time (s), middle of each pose" in shown[-1]
+            assert all(len(line.rstrip()) <= 76 for line in shown)
+
+    asyncio.run(run())

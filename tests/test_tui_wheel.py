@@ -45,6 +45,16 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         assert speeds.size >= 40 and times[-1] > 25.0
         assert np.polyfit(times, speeds, 1)[0] < 0 and speeds[-1] < 0.9 * speeds[0]
         results = app.screen
+        # the method's cross-axis limit is said with the checks: the warnings hold only what this run showed
+        assert "cross-axis" not in str(results.query_one("#results-warnings").render())
+        assert "cross-axis:" in str(results.query_one("#results-checks").render())
+        # each axis's row is named by its axis as the table draws it (a str cell was read as markup: "gain[x]"
+        # showed as "gain", three times)
+        from textual.widgets._data_table import default_cell_formatter
+
+        table = results.query_one("#parameters")
+        shown = [default_cell_formatter(table.get_row_at(i)[0]).plain for i in range(table.row_count)]
+        assert shown[:6] == ["gain[x]", "gain[y]", "gain[z]", "offset[x]", "offset[y]", "offset[z]"]
         await wait_for(pilot, lambda: results.profile is not None)
         await pilot.press("s")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))

@@ -66,6 +66,7 @@ def text_report(result) -> str:
     """What a person reads: every still pose and its fate, parameters with k = 1 uncertainties, the
     correction, what the uncertainty holds, warnings."""
     from accelrig.report.checks import check_lines
+    from accelrig.report.html import format_value, scalar_estimates
 
     q = result.quality
     lines = [f"static calibration: model {result.model}, method {result.method}, "
@@ -78,9 +79,9 @@ def text_report(result) -> str:
                      f"{r['angle_deg']:5.1f} deg  "
                      f"{r['fate']:10s}  {fit}")
     lines.append("parameters (standard uncertainty, k = 1): " + result.parameter_meaning)
-    for name, est in result.parameters.items():
-        value, unc, unit = est.for_display()
-        lines.append(f"  {name:10s} {value:+.6f} +- {unc:.6f} {unit}")
+    for label, v, u, unit in scalar_estimates(result.parameters):   # rounded as the TUI and certificate do
+        value, unc = format_value(v, u)
+        lines.append(f"  {label:<20} {value:>14} +- {unc:<12} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C @ (raw - b)")
     for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):

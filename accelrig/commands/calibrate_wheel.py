@@ -76,25 +76,23 @@ def _human(result) -> str:
     import numpy as np
 
     from accelrig.report.checks import check_lines
+    from accelrig.report.html import format_value, scalar_estimates
 
     q = result.quality
     lines = [f"wheel calibration, method {result.method}: {q['n_samples']} samples, {q['duration_s']:.1f} s, "
              f"{q['turns']:.1f} turns, residual rms {q['residual_rms']:.4f} m/s^2"]
     lines.append(f"parameters: {result.parameter_meaning}")
-    lines.append("parameter            value                          uncertainty (k=1)")
-    for name, est in result.parameters.items():
-        if isinstance(est.value, list):
-            value = " ".join(f"{v:+.6g}" for v in est.value)
-            unc = " ".join(f"{u:.2g}" for u in est.uncertainty)
-        else:
-            value, unc = f"{est.value:+.6g}", f"{est.uncertainty:.2g}"
-        lines.append(f"{name:<20} {value:<30} {unc} {est.unit}")
+    lines.append(f"{'parameter':<20} {'value':>14} {'u (k=1)':>12}")
+    for label, v, u, unit in scalar_estimates(result.parameters):   # rounded as the TUI and certificate do
+        value, unc = format_value(v, u)
+        lines.append(f"{label:<20} {value:>14} {unc:>12} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C (raw - b)")
-    lines.append("  C diag " + " ".join(f"{x:.6f}" for x in np.diag(c.matrix))
-                 + "   u " + " ".join(f"{x:.2g}" for x in np.diag(c.matrix_uncertainty)))
-    lines.append("  b      " + " ".join(f"{x:+.5f}" for x in c.bias)
-                 + "   u " + " ".join(f"{x:.2g}" for x in c.bias_uncertainty) + " m/s^2")
+    diag = [format_value(float(v), float(u)) for v, u in zip(np.diag(c.matrix), np.diag(c.matrix_uncertainty),
+                                                              strict=True)]
+    bias = [format_value(float(v), float(u)) for v, u in zip(c.bias, c.bias_uncertainty, strict=True)]
+    lines.append("  C diag " + " ".join(v for v, _ in diag) + "   u " + " ".join(u for _, u in diag))
+    lines.append("  b      " + " ".join(v for v, _ in bias) + "   u " + " ".join(u for _, u in bias) + " m/s²")
     lines += [f"{what}: {sentence}" for what, sentence in check_lines(result.to_json_dict())]
     lines.append(f"fit time {q['time_s']:.2f} s")
     for w in result.warnings:

@@ -20,6 +20,9 @@ SINGLE_FILE_SUFFIXES = (".csv", ".npz", ".parquet")
 # is built); beyond this many samples (17 min at 2048 Hz, under 100 MB) it is refused up
 # front, or an open-ended recording stops there: a folder of segments holds any length.
 IN_MEMORY_SAMPLES = 1 << 21
+# stderr that is not a terminal (a pipe, a log, a CI job) gets whole progress lines this often: a person
+# reading the log sees the recording advance, and a long run does not fill the log
+LOG_PROGRESS_SECONDS = 10.0
 
 
 def register(sub, groups) -> None:
@@ -27,8 +30,9 @@ def register(sub, groups) -> None:
         "record",
         description="Record a device to disk. Samples stream to segment files as they arrive (memory stays "
         "bounded however long it runs); Ctrl+C (or SIGTERM) stops and keeps everything recorded so far. "
-        "On a terminal a progress line is shown, and at the end where the samples went; nothing but the output "
-        "is written otherwise.",
+        "Progress goes to stderr (a line updated in place on a terminal, a whole line every "
+        f"{LOG_PROGRESS_SECONDS:.0f} s when stderr is a pipe or a log), and at the end one line says what was "
+        "kept: samples, duration, rate, file and any samples the link lost; stdout stays empty.",
     )
     p.add_argument("url", help="device URL, e.g. 'sim://static?seed=1' or replay://run.csv")
     length = p.add_mutually_exclusive_group()
@@ -84,11 +88,17 @@ def run(args) -> int:
         for report in recover(directory):   # a record into this directory that was killed
             print(f"accelrig record: {report}", file=sys.stderr)
     show = sys.stderr.isatty()
+    next_log = [time.monotonic() + LOG_PROGRESS_SECONDS]
 
     def progress(p: Recorder) -> None:
-        sys.stderr.write(
-            f"\r{p.samples} samples  {p.seconds:7.2f} s  {p.rate:8.1f} Hz  missing {p.missing} ({p.gap_events} gaps)  "
-        )
+        line = f"{p.samples} samples  {p.seconds:7.2f} s  {p.rate:8.1f} Hz  missing {p.missing} ({p.gap_events} gaps)"
+        if show:   # one line rewritten in place
+            sys.stderr.write(f"\r{line}  ")
+        elif time.monotonic() >= next_log[0]:   # a pipe or a log: whole lines, now and then
+            sys.stderr.write(f"accelrig record: {line}\n")
+            next_log[0] += LOG_PROGRESS_SECONDS
+        else:
+            return
         sys.stderr.flush()
 
     def make_writer(info) -> SegmentWriter:
@@ -128,7 +138,7 @@ def run(args) -> int:
     stopped_by = None
     try:
         try:
-            recorder.take_until(pull, args.seconds, limit, progress if show else None)
+            recorder.take_until(pull, args.seconds, limit, progress)
         except KeyboardInterrupt:
             stopped_by = "Ctrl+C"
     finally:
@@ -140,6 +150,9 @@ def run(args) -> int:
             sys.stderr.write("\n")
     kept = f"{recorder.samples} samples ({recorder.seconds:.2f} s)"
     from accelrig.recording import link_loss_warning
+
+    lost = (f"{recorder.missing} samples lost in {recorder.gap_events} gaps (kept as gaps, never filled in)"
+            if recorder.missing or recorder.gap_events else "no samples lost")
 
     loss = link_loss_warning(recorder.samples, recorder.missing, recorder.gap_events)
     if loss is not None:
@@ -156,11 +169,12 @@ def run(args) -> int:
         print(f"accelrig record: stopped at {IN_MEMORY_SAMPLES} samples, the most a {output.suffix} file holds; "
               f"kept {kept} in {output} (record into a folder, -o DIR, for longer)", file=sys.stderr)
     if stopped_by:
-        print(f"accelrig record: stopped by {stopped_by}; kept {kept} in {output}", file=sys.stderr)
+        print(f"accelrig record: stopped by {stopped_by}; kept {kept} in {output}; {lost}", file=sys.stderr)
         # Ctrl+C is how an open-ended recording ends; cutting a requested length short is not success
         return 0 if args.seconds is None and args.samples is None else 130
-    if show:   # a person at a terminal sees where it went; a script gets the output alone
-        print(f"accelrig record: kept {kept} in {output}", file=sys.stderr)
+    # said on a terminal and in a log alike: a piped record is otherwise silent for its whole length
+    print(f"accelrig record: kept {recorder.samples} samples ({recorder.seconds:.2f} s at {recorder.rate:.1f} Hz) "
+          f"in {output}; {lost}", file=sys.stderr)
     return 0
 
 

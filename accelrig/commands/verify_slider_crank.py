@@ -87,6 +87,7 @@ def coverage_text(k: float, dof: float | None) -> str:
 def format_report(result) -> str:
     """Human-readable frequency response table and verdict (mm and degrees at the edge)."""
     from accelrig.procedures.slider_crank.analysis import COVERAGE_FACTOR_LABELS
+    from accelrig.result import format_value
 
     v = result.details
     lines = [
@@ -115,10 +116,11 @@ def format_report(result) -> str:
     # three k, three questions (analysis.coverage_factors): say which is which, once
     lines.extend(f"{COVERAGE_FACTOR_LABELS.get(key, key)}: {text}" for key, text in v.get("coverage_factors", {}).items())
     r = result.parameters["radius"]
+    value_mm, u_mm = format_value(r.value * 1e3, r.uncertainty * 1e3)   # as the TUI and certificate round it
     lines.append(
-        f"radius from the motion: {r.value * 1e3:.4f} +- {r.uncertainty * 1e3:.4f} mm (k = 1) over steps "
+        f"radius from the motion: {value_mm} +- {u_mm} mm (k = 1) over steps "
         f"{', '.join(str(i + 1) for i in v['used_steps'])}, chi2 = {v['radius_chi2']:.2f} for {v['radius_dof']} dof; "
-        f"expanded U = {v.get('radius_k', 2.0) * r.uncertainty * 1e3:.4f} mm at k = "
+        f"expanded U = {format_value(r.value * 1e3, v.get('radius_k', 2.0) * r.uncertainty * 1e3)[1]} mm at k = "
         f"{coverage_text(v.get('radius_k', 2.0), v.get('radius_nu_eff'))}"
     )
     lines.append(

@@ -57,6 +57,9 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
     coast = q.get("coast")
     if isinstance(coast, dict) and coast.get("note"):   # the wheel: the part of the record the fit used
         lines.append(("coast", str(coast["note"])))
+    cross_axis = q.get("cross_axis")
+    if isinstance(cross_axis, dict) and cross_axis.get("note"):   # the wheel: what its method cannot see
+        lines.append(("cross-axis", str(cross_axis["note"])))
     tilt_p = q.get("tilt_p_value")
     if "chi2" in q and "dof" in q and q["chi2"] is not None:
         sentence = _lack_of_fit_sentence(q["chi2"], q["dof"], q.get("p_value"))

@@ -16,7 +16,7 @@ from html import escape
 from accelrig import __version__
 from accelrig.report.checks import check_lines
 from accelrig.report.source import METHOD_REFERENCES, Source
-from accelrig.result import Estimate
+from accelrig.result import Estimate, format_value
 
 DEFAULT_K = 2.0
 CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
@@ -34,25 +34,6 @@ white-space:nowrap}.kv th{width:48mm}.warn{color:#8a3b00}.verdict-fail{color:#a0
 figcaption{font-size:9pt;color:#333}.note{font-size:9pt;color:#333}
 @page{size:A4;margin:12mm}
 """
-
-
-def significant(u: float, digits: int = 2) -> int:
-    """Decimals that show ``u`` to ``digits`` significant digits (the value is shown to the same place)."""
-    if not math.isfinite(u) or u <= 0:
-        return 6
-    return max(0, digits - 1 - math.floor(math.log10(u)))
-
-
-def format_value(value: float, u: float) -> tuple[str, str]:
-    """The value and its uncertainty, rounded together (GUM 7.2.6: u to two significant digits)."""
-    if not (isinstance(value, (int, float)) and isinstance(u, (int, float))):
-        return str(value), str(u)
-    if not math.isfinite(u) or u <= 0:
-        return f"{value:.6g}", ("0" if u == 0 else str(u))
-    if abs(value) >= 1e6 or u < 1e-9:
-        return f"{value:.6e}", f"{u:.2e}"
-    d = significant(u)
-    return f"{value:.{d}f}", f"{u:.{d}f}"
 
 
 def _plain(value) -> str:
@@ -82,11 +63,11 @@ def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1) -> str
 
 def scalar_estimates(estimates: dict[str, Estimate]) -> list[tuple[str, float, float, str]]:
     """(label, value, u, unit) per scalar, as shown: a vector estimate gives one row per axis, angles in
-    degrees (Estimate.for_display), the unit with a superscript square."""
+    degrees (Estimate.for_display), the unit's powers as superscripts."""
     rows = []
     for name, estimate in estimates.items():
         values, uncs, unit = estimate.for_display()
-        unit = unit.replace("^2", "²")
+        unit = unit.replace("^2", "²").replace("^3", "³").replace("^4", "⁴")
         if isinstance(values, list):
             labels = [f"{name}[{a}]" for a in ("x", "y", "z")] if len(values) == 3 else [
                 f"{name}[{i}]" for i in range(len(values))]

@@ -13,7 +13,8 @@ def test_record_with_heavy_loss_says_so_on_stderr_and_in_the_file(cli, tmp_path)
     result = cli("record", "sim://still?pace=fast&drop=0.5&seed=4", "--samples", "3000", "-o", out)
     assert result.returncode == 0
     lines = result.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("accelrig: warning: the link lost ")
+    assert len(lines) == 2 and lines[0].startswith("accelrig: warning: the link lost ")
+    assert lines[1].startswith("accelrig record: kept ") and " samples lost in " in lines[1]
     rec = load_recording(out)
     assert rec.meta["lost_share"] > 0.3 and rec.meta["lost_samples"] > 1000
     assert any("the link lost" in w for w in rec.meta["warnings"])
@@ -22,7 +23,8 @@ def test_record_with_heavy_loss_says_so_on_stderr_and_in_the_file(cli, tmp_path)
 def test_light_loss_stays_quiet(cli, tmp_path):
     out = tmp_path / "ok.csv"
     result = cli("record", "sim://still?pace=fast&seed=4", "--samples", "3000", "-o", out)
-    assert result.returncode == 0 and result.stderr == ""
+    assert result.returncode == 0 and result.stderr.startswith("accelrig record: kept 3000 samples")
+    assert result.stderr.count("\n") == 1   # the summary alone: no warning
     assert load_recording(out).meta["lost_share"] <= LOSS_WARN_SHARE
 
 

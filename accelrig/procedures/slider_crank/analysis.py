@@ -61,7 +61,7 @@ from accelrig.estimation.stats import robust_sd
 from accelrig.procedures.slider_crank.motion_fit import CrankMotionFit, fit_crank_motion
 from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
 from accelrig.recording import Recording, count_scale
-from accelrig.result import CalibrationResult, Estimate
+from accelrig.result import CalibrationResult, Estimate, format_value
 from accelrig.units import saturated
 
 MIN_STEP_SAMPLES = 64
@@ -1570,7 +1570,8 @@ def verdict_for(radius: Estimate, crank_radius: float, clearance: float, n_used:
         return "inconclusive", f"only {n_used} step(s) where the motor followed steadily: need at least 2"
     lo, hi = crank_radius - clearance, crank_radius + clearance
     bounds = f"[{lo * 1e3:.3f}, {hi * 1e3:.3f}] mm" if clearance > 0 else f"{crank_radius * 1e3:.3f} mm"
-    measured = f"{radius.value * 1e3:.4f} mm (u {radius.uncertainty * 1e3:.4f} mm at k = 1)"
+    value_mm, u_mm = format_value(radius.value * 1e3, radius.uncertainty * 1e3)   # u to 2 digits, not 0.0000
+    measured = f"{value_mm} mm (u {u_mm} mm at k = 1)"
     if abs(radius.value - crank_radius) > clearance + k * radius.uncertainty:
         return "does not hold", (f"radius from the measured motion {measured} lies outside the caliper radius "
                                  f"{bounds} by more than k u (k = {k:.2f})")

@@ -181,10 +181,13 @@ def calibrate_wheel(
                             + MOUNTING_HINT)
     assumed = ("the datasheet +-2 % cross-axis sensitivity as a uniform bound"
                if cross_axis_sd == DEFAULT_CROSS_AXIS_SD else "given with --cross-axis-sd")
-    warnings.append(
-        "the wheel does not observe cross-axis terms (the sensor's own axis misalignment is absorbed in the "
-        f"mounting rotation): the correction's off-diagonal entries are set to 0 with an assumed prior sd of "
-        f"{cross_axis_sd:.3g} ({assumed}); a static calibration measures them")
+    # a limit of the method, the same on every run: stated with the checks (quality.cross_axis), as the coast
+    # and the local gravity are, so that the warnings hold only what this record showed
+    quality["cross_axis"] = {
+        "observed": False, "prior_sd": float(cross_axis_sd),
+        "note": "the wheel does not observe cross-axis terms (the sensor's own axis misalignment is absorbed in "
+                f"the mounting rotation): the correction's off-diagonal entries are 0 with an assumed prior sd of "
+                f"{cross_axis_sd:.3g} ({assumed}), carried in their u; a static calibration measures them"}
     if coast is not None:
         quality["coast"] = coast
     result = _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,

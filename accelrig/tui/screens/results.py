@@ -300,20 +300,21 @@ class ResultsScreen(Screen):
         table = self.query_one("#parameters", DataTable)
         table.add_columns("parameter", "value", "u (k=1)", "unit")
         for label, value, uncertainty, unit in scalar_estimates(self.result.parameters):
-            table.add_row(label, *format_value(value, uncertainty), unit)
+            # escaped: a str cell is read as markup, and "gain[x]" lost its "[x]" (three rows named "gain")
+            table.add_row(*(escape(cell) for cell in (label, *format_value(value, uncertainty), unit)))
         if self.result.details.get("poses"):
             table = self.query_one("#poses", DataTable)
             table.add_columns("pose", "from s", "to s", "n", "face", "off °", "fate", "|g| resid.")
             for r in self.result.details["poses"]:
                 fit = f"{r['magnitude_residual']:+.4f}" if "magnitude_residual" in r else str(r.get("reason", ""))
                 table.add_row(str(r["index"]), f"{r['start']:.2f}", f"{r['stop']:.2f}", str(r["n"]), str(r["face"]),
-                              f"{r['angle_deg']:.1f}", str(r["fate"]), fit)
+                              f"{r['angle_deg']:.1f}", escape(str(r["fate"])), escape(fit))
         for key, rows in self.quality_tables():
             table = self.query_one(f"#quality-{key}", DataTable)
             columns = list(rows[0])
             table.add_columns(*columns)
             for row in rows:
-                table.add_row(*[cell_text(row.get(c)) for c in columns])
+                table.add_row(*[escape(cell_text(row.get(c))) for c in columns])
         self.show_plot()
         try:
             from accelrig.profiles import profile_from_result

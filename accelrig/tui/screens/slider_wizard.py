@@ -22,7 +22,7 @@ from accelrig.procedures.slider_crank.procedure import SliderCrankProcedure
 from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
 from accelrig.report.checks import check_lines
-from accelrig.result import to_plain
+from accelrig.result import format_value, to_plain
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.results import result_views
 from accelrig.tui.screens.wizard import ProcedureWizard
@@ -130,7 +130,8 @@ class VerificationScreen(Screen):
             yield Static("\n".join(f"[b]{what}:[/b] {escape(sentence)}"
                                    for what, sentence in check_lines(self.verification.to_json_dict())),
                          id="verification-checks")
-            yield Static(f"radius from the motion {r.value * 1e3:.4f} ± {r.uncertainty * 1e3:.2g} mm "
+            value_mm, u_mm = format_value(r.value * 1e3, r.uncertainty * 1e3)
+            yield Static(f"radius from the motion {value_mm} ± {u_mm} mm "
                          f"(k = 1, chi² {v['radius_chi2']:.3g} for {v['radius_dof']} dof; judged at "
                          f"k = {v.get('radius_k', 2.0):.2f}); caliper "
                          f"{v['crank_radius_m'] * 1e3:g} ± {v['clearance_m'] * 1e3:g} mm"

@@ -178,7 +178,9 @@ class ProcedureWizard(Screen):
                 yield ProgressBar(total=1.0, show_eta=False, id="progress")
             yield Static("", id="wizard-stream")
             yield Static("", id="wizard-alarm")
-            yield RichLog(id="events", max_lines=200, wrap=True, markup=True)
+            # min_width 1: RichLog renders at least 78 columns by default, wider than the log at 80x24, and
+            # cropped the rest of each long line ("radius 6.3495 ± 0.00093 mm" read "± 0.00")
+            yield RichLog(id="events", max_lines=200, wrap=True, markup=True, min_width=1)
         yield KeyFooter()
 
     def on_mount(self) -> None:

@@ -8,6 +8,7 @@ series share a cell the one drawn last wins.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,14 +51,12 @@ class LinePlot(Widget):
     def render(self) -> Text:
         width, height = self.size.width, self.size.height
         label_width = 8
-        plot_w, plot_h = max(width - label_width, 1), max(height - 2, 1)
         text = Text(no_wrap=True, overflow="crop")
-        header = Text(self.title, style="bold")
-        for s in self.series:
-            if s.label:
-                header.append("  ")
-                header.append("━ " + s.label, style=s.style)
-        text.append_text(header)
+        # a title and legend wider than the plot take the rows they need, and the dots give them up: a header
+        # left to wrap by itself pushed the x axis row (its range and label) off the bottom at 80 columns
+        header = header_lines(self.title, [(s.label, s.style) for s in self.series if s.label], max(width, 1))
+        plot_w, plot_h = max(width - label_width, 1), max(height - 1 - len(header), 1)
+        text.append_text(Text("\n").join(header))
         finite = [s for s in self.series if s.x.size]
         if not finite:
             text.append("\n(no data yet)", style="dim")
@@ -116,6 +115,21 @@ class LinePlot(Widget):
             text.append("\n")
         text.append(" " * label_width + x_axis_row(x0, x1, self.x_label, plot_w), style="dim")
         return text
+
+
+def header_lines(title: str, legend: list[tuple[str, str]], width: int) -> list[Text]:
+    """The title (bold, wrapped at its spaces) and then the legend's "━ label" entries, packed into lines of
+    at most ``width`` cells; an entry starts a new line rather than being split."""
+    lines = [Text(line, style="bold") for line in textwrap.wrap(title, width) or [""]]
+    for label, style in legend:
+        entry = "━ " + label
+        line = lines[-1]
+        if line.plain and line.cell_len + 2 + len(entry) > width:
+            lines.append(line := Text())
+        if line.plain:
+            line.append("  ")
+        line.append(entry[:width], style=style)
+    return lines
 
 
 def _tick(value: float) -> str:
