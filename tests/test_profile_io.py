@@ -144,7 +144,14 @@ def _edit(data: dict, dotted: str, value) -> dict:
     return data
 
 
-_DELETE = object()
+class _Deleted:
+    """The edit that removes a key; a fixed repr keeps the test ids the same in every process (pytest-xdist)."""
+
+    def __repr__(self) -> str:
+        return "(deleted)"
+
+
+_DELETE = _Deleted()
 
 # (edit, expected message fragment): each must be refused naming the field.
 MALFORMED = [

@@ -128,8 +128,9 @@ def draw_poses(rng, c_mat, bias, kind, table_deg, hand_deg):
     return poses, np.array(downs)
 
 
-def run_scenario(name, runs, seed):
-    """Per model: errors, stated u and bound sd per correction entry; the entries compared."""
+def run_scenario(name, runs, seed, models=None):
+    """Per model: errors, stated u and bound sd per correction entry; the entries compared.
+    ``models`` (names) keeps only those fits (the same draws, whichever are kept); None runs them all."""
     kind, table_deg, hand_deg, stated = SCENARIOS[name]
     rng = np.random.default_rng(seed)
     out = {}
@@ -154,6 +155,8 @@ def run_scenario(name, runs, seed):
             }
             bounds = {"six-face affine": b_aff, "six-face paper": b_pap, "ferraris": b_aff, "exact-face paper": b_pap}
         for model, fit_fn in fits.items():
+            if models is not None and model not in models:
+                continue
             t0 = time.perf_counter()
             try:
                 fit = fit_fn()
