@@ -50,6 +50,11 @@ AXES = ("x", "y", "z")
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
+def opposite_face(face: str) -> str:
+    """'+z' -> '-z': the face of the same axis on the other side."""
+    return ("-" if face[0] == "+" else "+") + face[1:]
+
+
 def parse_axis(spec: str) -> tuple[int, float] | None:
     """'x', '+y', '-z' -> (index, sign); None if ``spec`` names no axis."""
     text = str(spec).strip().lower().replace(" ", "+")

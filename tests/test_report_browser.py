@@ -77,7 +77,9 @@ def test_pdf_prints_and_pdftoppm_counts_its_pages(tmp_path):
     assert pdf.read_bytes().startswith(b"%PDF")
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(pdf), str(tmp_path / "page")], check=True, timeout=120)
     pages = sorted(tmp_path.glob("page*.png"))
-    # A4 at 12 mm margins: the static certificate's tables fill two pages, the figure a third at most
-    assert 2 <= len(pages) <= 3, len(pages)
+    # A4 at 12 mm margins: the static certificate's tables fill two to three pages (the wizard's fifteen holds:
+    # more checks to state, and an axis whose shape went unchecked adds its allowance sentence), the figure a
+    # page at most
+    assert 2 <= len(pages) <= 4, len(pages)
     # each page is a page of the certificate, not a blank sheet
     assert all(p.stat().st_size > 1000 for p in pages)

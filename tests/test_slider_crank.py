@@ -521,7 +521,8 @@ def test_play_taken_up_where_the_link_force_reverses_is_backlash_too():
 def test_a_still_recording_is_refused_as_no_crank_motion_not_judged(tmp_path):
     """Six faces held by hand fit a slow 'sine' from gravity turning (0.05 Hz, thousands of times r w^2):
     that is no crank's motion, and the verdict must not blame the motor or the clearance."""
-    with driver_for("sim://static?seed=5&pace=fast") as driver:
+    # twelve holds (about 70 s): the wizard's fifteen fit a sine too slow to hold 1.5 cycles, refused for that first
+    with driver_for("sim://static?seed=5&pace=fast&order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z,+x,+y") as driver:
         still = record(driver)
     with pytest.raises(DataError) as refused:
         verify_slider_crank([("six-face.csv", still)], crank_radius=0.00635, rod_length=0.0353)

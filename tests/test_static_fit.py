@@ -117,7 +117,8 @@ def test_end_to_end_on_the_simulator_matches_truth():
     assert np.all(np.abs(result.correction.matrix - c_mat) < 4 * result.correction.matrix_uncertainty + 1e-12)
     assert np.all(np.abs(result.correction.bias - bias) < 4 * result.correction.bias_uncertainty)
     assert result.quality["noise_sd"] == pytest.approx(0.05, rel=0.05)
-    assert result.quality["n_poses"] == 12 and len(result.quality["faces"]) == 12   # six faces, three again twice
+    # six faces, three again twice, their opposites once more
+    assert result.quality["n_poses"] == 15 and len(result.quality["faces"]) == 15
     # calibrated poses read g on the face axis
     for row in result.quality["faces"]:
         assert row["residual_norm"] < 5 * 0.05 / np.sqrt(row["n"]) * 3

@@ -79,7 +79,7 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     proc = StaticProcedure(rec.rate)
     events = proc.feed(rec) + proc.finish()
     again = [e.message for e in events if e.data["kind"] == "again"]
-    assert again[-1].startswith("drift check, last round: now put +z, +x and +y down once more (the same faces")
+    assert again[-1].startswith("drift check, round 2 of 3: now put +z, +x and +y down once more (the same faces")
     assert proc.faces["again_round"] == 2 and proc.faces["again_missing"] == ["+z", "+x", "+y"]
     assert proc.done and not proc.complete
     result = proc.result()   # calibrates; names the check of the drift's shape it could not make
@@ -87,17 +87,35 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     assert result.quality["noise"]["drift"]["shape"]["unchecked_axes"] == ["x", "y", "z"]
     assert "drift shape not checked on x, y, z" in result.quality["uncertainty_source"]
 
+    # the second round through (twelve holds): the last asks for the opposite faces once more, and says why;
+    # a result computed here says what its u assumes, naming those faces
+    rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z,+x,+y", seed=4)
+    proc = StaticProcedure(rec.rate)
+    events = proc.feed(rec) + proc.finish()
+    assert "+y is down a third time (the drift check): hold still" in [e.message for e in events]
+    assert events[-1].message.startswith("drift check, last round: now put -z, -x and -y down once more (the "
+                                         "opposite faces), so the fit can test the drift between the holds")
+    assert proc.faces["again_round"] == 3 and proc.faces["third_done"] == ["+z", "+x", "+y"]
+    assert proc.faces["again_missing"] == ["-z", "-x", "-y"] and proc.done and not proc.complete
+    result = proc.result()
+    assert result.quality["dof"] == 0
+    assert "(-z, -x, -y held once more at the end, as the wizard asks" in result.quality["uncertainty_source"]
+
     rec, _, _ = _record("sim://static", seed=4)   # the rig's default is the wizard's whole sequence
     proc = StaticProcedure(rec.rate)
     events = proc.feed(rec) + proc.finish()
     assert events[-1].data["kind"] == "complete" and proc.complete
-    assert "+y is down a third time (the drift check): hold still" in [e.message for e in events]
-    assert proc.faces["again_round"] is None and proc.faces["third_done"] == ["+z", "+x", "+y"]
+    assert "-y is down again (the drift check's last round): hold still" in [e.message for e in events]
+    assert proc.faces["again_round"] is None and proc.faces["opposite_done"] == ["-z", "-x", "-y"]
+    assert proc.faces["n_poses"] == proc.faces["holds_asked"] == 15
     result = proc.result()
     assert result.quality["noise"]["drift"]["checked_axes"] == ["x", "y", "z"]
     assert result.quality["noise"]["drift"]["shape"]["checked_axes"] == ["x", "y", "z"]
     assert "and its curvature on x, y, z" in result.quality["uncertainty_source"]
     assert not any("drift not checked" in w or "shape not checked" in w for w in result.warnings)
+    # the last round leaves the lack-of-fit test degrees of freedom: the drift between the holds is tested
+    assert result.quality["dof"] > 0 and result.quality["noise"]["drift"]["shape"]["fitted"]["tested_between_holds"]
+    assert "follows that curve" not in result.quality["uncertainty_source"]
 
 
 def test_faces_held_once_say_drift_was_not_checked_and_how_much_could_hide():
@@ -245,10 +263,10 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
         if proc.complete:
             break
     assert proc.done and proc.complete and proc.progress == 1.0 and events[-1].kind == "ready"
-    assert len(proc.poses) == 11 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
+    assert len(proc.poses) == 14 and proc.faces["still"] and proc.faces["current_face"] == last["face"]
     assert rec.t[k] < last["stop"] - 1.0   # stopped well before the operator lifted it
     live = proc.result()
-    assert live.quality["n_poses"] == 12 and live.settings["faces"][-1] == last["face"]
+    assert live.quality["n_poses"] == 15 and live.settings["faces"][-1] == last["face"]
     batch = calibrate_static(rec)
     u = batch.correction.bias_uncertainty
     assert np.all(np.abs(live.correction.bias - batch.correction.bias) < 3 * u)

@@ -37,13 +37,13 @@ def test_bad_options_are_refused_with_a_clear_message():
     with pytest.raises(DeviceError, match="not a face"):
         _rig("sim://static?order=+z,+w")
     with pytest.raises(DeviceError, match="pose number"):
-        _rig("sim://static?moved=13")
+        _rig("sim://static?moved=16")
 
 
 def test_handling_is_realistic_smooth_and_a_few_m_s2():
     rig = _rig("sim://static", seed=3)
     transitions = rig.truth()["transitions"]
-    assert len(transitions) == 11   # the default order: six faces, then one of each axis again, twice
+    assert len(transitions) == 14   # the default order: six faces, one of each axis again twice, the opposites
     for tr in transitions:
         assert 1.0 <= tr["stop"] - tr["start"] <= 3.0
         t = np.linspace(tr["start"], tr["stop"], 2000)

@@ -45,7 +45,16 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
         wizard = app.screen_stack[-2]
         assert isinstance(wizard, StaticWizard)
         assert wizard.procedure.faces_done == ["+x", "-x", "+y", "-y", "+z", "-z"]
-        assert wizard.procedure.complete   # computed on its own after the drift check (one face per axis again)
+        # computed on its own after the drift check's three rounds: fifteen holds
+        assert wizard.procedure.complete and wizard.procedure.faces["n_poses"] == 15
+        grid = {face: str(wizard.query_one(f"#face-{face.replace('+', 'p').replace('-', 'm')}").render())
+                for face in ("+z", "-z")}
+        assert "✓✓✓ done" in grid["+z"] and "✓✓ done" in grid["-z"]   # held three times; its opposite twice
+        assert "holds 15 of 15" in str(wizard.query_one("#pose-state").render())
+        # the last round was asked for with its reason, in one line of the log
+        logged = " ".join(" ".join(line.text.split()) for line in wizard.query_one("#events").lines)
+        assert ("drift check, last round: now put -z, -x and -y down once more (the opposite faces), so the "
+                "fit can test the drift between the holds") in logged
         assert wizard.recorder.reader.lost_total == 0
         results = app.screen
         await wait_for(pilot, lambda: bool(results.query("#results-warnings")))   # composed (as in the helper above)
@@ -145,7 +154,8 @@ async def test_results_read_their_checks_and_a_second_save_offers_the_first_file
     from accelrig.acquisition.recorder import record
     from accelrig.procedures.static.procedure import calibrate_static
 
-    with driver_for(DEVICE) as driver:
+    # twelve holds (a file recorded before the wizard's last round): every degree of freedom is taken
+    with driver_for(DEVICE + "&order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z,+x,+y") as driver:
         recording = record(driver)
     result = calibrate_static(recording)
     app = AccelrigApp(device="sim://still?seed=1&pace=fast&seconds=2", refresh_interval=0.05)

@@ -20,7 +20,10 @@ def register(sub, groups) -> None:
         description="Calibrate from a recording of the sensor held still on each of its six faces "
         "(any order, repeats add data), or in at least 9 orientations (multi-position), with handling in "
         "between. Poses are found on the raw data; '+z down' means the +z axis points down (reads -g). "
-        "A pose too far from a face for six-face mode is refused by name; no profile is written then.",
+        "A pose too far from a face for six-face mode is refused by name; no profile is written then. "
+        "The drift check (the TUI wizard's fifteen holds): after the six faces one face of each axis again, "
+        "then the same faces again, then their opposite faces once more; a recording with fewer holds "
+        "calibrates too and says what it could not check.",
     )
     p.add_argument("recording", help="recording (.csv interchange, .npz, or segments: a .parquet file or a directory)")
     add_arguments(p, SETTINGS)

@@ -5,7 +5,7 @@ static rig); a wizard of another kind says the device does not fit and offers it
 first choice, with the settings filled in); the result is saved where the TUI offers (the profile
 store under ACCELRIG_HOME, or beside it for reports).  No device URL is typed in the TUI.  The static
 wizard's test opens the same simulated rig played fast (``accelrig tui --device``, as an operator trying
-the TUI may): at the default's own pace its twelve holds take 70 s of the suite's time.
+the TUI may): at the default's own pace its fifteen holds take 90 s of the suite's time.
 """
 
 import os
@@ -87,8 +87,9 @@ def test_static_wizard_walks_the_whole_sequence_to_a_profile_in_the_store(tmp_pa
     (path,) = stored_profiles(tmp_path)
     calibration = load_profile(path).data["calibration"]
     assert calibration["procedure"] == "static"
-    # the wizard computed when the sequence was through: six faces, then each axis held again, twice
-    assert calibration["settings"]["faces"] == ["+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y"]
+    # the wizard computed when the sequence was through: six faces, each axis held again twice, the opposites
+    assert calibration["settings"]["faces"] == ["+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y",
+                                                "-z", "-x", "-y"]
 
 
 def test_wheel_wizard_offers_its_simulated_rig_and_saves_a_profile(tmp_path):

@@ -10,8 +10,12 @@ again (``again``: a face held twice, far apart in time, is the only check of a
 slow offset drift, ``noise.py`` says why, and each axis needs its own), then
 those three faces once more (the second round): a face seen at three
 well-spaced times shows the drift's shape, not only its straight line (a
-thermal cycle that has come back by the second hold).  Six faces are enough to
-compute (``faces_done``); the sequence is complete with both rounds
+thermal cycle that has come back by the second hold); then the opposite faces
+once more (the last round): per axis the three holds of one face and the two of
+its opposite fix offset, gain, drift rate and curvature with a degree of freedom
+to spare, so a drift that leaves the curve between the holds can show
+(docs/static.md, "What twelve holds cannot see").  Six faces are enough to
+compute (``faces_done``); the sequence is complete with the three rounds
 (``again_rounds``).
 Fed a whole recording or the same samples in chunks it finds the same poses.
 
@@ -55,10 +59,15 @@ from itertools import pairwise
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.geometry import AXES, FACES
+from accelrig.geometry import AXES, FACES, opposite_face
 from accelrig.procedures.contract import Event
 from accelrig.recording import count_scale
 from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
+
+# Why the drift check's last round is asked for, in the operator's words (the wizard says it too)
+LAST_ROUND_WHY = "so the fit can test the drift between the holds"
+# The holds the guided sequence asks for: the six faces, then the drift check's three rounds of one per axis
+GUIDED_HOLDS = len(FACES) + 3 * len(AXES)
 
 _CHI2_1_MEDIAN = 0.4549364   # median of chi^2 with 1 dof: median(d^2) = 0.455 var(d) for a normal d
 
@@ -190,13 +199,15 @@ class PoseDetector:
         return faces + ([self._seg_face] if self._held_captured and self._seg_flat else [])
 
     @property
-    def again_rounds(self) -> tuple[dict[str, str], dict[str, str]]:
-        """The drift check's two rounds, each axis -> face.  Round 1: per axis, the first face of that axis
+    def again_rounds(self) -> tuple[dict[str, str], dict[str, str], dict[str, str]]:
+        """The drift check's three rounds, each axis -> face.  Round 1: per axis, the first face of that axis
         held after all six faces were done (either face).  Round 2: that same face held once more, after
-        round 1 is through on every axis (so that its three holds are spread over the run)."""
+        round 1 is through on every axis (so that its three holds are spread over the run).  Round 3: the
+        opposite face of round 1's, held once more after round 2 is through on every axis (its second hold, at
+        the end of the run)."""
         seen: set[str] = set()
-        first: dict[str, str] = {}
-        second: dict[str, str] = {}
+        rounds: tuple[dict[str, str], dict[str, str], dict[str, str]] = ({}, {}, {})
+        first, second, third = rounds
         for face in self._flat_faces():
             if len(seen) == len(FACES):
                 axis = face[1]
@@ -204,8 +215,10 @@ class PoseDetector:
                     first[axis] = face
                 elif len(first) == len(AXES) and axis not in second and first[axis] == face:
                     second[axis] = face
+                elif len(second) == len(AXES) and axis not in third and first[axis] == opposite_face(face):
+                    third[axis] = face
             seen.add(face)
-        return first, second
+        return rounds
 
     @property
     def axes_again(self) -> dict[str, str]:
@@ -214,15 +227,19 @@ class PoseDetector:
 
     @property
     def again_round(self) -> int | None:
-        """The drift check's round under way (1 or 2), None once both are through."""
-        first, second = self.again_rounds
-        return 1 if len(first) < len(AXES) else 2 if len(second) < len(AXES) else None
+        """The drift check's round under way (1, 2 or 3), None once all three are through."""
+        for number, done in enumerate(self.again_rounds, start=1):
+            if len(done) < len(AXES):
+                return number
+        return None
 
     @property
     def again_missing(self) -> list[str]:
         """The faces to hold again in the round under way: in round 1 per axis not yet checked the face first
-        held on it; in round 2 the face each axis was held again with in round 1."""
-        first_round, second_round = self.again_rounds
+        held on it; in round 2 the face each axis was held again with in round 1; in round 3 its opposite."""
+        first_round, second_round, third_round = self.again_rounds
+        if len(second_round) == len(AXES):
+            return [opposite_face(face) for axis, face in first_round.items() if axis not in third_round]
         if len(first_round) == len(AXES):
             return [face for axis, face in first_round.items() if axis not in second_round]
         first: dict[str, str] = {}
@@ -234,7 +251,8 @@ class PoseDetector:
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces, then one face of each axis again, twice."""
+        """The guided sequence is through: six faces, then one face of each axis again, twice, then its
+        opposite face once more."""
         return not self.missing_faces and self.again_round is None
 
     @property
@@ -245,9 +263,11 @@ class PoseDetector:
             "faces_done": self.faces_done,
             "n_done": len(self.faces_done),
             "n_poses": len(self.poses) + self._held_captured,
+            "holds_asked": GUIDED_HOLDS,
             "missing": self.missing_faces,
             "again_done": list(self.axes_again.values()),
             "third_done": list(self.again_rounds[1].values()),
+            "opposite_done": list(self.again_rounds[2].values()),
             "again_round": self.again_round,
             "again_missing": self.again_missing,
             "current_face": self._seg_face if self._still and self._seg_flat else None,
@@ -364,8 +384,9 @@ class PoseDetector:
                 events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
                                          "multi-position model; for six faces put one face flat on the table", now))
             elif not self.missing_faces and face in self.again_missing:
-                which = "again" if self.again_round == 1 else "a third time"
-                events.append(pose_event("hold_still", f"{face} is down {which} (the drift check): hold still", now,
+                which = {1: "again (the drift check)", 2: "a third time (the drift check)",
+                         3: "again (the drift check's last round)"}[self.again_round]
+                events.append(pose_event("hold_still", f"{face} is down {which}: hold still", now,
                                          face))
             elif not self.missing_faces and self.again_round == 1 and face[1] not in self.axes_again:
                 events.append(pose_event("hold_still", f"{face} is down again (the drift check): hold still", now, face))
@@ -466,19 +487,23 @@ class PoseDetector:
             return events
         again, round_ = self.again_missing, self.again_round
         if round_ is None:
-            events.append(pose_event("complete", "all six faces captured, and each axis held again twice", now,
-                                     progress=1.0))
+            events.append(pose_event("complete", "all six faces captured, and the drift check's three rounds held",
+                                     now, progress=1.0))
             return events
         names = ", ".join(again[:-1]) + (" and " if len(again) > 1 else "") + again[-1]
+        plural = "s" if len(again) > 1 else ""
         if round_ == 1 and len(again) == 3:
             text = (f"all six faces captured: now put {names} down once more (either face of each axis will "
-                    "do), and after that the same faces once more: held three times, far apart, a face shows "
-                    "whether its offset drifted, steadily or in a curve. c computes without it")
+                    "do), then the same faces once more, then their opposite faces: held far apart, the faces "
+                    "show whether the offsets drifted, steadily or in a curve. c computes without it")
         elif round_ == 1:
             text = f"drift check: now put {names} down once more (either face of each axis will do)"
+        elif round_ == 2:
+            text = (f"drift check, round 2 of 3: now put {names} down once more (the same face{plural} "
+                    "again). c computes without it")
         else:
-            text = (f"drift check, last round: now put {names} down once more (the same face"
-                    f"{'s' if len(again) > 1 else ''} again). c computes without it")
+            text = (f"drift check, last round: now put {names} down once more (the opposite face{plural}), "
+                    f"{LAST_ROUND_WHY}. c computes without it")
         events.append(pose_event("again", text, now))
         return events
 

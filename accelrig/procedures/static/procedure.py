@@ -10,7 +10,7 @@ the same poses whichever way it is processed.
     proc.act("redo", face="+x")     forget a face to take it again
     proc.finish()                   the data ended: close the pose in progress
     proc.progress, proc.done        faces done / 6; all six in (enough to compute)
-    proc.complete                   the guided sequence is through: six faces, then one of each axis again
+    proc.complete                   the guided sequence is through: six faces, then the drift check's three rounds
     proc.faces                      the face grid's details (done, held, hold fraction, ...)
     proc.result()                   the CalibrationResult (model and method from the settings)
 
@@ -41,7 +41,7 @@ from accelrig.estimation.gravity_fit import (
     magnitude_z,
 )
 from accelrig.estimation.residuals import ALPHA
-from accelrig.geometry import AXES, FACES
+from accelrig.geometry import AXES, FACES, opposite_face
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
 from accelrig.procedures.static.noise import StillNoise, drift_bend, drift_checks, still_noise
@@ -167,7 +167,7 @@ class StaticProcedure(Procedure):
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces and one of each axis again (the drift check)."""
+        """The guided sequence is through: six faces, then the drift check's three rounds."""
         if self.any_orientation:
             return self.done
         return self.detector.complete
@@ -510,18 +510,21 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
             f"({bend['allowance']['distribution']}: up to {departure:.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
     # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
-    # fewer (none left with the wizard's sequence of six faces and three again, twice)
+    # fewer (none left with six faces and three again, twice; the wizard's last round, the opposite faces once
+    # more, leaves some)
     dof = int(base.quality["dof"]) - m - q
     base.quality["dof"] = dof
+    if q:
+        noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
     if q and dof <= 0:
         # per axis the face held three times and its opposite face fix the offset, the gain, the rate and the
         # curvature exactly: what the parabola misses between and beyond those holds (the run's other holds, the
         # opposite face's) leaves no misfit to see, and the poses' own trends are about 5x too coarse to bound it
         # (docs/static.md, "What twelve holds cannot see"): say what u assumes
-        noise.drift["shape"]["fitted"]["tested_between_holds"] = False
+        opposite = ", ".join(opposite_face(shaped[k]["face"]) for k in sorted(bent, key=lambda k: shaped[k]["times"][0]))
         base.quality["uncertainty_source"] += ("; u assumes the drift follows that curve between the holds: no "
-                                               "degree of freedom is left to test it (-x, -y, -z held once more "
-                                               "at the end would leave some)")
+                                               f"degree of freedom is left to test it ({opposite} held once more "
+                                               "at the end, as the wizard asks, would leave some)")
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 

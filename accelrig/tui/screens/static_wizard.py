@@ -2,7 +2,7 @@
 
 What it adds to the generic wizard: the face grid (which faces are done,
 which one is held, with its progress, and a suggestion for the next; after the six, the faces to
-hold once more for the drift check, in two rounds), the
+hold once more for the drift check, in three rounds), the
 held pose's own progress bar, r for the procedure's 'redo' (asking which
 face), and 'still missing: ...' when c is pressed early.  Settings, events
 ('hold still', 'motion detected', 'captured'), the fit in a worker and the
@@ -24,6 +24,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
+from accelrig.procedures.static.poses import LAST_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
 from accelrig.tui.screens.dialogs import ChoiceScreen
@@ -130,8 +131,11 @@ class StaticWizard(ProcedureWizard):
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
+        elif faces["again_missing"] and faces.get("again_round") == 3:
+            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down once more, "
+                     f"{LAST_ROUND_WHY} (c computes without)")
         elif faces["again_missing"] and faces.get("again_round") == 2:
-            state = (f"[yellow]drift check, last round[/]: put {', '.join(faces['again_missing'])} down once "
+            state = (f"[yellow]drift check, round 2 of 3[/]: put {', '.join(faces['again_missing'])} down once "
                      "more (the same faces), or c to compute without it")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
@@ -139,7 +143,7 @@ class StaticWizard(ProcedureWizard):
         else:
             state = "[green]all six faces done, drift checked[/]: c computes again, r takes a face again"
         self.query_one("#pose-state", Static).update(
-            f"{state}   faces {faces['n_done']}/6   poses {faces['n_poses']}")
+            f"{state}   faces {faces['n_done']}/6   holds {faces['n_poses']} of {faces['holds_asked']}")
 
     async def action_arguments(self, action: str) -> dict | None:
         if self.procedure.any_orientation:

@@ -1,5 +1,6 @@
 """Six face cells: done, being held (with its progress), still to do, or (after the six) to hold again,
-twice (the drift check: held three times, a face shows whether its offset drifted and in what shape)."""
+twice, then the opposite faces once more (the drift check: held three times, a face shows whether its offset
+drifted and in what shape; its opposite held twice lets the fit test the drift between the holds)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ class FaceGrid(Horizontal):
         missing = progress["missing"]
         again_done = set(progress.get("again_done", ()))
         third_done = set(progress.get("third_done", ()))
+        opposite_done = set(progress.get("opposite_done", ()))
         again_missing = progress.get("again_missing", [])
         # the next face: a missing one, then (six done) one to hold again for the drift check
         todo = missing or again_missing
@@ -37,6 +39,8 @@ class FaceGrid(Horizontal):
                 state = "next" if missing else "again next"
             elif face in third_done:
                 state = "✓✓✓ done"
+            elif face in opposite_done:
+                state = "✓✓ done"
             elif face in again_done:
                 state = "✓✓ · again" if face in again_missing else "✓✓ twice"
             elif face in done:
