@@ -29,7 +29,7 @@ def _hostile_profiles(base: str) -> dict[str, tuple[str, str]]:
         "a list": ("- 1\n- 2\n", "expected a mapping"),
         "tab indentation": ("a:\n\t- 1\n", "not valid YAML"),
         "binary": ("\x00\x01\x02", "not valid YAML|not a text file|NUL bytes"),
-        "empty": ("", "expected a mapping"),
+        "empty": ("", "the file is empty"),
         "collection as key": ("? [a, b]\n: 1\n", "must be plain text"),
     }
 
