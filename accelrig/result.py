@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,7 +19,11 @@ def significant(u: float, digits: int = 2) -> int:
     """Decimals that show ``u`` to ``digits`` significant digits (the value is shown to the same place)."""
     if not math.isfinite(u) or u <= 0:
         return 6
-    return max(0, digits - 1 - math.floor(math.log10(u)))
+    decimals = max(0, digits - 1 - math.floor(math.log10(u)))
+    # a u that rounds up into the next decade (0.0999996 -> 0.100) keeps two digits there (0.10)
+    if decimals > 0 and round(u, decimals) >= 10.0 ** (digits - decimals):
+        decimals -= 1
+    return decimals
 
 
 # Numbers this small or this large are written with a power of ten, the value and its u sharing the
@@ -33,8 +38,9 @@ def format_value(value: float, u: float) -> tuple[str, str]:
     the same place); below SCIENTIFIC_BELOW or from SCIENTIFIC_FROM both as mantissa e exponent, one exponent
     (the larger of the two's), so they still line up digit for digit.  Every face (TUI, CLI text,
     certificate, the procedures' own sentences) formats an estimate here."""
-    if not (isinstance(value, (int, float)) and isinstance(u, (int, float))):
+    if not (isinstance(value, numbers.Real) and isinstance(u, numbers.Real)):
         return str(value), str(u)
+    value, u = float(value), float(u)   # numpy's float32 too, rounded like any other
     if not math.isfinite(u) or u <= 0:
         return f"{value:.6g}", ("0" if u == 0 else str(u))
     size = max(abs(value), u)

@@ -238,3 +238,43 @@ def test_check_says_an_empty_store_leaves_a_calibrated_device_recording_nothing(
     assert "output calibrated needs one" in pier and "records nothing" in pier and "no profile at all" in pier
     raw = next(n for n in notes if n.startswith("raw:"))
     assert "records nothing" not in raw
+
+
+def test_a_disk_full_gap_record_the_segment_refuses_is_written_before_the_next_block(tmp_path, monkeypatch):
+    """Writing resumes with a block, but the gap record after it fails: it is retried, at its own time."""
+    import numpy as np
+
+    from accelrig.daemon import device as daemon_device
+    from accelrig.errors import StorageFull
+
+    monkeypatch.setattr(daemon_device, "DISK_RETRY", 0.0)
+    config = parse_config({**MINIMAL, "output": str(tmp_path), "devices": [{"name": "a", "url": "sim://still"}]})
+    runner = daemon_device.DeviceRunner(config.devices[0], config, lambda line: None)
+    runner.directory.mkdir()
+
+    class Writer:
+        full, gap_failures, gaps, samples = True, 0, [], 0
+
+        def write(self, t, counts, channels):
+            if self.full:
+                raise StorageFull("the disk is full")
+            self.samples += len(counts)
+
+        def gap(self, t, samples, cause, seconds=None):
+            if self.gap_failures:
+                self.gap_failures -= 1
+                raise StorageFull("the disk is full")
+            self.gaps.append((t, samples, cause))
+
+    runner.writer = writer = Writer()
+
+    def block(start):
+        return np.arange(start, start + 10, dtype=np.int64) * 5_000_000 + 10**18, np.zeros((10, 3), np.int16)
+
+    runner.write(*block(0), None)         # dropped: the disk is full
+    writer.full, writer.gap_failures = False, 1
+    runner.write(*block(10), None)        # the block goes in, its gap record does not
+    assert writer.samples == 10 and writer.gaps == [] and runner.counts.gaps == 0
+    runner.write(*block(20), None)        # the record is retried first, placed at the first dropped sample
+    assert writer.gaps == [(pytest.approx(1e9), 10, "disk full")] and runner.counts.gaps == 1
+    assert runner.counts.dropped == 10 and runner.counts.written == 20

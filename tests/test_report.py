@@ -349,3 +349,12 @@ def test_pdf_without_a_browser_says_so_and_writes_nothing(static_run, tmp_path, 
     assert main(["report", str(saved), "-o", str(tmp_path / "r.pdf"), "--no-figures"]) != 0
     assert "could not start the browser" in capsys.readouterr().err
     assert not (tmp_path / "r.pdf").exists()
+
+
+def test_format_value_keeps_two_digits_when_u_rounds_into_the_next_decade_and_takes_numpy_floats():
+    import numpy as np
+
+    from accelrig.result import format_value
+
+    assert format_value(1.0, 0.0999996) == ("1.00", "0.10")
+    assert format_value(np.float32(1.23456), np.float32(0.0123)) == ("1.235", "0.012")

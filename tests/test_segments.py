@@ -450,3 +450,22 @@ def test_a_rotation_the_finisher_cannot_finish_stays_pending_until_close(tmp_pat
     assert finisher.close(5.0)
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".parquet", ".parquet"]
     np.testing.assert_array_equal(read_arrays(tmp_path, units="counts")[1], expected(range(50), jitter=False)[1])
+
+
+def test_segments_of_earlier_daemons_name_their_device_as_recordings_do(tmp_path):
+    """Earlier daemons (and collectors keeping what they announced) wrote the device as a dict under
+    "device": read back, it names the device at the top level, where profile checks look."""
+    old = {"device": {"driver": "i2c-sim", "url": "i2c-sim://mpu9250?seed=3", "chip": "mpu9250",
+                      "identity": "i2c-sim-mpu9250-seed3", "range_g": 2.0, "scale": 0.000598, "who_am_i": 0x71,
+                      "requested_rate": 200.0, "nominal_rate": 200.0, "channels": [],
+                      "extra": {"hardware_bias_removed": [0.1, -0.2, 0.3], "firmware": None, "part": "MPU-9250"}},
+           "name": "chip", "time_base": "utc"}
+    with SegmentWriter(tmp_path, stem="chip", meta=old, scale=0.000598) as w:
+        write_blocks(w, range(2))
+    meta = load_recording(tmp_path).meta
+    assert meta["identity"] == "i2c-sim-mpu9250-seed3" and meta["chip"] == "mpu9250" and meta["who_am_i"] == 0x71
+    assert meta["hardware_bias_removed"] == [0.1, -0.2, 0.3] and meta["device"] == "i2c-sim://mpu9250?seed=3"
+    assert meta["device_facts"]["part"] == "MPU-9250" and "hardware_bias_removed" not in meta["device_facts"]
+    from accelrig.recording import check_meta
+
+    check_meta(meta, "read back")   # the recording's own metadata types hold

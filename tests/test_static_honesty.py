@@ -227,6 +227,7 @@ def test_the_last_round_makes_a_drift_between_the_holds_testable():
     fifteen, z = calibrated(DEFAULT_ORDER)   # the wizard's fifteen holds: the same drift in the same run
     assert fifteen.quality["dof"] > 0 and fifteen.quality["noise"]["drift"]["shape"]["fitted"]["tested_between_holds"]
     assert "follows that curve" not in fifteen.quality["uncertainty_source"]
+    assert f"tested with {fifteen.quality['dof']} degrees of freedom" in fifteen.quality["uncertainty_source"]
     assert any(w.startswith("the offset drifted during the run: -x down read") for w in fifteen.warnings)
     assert np.all(np.abs(z) < 2.0)
 

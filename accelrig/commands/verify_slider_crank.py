@@ -107,7 +107,7 @@ def format_report(result) -> str:
             f"| {s['index'] + 1} | {s['frequency_hz']['value']:.5f} | {s['frequency_hz']['uncertainty']:.2g} | "
             f"{s['fft_peak_hz']:.2f} | {s['amplitude']['value']:.4f} | {s['model_amplitude']:.4f} | "
             f"{s['ratio']['value']:.5f} +- {s['ratio']['uncertainty']:.5f} | "
-            f"{s['radius_m']['value'] * 1e3:.4f} | {s['radius_m']['uncertainty'] * 1e3:.4f} | "
+            f"{' | '.join(format_value(s['radius_m']['value'] * 1e3, s['radius_m']['uncertainty'] * 1e3))} | "
             f"{coverage_text(s.get('radius_k', 2.0), s.get('radius_dof'))} | "
             f"{'yes' if s['within_clearance'] else 'NO'} ({s['clearance_k']:.2f}) | "
             f"{'YES' if s['backlash'] else 'no'} | {motor} | {angles} |"

@@ -159,6 +159,7 @@ class DeviceRunner:
         self._thread: threading.Thread | None = None
         self._pending: PendingGap | None = None
         self._disk_full: dict | None = None  # {"since": utc, "samples": n, "next_try": monotonic}
+        self._gap_unwritten: dict | None = None  # a disk-full gap record the segment refused: retried
         self._profile = None
         self._bytes_closed = 0
         self._segments_closed = 0
@@ -526,6 +527,8 @@ class DeviceRunner:
             self._pending = None
             seconds = float(t[0]) - p.since_utc if p.since_utc is not None else None
             self._write_gap(int(t_ns[0]), p.samples, p.cause, seconds)
+        if self._gap_unwritten is not None:
+            self._retry_gap_record()
         full = self._disk_full
         if full is not None and time.monotonic() < full["next_try"]:
             self._drop(t, n)    # not yet time to try again
@@ -558,11 +561,22 @@ class DeviceRunner:
                       seconds=seconds)
         self.log(f"{self.device.name}: writing again after {full['cause']} "
                  f"({full['samples']} samples dropped over {seconds:.1f} s)")
+        self._gap_unwritten = {"since": full["since"], "samples": full["samples"], "cause": full["cause"],
+                               "seconds": seconds}
+        self._retry_gap_record()
+
+    def _retry_gap_record(self) -> bool:
+        """Write the disk-full gap record the segment refused (placed by its own time, so a later
+        write still puts it where the samples went missing); True once it is in."""
+        g = self._gap_unwritten
         try:
-            self.writer.gap(full["since"], full["samples"], full["cause"], seconds)
-            self.counts.gaps += 1
-        except StorageError as exc:   # the journal has it
-            self.log(f"{self.device.name}: gap record not written ({exc}); the journal has it")
+            self.writer.gap(g["since"], g["samples"], g["cause"], g["seconds"])
+        except StorageError as exc:   # the journal has it; tried again before the next block
+            self.log(f"{self.device.name}: gap record not written yet ({exc}); the journal has it")
+            return False
+        self.counts.gaps += 1
+        self._gap_unwritten = None
+        return True
 
     def gap(self, t_ns: int, samples: int, cause: str, seconds: float | None = None) -> None:
         """A gap the driver reported (or a reader overrun, which a lossless reader never has)."""
@@ -612,6 +626,10 @@ class DeviceRunner:
     # ------------------------------------------------------------------ ending
     def _record_drops(self) -> None:
         """Before a writer closes: the gap record of samples dropped and not yet recorded."""
+        if self._gap_unwritten is not None and self.writer is not None and not self._retry_gap_record():
+            g, self._gap_unwritten = self._gap_unwritten, None   # its journal line was written when it ended
+            self.log(f"{self.device.name}: the {g['cause']} gap record ({g['samples']} samples) could not be "
+                     "written to the segment; the journal has it")
         full = self._disk_full
         if full is None or self.writer is None:
             return

@@ -516,6 +516,14 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     base.quality["dof"] = dof
     if q:
         noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
+        noise.drift["shape"]["fitted"]["dof_between_holds"] = max(dof, 0)
+    if q and dof > 0:
+        # the wizard's last round leaves a few degrees of freedom: enough to see a drift that leaves the curve at
+        # the opposite face, not one that is back on it at every hold (docs/static.md: a bump back to zero at
+        # every +x hold left b_x 3.9 u off, unwarned, on fifteen holds): u still assumes that much
+        base.quality["uncertainty_source"] += (
+            f"; the drift's curve between the holds is tested with {dof} degree{'s' if dof != 1 else ''} of "
+            "freedom: a drift that is back on the curve at every hold would still go unseen")
     if q and dof <= 0:
         # per axis the face held three times and its opposite face fix the offset, the gain, the rate and the
         # curvature exactly: what the parabola misses between and beyond those holds (the run's other holds, the

@@ -467,6 +467,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     schur = c - projection @ b
     g_all = xs.sum(axis=0) - projection @ js.sum(axis=0)
     scores = xs - js @ projection.T
+    as_noise = None
     if correlated and n // (4 * block) < N_ANGLE + MIN_BLOCKS:
         # Correlated noise, or a structure locked to the wheel angle?  A large one (an axis that nods) is as
         # correlated in time as a slow noise, and the batch means that noise asks for leave too few blocks to test
@@ -479,6 +480,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         left = _whiteness_without_angle(t, residuals, state, free, time_scale, g, full_normal, scores_all.sum(axis=0))
         shorter = _block_for(left, any(w.correlated for w in left), period)
         if shorter * STRUCTURE_BLOCK_RATIO < block:
+            as_noise = (white, correlated, block, scores_all)   # back if no structure is found after all
             white, correlated, block = left, any(w.correlated for w in left), shorter
             low = LowSums(n, p + q)
             _, scores_all = _pass(t, v, state, state, free, time_scale, g, weight, np.zeros(N_ALL), block, low=low)
@@ -535,6 +537,10 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     keep = list(range(p)) + [p + i for i in taken]
     moved, extra_step = state, np.zeros(N_ALL)
     segments = drifting
+    if not taken and as_noise is not None:
+        # the shorter blocks assumed an angle-locked structure that the tests did not find: the residuals of
+        # the model as fitted are the noise, with the blocks their own correlation asks for
+        white, correlated, block, scores_all = as_noise
     correlated_before = correlated
     if taken:
         moved, extra_step = _take_in(t, v, state, free, time_scale, g, weight, taken, residuals)
@@ -567,6 +573,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
                                            1.0 / weight)
         widened = sandwich + low_cov
         growth = float(np.sqrt(np.max(np.diag(widened)[:p] / np.diag(sandwich)[:p])))
+        full_cov = widened
         cov = widened[:p, :p]
         worst = max(white if correlated else white_before, key=lambda w: w.tau)
         seen = ("the residuals are correlated in time" if correlated else
@@ -596,10 +603,12 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         dof = residuals.size - len(keep)
         ratio = np.sum((residuals * weight) ** 2, axis=0) / (dof / 3)
         middle = np.einsum("k,kij->ij", ratio, normal[:, keep][:, :, keep])
-        cov = (full_inv @ middle @ full_inv)[:p, :p]
+        full_cov = full_inv @ middle @ full_inv
+        cov = full_cov[:p, :p]
         block_used, blocks_used = None, None
         source = "covariance of the joint maximum-likelihood fit with the structure found (residuals white)"
     else:
+        full_cov = full_inv
         cov = full_inv[:p, :p]
         block_used, blocks_used = None, None     # white: no batch means
         source = "covariance of the joint maximum-likelihood fit ((J^T W J)^-1, the CRB at the estimate): residuals white"
@@ -633,8 +642,11 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         # an axis that nods: the half the wobble shows is in the model; the other half, as large, is not (see
         # nod_allowance), and u includes what it could do, in any direction
         half = nod_half(extra_step[play])
+        # the half's own noise (it is an estimate: a true 0.1 deg nod reads 0.02-0.16 deg): where its four
+        # coefficients sit among the fitted columns, for their covariance
+        rotation2 = [keep.index(p + play[j]) for j in PLAY_ROTATIONS[2:6]]
         turn = _unseen_nod_half(t, moved, state, free, time_scale, g, weight, keep, segments, full_inv)
-        allowance, move = nod_allowance(half, turn)
+        allowance, move = nod_allowance(half, turn, full_cov[np.ix_(rotation2, rotation2)])
         nod_deg = float(np.degrees(2.0 * half))
         nod_move_over_u = float(np.max(move / np.sqrt(np.diag(cov))))
         cov = cov + allowance
@@ -718,17 +730,26 @@ def nod_half(play: np.ndarray) -> float:
     return float(np.hypot((a[0] + a[3]) / 2.0, (a[1] - a[2]) / 2.0))
 
 
-def nod_allowance(half: float, turn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nod_allowance(half: float, turn: np.ndarray, half_cov: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The covariance (p, p) and the largest move per parameter (p,) of a constant gravity turn of size ``half``
-    (rad) in an unknown direction, ``turn`` (p, 2) the move per rad about the wheel's x and y axes.
+    (rad) in an unknown direction, ``turn`` (p, 2) the move per rad about the wheel's x and y axes; ``half_cov``
+    (4, 4) the covariance of harmonic 2's coefficients (a0, a1, a2, a3 of ``nod_half``) the half was read from.
 
     A nod back and forth (bearing play: the axis tilts once per turn in one plane) splits into two equal halves;
     the half the wobble shows gives the other's size, not its direction (that depends on the plane the axis nods
     in and the nod's phase, which the model cannot see), so the direction is taken uniform: GUM type B, the move
     half (bx cos psi + by sin psi), covariance half^2 (bx bx' + by by') / 2.  A nod that cones (the axis turning
-    round against the wheel) shows less of itself than this assumes; one turning with it, more."""
-    allowance = half**2 * (np.outer(turn[:, 0], turn[:, 0]) + np.outer(turn[:, 1], turn[:, 1])) / 2.0
-    return allowance, half * np.hypot(turn[:, 0], turn[:, 1])
+    round against the wheel) shows less of itself than this assumes; one turning with it, more.
+
+    The half is an estimate: its two components u = (a0 + a3) / 2, v = (a1 - a2) / 2 carry the fit's noise, so
+    the size squared the allowance uses is their mean given the data, half^2 + tr cov(u, v) (a flat prior on
+    (u, v)), not the reading alone, which runs low as often as high and near the refusal limit left u short."""
+    size2 = half**2
+    if half_cov is not None:
+        to_uv = np.array([[0.5, 0.0, 0.0, 0.5], [0.0, 0.5, -0.5, 0.0]])
+        size2 += float(np.trace(to_uv @ half_cov @ to_uv.T))
+    allowance = size2 * (np.outer(turn[:, 0], turn[:, 0]) + np.outer(turn[:, 1], turn[:, 1])) / 2.0
+    return allowance, np.sqrt(size2) * np.hypot(turn[:, 0], turn[:, 1])
 
 
 def _unseen_nod_half(t, moved: WheelState, reference: WheelState, free: FreeSet, time_scale: float, g: float,
