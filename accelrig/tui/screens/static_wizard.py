@@ -24,7 +24,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
-from accelrig.procedures.static.poses import LAST_ROUND_WHY
+from accelrig.procedures.static.poses import LAST_ROUND_WHY, OPPOSITE_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
 from accelrig.tui.screens.dialogs import ChoiceScreen
@@ -132,11 +132,11 @@ class StaticWizard(ProcedureWizard):
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
         elif faces["again_missing"] and faces.get("again_round") == 3:
-            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down once more, "
+            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down a third time, "
                      f"{LAST_ROUND_WHY} (c computes without)")
         elif faces["again_missing"] and faces.get("again_round") == 2:
             state = (f"[yellow]drift check, round 2 of 3[/]: put {', '.join(faces['again_missing'])} down once "
-                     "more (the same faces), or c to compute without it")
+                     f"more (the opposite faces), {OPPOSITE_ROUND_WHY} (c computes without)")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
                      "(either face of each axis), or c to compute without it")
