@@ -24,7 +24,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
-from accelrig.procedures.static.poses import LAST_ROUND_WHY, OPPOSITE_ROUND_WHY
+from accelrig.procedures.static.poses import LAST_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
 from accelrig.tui.screens.dialogs import ChoiceScreen
@@ -135,8 +135,9 @@ class StaticWizard(ProcedureWizard):
             state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down a third time, "
                      f"{LAST_ROUND_WHY} (c computes without)")
         elif faces["again_missing"] and faces.get("again_round") == 2:
+            # the reason is in the log's line (OPPOSITE_ROUND_WHY): with it this line takes three rows at 80 columns
             state = (f"[yellow]drift check, round 2 of 3[/]: put {', '.join(faces['again_missing'])} down once "
-                     f"more (the opposite faces), {OPPOSITE_ROUND_WHY} (c computes without)")
+                     "more (the opposite faces), or c to compute without it")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
                      "(either face of each axis), or c to compute without it")
