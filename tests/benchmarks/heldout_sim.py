@@ -154,7 +154,7 @@ def write_csv(path: Path, t: np.ndarray | None, columns: dict[str, np.ndarray], 
 
 
 FACES = {"+x": (0, -1), "-x": (0, 1), "+y": (1, -1), "-y": (1, 1), "+z": (2, -1), "-z": (2, 1)}
-WIZARD = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y", "-z", "-x", "-y")   # the TUI wizard's order
+WIZARD = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "-z", "-x", "-y", "+z", "+x", "+y")   # the TUI wizard's order
 
 
 @dataclass

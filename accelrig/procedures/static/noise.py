@@ -316,9 +316,36 @@ def _revisits(noise: StillNoise, readings: np.ndarray, samples, times, faces) ->
 # and last holds to tell a curve from a line: nearer to either end, the departure from the chord is too small
 # against its noise (the three holds would measure a rate twice, not a shape).  And the three must cover at
 # least half the run (first to last pose): a curvature measured over a short stretch, extrapolated to the
-# whole run, would carry its u many times over into the offsets.
+# whole run, would carry its u many times over into the offsets.  Both are in time, not in holds: the wizard
+# ends on the faces held three times (poses.py) so that their holds span 0.7-0.85 of a run held at an even
+# pace, and still over half of one whose six faces took twice as long as the rest.
 MIDDLE_SHARE = (0.2, 0.8)
 SHAPE_MIN_COVER = 0.5
+
+
+def shape_holds(centres: list[float], faces: list[str | None]) -> dict[int, tuple[str, tuple[int, int, int], float]]:
+    """Per axis, the face whose three holds can show the drift's shape (``_shape``), from the poses' centre
+    times: held at least three times, its first and last holds covering at least SHAPE_MIN_COVER of the run
+    (first to last pose centre), the hold nearest the middle of that span at a share w within MIDDLE_SHARE;
+    of several such faces the one with the most central middle hold.  axis index -> (face, (first, middle,
+    last) pose indices, w)."""
+    run = float(max(centres) - min(centres)) if centres else 0.0
+    best: dict[int, tuple[str, tuple[int, int, int], float]] = {}
+    for face in dict.fromkeys(f for f in faces if f is not None):
+        idx = [k for k, f in enumerate(faces) if f == face]
+        if len(idx) < 3:
+            continue
+        t_a, t_b = centres[idx[0]], centres[idx[-1]]
+        if t_b - t_a < SHAPE_MIN_COVER * run:
+            continue
+        j = min(range(1, len(idx) - 1), key=lambda i: abs(centres[idx[i]] - (t_a + t_b) / 2))
+        w = (centres[idx[j]] - t_a) / (t_b - t_a)
+        if not MIDDLE_SHARE[0] <= w <= MIDDLE_SHARE[1]:
+            continue
+        axis = AXES.index(face[1])
+        if axis not in best or abs(w - 0.5) < abs(best[axis][2] - 0.5):
+            best[axis] = (face, (idx[0], idx[j], idx[-1]), w)
+    return best
 
 
 def _shape(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> None:
@@ -331,38 +358,24 @@ def _shape(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> No
     + w^2/n_b), plus the slow-noise wander of the three means.  D is the drift's curvature kappa (m/s^2 per
     s^2) times (t_m - t_a)(t_m - t_b) / 2: a thermal cycle that has come back by the last hold shows here at
     the offsets' own precision (the poses' own trends, ``drift_bend``, are about 5x coarser).  Per axis the
-    face with the most central middle hold is used; the departures are tested together (chi^2, one dof per
-    axis, at ALPHA) and recorded in ``drift["shape"]``; the procedure fits the curvature on these axes
+    face ``shape_holds`` picks is used; the departures are tested together (chi^2, one dof per axis, at
+    ALPHA) and recorded in ``drift["shape"]``; the procedure fits the curvature on these axes
     (``procedure._referred_to_middle``).  Axes held again without such a face are listed as
     ``unchecked_axes``."""
     tau = noise.tau_any
-    run = float(max(np.mean(t) for t in times) - min(np.mean(t) for t in times)) if times else 0.0
+    centres = [float(t.mean()) for t in times]
     best: dict[int, dict] = {}
-    for face in dict.fromkeys(f for f in faces if f is not None):
-        idx = [k for k, f in enumerate(faces) if f == face]
-        if len(idx) < 3:
-            continue
-        centre = [float(times[k].mean()) for k in idx]
-        t_a, t_b = centre[0], centre[-1]
-        if t_b - t_a < SHAPE_MIN_COVER * run:
-            continue
-        j = min(range(1, len(idx) - 1), key=lambda i: abs(centre[i] - (t_a + t_b) / 2))
-        w = (centre[j] - t_a) / (t_b - t_a)
-        if not MIDDLE_SHARE[0] <= w <= MIDDLE_SHARE[1]:
-            continue
-        axis = AXES.index(face[1])
-        a, m, b = idx[0], idx[j], idx[-1]
+    for axis, (face, (a, m, b), w) in shape_holds(centres, faces).items():
+        t_a, t_m, t_b = centres[a], centres[m], centres[b]
         departure = float(readings[m] - readings[a]) - w * float(readings[b] - readings[a])
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[m]) + (1 - w) ** 2 / len(samples[a])
                                                   + w**2 / len(samples[b]))
         var += noise.wander_var * (1 + (1 - w) ** 2 + w**2)
-        shape = (centre[j] - t_a) * (centre[j] - t_b) / 2.0
-        entry = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, centre[j], t_b],
-                 "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
-                 "z": departure / float(np.sqrt(var)),
-                 "curvature": departure / shape, "curvature_u": float(np.sqrt(var)) / abs(shape)}
-        if axis not in best or abs(w - 0.5) < abs(best[axis]["middle_share"] - 0.5):
-            best[axis] = entry
+        shape = (t_m - t_a) * (t_m - t_b) / 2.0
+        best[axis] = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, t_m, t_b],
+                      "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
+                      "z": departure / float(np.sqrt(var)),
+                      "curvature": departure / shape, "curvature_u": float(np.sqrt(var)) / abs(shape)}
     revisited = sorted({r["face"][1] for r in noise.drift.get("revisits", [])})
     found = [best[k] for k in sorted(best)]
     record: dict = {"faces": found, "checked_axes": [e["axis"] for e in found],

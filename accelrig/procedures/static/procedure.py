@@ -510,17 +510,17 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
             f"({bend['allowance']['distribution']}: up to {departure:.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
     # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
-    # fewer (none left with six faces and three again, twice; the wizard's last round, the opposite faces once
-    # more, leaves some)
+    # fewer (none left with six faces and three of them twice again; the wizard's opposite faces once more
+    # leave some)
     dof = int(base.quality["dof"]) - m - q
     base.quality["dof"] = dof
     if q:
         noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
         noise.drift["shape"]["fitted"]["dof_between_holds"] = max(dof, 0)
     if q and dof > 0:
-        # the wizard's last round leaves a few degrees of freedom: enough to see a drift that leaves the curve at
-        # the opposite face, not one that is back on it at every hold (docs/static.md: a bump back to zero at
-        # every +x hold left b_x 3.9 u off, unwarned, on fifteen holds): u still assumes that much
+        # the wizard's opposite faces once more leave a few degrees of freedom: enough to see a drift that leaves
+        # the curve at the opposite face, not one that is back on it at every hold (docs/static.md, "What twelve
+        # holds cannot see": a bump back to zero at every +x hold): u still assumes that much
         base.quality["uncertainty_source"] += (
             f"; the drift's curve between the holds is tested with {dof} degree{'s' if dof != 1 else ''} of "
             "freedom: a drift that is back on the curve at every hold would still go unseen")
@@ -531,8 +531,8 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         # (docs/static.md, "What twelve holds cannot see"): say what u assumes
         opposite = ", ".join(opposite_face(shaped[k]["face"]) for k in sorted(bent, key=lambda k: shaped[k]["times"][0]))
         base.quality["uncertainty_source"] += ("; u assumes the drift follows that curve between the holds: no "
-                                               f"degree of freedom is left to test it ({opposite} held once more "
-                                               "at the end, as the wizard asks, would leave some)")
+                                               f"degree of freedom is left to test it ({opposite} held once more, "
+                                               "as the wizard asks, would leave some)")
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 

@@ -132,11 +132,12 @@ class StaticWizard(ProcedureWizard):
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
         elif faces["again_missing"] and faces.get("again_round") == 3:
-            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down once more, "
+            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down a third time, "
                      f"{LAST_ROUND_WHY} (c computes without)")
         elif faces["again_missing"] and faces.get("again_round") == 2:
+            # the reason is in the log's line (OPPOSITE_ROUND_WHY): with it this line takes three rows at 80 columns
             state = (f"[yellow]drift check, round 2 of 3[/]: put {', '.join(faces['again_missing'])} down once "
-                     "more (the same faces), or c to compute without it")
+                     "more (the opposite faces), or c to compute without it")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
                      "(either face of each axis), or c to compute without it")
