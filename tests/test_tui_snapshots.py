@@ -10,6 +10,7 @@ import asyncio
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
+from tui_support import choose  # noqa: E402
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
 
@@ -70,7 +71,8 @@ def test_static_wizard_done_80x24(snap_compare):
             assert loop.time() < deadline, "the simulated device did not end"
             await pilot.pause(0.05)
         await pilot.pause(0.3)
-        await pilot.press("escape")
+        await pilot.press("escape")   # the profile is not saved: it asks, and the result is discarded
+        await choose(pilot, "discard")
         await pilot.pause(0.5)
 
     assert snap_compare(AccelrigApp(device="sim://static?seed=3&pace=fast", refresh_interval=0.05),
