@@ -24,6 +24,10 @@ from accelrig.report.html import format_value, parameter_rows
 from accelrig.result import to_json
 from report_support import (
     DEVICE,
+    EXAMPLES,
+    certificate_text,
+    example_script,
+    first_difference,
     rotary_campaign_result,
     slider_crank_result,
     static_result,
@@ -358,3 +362,16 @@ def test_format_value_keeps_two_digits_when_u_rounds_into_the_next_decade_and_ta
 
     assert format_value(1.0, 0.0999996) == ("1.00", "0.10")
     assert format_value(np.float32(1.23456), np.float32(0.0123)) == ("1.235", "0.012")
+
+
+def test_the_example_certificates_are_what_the_code_renders_now(static_run, wheel_run, campaign_run):
+    """docs/examples/ holds certificates made by make_certificates.py from these simulated results: their text
+    (not the times, not the drawings) must be what the code renders now.  When this fails after an intended
+    change, run `python docs/examples/make_certificates.py` and commit the files it writes."""
+    make = example_script()
+    pages = make.certificate_pages(static_run, wheel_run, campaign_run[0], figures=False)
+    assert set(pages) == {"certificate-static.html", "certificate-wheel.html", "certificate-rotary-campaign.html"}
+    for name, page in pages.items():
+        stored, rendered = certificate_text((EXAMPLES / name).read_text(encoding="utf-8")), certificate_text(page)
+        assert stored == rendered, (f"docs/examples/{name} is not what the code renders now (run python "
+                                    f"docs/examples/make_certificates.py):\n{first_difference(stored, rendered)}")

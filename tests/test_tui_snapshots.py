@@ -7,9 +7,11 @@ at the SVGs before committing them.
 """
 
 import asyncio
+import re
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
+from tui_support import choose  # noqa: E402
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
 
@@ -70,8 +72,20 @@ def test_static_wizard_done_80x24(snap_compare):
             assert loop.time() < deadline, "the simulated device did not end"
             await pilot.pause(0.05)
         await pilot.pause(0.3)
-        await pilot.press("escape")
+        await pilot.press("escape")   # the profile is not saved: it asks, and the result is discarded
+        await choose(pilot, "discard")
         await pilot.pause(0.5)
+        # two live numbers depend on how many samples the last read took at pace=fast (the wizard stops reading
+        # once it computes): the time the last face was held (4.0-4.6 s) and the samples captured. Pinned here so
+        # the picture tests the layout, not the host's timing
+        wizard = app.screen
+        for selector, live, pinned in (("#pose-state", r"held \d+\.\d of", "held 4.0 of"),
+                                       ("#wizard-stream", r"captured \d+ samples", "captured 17664 samples")):
+            widget = wizard.query_one(selector)
+            text = widget.content   # as given to update(), markup and all
+            assert isinstance(text, str) and re.search(live, text), (selector, text)
+            widget.update(re.sub(live, pinned, text))
+        await pilot.pause(0.2)
 
     assert snap_compare(AccelrigApp(device="sim://static?seed=3&pace=fast", refresh_interval=0.05),
                         terminal_size=(80, 24), run_before=run_wizard)

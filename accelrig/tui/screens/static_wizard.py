@@ -30,6 +30,7 @@ from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, pla
 from accelrig.tui.screens.dialogs import ChoiceScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
 
@@ -46,6 +47,7 @@ class RedoScreen(ModalScreen[str | None]):
         with Vertical(classes="dialog"):
             yield Label("Take which face again? (enter picks, escape cancels)")
             yield OptionList(*[Option(f"{face} down", id=face) for face in self.done], id="redo-faces")
+        yield KeyFooter()   # this dialog's keys, not the wizard's below it
 
     @on(OptionList.OptionSelected, "#redo-faces")
     def picked(self, event: OptionList.OptionSelected) -> None:

@@ -280,9 +280,13 @@ class ProcedureWizard(Screen):
     async def ask_settings(self, filled: dict[str, str] | None = None) -> None:
         """The settings form: what was typed last for this procedure, or ``filled`` (a simulated rig's)."""
         cls = self.procedure_class
-        texts = {**self.app.setting_texts.get(cls.name, {}), **(filled or {})}
+        filled = dict(filled or {})
+        remembered = {name: text for name, text in self.app.setting_texts.get(cls.name, {}).items()
+                      if name not in filled}
         title = f"{cls.title}: settings" + (" (filled in for the simulated rig)" if filled else "")
-        answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, texts, check=self.make_procedure))
+        answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, {**remembered, **filled},
+                                                              check=self.make_procedure, remembered=remembered,
+                                                              filled=filled))
         if answer is None:
             self.app.pop_screen()
             return
@@ -572,6 +576,17 @@ class ProcedureWizard(Screen):
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
         self.results_screen = self.result_screen(result, recording)
         self.app.push_screen(self.results_screen)
+
+    def on_screen_resume(self) -> None:
+        """Back from the results: the headline said "results are shown"; it says what was kept and what
+        can be done now."""
+        shown = self.results_screen
+        if not self.result_shown or shown is None or shown in self.app.screen_stack:
+            return
+        saved = getattr(shown, "saved_path", None)
+        kept = f"saved to {saved}" if saved is not None else "closed without saving"
+        self.set_instruction(f"results {kept}: c shows them again (computed afresh from the captured data), "
+                             "w writes the data, escape leaves")
 
     def action_restart(self) -> None:
         """Start again from a fresh procedure and a reopened device (rig screens bind it to a key)."""
