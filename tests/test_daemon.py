@@ -59,7 +59,7 @@ def wait_until(proc, config_path: Path, condition, timeout: float = 30.0) -> dic
             try:
                 if last is not None and condition({d["name"]: d for d in last["devices"]}):
                     return last
-            except KeyError:   # the socket answers before the daemon has started every device: not yet
+            except KeyError:   # a device not listed (yet, or any more: a reload adds and removes): not yet
                 pass
         time.sleep(0.3)
     raise AssertionError(f"timed out; last status {last}\n{config_path.with_suffix('.log').read_text()}")
@@ -385,3 +385,98 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     waits = [e["retry_in"] for e in journal(out / "gone") if e["event"] == "connect_failed"]
     assert len(waits) >= 2 and waits == [min(2.0 ** i, 60) for i in range(len(waits))]   # exponential backoff
     assert [e["event"] for e in journal(out / "gone")][-1] == "stop"
+
+
+def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_profile_on_reload(tmp_path):
+    """output calibrated, an empty store: the raw counts are recorded anyway and every place says why; the
+    profile filed and SIGHUP, the device restarts calibrated; `profile apply` calibrates the raw stretch."""
+    from accelrig.daemon.status import format_table
+    from accelrig.profiles import load_profile
+    from accelrig.profiles.apply import apply_profile
+    from accelrig.profiles.store import ProfileStore
+    from accelrig.recording import load_recording
+    from accelrig.segments import read_arrays, segment_files
+    from accelrig.units import STANDARD_GRAVITY
+
+    example = Path(__file__).resolve().parents[1] / "profiles" / "example-static_faces-vp.yaml"  # sim seed 11
+    out, store = tmp_path / "out", tmp_path / "store"
+    config = {"output": str(out), "profile_store": str(store), "status_interval": 0, "devices": [
+        {"name": "pier", "url": "sim://still?seed=11&rate=200", "output": "calibrated"},
+        {"name": "strict", "url": "sim://still?seed=11&rate=200", "output": "calibrated",
+         "without_profile": "stop"}]}
+    config_path = tmp_path / "daemon.yaml"
+    proc = start(config, config_path)
+    try:
+        raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed")
+        pier = {d["name"]: d for d in raw["devices"]}["pier"]
+        assert pier["state"] == "recording raw" and pier["profile"] == "none"
+        assert "no profile for 'sim-random-11' in the store" in pier["error"] and "reload" in pier["error"]
+        table = format_table(raw)   # what `daemon status` prints (test_faults_reload_and_term runs the command)
+        assert "recording raw" in table and "pier: recording raw: no profile for 'sim-random-11'" in table
+        ProfileStore(store).add(load_profile(example))
+        proc.send_signal(signal.SIGHUP)
+        wait_until(proc, config_path, lambda d: d["pier"]["state"] == "streaming" and d["pier"]["written"] >= 100)
+        terminate(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    log = config_path.with_suffix(".log").read_text()
+    assert "pier: WARNING: recording raw: no profile for 'sim-random-11'" in log
+    assert "restarted with the profile they lacked: pier" in log
+    assert "strict: stopped: devices[1].profile: no profile for 'sim-random-11'" in log
+    assert [e["event"] for e in journal(out / "pier")].count("recording_raw") == 1
+    gaps, _ = check_accounting(out / "pier", 200)
+    assert [g["cause"] for g in gaps] == ["not recording: restarted: the profile it lacked is there now"]
+    rec = load_recording(out / "pier")   # the raw stretch and the calibrated one, read as one
+    first_calibrated = gaps[0]["index"]
+    assert np.isnan(rec.channels["cal_x"][:first_calibrated]).all()
+    assert not np.isnan(rec.channels["cal_x"][first_calibrated:]).any()
+    first_meta = read_arrays(segment_files(out / "pier")[0])[4]
+    assert first_meta["recording_raw"].startswith("recording raw: no profile for") and first_meta["profile"] is None
+    applied, warnings = apply_profile(load_profile(example), rec)
+    assert warnings == []
+    daemon_cal = np.column_stack([rec.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
+    np.testing.assert_allclose(applied.acc[first_calibrated:], daemon_cal[first_calibrated:], atol=1e-9)
+    assert abs(np.linalg.norm(applied.acc[:first_calibrated].mean(axis=0)) - STANDARD_GRAVITY) < 0.02
+
+
+# The daemon with one device whose start takes a second (as a long recovery of a crashed run's segment would):
+# the same program, started through this wrapper so the delay lands exactly there.
+SLOW_START = """
+import sys, time
+from accelrig.daemon import device
+from accelrig.cli import main
+start = device.DeviceRunner.start
+def slow_start(self):
+    if self.device.name == "slow":
+        time.sleep(1.0)
+    start(self)
+device.DeviceRunner.start = slow_start
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_status_lists_every_configured_device_from_its_first_answer(tmp_path):
+    out = tmp_path / "out"
+    config_path = tmp_path / "daemon.yaml"
+    config_path.write_text(yaml.safe_dump({"output": str(out), "devices": [
+        {"name": "slow", "url": "sim://still?seed=1&rate=200"}, {"name": "next", "url": "sim://still?seed=2&rate=200"}]}))
+    log = open(config_path.with_suffix(".log"), "ab")
+    proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
+                            stdout=log, stderr=log)
+    try:
+        first = None
+        deadline = time.monotonic() + 30
+        while first is None and time.monotonic() < deadline:
+            assert proc.poll() is None, config_path.with_suffix(".log").read_text()
+            first = status_now(out / "daemon.sock") if (out / "daemon.sock").exists() else None
+            time.sleep(0.02)
+        assert first is not None, "the status socket never answered"
+        assert [(d["name"], d["state"]) for d in first["devices"]] == [("slow", "starting"), ("next", "starting")]
+        wait_until(proc, config_path, lambda d: d["slow"]["written"] > 0 and d["next"]["written"] > 0)
+        terminate(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
