@@ -387,9 +387,39 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     assert [e["event"] for e in journal(out / "gone")][-1] == "stop"
 
 
+# The daemon with one device ("pier") whose start takes a second (as a long recovery of a crashed run's segment
+# would): the same program, started through this wrapper so the delay lands exactly there.
+SLOW_START = """
+import sys, time
+from accelrig.daemon import device
+from accelrig.cli import main
+start = device.DeviceRunner.start
+def slow_start(self):
+    if self.device.name == "pier":
+        time.sleep(1.0)
+    start(self)
+device.DeviceRunner.start = slow_start
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def first_status(proc, config_path: Path, timeout: float = 30.0) -> dict:
+    """The status socket's first answer, asked for as soon as the socket is there."""
+    socket = Path(yaml.safe_load(config_path.read_text())["output"]) / "daemon.sock"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, config_path.with_suffix(".log").read_text()
+        answer = status_now(socket) if socket.exists() else None
+        if answer is not None:
+            return answer
+        time.sleep(0.02)
+    raise AssertionError("the status socket never answered")
+
+
 def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_profile_on_reload(tmp_path):
     """output calibrated, an empty store: the raw counts are recorded anyway and every place says why; the
-    profile filed and SIGHUP, the device restarts calibrated; `profile apply` calibrates the raw stretch."""
+    profile filed and SIGHUP, the device restarts calibrated; `profile apply` calibrates the raw stretch.
+    And the status socket lists every configured device from its first answer, while one takes long to start."""
     from accelrig.daemon.status import format_table
     from accelrig.profiles import load_profile
     from accelrig.profiles.apply import apply_profile
@@ -405,8 +435,13 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
         {"name": "strict", "url": "sim://still?seed=11&rate=200", "output": "calibrated",
          "without_profile": "stop"}]}
     config_path = tmp_path / "daemon.yaml"
-    proc = start(config, config_path)
+    config_path.write_text(yaml.safe_dump(config))
+    log = open(config_path.with_suffix(".log"), "ab")
+    proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
+                            stdout=log, stderr=log)
     try:
+        first = first_status(proc, config_path)   # while pier takes a second to start: strict is listed too
+        assert [(d["name"], d["state"]) for d in first["devices"]] == [("pier", "starting"), ("strict", "starting")]
         raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed")
         pier = {d["name"]: d for d in raw["devices"]}["pier"]
         assert pier["state"] == "recording raw" and pier["profile"] == "none"
@@ -440,43 +475,3 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     np.testing.assert_allclose(applied.acc[first_calibrated:], daemon_cal[first_calibrated:], atol=1e-9)
     assert abs(np.linalg.norm(applied.acc[:first_calibrated].mean(axis=0)) - STANDARD_GRAVITY) < 0.02
 
-
-# The daemon with one device whose start takes a second (as a long recovery of a crashed run's segment would):
-# the same program, started through this wrapper so the delay lands exactly there.
-SLOW_START = """
-import sys, time
-from accelrig.daemon import device
-from accelrig.cli import main
-start = device.DeviceRunner.start
-def slow_start(self):
-    if self.device.name == "slow":
-        time.sleep(1.0)
-    start(self)
-device.DeviceRunner.start = slow_start
-sys.exit(main(sys.argv[1:]))
-"""
-
-
-def test_status_lists_every_configured_device_from_its_first_answer(tmp_path):
-    out = tmp_path / "out"
-    config_path = tmp_path / "daemon.yaml"
-    config_path.write_text(yaml.safe_dump({"output": str(out), "devices": [
-        {"name": "slow", "url": "sim://still?seed=1&rate=200"}, {"name": "next", "url": "sim://still?seed=2&rate=200"}]}))
-    log = open(config_path.with_suffix(".log"), "ab")
-    proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
-                            stdout=log, stderr=log)
-    try:
-        first = None
-        deadline = time.monotonic() + 30
-        while first is None and time.monotonic() < deadline:
-            assert proc.poll() is None, config_path.with_suffix(".log").read_text()
-            first = status_now(out / "daemon.sock") if (out / "daemon.sock").exists() else None
-            time.sleep(0.02)
-        assert first is not None, "the status socket never answered"
-        assert [(d["name"], d["state"]) for d in first["devices"]] == [("slow", "starting"), ("next", "starting")]
-        wait_until(proc, config_path, lambda d: d["slow"]["written"] > 0 and d["next"]["written"] > 0)
-        terminate(proc)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
