@@ -433,7 +433,8 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     config = {"output": str(out), "profile_store": str(store), "status_interval": 0, "devices": [
         {"name": "pier", "url": "sim://still?seed=11&rate=200", "output": "calibrated"},
         {"name": "strict", "url": "sim://still?seed=11&rate=200", "output": "calibrated",
-         "without_profile": "stop"}]}
+         "without_profile": "stop"},
+        {"name": "chip", "url": "i2c-sim://mpu9250?rig=still&rate=200&seed=3", "flash": True}]}
     config_path = tmp_path / "daemon.yaml"
     config_path.write_text(yaml.safe_dump(config))
     log = open(config_path.with_suffix(".log"), "ab")
@@ -441,13 +442,23 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
                             stdout=log, stderr=log)
     try:
         first = first_status(proc, config_path)   # while pier takes a second to start: strict is listed too
-        assert [(d["name"], d["state"]) for d in first["devices"]] == [("pier", "starting"), ("strict", "starting")]
-        raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed")
-        pier = {d["name"]: d for d in raw["devices"]}["pier"]
+        assert [(d["name"], d["state"]) for d in first["devices"]] == [
+            ("pier", "starting"), ("strict", "starting"), ("chip", "starting")]
+        raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed"
+                         and d["chip"]["written"] > 0)
+        pier, chip = ({d["name"]: d for d in raw["devices"]}[name] for name in ("pier", "chip"))
+        assert chip["state"] == "recording raw" and chip["error"].endswith(
+            "then reload the daemon (SIGHUP or systemctl reload) to flash its offsets; `accelrig profile apply` "
+            "calibrates what was recorded raw")
         assert pier["state"] == "recording raw" and pier["profile"] == "none"
         assert "no profile for 'sim-random-11' in the store" in pier["error"] and "reload" in pier["error"]
         table = format_table(raw)   # what `daemon status` prints (test_faults_reload_and_term runs the command)
         assert "recording raw" in table and "pier: recording raw: no profile for 'sim-random-11'" in table
+        proc.send_signal(signal.SIGHUP)   # nothing filed yet: pier keeps recording, untouched
+        deadline = time.monotonic() + 20
+        while "pier: still recording raw" not in config_path.with_suffix(".log").read_text():
+            assert time.monotonic() < deadline, config_path.with_suffix(".log").read_text()
+            time.sleep(0.1)
         ProfileStore(store).add(load_profile(example))
         proc.send_signal(signal.SIGHUP)
         wait_until(proc, config_path, lambda d: d["pier"]["state"] == "streaming" and d["pier"]["written"] >= 100)
@@ -461,6 +472,8 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     assert "restarted with the profile they lacked: pier" in log
     assert "strict: stopped: devices[1].profile: no profile for 'sim-random-11'" in log
     assert [e["event"] for e in journal(out / "pier")].count("recording_raw") == 1
+    chip_connect = next(e for e in journal(out / "chip") if e["event"] == "connect")
+    assert chip_connect["flashed"] is None and chip_connect["hardware_bias_removed"] is None   # factory offsets
     gaps, _ = check_accounting(out / "pier", 200)
     assert [g["cause"] for g in gaps] == ["not recording: restarted: the profile it lacked is there now"]
     rec = load_recording(out / "pier")   # the raw stretch and the calibrated one, read as one
