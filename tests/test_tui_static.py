@@ -119,8 +119,9 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         before = driver.chip.read_offset_words()
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
-        question = str(app.screen.query_one("#question").render())
-        assert "Flash plan for" in question and "OFFSET" in question.upper() and "Write to the device?" in question
+        plan = str(app.screen.query_one("#details-text").render())
+        assert "Flash plan for" in plan and "OFFSET" in plan.upper()
+        assert "Write to the device?" in str(app.screen.query_one("#question").render())
         await pilot.press("n")  # cancel: nothing written
         await wait_for(pilot, lambda: "nothing was written" in status(app))
         assert driver.chip.read_offset_words() == before

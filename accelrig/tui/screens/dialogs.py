@@ -27,14 +27,28 @@ def tell(status: Static, text: str) -> None:
     status.app.notify(text, severity="error" if text.startswith("[red]") else "information")
 
 
+DIALOG_TEXT_WIDTH = 66   # a .dialog's 72 columns less its border, padding and a scrollbar
+
+
 class ConfirmScreen(ModalScreen[bool]):
-    """Ask a yes/no question; dismisses with True only on an explicit yes."""
+    """Ask a yes/no question; dismisses with True only on an explicit yes.
 
-    BINDINGS = [Binding("escape", "answer(False)", "No", show=False)]
+    ``details`` (what the answer will do, e.g. a flash plan's register table) scroll above the question
+    when they are taller than the screen leaves them (up/down, page up/down), so their top, the
+    question and the buttons all stay in sight."""
 
-    def __init__(self, question: str, yes: str = "Yes", no: str = "No"):
+    BINDINGS = [
+        Binding("escape", "answer(False)", "No", show=False),
+        Binding("up", "scroll_details(-1)", "Scroll up", show=False),
+        Binding("down", "scroll_details(1)", "Scroll down", show=False),
+        Binding("pageup", "scroll_details(-10)", "Page up", show=False),
+        Binding("pagedown", "scroll_details(10)", "Page down", show=False),
+    ]
+
+    def __init__(self, question: str, yes: str = "Yes", no: str = "No", details: str | None = None):
         super().__init__()
         self.question = question
+        self.details = details
         self.yes, self.no = yes, no
         # the footer names the answers as the buttons do ("y Leave  n Stay")
         self._bindings.bind("y", "answer(True)", yes)
@@ -42,6 +56,9 @@ class ConfirmScreen(ModalScreen[bool]):
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
+            if self.details is not None:
+                with VerticalScroll(id="details"):
+                    yield Static(self.details, id="details-text")
             yield Static(self.question, id="question")
             with Horizontal(classes="dialog-buttons"):
                 yield Button(f"{self.yes} (y)", id="yes", variant="warning")
@@ -50,6 +67,13 @@ class ConfirmScreen(ModalScreen[bool]):
 
     def on_mount(self) -> None:
         self.query_one("#no", Button).focus()  # the safe answer is the default
+        if self.details is not None:
+            self.call_after_refresh(self._say_it_scrolls)
+
+    def _say_it_scrolls(self) -> None:
+        if self.query_one("#details", VerticalScroll).max_scroll_y > 0:
+            self.query_one("#question", Static).update(f"{self.question}  [dim](↑/↓, PgUp/PgDn scroll the text "
+                                                       "above)[/]")
 
     @on(Button.Pressed)
     def pressed(self, event: Button.Pressed) -> None:
@@ -57,6 +81,10 @@ class ConfirmScreen(ModalScreen[bool]):
 
     def action_answer(self, answer: bool) -> None:
         self.dismiss(answer)
+
+    def action_scroll_details(self, lines: int) -> None:
+        if self.details is not None:
+            self.query_one("#details", VerticalScroll).scroll_relative(y=lines, animate=False)
 
 
 class PathScreen(ModalScreen[str | None]):

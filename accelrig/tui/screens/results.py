@@ -27,7 +27,7 @@ from accelrig.recording import Recording
 from accelrig.report.html import format_value, scalar_estimates
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
-from accelrig.tui.screens.dialogs import AsksBeforeClosing, ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.dialogs import DIALOG_TEXT_WIDTH, AsksBeforeClosing, ConfirmScreen, PathScreen, tell
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -497,7 +497,8 @@ class ResultsScreen(AsksBeforeClosing, Screen):
 
     @work(exclusive=True, group="flash-confirm")
     async def confirm_flash(self, plan: FlashPlan) -> None:
-        if await self.app.push_screen_wait(ConfirmScreen(escape(format_plan(plan)) + "\nWrite to the device?", "Write", "Cancel")):
+        plan_text = escape(format_plan(plan, width=DIALOG_TEXT_WIDTH))
+        if await self.app.push_screen_wait(ConfirmScreen("Write to the device?", "Write", "Cancel", details=plan_text)):
             self.set_status("writing ...")
             self.write_flash(plan)
         else:
