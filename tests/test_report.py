@@ -341,6 +341,28 @@ def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_on
     assert figures == [] and "hash differs" in missing[0]
 
 
+def test_a_relative_recording_name_finds_the_calibrated_file_beside_the_profile(static_run, tmp_path, monkeypatch):
+    """Calibrated in a folder as 'six.csv', reported from its parent, which holds another six.csv: the file
+    whose hash is the profile's is used (the first found was, and the figure was refused)."""
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    rec = static_run[1]
+    (tmp_path / "lab").mkdir()
+    write_csv(rec, tmp_path / "lab" / "six.csv")
+    monkeypatch.chdir(tmp_path / "lab")
+    rec = load_recording("six.csv")
+    save_profile(profile_from_result(calibrate_static(rec), rec), tmp_path / "lab" / "p.yaml")
+    text = (tmp_path / "lab" / "six.csv").read_text().splitlines()
+    text[-1] = ",".join(text[-1].split(",")[:-1] + ["9.0"])
+    (tmp_path / "six.csv").write_text("\n".join(text) + "\n")   # another recording of that name, one up
+    monkeypatch.chdir(tmp_path)
+    figures, missing = figures_for(load_source("lab/p.yaml"))
+    assert missing == [] and len(figures) == 1
+
+
 def test_pdf_without_a_browser_says_so_and_writes_nothing(static_run, tmp_path, monkeypatch, capsys):
     result, _ = static_run
     saved = tmp_path / "r.json"

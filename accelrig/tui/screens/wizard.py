@@ -51,7 +51,7 @@ from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.profiles.flash import flash_url_profile
-from accelrig.recording import save_recording
+from accelrig.recording import loss_warning, save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 from accelrig.tui.widgets.keys import KeyFooter
 
@@ -559,6 +559,10 @@ class ProcedureWizard(Screen):
             self.app.call_from_thread(self.fit_failed, generation, str(exc))
             return
         recording = self.recorder.recording()
+        # heavy link loss says so in the result (and the profile) as the CLI's commands say it (warn_loss):
+        # the status line's drop count is gone once the results are up
+        if (loss := loss_warning(recording)) is not None and loss not in result.warnings:
+            result.warnings.append(loss)
         self.app.call_from_thread(self._show, generation, result, recording)
 
     def fit_failed(self, generation: int, message: str) -> None:
