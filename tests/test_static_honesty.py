@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from accelrig.cli import main
-from accelrig.errors import DataError
+from accelrig.errors import CalibrationError, DataError
 from accelrig.procedures.static.procedure import calibrate_static
 from accelrig.recording import Recording
 from accelrig.sim.device import simulate
@@ -42,6 +42,21 @@ def test_ar1_noise_widens_u_by_its_correlation_time_and_says_so():
     assert np.all((ratio > 3.0) & (ratio < 6.5))                  # sqrt(19) = 4.4
     assert not any("moved" in row["reason"] for row in r.details["poses"])   # not misread as motion
     assert all(len(row["noise"]["tau_samples"]) == 3 for row in r.details["poses"] if row["fate"] == "used")
+
+
+def test_noise_that_outlasts_the_holds_is_named_in_the_warning_and_the_refusal():
+    """AR(1) 0.997 at 200 Hz (a memory of about 3 s): the correlation still runs at a quarter of the shortest hold,
+    so tau is a lower bound and the poses' u too small; a wander that holds through a pose also reads as a tilt,
+    and main refused such a run as "poses more than 0.5 degrees from a face"."""
+    kept, _, _ = _record(0, ar1=0.997)
+    result = calibrate_static(kept, pose_flatness_deg=0.1, g_u=0.0)
+    assert any(w.startswith("the noise wanders more slowly than a hold can show") and "settle" in w
+               for w in result.warnings)
+    assert result.quality["noise"]["axes"]["x"]["resolved"] is False
+    refused, _, _ = _record(3, ar1=0.997)
+    with pytest.raises(CalibrationError, match="^the noise wanders more slowly than a hold can show") as caught:
+        calibrate_static(refused, pose_flatness_deg=0.1, g_u=0.0)
+    assert "from a face" in caught.value.message and "settle" in caught.value.hint
 
 
 def test_each_axis_keeps_its_own_noise():

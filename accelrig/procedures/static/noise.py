@@ -155,7 +155,7 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     """Check the still samples of the poses used (raw m/s^2, (n, 3) each, with their times).  The faces held
     again are checked once a first fit's calibration reads them free of the hand's tilt (``drift_checks``)."""
     centred = [x - x.mean(axis=0) for x in samples]
-    axes = [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
+    axes = pooled_axes(samples)
     dof = sum(len(c) - 1 for c in centred)
     sd = np.sqrt(sum(np.sum(c**2, axis=0) for c in centred) / max(dof, 1))
     per_pose = [[whiteness(c[:, k]) if len(c) >= 10 else None for k in range(3)] for c in centred]
@@ -165,7 +165,45 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
     _unchecked(noise, times, faces)
+    _memory(noise, times)
     return noise
+
+
+SETTLE_HINT = ("let the sensor settle at a steady temperature (powered, still) before calibrating, or hold each "
+               "face several times longer")
+
+
+def slow_memory(axes: list[Whiteness], times: list[np.ndarray]) -> str | None:
+    """What to say when the noise's correlation outlasts what a pose can show (``Whiteness.resolved``), else None.
+
+    tau is read over lags up to a quarter of the shortest pose; when the correlation still runs there, tau is
+    a lower bound, each pose mean's u (from n / tau) too small, and neighbouring poses share the wander, so
+    their scatter around the fit does not show it either (held-out AR(1) noise with a 3-10 s memory: errors of
+    up to 15 u, and poses refused as tilted off their face: a wander that holds through a pose reads as a tilt)."""
+    slow = [axis for axis, w in zip(AXES, axes, strict=True) if w.correlated and not w.resolved]
+    if not slow or not times:
+        return None
+    worst = max((w for w in axes if not w.resolved), key=lambda w: w.tau)
+    shortest = float(min(t[-1] - t[0] for t in times))
+    return (f"the noise wanders more slowly than a hold can show ({', '.join(slow)}): its correlation still runs at "
+            f"lag {worst.window} (a quarter of the shortest hold, {shortest:.1f} s), so its integrated time is more "
+            f"than the {worst.tau:.0f} samples measured there")
+
+
+def pooled_axes(samples: list[np.ndarray]) -> list[Whiteness]:
+    """``pooled_whiteness`` of each axis over the poses' samples, each pose's own mean removed."""
+    centred = [x - x.mean(axis=0) for x in samples]
+    return [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
+
+
+def _memory(noise: StillNoise, times: list[np.ndarray]) -> None:
+    """Warn when the noise outlasts a pose (``slow_memory``): no u is right then, the warning names the cause."""
+    said = slow_memory(noise.axes, times)
+    if said is None:
+        return
+    worst = max((w for w in noise.axes if not w.resolved), key=lambda w: w.tau)
+    noise.drift["memory"] = {"window": worst.window, "tau_lower_bound": worst.tau}
+    noise.warnings.append(f"{said}, and each pose mean's u may be too small: {SETTLE_HINT}")
 
 
 def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) -> None:

@@ -44,7 +44,15 @@ from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES, opposite_face
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
-from accelrig.procedures.static.noise import StillNoise, drift_bend, drift_checks, still_noise
+from accelrig.procedures.static.noise import (
+    SETTLE_HINT,
+    StillNoise,
+    drift_bend,
+    drift_checks,
+    pooled_axes,
+    slow_memory,
+    still_noise,
+)
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
@@ -225,12 +233,22 @@ class StaticProcedure(Procedure):
             self._require_six_faces(set())   # says which faces were held and why they did not count
         stats = [PoseStats.from_samples(p.samples, p.face, f"pose {k}") for k, p in used]
         model = self.model
-        if model == "auto":
-            model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
+        # a wander that holds through a pose reads as a tilt: when the noise outlasts the holds, a pose found off
+        # its face is refused naming the noise, not the placement
+        slow = slow_memory(pooled_axes([p.samples for _, p in used]), [p.t for _, p in used])
+        try:
+            if model == "auto":
+                model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
+        except CalibrationError as exc:
+            if slow is None:
+                raise
+            raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
         if model != "multi-position":
             try:
                 tilts = check_faces(stats, self.pose_flatness_deg, self.detector.g)
             except CalibrationError as exc:
+                if slow is not None:
+                    raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
                 raise CalibrationError(exc.message, "use --model multi-position or place the face flat") from None
             self._require_six_faces({t.face for t in tilts})
             for s, tilt in zip(stats, tilts, strict=True):

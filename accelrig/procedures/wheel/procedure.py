@@ -192,6 +192,11 @@ def calibrate_wheel(
         quality["coast"] = coast
     result = _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
                            elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
+    few = checks.few_blocks if method == "joint" else None
+    if few is not None and few.few:
+        # u rests on few batch-means blocks: its expanded form takes Student's t on their dof (residuals.FewBlocks)
+        result.details["coverage_factor"] = few.coverage_factor
+        result.details["coverage_dof"] = few.dof
     if origin:
         # t, theta0 and the speed law count from the free coast's first sample
         result.settings["time_origin"] = f"first sample of the free coast, {origin:.3f} s after the recording's first"
