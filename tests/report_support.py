@@ -58,9 +58,9 @@ def write_batch_profiles(directory, start_time: str | None = None) -> dict:
 def wheel_result(seed: int = 11, seconds: float = 40.0):
     from accelrig.procedures.wheel.procedure import calibrate_wheel
 
-    rig = WheelRig(duration=seconds)
+    rig = WheelRig(duration=seconds, rest=5.0, push=2.0)   # as the wizard records: still, a push, the coast
     sensor = SensorModel(range_g=4.0, noise_density=SensorModel.noise_density_for_sd(0.08, 200.0))
-    rec = simulate(rig, sensor, SimClock(200.0), seconds=seconds, seed=seed)
+    rec = simulate(rig, sensor, SimClock(200.0), seconds=rig.duration, seed=seed)
     return calibrate_wheel(rec, radius=rig.radius), rec
 
 

@@ -48,7 +48,7 @@ def test_noise_that_outlasts_the_holds_is_named_in_the_warning_and_the_refusal()
     """AR(1) 0.997 at 200 Hz (a memory of about 3 s): the correlation still runs at a quarter of the shortest hold,
     so tau is a lower bound and the poses' u too small; a wander that holds through a pose also reads as a tilt,
     and main refused such a run as "poses more than 0.5 degrees from a face"."""
-    kept, _, _ = _record(0, ar1=0.997)
+    kept, _, _ = _record(2, ar1=0.997)
     result = calibrate_static(kept, pose_flatness_deg=0.1, g_u=0.0)
     assert any(w.startswith("the noise wanders more slowly than a hold can show") and "settle" in w
                for w in result.warnings)
