@@ -188,6 +188,21 @@ def wheel_conditions() -> list[Condition]:
         # bearing's own shape is not known (issue 18): warned or refused "the wheel's axis nods"
         ("bearing play: axis nods 0.5 deg per turn", WheelCase(wobble_deg=0.5), ("nods", "bearing")),
         ("bearing play: axis nods 1.5 deg per turn", WheelCase(wobble_deg=1.5), ("nods", "bearing")),
+        # the axis moving in other ways (the wheel's attitude built from rotations, its acceleration differentiated,
+        # the nod's plane drawn at random): a refusal must name the axis or the bearing
+        ("moving axis: nods 0.2 deg once per turn, any plane", WheelCase(axis_deg=0.2), ("nods", "bearing", "axis")),
+        ("moving axis: nods 0.05 deg twice per turn", WheelCase(axis_deg=0.05, axis_per_turn=2),
+         ("nods", "bearing", "axis")),
+        ("moving axis: nods 0.2 deg twice per turn", WheelCase(axis_deg=0.2, axis_per_turn=2),
+         ("nods", "bearing", "axis")),
+        ("moving axis: nods 0.2 deg once per turn above 7 rad/s", WheelCase(axis_deg=0.2, axis_above=7.0),
+         ("nods", "bearing", "axis")),
+        ("moving axis: nods 0.5 deg once per turn above 7 rad/s", WheelCase(axis_deg=0.5, axis_above=7.0),
+         ("nods", "bearing", "axis")),
+        ("moving axis: cones 0.3 deg against the wheel", WheelCase(axis_deg=0.3, axis_motion="cone", axis_sense=-1),
+         ("nods", "bearing", "axis", "cone")),
+        ("moving axis: cones 0.3 deg with the wheel", WheelCase(axis_deg=0.3, axis_motion="cone", axis_sense=1),
+         ("nods", "bearing", "axis", "cone")),
         # the operator's record: the wizard says "spin the wheel by hand, then let it coast; keep the recording
         # running", so the wheel rests, is pushed, then coasts: no refusal is right
         ("rest 5 s then a 2 s push", WheelCase(rest_s=5.0, push_s=2.0), ()),

@@ -256,6 +256,16 @@ class WheelCase:
     coulomb_share: float = 0.5     # share of the initial deceleration that is Coulomb (speed-independent)
     tilt_wander_deg: float = 0.0   # the stand creeps: tilt changes linearly by this over the run
     wobble_deg: float = 0.0        # bearing play: the axis nods by this once per turn
+    # the axis moving in space, modelled as a rigid wheel turning about an axis that itself turns (``_moving_axis``):
+    # ``axis_deg`` its amplitude; ``axis_motion`` "nod" (back and forth about one line, in a plane drawn at random,
+    # ``axis_per_turn`` times per turn) or "cone" (the axis circles round its mean once per turn, in the sense the
+    # wheel turns, ``axis_sense`` +1, or against it, -1); ``axis_above`` a speed (rad/s) below which the axis
+    # holds still (play that opens only when the wheel runs fast), the amplitude fading in over 0.5 rad/s
+    axis_deg: float = 0.0
+    axis_motion: str = "nod"
+    axis_per_turn: int = 1
+    axis_sense: int = 1
+    axis_above: float = 0.0
     noise: Noise = field(default_factory=lambda: Noise(sd=0.08))
     drift: Drift = field(default_factory=Drift)
     range_g: float = 4.0
@@ -320,6 +330,62 @@ def _speed(case: WheelCase, t: np.ndarray, rng: np.random.Generator) -> np.ndarr
     return run(drag, c, t)
 
 
+def _moving_axis(case: WheelCase, t: np.ndarray, theta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """What the sensor feels (n, 3, in the wheel's frame) on a rigid wheel whose axis moves in space.
+
+    No formula for the acceleration: the wheel's attitude in space is a rotation matrix, B = N(t) T R(theta)
+    (R the wheel's turn about its own axis, T the tilt, N the axis' own small rotation about the hub's centre),
+    the sensor's place is B (-r, 0, 0), and its acceleration is that place differentiated twice in time
+    (five-point stencil on a grid 16 times finer than the samples, the wheel angle interpolated by a cubic
+    spline); the sensor reads that acceleration plus gravity's reaction, both seen in B.  With N fixed this is
+    the same wheel as the other rows: X towards the axis, Y along the motion, Z along the axis."""
+    from scipy.interpolate import CubicSpline
+
+    oversample = 16
+    h = (t[1] - t[0]) / oversample
+    angle = CubicSpline(t, theta)                    # extrapolated smoothly over the stencil's two ends
+    fine = t[0] - 2 * h + np.arange((t.size - 1) * oversample + 5) * h
+    th = angle(fine)
+    tilt = rotation(np.array([0.0, np.radians(case.tilt_deg), 0.0]))
+    u1, u2 = tilt[:, 0], tilt[:, 1]                  # two directions square to the mean axis tilt[:, 2]
+    size = np.full(fine.size, np.radians(case.axis_deg))
+    if case.axis_above:
+        size *= np.clip((np.abs(angle(fine, 1)) - case.axis_above) / 0.5 + 0.5, 0.0, 1.0)
+    c = rng.uniform(0, 2 * np.pi)
+    if case.axis_motion == "nod":
+        psi = rng.uniform(0, 2 * np.pi)
+        line = np.cos(psi) * u1 + np.sin(psi) * u2
+        vec = (size * np.cos(case.axis_per_turn * th + c))[:, None] * line[None, :]
+    elif case.axis_motion == "cone":
+        # the wheel turns by -theta about its axis (below): the axis circling in its sense runs round by -theta
+        a = -case.axis_sense * th + c
+        vec = size[:, None] * (np.cos(a)[:, None] * u1[None, :] + np.sin(a)[:, None] * u2[None, :])
+    else:
+        raise ValueError(case.axis_motion)
+    # B = N T Rz(-theta): the wheel turns about its axis by -theta, which puts X towards the axis and Y along
+    # the motion for a sensor at (-r, 0, 0) (gravity's up in B: (-sin a cos theta, -sin a sin theta, cos a))
+    ct, st = np.cos(th), np.sin(th)
+    spin = np.zeros((fine.size, 3, 3))
+    spin[:, 0, 0], spin[:, 0, 1], spin[:, 1, 0], spin[:, 1, 1], spin[:, 2, 2] = ct, st, -st, ct, 1.0
+    attitude = np.einsum("nij,jk,nkl->nil", _rotations(vec), tilt, spin)
+    place = attitude[:, :, 0] * -case.radius
+    acc = (-place[4:] + 16 * place[3:-1] - 30 * place[2:-2] + 16 * place[1:-3] - place[:-4]) / (12 * h * h)
+    keep = np.arange(t.size) * oversample            # fine[2 + keep] are the sample times
+    felt = acc[keep] + np.array([0.0, 0.0, G])
+    return np.einsum("nji,nj->ni", attitude[2 + keep], felt)
+
+
+def _rotations(vec: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) from rotation vectors (n, 3) (Rodrigues)."""
+    a = np.linalg.norm(vec, axis=1)
+    k = vec / np.where(a > 0, a, 1.0)[:, None]
+    kx = np.zeros((vec.shape[0], 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    kx -= np.transpose(kx, (0, 2, 1))
+    return (np.eye(3)[None] + np.sin(a)[:, None, None] * kx
+            + (1 - np.cos(a))[:, None, None] * np.einsum("nij,njk->nik", kx, kx))
+
+
 def simulate_wheel(case: WheelCase, rng: np.random.Generator):
     before = case.rest_s + case.push_s     # the free coast starts here
     n = int((before + case.seconds) * case.rate)
@@ -336,11 +402,14 @@ def simulate_wheel(case: WheelCase, rng: np.random.Generator):
     theta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]) + rng.uniform(0, 2 * np.pi)
     alpha = np.radians(case.tilt_deg + case.tilt_wander_deg * (t / case.seconds - 0.5))
     alpha = alpha + np.radians(case.wobble_deg) * np.cos(theta)
-    # wheel frame: X towards the axis, Y along the motion, Z along the axis; up in it:
-    up = np.column_stack([-np.sin(alpha) * np.cos(theta), -np.sin(alpha) * np.sin(theta), np.cos(alpha)])
-    f = G * up
-    f[:, 0] += case.radius * w * w
-    f[:, 1] += case.radius * dw
+    if case.axis_deg:
+        f = _moving_axis(case, t, theta, rng)
+    else:
+        # wheel frame: X towards the axis, Y along the motion, Z along the axis; up in it:
+        up = np.column_stack([-np.sin(alpha) * np.cos(theta), -np.sin(alpha) * np.sin(theta), np.cos(alpha)])
+        f = G * up
+        f[:, 0] += case.radius * w * w
+        f[:, 1] += case.radius * dw
     gains = 1.0 + 0.015 * rng.standard_normal(3)
     angles = np.radians(rng.uniform(18, 32, 3) * rng.choice([-1, 1], 3))
     mount = rotation(angles)

@@ -137,6 +137,10 @@ class Checks:
     nod_deg: float | None = None                  # the axis' nod once per turn the wobble shows (amplitude, deg)
     nod_move_over_u: float | None = None          # largest move of an estimate the nod's unseen half could make, in u
     few_blocks: FewBlocks | None = None           # the batch means' block count and the coverage factor it allows
+    third: ScoreTest | None = None                # the wobble at three times the wheel angle (beyond the family)
+    third_deg: float | None = None                # its amplitude (deg), from its take-in or the test's augmented fit
+    nod_change: ScoreTest | None = None           # does the wobble's size change over the run (a wobble found)
+    nod_ends_deg: list[float] | None = None       # the nod at the run's start and end, as that test reads it
 
     def to_dict(self) -> dict:
         out = {"noise": "correlated" if self.correlated else "white",
@@ -162,6 +166,12 @@ class Checks:
         if self.nod_deg is not None:
             out["axis_nod_deg"] = self.nod_deg
             out["axis_nod_move_over_u"] = self.nod_move_over_u
+        if self.third is not None:
+            out["wobble_3x_test"] = self.third.to_dict()
+            out["wobble_3x_deg"] = self.third_deg
+        if self.nod_change is not None:
+            out["axis_nod_change_test"] = self.nod_change.to_dict()
+            out["axis_nod_ends_deg"] = self.nod_ends_deg
         if self.low_frequency is not None:
             out["low_frequency_noise"] = [w.to_dict() for w in self.low_frequency]
         if self.few_blocks is not None:
@@ -187,6 +197,11 @@ def _extra_columns(t, state: WheelState, jac_theta: np.ndarray, time_scale: floa
     for d, d1, d2 in _phase_shapes(t, state, time_scale):
         columns.append(jac_theta * d[:, None] + radial * d1[:, None] + tangential[None, :] * d2[:, None])
     columns += _play_columns(theta, rate, state, g)
+    columns += _play_columns(theta, rate, state, g, (THIRD,))
+    # harmonic 2's wobble turning with the wheel (a nod's visible half: see nod_half) and the sensor's axial motion,
+    # with a size changing linearly over the run (tested only, when a wobble is found)
+    h2 = _play_columns(theta, rate, state, g, (2,))
+    columns += [c * tau[:, None] for c in (h2[0] + h2[3], h2[1] - h2[2], h2[4], h2[5])]
     along = np.stack(columns, axis=2)
     drift = np.zeros((t.size, 3, 3 * DRIFT_DEGREE + (N_SEGMENT_COLUMNS if segments else 0)))
     for deg in range(1, DRIFT_DEGREE + 1):
@@ -232,10 +247,11 @@ def _phase_shapes(t, state: WheelState, time_scale: float) -> list[tuple[np.ndar
     return out
 
 
-def _play_columns(theta, rate, state: WheelState, g: float) -> list[np.ndarray]:
+def _play_columns(theta, rate, state: WheelState, g: float,
+                  harmonics=tuple(range(1, HARMONICS + 1))) -> list[np.ndarray]:
     """The wheel's plane wobbling with its own angle (bearing play, an axle that does not run true, a wheel
     that is not square to its axle): a small rotation e(theta) of the wheel body about an in-plane axis,
-    harmonics 1..HARMONICS of the wheel angle, seen twice:
+    at ``harmonics`` of the wheel angle (1..HARMONICS; THIRD for the wobble tested beyond them), seen twice:
 
     * gravity as seen on the wheel turns by -e x g: part of it goes along the wheel axis, where the speed law
       (which moves the model only within the wheel plane) puts nothing; coefficients in rad;
@@ -244,7 +260,8 @@ def _play_columns(theta, rate, state: WheelState, g: float) -> list[np.ndarray]:
 
     Of the first harmonic only the rotation that turns against the wheel is new: the one turning with it is a
     rotation fixed in space, the tilt and theta0 of the model.  An axis that nods in space once per turn is,
-    seen from the wheel, a fixed tilt and a wobble at harmonic 2."""
+    seen from the wheel, a fixed tilt and a wobble at harmonic 2; one that nods twice per turn, a wobble at
+    harmonics 1 and 3."""
     zero = np.zeros(theta.size)
     response = state.gain[:, None] * state.rotation              # Gamma R: bench -> sensor
     kinematic = (rate**2 / state.omega[0] ** 2)[:, None] * response[:, 2][None, :]
@@ -253,7 +270,7 @@ def _play_columns(theta, rate, state: WheelState, g: float) -> list[np.ndarray]:
         return _gravity_turned(theta, state, g, ex, ey)
 
     out = []
-    for k in range(1, HARMONICS + 1):
+    for k in harmonics:
         c, s_ = np.cos(k * theta), np.sin(k * theta)
         if k == 1:
             out += [turned(c, -s_), turned(s_, c)]
@@ -274,6 +291,14 @@ def _gravity_turned(theta, state: WheelState, g: float, ex, ey) -> np.ndarray:
 
 N_SPEED_LAW = 2 * HARMONICS * (AMPLITUDE_DEGREE + 1) + len(SLOW_DEGREES)
 N_PLAY = 6 * HARMONICS - 2
+# The wobble at three times the wheel angle: tested on every record with the rest of the angle-locked family
+# projected out, taken in only when found.  An axis that nods twice per turn (a bearing race worn out of round, an
+# axle in two bearings that do not line up) is, seen from the wheel, a wobble at harmonics 1 and 3; harmonic 3 is
+# beyond HARMONICS, and left out it moved the gains by up to 2.7 u on a 0.05 deg nod, warned only as a wobble read
+# 10x too large.  Not in the family taken in by default: six more columns in every take-in would widen u of every
+# wobbling wheel for a shape few have, and a test of its own keeps the other tests as they were.
+THIRD = HARMONICS + 1
+N_THIRD = 6
 # the play columns that are rotations (rad) and the share of a turn's mean square each carries per unit; the
 # others are axial accelerations (m/s^2)
 PLAY_ROTATIONS = [0, 1] + [4 + 6 * (k - 2) + i for k in range(2, HARMONICS + 1) for i in range(4)]
@@ -283,7 +308,18 @@ PLAY_MEAN_SQUARE = np.array([1.0, 1.0] + [0.5] * (4 * (HARMONICS - 1)))
 # leaves of it is slow, like the centripetal term's own change, so it moves the gains and the tilt by more
 # than their u.  Taking those shapes in makes the gains indistinguishable from the drift; the test warns.
 DRIFT_DEGREE = 3
-N_ANGLE = N_SPEED_LAW + N_PLAY          # everything locked to the wheel's angle or its speed law
+# A nod that appears only above some speed (play that opens as the wheel runs faster, a nod that dies away as it
+# slows): harmonic 2's wobble turning with the wheel (the nod's visible half, u and v of nod_half) and the sensor's
+# axial motion, times time (Legendre degree 1), tested when a wobble is taken in.  The nod
+# allowance assumes a steady nod, whose unseen half is a constant turn; one that changes over the run changes with
+# the speed as the centripetal term does, and moves the gains: held-out nod of 0.2 deg above 7 rad/s, warned as a
+# speed swing and a drift, covered in 85 % with u/sd 0.72.
+N_CHANGE = 4
+N_ANGLE = N_SPEED_LAW + N_PLAY + N_THIRD + N_CHANGE   # everything locked to the wheel's angle or its speed law
+# the columns of the third harmonic's wobble, among the added regressors, and its rotations (rad) among them
+THIRD_COLUMNS = list(range(N_SPEED_LAW + N_PLAY, N_SPEED_LAW + N_PLAY + N_THIRD))
+THIRD_ROTATIONS = [0, 1, 2, 3]
+CHANGE_COLUMNS = list(range(N_SPEED_LAW + N_PLAY + N_THIRD, N_ANGLE))
 N_EXTRA = N_ANGLE + 3 * DRIFT_DEGREE
 # A drift, once found, is taken in as a line and an offset for each of DRIFT_SEGMENTS equal parts of the run.
 # The line alone leaves what bends (a warm-up that settles, a step), and that rest is slow like the centripetal
@@ -313,6 +349,17 @@ def _score_test(name, g, s_white, block_scores, use_blocks, n_values) -> tuple[S
         return ScoreTest(name, t2, q, float(_sps.f.sf(f, q, k - q)), systematic, "batch means"), coef
     stat = float(g @ coef)
     return ScoreTest(name, stat, q, float(_sps.chi2.sf(stat, q)), systematic, "white"), coef
+
+
+def _score_after(name, normal, block_scores, keep, which, correlated, n_values) -> tuple[ScoreTest, np.ndarray]:
+    """Score test of the added regressors ``which`` (columns of ``normal`` (m, m) and ``block_scores`` (K, m), a pass
+    made at the larger model's optimum) with the model's columns ``keep`` projected out."""
+    a, b = normal[np.ix_(keep, keep)], normal[np.ix_(keep, which)]
+    projection = b.T @ np.linalg.pinv(a)
+    schur = normal[np.ix_(which, which)] - projection @ b
+    scores = block_scores[:, which] - block_scores[:, keep] @ projection.T
+    scores = _merge(scores, 4) if correlated else scores
+    return _score_test(name, scores.sum(axis=0), schur, scores, correlated, n_values)
 
 
 def _pass(t, v, state: WheelState, reference: WheelState, free: FreeSet, time_scale: float, g: float,
@@ -388,12 +435,15 @@ def _whiteness_without_angle(t, residuals, state: WheelState, free: FreeSet, tim
     wobble, built at ``state``, the fit's estimate) are fitted together: one linear step from the first pass's
     normal matrix ``normal`` and summed scores ``scores`` (model columns first, then the added regressors)."""
     p = free.size
-    cols = list(range(p + N_ANGLE))
+    # the family taken in by default (harmonics 1-2 and the speed law): the columns tested only (the wobble at 3x,
+    # the nod's change) made a large steady nod's residuals look white and changed what the tests then found
+    family = N_SPEED_LAW + N_PLAY
+    cols = list(range(p + family))
     step = np.linalg.pinv(normal[np.ix_(cols, cols)]) @ scores[cols]
     left = np.empty_like(residuals)
     for part in chunks(t.size):
         _, jac = model_and_jacobian(t[part], state, free, time_scale, g)
-        added = _extra_columns(t[part], state, jac[:, :, 0], time_scale, g)[:, :, :N_ANGLE]
+        added = _extra_columns(t[part], state, jac[:, :, 0], time_scale, g)[:, :, :family]
         left[part] = residuals[part] - jac @ step[:p] - added @ step[p:]
     return whiteness_by_column(left)
 
@@ -472,7 +522,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     g_all = xs.sum(axis=0) - projection @ js.sum(axis=0)
     scores = xs - js @ projection.T
     as_noise = None
-    if correlated and n // (4 * block) < N_ANGLE + MIN_BLOCKS:
+    if correlated and n // (4 * block) < N_SPEED_LAW + N_PLAY + MIN_BLOCKS:
         # Correlated noise, or a structure locked to the wheel angle?  A large one (an axis that nods) is as
         # correlated in time as a slow noise, and the batch means that noise asks for leave too few blocks to test
         # the angle-locked regressors at all (held-out axis nodding 1.5 deg per turn: blocks of 6000 samples, 3 of
@@ -494,7 +544,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # the tests use the batch-means length itself (the finest blocks serve the sandwich ladder)
     test_scores = _merge(scores, 4) if correlated else scores
     law = list(range(N_SPEED_LAW))
-    play = list(range(N_SPEED_LAW, N_ANGLE))
+    play = list(range(N_SPEED_LAW, N_SPEED_LAW + N_PLAY))
+    third = THIRD_COLUMNS
     dr = list(range(N_ANGLE, N_ANGLE + 3))
     shape = list(range(N_ANGLE + 3, q))
 
@@ -519,14 +570,23 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # wobble in about 1 run in 6 of the held-out audit.  The speed law's own slow shapes (friction) are slow like
     # a drift, so its test keeps them (a grossly unbalanced wheel then still names the speed law).
     slow = dr + shape
-    angle, _ = test("wheel angle", law + play, slow)
-    speed_law, _ = test("speed law", law, play)
-    wobble, wobble_coef = test("wobble", play, law + slow)
+    # The wobble at three times the wheel angle first, with the rest of the family and the slow shapes projected
+    # out: found, it is taken in, and the tests of harmonics 1-2 project it out (an axis nodding twice per turn
+    # otherwise read as a wobble of harmonics 1-2 ten times its size, and as a speed swing).
+    third_test, third_coef = test("wobble at 3x the wheel angle", third, law + play + slow)
+    beyond = third if third_test.significant else []
+    angle, _ = test("wheel angle", law + play, slow + beyond)
+    speed_law, _ = test("speed law", law, play + beyond)
+    wobble, wobble_coef = test("wobble", play, law + slow + beyond)
     causes = []
     if angle.significant:
         causes = [name for name, t_ in (("speed law", speed_law), ("wobble", wobble)) if t_.significant]
         causes = causes or ["speed law", "wobble"]
-    locked = (law if "speed law" in causes else []) + (play if "wobble" in causes else [])
+    if beyond:
+        causes.append("wobble at 3x")
+    # a wobble at 3x comes with one at 1x (an axis nodding twice per turn shows half of itself at each): taken in
+    # together, whether or not the smaller 1x part stands out of the noise alone
+    locked = (law if "speed law" in causes else []) + (play if "wobble" in causes or beyond else []) + beyond
     # the drift tests with the structure found locked to the angle projected out (it is taken in, not a drift)
     drift, _ = test("offset drift", dr, locked)
     # the shapes beyond the line, with the line projected out too (a linear drift is taken in, not warned twice)
@@ -559,6 +619,15 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     full = normal.sum(axis=0)[np.ix_(keep, keep)]
     full_inv = np.linalg.pinv(full)
     block_scores = scores_all[:, keep]
+    nod_change, change_coef = None, None
+    if "wobble" in causes:
+        # A wobble found: does its size change over the run (a nod that appears only above some speed)?  Asked of
+        # the residuals once the structure is in: before, the nod's own change made them look correlated, and the
+        # batch means that then judged the test counted the change as noise (p 0.3-0.95 on a held-out nod that
+        # stops below 7 rad/s; with the structure in, the residuals are white again)
+        nod_change, change_coef = _score_after(
+            "wobble's size changing over the run", normal.sum(axis=0), scores_all, keep,
+            [p + i for i in CHANGE_COLUMNS], correlated, 3 * n)
     # Correlated before the structure was taken in: slow noise and slow structure look alike (a 1/f wander
     # passes for a drift), so what was taken in may be noise, whether or not the residuals after it still look
     # correlated (an offset per segment absorbs a random walk's slow part and leaves residuals that look white
@@ -638,7 +707,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         cov = cov + np.outer(move, move) / 3.0
     if taken:
         names = ([n for cause, n in (("speed law", "the speed swings the cubic law misses"),
-                                     ("wobble", "the wheel's wobble")) if cause in causes]
+                                     ("wobble", "the wheel's wobble"),
+                                     ("wobble at 3x", "its wobble at three times its angle")) if cause in causes]
                  + ([f"an offset drift per axis (a line and an offset for each of {DRIFT_SEGMENTS} parts of the "
                      "run)"] if drifting else []))
         source += "; the model takes in " + " and ".join(names)
@@ -650,7 +720,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         second_order = float(np.max(np.abs(
             _second_order_bias(t, v, residuals, moved, state, free, time_scale, g, weight, extra_step, keep,
                                segments, full_inv)) / np.sqrt(np.diag(cov))))
-    nod_deg, nod_move_over_u = None, None
+    nod_deg, nod_move_over_u, nod_ends_deg = None, None, None
     if "wobble" in causes:
         # an axis that nods: the half the wobble shows is in the model; the other half, as large, is not (see
         # nod_allowance), and u includes what it could do, in any direction
@@ -662,6 +732,10 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
         allowance, move = nod_allowance(half, turn, full_cov[np.ix_(rotation2, rotation2)])
         nod_deg = float(np.degrees(2.0 * half))
         nod_move_over_u = float(np.max(move / np.sqrt(np.diag(cov))))
+        # the nod at the run's start and end, as the test of its change reads it (tau = -1, 1)
+        a = extra_step[play][PLAY_ROTATIONS][2:6]
+        steady = np.array([(a[0] + a[3]) / 2.0, (a[1] - a[2]) / 2.0])
+        nod_ends_deg = [float(np.degrees(2.0 * np.hypot(*(steady + sign * change_coef[:2])))) for sign in (-1.0, 1.0)]
         cov = cov + allowance
         source += (f"; u includes the other half of a nodding axis (about {nod_deg:.2g} deg once per turn), which "
                    f"the fit cannot tell from the mounting and the offsets (up to {nod_move_over_u:.2g} u)")
@@ -673,10 +747,13 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # the wobble's size: what was taken in, or what the test's augmented fit shows
     rotations = (extra_step[play] if "wobble" in causes else wobble_coef)[PLAY_ROTATIONS]
     wobble_deg = float(np.degrees(np.sqrt(np.sum(PLAY_MEAN_SQUARE * rotations**2))))   # rms over a turn
+    # the wobble at 3x: amplitude of its rotation (a turning rotation A (cos, sin) has coefficients summing to 2 A^2)
+    rotations3 = (extra_step[third] if beyond else third_coef)[THIRD_ROTATIONS]
+    third_deg = float(np.degrees(np.sqrt(np.sum(rotations3**2) / 2.0)))
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
                   drift_per_axis, extra_step if taken else None, notes, drift_shape, angle, wobble, causes,
                   wobble_deg, low_noise if correlated else None, drift_move_over_u, second_order, nod_deg,
-                  nod_move_over_u, few_blocks)
+                  nod_move_over_u, few_blocks, third_test, third_deg, nod_change, nod_ends_deg)
 
 
 def _second_order_bias(t, v, residuals, moved: WheelState, reference: WheelState, free: FreeSet, time_scale: float,
@@ -693,6 +770,7 @@ def _second_order_bias(t, v, residuals, moved: WheelState, reference: WheelState
     from how large the structure is against the noise (that ratio tends to one for a quiet sensor, whatever the
     take-in can hold)."""
     law, rotations = extra[:N_SPEED_LAW], extra[N_SPEED_LAW:N_ANGLE][PLAY_ROTATIONS]
+    rotations3 = extra[THIRD_COLUMNS][THIRD_ROTATIONS]
     remainder = np.empty_like(v)
     for part in chunks(t.size):
         tp = t[part]
@@ -715,8 +793,8 @@ def _second_order_bias(t, v, residuals, moved: WheelState, reference: WheelState
         c1, s1 = np.cos(ref_theta), np.sin(ref_theta)
         ex += rotations[0] * c1 + rotations[1] * s1
         ey += -rotations[0] * s1 + rotations[1] * c1
-        for k in range(2, HARMONICS + 1):
-            a = rotations[2 + 4 * (k - 2): 6 + 4 * (k - 2)]
+        for k, a in [(k, rotations[2 + 4 * (k - 2): 6 + 4 * (k - 2)]) for k in range(2, HARMONICS + 1)] + [
+                (THIRD, rotations3)]:
             ck, sk = np.cos(k * ref_theta), np.sin(k * ref_theta)
             ex += a[0] * ck + a[2] * sk
             ey += a[1] * ck + a[3] * sk

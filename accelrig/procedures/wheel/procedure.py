@@ -328,8 +328,8 @@ def _rest_warning(found: RestCheck) -> str:
 def _assumption_warnings(checks: Checks, sigma: np.ndarray) -> list[str]:
     """What the residual checks found, in the operator's words; a refusal beyond MAX_SECOND_ORDER."""
     out = list(checks.notes)
-    angle = checks.angle
-    if angle is not None and angle.significant:
+    angle, third = checks.angle, checks.third
+    if (angle is not None and angle.significant) or (third is not None and third.significant):
         out += _angle_locked(checks, sigma)
     if checks.drift_per_axis is not None:
         d = checks.drift_per_axis
@@ -351,6 +351,8 @@ PLAY_HINT = ("check the wheel's bearing for play and that the wheel runs true on
 
 NOD_HINT = ("check the bearing for play (rock the wheel by its rim across its plane: it should not click or give), "
             "tighten or replace it so the axis holds still, and record again")
+THIRD_HINT = ("check the bearings: one worn out of round, or two that do not line up on the axle, let the axis nod "
+              "twice per turn; replace or realign them so the wheel turns true, and record again")
 
 
 def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
@@ -364,7 +366,7 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
     noisier one passed, though the take-in held the structure as well.  A wobble is still refused beyond
     MAX_WOBBLE of the noise: there the first-order model is not what fails (its remainder is small) but the
     wobble family itself (see MAX_WOBBLE)."""
-    angle, causes = checks.angle, checks.causes
+    angle, causes = checks.angle, [c for c in checks.causes if c != "wobble at 3x"]
     size = angle.systematic_rms * float(np.mean(sigma))
     found = (f"{size:.3g} m/s^2 rms ({100 * angle.systematic_rms:.0f} % of the noise sd; score test "
              f"p = {angle.p_value:.1g})")
@@ -374,7 +376,17 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
               f"the residuals hold a structure locked to the wheel angle that tips gravity towards the wheel axis, "
               f"where no speed law reaches, a wobble of about {checks.wobble_deg:.2g} deg rms "
               f"(score test with the speed law projected out p = {checks.wobble.p_value:.1g})")
-    if causes == ["speed law"]:
+    third = None
+    if "wobble at 3x" in checks.causes:
+        t3 = checks.third
+        third = (f"the wheel wobbles at three times its angle, beyond the harmonics 1-2 the wobble model holds: a "
+                 f"wobble of about {checks.third_deg:.2g} deg (score test with the rest projected out "
+                 f"p = {t3.p_value:.1g}, {t3.systematic_rms * float(np.mean(sigma)):.3g} m/s^2 rms); an axis that "
+                 "nods twice per turn (a bearing worn out of round, two bearings out of line) shows half its nod "
+                 "there, and half at once per turn")
+    if not causes:
+        seen, hint, cause = third, THIRD_HINT, "the fit takes it in"
+    elif causes == ["speed law"]:
         seen, hint = f"{law}, {found}", BALANCE_HINT
         cause = "an unbalanced wheel or friction that is not a smooth coast-down does this"
     elif causes == ["wobble"]:
@@ -388,28 +400,45 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
                    "the data cannot tell which; ")
                 + f"a wobble of about {checks.wobble_deg:.2g} deg rms")
         hint, cause = PLAY_HINT + "; " + BALANCE_HINT, "the fit takes both in"
+    if third is not None and causes:
+        seen, hint = f"{seen}; and {third}", f"{hint}; {THIRD_HINT}"
     missed = checks.second_order_over_u
     if missed is not None and missed > MAX_SECOND_ORDER:
         raise CalibrationError(
             seen + f"; the structure is too large for the fit to take in: what its first-order model leaves out "
             f"alone moves the estimates by up to {missed:.2g} times their u", hint)
     nod = checks.nod_move_over_u
+    change = checks.nod_change
     if nod is not None and nod > MAX_NOD_MOVE:
         raise CalibrationError(
-            f"the wheel's axis nods about {checks.nod_deg:.2g} deg once per turn (bearing play): the wobble turns "
-            f"twice per turn with the wheel, as half of a nodding axis does ({found}); the other half turns gravity "
-            "on the wheel as a mounting rotation would but leaves the centripetal term alone, which the fit cannot "
-            f"tell from the mounting and the offsets, and it could move the estimates by up to {nod:.2g} times "
-            f"their u (beyond {MAX_NOD_MOVE:g} the calibration would measure the bearing more than the sensor)",
-            NOD_HINT)
+            f"the wheel wobbles by {checks.nod_deg / 2:.2g} deg turning with it at twice its angle ({found}): "
+            f"what an axis that nods about {checks.nod_deg:.2g} deg once per turn (bearing play) shows of itself, "
+            f"or one that cones round against the wheel by {checks.nod_deg / 2:.2g} deg; a nod's other half, as "
+            "large, turns gravity on the wheel as a mounting rotation would but leaves the centripetal term alone, "
+            "which the fit cannot tell from the mounting and the offsets, and it could move the estimates by up to "
+            f"{nod:.2g} times their u (beyond {MAX_NOD_MOVE:g} the calibration would measure the bearing more than "
+            "the sensor)", NOD_HINT)
+    if nod is not None and change is not None and change.significant:
+        start, end = checks.nod_ends_deg
+        raise CalibrationError(
+            f"the wheel wobbles turning with it at twice its angle, as an axis that nods once per turn (bearing "
+            f"play) shows half of itself, and the wobble changes its size over the run: a nod of about {start:.2g} "
+            f"deg at the start, {end:.2g} deg at the end (score test of the change p = {change.p_value:.1g}; the "
+            f"structure in all: {found}); play that opens only above some speed does this. A nod's other half turns "
+            "gravity on the wheel as a mounting rotation would; one that changes with the speed changes as the "
+            "centripetal term does, which the fit cannot tell from the gains, so no u can be stated for it",
+            NOD_HINT + "; or record a coast that stays below the speed where the wobble appears")
     if "wobble" in causes and checks.wobble.systematic_rms > MAX_WOBBLE:
         raise CalibrationError(
             seen + f"; a wobble beyond {100 * MAX_WOBBLE:.0f} % of the noise sd: the wobble the fit takes in (a "
             "rotation of the wheel at harmonics 1-2 of its angle) does not hold a real nodding axis that large, the "
             "gains and offsets are then off by more than any u the fit can state", hint)
     if nod is not None:
-        seen += (f"; as an axis nodding about {checks.nod_deg:.2g} deg once per turn shows it, and u includes what "
-                 f"the nod's other half, which the fit cannot tell from the mounting, could do (up to {nod:.2g} u)")
+        # what was seen is a wobble at twice the angle turning with the wheel; a nod is one reading of it
+        seen += (f"; of it, {checks.nod_deg / 2:.2g} deg turns with the wheel at twice its angle, as an axis that "
+                 f"nods about {checks.nod_deg:.2g} deg once per turn shows half of itself (or one that cones round "
+                 "against the wheel, all of itself), and u includes what a nod's other half, which the fit cannot "
+                 f"tell from the mounting, could do (up to {nod:.2g} u)")
     return [seen + f": {cause}; the fit takes the structure in and u grows with it, but a wheel that runs true and "
             "smoothly gives a calibration to trust more"]
 

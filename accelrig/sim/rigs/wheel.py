@@ -86,6 +86,8 @@ class WheelRig(Rig):
         "imbalance": "peak angular acceleration from an unbalanced mass, rad/s^2 (default 0: balanced)",
         "imbalance_deg": "wheel angle at which the unbalanced mass hangs lowest, deg (default 0)",
         "wobble_deg": "bearing play: the wheel's axis nods by this once per turn, deg (default 0: runs true)",
+        "wobble_turns": "how many times per turn the axis nods (default 1; 2: a bearing worn out of round)",
+        "wobble_above": "the axis nods only while the wheel turns faster than this, rad/s (default 0: always)",
         "rest": "seconds the wheel stands still before the hand spins it (default 0: the record starts coasting)",
         "push": "seconds the hand takes to spin the wheel up from rest before it coasts (default 0)",
     }
@@ -105,6 +107,8 @@ class WheelRig(Rig):
         imbalance: float = 0.0,
         imbalance_deg: float = 0.0,
         wobble_deg: float = 0.0,
+        wobble_turns: int = 1,
+        wobble_above: float = 0.0,
         rest: float = 0.0,
         push: float = 0.0,
     ):
@@ -138,6 +142,8 @@ class WheelRig(Rig):
         self.imbalance = float(imbalance)
         self.imbalance_angle = np.deg2rad(imbalance_deg)
         self.wobble = np.deg2rad(wobble_deg)
+        self.wobble_turns = int(wobble_turns)
+        self.wobble_above = float(wobble_above)
         self._unbalanced = None   # dense solution of the unbalanced motion, made on first use
         # the angle is the integral of the cubic speed law, starting at theta0
         self._angle_law = np.polynomial.Polynomial(self.omega).integ(k=self.theta0)
@@ -168,6 +174,8 @@ class WheelRig(Rig):
             imbalance=url.get_float("imbalance", 0.0, low=0.0),
             imbalance_deg=url.get_float("imbalance_deg", 0.0),
             wobble_deg=url.get_float("wobble_deg", 0.0, low=0.0, high=5.0, unit="deg"),
+            wobble_turns=url.get_int("wobble_turns", 1, low=1, high=4),
+            wobble_above=url.get_float("wobble_above", 0.0, low=0.0, unit="rad/s"),
             rest=url.get_float("rest", 0.0, low=0.0, high=3600.0, unit="s"),
             push=url.get_float("push", 0.0, low=0.0, high=60.0, unit="s"),
         )
@@ -245,14 +253,17 @@ class WheelRig(Rig):
 
     def _bench_frame(self, t: np.ndarray) -> np.ndarray:
         """[X Y Z] (columns, world frame) at times t: the frame at theta = 0 turned by theta about -Z."""
-        theta = self.motion(t)[0]
+        theta, speed = self.motion(t)
         c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
         x0, y0, z = self._bench0.T
         frame = np.stack([c * x0 - s * y0, c * y0 + s * x0, np.broadcast_to(z, c.shape[:1] + (3,))], axis=2)
         if self.wobble:
             # bearing play: the whole wheel (axis, rim and sensor) nods about the horizontal world y axis, by
-            # wobble cos(theta): its tilt swings once per turn
-            nod = self.wobble * np.cos(theta)
+            # wobble cos(k theta): its tilt swings k times per turn
+            nod = self.wobble * np.cos(self.wobble_turns * theta)
+            if self.wobble_above:
+                # play that opens only when the wheel runs fast: the nod fades in over 0.5 rad/s
+                nod = nod * np.clip((np.abs(speed) - self.wobble_above) / 0.5 + 0.5, 0.0, 1.0)
             cn, sn = np.cos(nod), np.sin(nod)
             turn = np.zeros((theta.size, 3, 3))
             turn[:, 0, 0], turn[:, 0, 2], turn[:, 1, 1], turn[:, 2, 0], turn[:, 2, 2] = cn, sn, 1.0, -sn, cn
