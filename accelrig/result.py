@@ -105,6 +105,17 @@ class Correction:
         d = np.concatenate([self.matrix.ravel(), np.zeros(3)]) * (u_g / g)
         return Correction(self.matrix, self.bias, self.covariance + np.outer(d, d))
 
+    def scale_uncertainty(self, direction) -> float:
+        """Relative u of the scale this correction gives a signal along ``direction`` (calibrated frame).
+
+        A reading a n (a along the unit vector n) calibrates to a n; an error dC moves it by
+        dC C^-1 a n, whose part along n is a (n . dC C^-1 n): relative u from the covariance of C's entries,
+        whose gradient is outer(n, C^-1 n).  b does not enter: it moves a signal's mean, not its size."""
+        n = np.asarray(direction, dtype=float).reshape(3)
+        n = n / np.linalg.norm(n)
+        gradient = np.outer(n, np.linalg.solve(self.matrix, n)).ravel()
+        return float(np.sqrt(max(gradient @ self.covariance[:9, :9] @ gradient, 0.0)))
+
     @property
     def matrix_uncertainty(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.covariance)[:9], 0, None)).reshape(3, 3)

@@ -851,15 +851,8 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
     returned samples, missing, cause, seconds).  Memory: the returned arrays plus one row group.
     """
     parts = [_part(p) for p in segment_files(path, stem)]
-    scales = {p.info["scale"] for p in parts}
-    if len(scales) > 1:
-        raise DataError(f"{path}: the segments were recorded at different scales {sorted(scales)} (range changed)",
-                        "read each stretch separately with --start/--stop")
     lo_ns = None if start is None else int(to_ns(np.asarray([start]))[0])
     hi_ns = None if stop is None else int(to_ns(np.asarray([stop]))[0])
-    names = parts[0].info["channels"]
-    if any(p.info["channels"] != names for p in parts):
-        raise DataError(f"{path}: the segments do not all carry the same channels")
     # pass 1: the rows of each row group in range, from the groups' recorded time spans; only
     # a group the range cuts has its time column read
     plan = []   # (part, group, a, b)
@@ -881,11 +874,15 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
     if not total:
         raise DataError(f"{path}: no samples between {start} and {stop}" if start is not None or stop is not None
                         else f"{path}: the segments hold no samples")
-    scale = float(parts[0].info["scale"])
+    used = list({id(part): part for part, _, _, _ in plan}.values())   # the segments read, in order
+    _check_one_device_state(path, used)
+    # a channel some segments lack (a daemon that recorded raw counts only until its profile came) is NaN there
+    names = list(dict.fromkeys(name for part in used for name in part.info["channels"]))
+    scale = float(used[0].info["scale"])
     factor = 1.0 if units == "counts" else scale
     t = np.empty(total)
     acc = np.empty((total, 3))
-    channels = {name: np.empty(total) for name in names}
+    channels = {name: np.full(total, np.nan) for name in names}
     origin_ns = None
     filled = 0
     starts = {}   # part path -> index of its first returned sample
@@ -897,7 +894,7 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
         t[filled:filled + k] = (t_ns - origin_ns) / NS
         for axis in range(3):
             np.multiply(axes[axis], factor, out=acc[filled:filled + k, axis])
-        for name, values in zip(names, chans, strict=True):
+        for name, values in zip(part.info["channels"], chans, strict=True):
             channels[name][filled:filled + k] = values
         filled += k
     # gap records at their place among the returned samples (the same float arithmetic as t)
@@ -915,7 +912,7 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
                 index = int(np.searchsorted(t, (np.int64(g_ns) - origin_ns) / NS, "left"))
             gaps.append({"index": index, "missing": g["samples"], "cause": g["cause"],
                          "seconds": g.get("seconds"), "segment": part.path.name})
-    meta = _current_meta(parts[0].info["meta"])
+    meta = _current_meta(used[0].info["meta"])
     # over what was read: the gap records between its first and last sample
     meta.update(_rates(total, origin_ns, origin_ns + int(round(float(t[-1]) * NS)),
                        [{"samples": g["missing"]} for g in gaps if 0 < g["index"] < total]))
@@ -923,6 +920,26 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
                 time_origin_ns=origin_ns, segments=list(dict.fromkeys(p.path.name for p, _, _, _ in plan)),
                 source=str(path))
     return t, acc, units, channels, meta
+
+
+def _check_one_device_state(path, used: list[_Part]) -> None:
+    """The segments read must share the count scale and the offsets flashed to the chip: one recording
+    takes one of each, and a profile applied across a change would subtract the flashed bias from data
+    that never had it removed, or twice (a daemon that recorded raw until its profile came, then flashed)."""
+    scales = {p.info["scale"] for p in used}
+    if len(scales) > 1:
+        raise DataError(f"{path}: the segments were recorded at different scales {sorted(scales)} (range changed)",
+                        "read each stretch separately with --start/--stop")
+    states: dict[str, str] = {}   # flashed offsets -> the first segment with them
+    for part in used:
+        removed = _current_meta(part.info["meta"]).get("hardware_bias_removed")
+        said = ("no offsets flashed" if removed is None
+                else "offsets [" + ", ".join(f"{float(v):.4g}" for v in removed) + "] m/s^2 flashed")
+        states.setdefault(said, part.path.name)
+    if len(states) > 1:
+        raise DataError(f"{path}: the chip's flashed offsets change between the segments read ("
+                        + "; ".join(f"{said} from {name}" for said, name in states.items()) + ")",
+                        "read each stretch separately with --start/--stop")
 
 
 def _current_meta(stored: dict) -> dict:

@@ -276,6 +276,11 @@ class BleSimDriver(BleDriver):
 
         return [f"ble-sim://{name}" for name in sorted(RIGS)]
 
+    def chip_named(self) -> str:
+        from accelrig.sim.firmware import FIRMWARE_CHIP
+
+        return FIRMWARE_CHIP
+
     def open(self):
         from accelrig.sim.firmware import SimBleClient
         from accelrig_drivers.serial import firmware_from_url

@@ -76,6 +76,9 @@ class I2CDriver(Driver):
         buses = sorted(int(m.group(1)) for p in glob.glob("/dev/i2c-*") if (m := re.search(r"i2c-(\d+)$", p)))
         return [f"i2c://{n}/0x68" for n in buses]
 
+    def chip_named(self) -> str:
+        return self.chip_name()
+
     def known_options(self) -> set[str]:
         return I2C_OPTIONS
 

@@ -218,6 +218,11 @@ class SerialSimDriver(SerialDriver):
 
         return [f"serial-sim://{name}" for name in sorted(RIGS)]
 
+    def chip_named(self) -> str:
+        from accelrig.sim.firmware import FIRMWARE_CHIP
+
+        return FIRMWARE_CHIP
+
     def open(self):
         self.firmware, _ = firmware_from_url(self.url, 255)
         info = super().open()

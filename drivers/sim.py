@@ -90,6 +90,9 @@ class SimDriver(Driver):
     def discover(cls) -> list[str]:
         return [f"sim://{name}" for name in sorted(RIGS)]
 
+    def chip_named(self) -> str:
+        return "sim"
+
     def known_options(self) -> set[str]:
         return sim_options(self.url)
 

@@ -59,7 +59,7 @@ def wait_until(proc, config_path: Path, condition, timeout: float = 30.0) -> dic
             try:
                 if last is not None and condition({d["name"]: d for d in last["devices"]}):
                     return last
-            except KeyError:   # the socket answers before the daemon has started every device: not yet
+            except KeyError:   # a device not listed (yet, or any more: a reload adds and removes): not yet
                 pass
         time.sleep(0.3)
     raise AssertionError(f"timed out; last status {last}\n{config_path.with_suffix('.log').read_text()}")
@@ -385,3 +385,106 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     waits = [e["retry_in"] for e in journal(out / "gone") if e["event"] == "connect_failed"]
     assert len(waits) >= 2 and waits == [min(2.0 ** i, 60) for i in range(len(waits))]   # exponential backoff
     assert [e["event"] for e in journal(out / "gone")][-1] == "stop"
+
+
+# The daemon with one device ("pier") whose start takes a second (as a long recovery of a crashed run's segment
+# would): the same program, started through this wrapper so the delay lands exactly there.
+SLOW_START = """
+import sys, time
+from accelrig.daemon import device
+from accelrig.cli import main
+start = device.DeviceRunner.start
+def slow_start(self):
+    if self.device.name == "pier":
+        time.sleep(1.0)
+    start(self)
+device.DeviceRunner.start = slow_start
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def first_status(proc, config_path: Path, timeout: float = 30.0) -> dict:
+    """The status socket's first answer, asked for as soon as the socket is there."""
+    socket = Path(yaml.safe_load(config_path.read_text())["output"]) / "daemon.sock"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, config_path.with_suffix(".log").read_text()
+        answer = status_now(socket) if socket.exists() else None
+        if answer is not None:
+            return answer
+        time.sleep(0.02)
+    raise AssertionError("the status socket never answered")
+
+
+def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_profile_on_reload(tmp_path):
+    """output calibrated, an empty store: the raw counts are recorded anyway and every place says why; the
+    profile filed and SIGHUP, the device restarts calibrated; `profile apply` calibrates the raw stretch.
+    And the status socket lists every configured device from its first answer, while one takes long to start."""
+    from accelrig.daemon.status import format_table
+    from accelrig.profiles import load_profile
+    from accelrig.profiles.apply import apply_profile
+    from accelrig.profiles.store import ProfileStore
+    from accelrig.recording import load_recording
+    from accelrig.segments import read_arrays, segment_files
+    from accelrig.units import STANDARD_GRAVITY
+
+    example = Path(__file__).resolve().parents[1] / "profiles" / "example-static_faces-vp.yaml"  # sim seed 11
+    out, store = tmp_path / "out", tmp_path / "store"
+    config = {"output": str(out), "profile_store": str(store), "status_interval": 0, "devices": [
+        {"name": "pier", "url": "sim://still?seed=11&rate=200", "output": "calibrated"},
+        {"name": "strict", "url": "sim://still?seed=11&rate=200", "output": "calibrated",
+         "without_profile": "stop"},
+        {"name": "chip", "url": "i2c-sim://mpu9250?rig=still&rate=200&seed=3", "flash": True}]}
+    config_path = tmp_path / "daemon.yaml"
+    config_path.write_text(yaml.safe_dump(config))
+    log = open(config_path.with_suffix(".log"), "ab")
+    proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
+                            stdout=log, stderr=log)
+    try:
+        first = first_status(proc, config_path)   # while pier takes a second to start: strict is listed too
+        assert [(d["name"], d["state"]) for d in first["devices"]] == [
+            ("pier", "starting"), ("strict", "starting"), ("chip", "starting")]
+        raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed"
+                         and d["chip"]["written"] > 0)
+        pier, chip = ({d["name"]: d for d in raw["devices"]}[name] for name in ("pier", "chip"))
+        assert chip["state"] == "recording raw" and chip["error"].endswith(
+            "then reload the daemon (SIGHUP or systemctl reload) to flash its offsets; `accelrig profile apply` "
+            "calibrates what was recorded raw")
+        assert pier["state"] == "recording raw" and pier["profile"] == "none"
+        assert "no profile for 'sim-random-11' in the store" in pier["error"] and "reload" in pier["error"]
+        table = format_table(raw)   # what `daemon status` prints (test_faults_reload_and_term runs the command)
+        assert "recording raw" in table and "pier: recording raw: no profile for 'sim-random-11'" in table
+        proc.send_signal(signal.SIGHUP)   # nothing filed yet: pier keeps recording, untouched
+        deadline = time.monotonic() + 20
+        while "pier: still recording raw" not in config_path.with_suffix(".log").read_text():
+            assert time.monotonic() < deadline, config_path.with_suffix(".log").read_text()
+            time.sleep(0.1)
+        ProfileStore(store).add(load_profile(example))
+        proc.send_signal(signal.SIGHUP)
+        wait_until(proc, config_path, lambda d: d["pier"]["state"] == "streaming" and d["pier"]["written"] >= 100)
+        terminate(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    log = config_path.with_suffix(".log").read_text()
+    assert "pier: WARNING: recording raw: no profile for 'sim-random-11'" in log
+    assert "restarted with the profile they lacked: pier" in log
+    assert "strict: stopped: devices[1].profile: no profile for 'sim-random-11'" in log
+    assert [e["event"] for e in journal(out / "pier")].count("recording_raw") == 1
+    chip_connect = next(e for e in journal(out / "chip") if e["event"] == "connect")
+    assert chip_connect["flashed"] is None and chip_connect["hardware_bias_removed"] is None   # factory offsets
+    gaps, _ = check_accounting(out / "pier", 200)
+    assert [g["cause"] for g in gaps] == ["not recording: restarted: the profile it lacked is there now"]
+    rec = load_recording(out / "pier")   # the raw stretch and the calibrated one, read as one
+    first_calibrated = gaps[0]["index"]
+    assert np.isnan(rec.channels["cal_x"][:first_calibrated]).all()
+    assert not np.isnan(rec.channels["cal_x"][first_calibrated:]).any()
+    first_meta = read_arrays(segment_files(out / "pier")[0])[4]
+    assert first_meta["recording_raw"].startswith("recording raw: no profile for") and first_meta["profile"] is None
+    applied, warnings = apply_profile(load_profile(example), rec)
+    assert warnings == []
+    daemon_cal = np.column_stack([rec.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
+    np.testing.assert_allclose(applied.acc[first_calibrated:], daemon_cal[first_calibrated:], atol=1e-9)
+    assert abs(np.linalg.norm(applied.acc[:first_calibrated].mean(axis=0)) - STANDARD_GRAVITY) < 0.02
+

@@ -229,15 +229,20 @@ def test_a_reload_with_a_broken_config_keeps_the_running_one(tmp_path, capsys):
     assert daemon.config.devices[0].output == "raw" and daemon.reloads == 0
 
 
-def test_check_says_an_empty_store_leaves_a_calibrated_device_recording_nothing(tmp_path):
+def test_check_says_an_empty_store_leaves_a_calibrated_device_recording_raw_or_nothing(tmp_path):
     config = {**MINIMAL, "output": str(tmp_path / "out"), "profile_store": str(tmp_path / "store"),
               "devices": [{"url": "sim://still", "name": "pier", "profile": "store", "output": "calibrated"},
+                          {"url": "i2c-sim://mpu9250?rig=still", "name": "strict", "flash": True,
+                           "without_profile": "stop"},
                           {"url": "sim://still", "name": "raw", "profile": "store"}]}
     notes = check_config(parse_config(config))
     pier = next(n for n in notes if n.startswith("pier:"))
-    assert "output calibrated needs one" in pier and "records nothing" in pier and "no profile at all" in pier
+    assert "output calibrated needs one" in pier and "no profile at all" in pier
+    assert "records raw counts only, in state 'recording raw'" in pier
+    strict = next(n for n in notes if n.startswith("strict:"))
+    assert "flash needs one" in strict and "records nothing (without_profile: stop)" in strict
     raw = next(n for n in notes if n.startswith("raw:"))
-    assert "records nothing" not in raw
+    assert "records" not in raw
 
 
 def test_a_disk_full_gap_record_the_segment_refuses_is_written_before_the_next_block(tmp_path, monkeypatch):
@@ -278,3 +283,52 @@ def test_a_disk_full_gap_record_the_segment_refuses_is_written_before_the_next_b
     runner.write(*block(20), None)        # the record is retried first, placed at the first dropped sample
     assert writer.gaps == [(pytest.approx(1e9), 10, "disk full")] and runner.counts.gaps == 1
     assert runner.counts.dropped == 10 and runner.counts.written == 20
+
+
+def test_check_refuses_a_profile_made_for_another_chip_than_the_url_names(tmp_path):
+    # a sim:// device is chip "sim", i2c-sim://CHIP and i2c://...?chip=CHIP name theirs: a profile for another
+    # chip would leave the device recording without it, so check says so before the deployment starts
+    from accelrig.profiles import load_profile, save_profile
+
+    example = REPO / "profiles" / "example-static_faces-vp.yaml"   # made on sim://, chip "sim"
+    chip = load_profile(example)
+    chip.data["device"].update(identity="i2c-sim-mpu9250-seed3", driver="i2c-sim", chip="mpu9250", who_am_i=0x71)
+    save_profile(chip, tmp_path / "chip.yaml")
+
+    def config(url, profile):
+        return parse_config({"output": str(tmp_path / "out"),
+                             "devices": [{"url": "sim://still", "name": "ok"},
+                                         {"url": url, "name": "pier", "profile": str(profile)}]})
+
+    for url, profile, made_for, named in (("sim://still?seed=11", tmp_path / "chip.yaml", "mpu9250", "sim"),
+                                          ("i2c-sim://mpu9250?rig=still", example, "sim", "mpu9250"),
+                                          ("i2c://1/0x68?chip=icm20948", tmp_path / "chip.yaml", "mpu9250", "icm20948")):
+        with pytest.raises(ConfigError) as err:
+            check_config(config(url, profile))
+        assert str(err.value).startswith(f"devices[1].profile: {profile} was made for chip {made_for!r}, but the "
+                                          f"device at {url} is chip {named!r} (device 'pier')"), str(err.value)
+    # a URL's own profile=PATH is compared the same way
+    with pytest.raises(ConfigError, match=r"devices\[1\]\.url: profile=.*chip\.yaml was made for chip 'mpu9250'.* "
+                                          r"is chip 'icm20948'"):
+        check_config(parse_config({"output": str(tmp_path / "out"), "devices": [
+            {"url": "sim://still", "name": "ok"},
+            {"url": f"i2c://1/0x68?chip=icm20948&profile={tmp_path / 'chip.yaml'}", "name": "pier"}]}))
+    # the chips agree: valid (serial devices say their chip only when they answer)
+    check_config(config("sim://still?seed=11", example))
+    check_config(config("i2c-sim://mpu9250?rig=still", tmp_path / "chip.yaml"))
+    check_config(config("serial:///dev/ttyUSB0", tmp_path / "chip.yaml"))
+
+
+def test_flash_on_a_device_that_cannot_hold_offsets_is_refused_at_check_and_start(tmp_path):
+    # every connect would fail to flash and be retried for ever, recording nothing
+    path = tmp_path / "d.yaml"
+    path.write_text(yaml.safe_dump({"output": "out", "devices": [
+        {"url": "i2c-sim://mpu9250?rig=still", "name": "chip", "flash": True},
+        {"url": "sim://still", "name": "plain", "flash": True}]}))
+    with pytest.raises(ConfigError, match=r"^devices\[1\]\.flash: a sim:// device cannot hold offsets "
+                                          r"\(device 'plain'\)"):
+        check_config(load_config(path))
+    from accelrig.daemon.service import Daemon
+
+    with pytest.raises(ConfigError, match=r"^devices\[1\]\.flash"):
+        Daemon(path)

@@ -379,3 +379,27 @@ def test_meta_and_profile_are_retained(broker, tmp_path):
     assert json.loads(got["profile"]) == {"format": "accelrig-profile"}
     assert json.loads(got["meta"])["identity"] == "sim-1"
     assert json.loads(got["status"])["state"] == "stopped"
+
+
+def test_a_device_recording_raw_for_want_of_its_profile_says_so_to_the_fleet(broker, tmp_path):
+    from accelrig.daemon.fleet import format_table, gather, rows
+
+    (tmp_path / "daemon.pass").write_text(DAEMON_PASSWORD + "\n")
+    config = {"output": str(tmp_path / "out"), "profile_store": str(tmp_path / "store"), "status_interval": 0,
+              "devices": [{"url": "sim://still?seed=11&rate=200", "name": "a", "output": "calibrated"}],
+              "mqtt": {"broker": broker.url, "site": "north", "username": DAEMON_USER,
+                       "password_file": str(tmp_path / "daemon.pass"), "status_seconds": 0.5}}
+    path = tmp_path / "d.yaml"
+    path.write_text(yaml.safe_dump(config))
+    proc = accelrig("daemon", "--config", str(path), log=tmp_path / "d.log")
+    try:
+        def seen():
+            table = rows(gather(broker.url, username=COLLECTOR_USER, password=COLLECTOR_PASSWORD, timeout=2))
+            return table if table and table[0]["state"] == "recording raw" else None
+
+        (row,) = wait_for(seen, 20, "the fleet to see the device recording raw")
+        assert row["profile"] is None and row["error"].startswith("recording raw: no profile for 'sim-random-11'")
+        assert "north/a: recording raw: no profile for 'sim-random-11'" in format_table([row])
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=15)

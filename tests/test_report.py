@@ -24,6 +24,10 @@ from accelrig.report.html import format_value, parameter_rows
 from accelrig.result import to_json
 from report_support import (
     DEVICE,
+    EXAMPLES,
+    certificate_text,
+    example_script,
+    first_difference,
     rotary_campaign_result,
     slider_crank_result,
     static_result,
@@ -337,6 +341,28 @@ def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_on
     assert figures == [] and "hash differs" in missing[0]
 
 
+def test_a_relative_recording_name_finds_the_calibrated_file_beside_the_profile(static_run, tmp_path, monkeypatch):
+    """Calibrated in a folder as 'six.csv', reported from its parent, which holds another six.csv: the file
+    whose hash is the profile's is used (the first found was, and the figure was refused)."""
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    rec = static_run[1]
+    (tmp_path / "lab").mkdir()
+    write_csv(rec, tmp_path / "lab" / "six.csv")
+    monkeypatch.chdir(tmp_path / "lab")
+    rec = load_recording("six.csv")
+    save_profile(profile_from_result(calibrate_static(rec), rec), tmp_path / "lab" / "p.yaml")
+    text = (tmp_path / "lab" / "six.csv").read_text().splitlines()
+    text[-1] = ",".join(text[-1].split(",")[:-1] + ["9.0"])
+    (tmp_path / "six.csv").write_text("\n".join(text) + "\n")   # another recording of that name, one up
+    monkeypatch.chdir(tmp_path)
+    figures, missing = figures_for(load_source("lab/p.yaml"))
+    assert missing == [] and len(figures) == 1
+
+
 def test_pdf_without_a_browser_says_so_and_writes_nothing(static_run, tmp_path, monkeypatch, capsys):
     result, _ = static_run
     saved = tmp_path / "r.json"
@@ -358,3 +384,16 @@ def test_format_value_keeps_two_digits_when_u_rounds_into_the_next_decade_and_ta
 
     assert format_value(1.0, 0.0999996) == ("1.00", "0.10")
     assert format_value(np.float32(1.23456), np.float32(0.0123)) == ("1.235", "0.012")
+
+
+def test_the_example_certificates_are_what_the_code_renders_now(static_run, wheel_run, campaign_run):
+    """docs/examples/ holds certificates made by make_certificates.py from these simulated results: their text
+    (not the times, not the drawings) must be what the code renders now.  When this fails after an intended
+    change, run `python docs/examples/make_certificates.py` and commit the files it writes."""
+    make = example_script()
+    pages = make.certificate_pages(static_run, wheel_run, campaign_run[0], figures=False)
+    assert set(pages) == {"certificate-static.html", "certificate-wheel.html", "certificate-rotary-campaign.html"}
+    for name, page in pages.items():
+        stored, rendered = certificate_text((EXAMPLES / name).read_text(encoding="utf-8")), certificate_text(page)
+        assert stored == rendered, (f"docs/examples/{name} is not what the code renders now (run python "
+                                    f"docs/examples/make_certificates.py):\n{first_difference(stored, rendered)}")

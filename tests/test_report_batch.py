@@ -20,7 +20,16 @@ from accelrig.report.batch import (
     sensitivity_from_correction,
 )
 from accelrig.report.source import from_result
-from report_support import BATCH_GOOD, rotary_campaign_result, static_result, write_batch_profiles
+from report_support import (
+    BATCH_GOOD,
+    EXAMPLES,
+    certificate_text,
+    example_script,
+    first_difference,
+    rotary_campaign_result,
+    static_result,
+    write_batch_profiles,
+)
 
 
 @pytest.fixture(scope="module")
@@ -172,3 +181,13 @@ def test_the_batch_report_prints_to_pdf_in_chromium(fleet, tmp_path):
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(pdf), str(tmp_path / "page")], check=True, timeout=120)
     pages = sorted(tmp_path.glob("page*.png"))
     assert len(pages) >= 3 and all(p.stat().st_size > 1000 for p in pages)
+
+
+def test_the_example_batch_report_is_what_the_code_renders_now(fleet):
+    """docs/examples/report-batch.html is make_certificates.py's batch report of these profiles: its text (not
+    the times, not the drawings) must be what the code renders now; if not, run that script."""
+    directory, _ = fleet
+    stored = certificate_text((EXAMPLES / "report-batch.html").read_text(encoding="utf-8"))
+    rendered = certificate_text(example_script().batch_page(directory, figures=False))
+    assert stored == rendered, ("docs/examples/report-batch.html is not what the code renders now (run python "
+                                f"docs/examples/make_certificates.py):\n{first_difference(stored, rendered)}")

@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from accelrig.errors import CalibrationError
 from accelrig.estimation.residuals import (
+    MIN_BLOCKS,
+    MIN_HONEST_BLOCKS,
+    FewBlocks,
     ar_sandwich_covariance,
     autocorrelation,
     block_scores,
@@ -59,6 +63,40 @@ def test_sandwich_covers_the_mean_of_correlated_noise_where_the_white_formula_do
     sd = np.std(means)
     assert np.median(u_sandwich) / sd == pytest.approx(1.0, abs=0.2)
     assert np.median(u_white) / sd < 0.35          # 1/sqrt(19) = 0.23: the white u is far too small
+
+
+def test_few_batch_means_blocks_take_students_t_and_too_few_are_refused():
+    """A mean of AR(1) noise (tau 19) from 6 blocks of 5 tau: batch means' u at k = 2 covers about 88 %, Student's t
+    on the 5 dof (k 2.65) about 95 %; fewer than MIN_HONEST_BLOCKS blocks are refused, naming the cause."""
+    rng = np.random.default_rng(5)
+    rho, tau = 0.9, 19.0
+    block, blocks = int(5 * tau), 6
+    n = block * blocks
+    x = np.empty((4000, n))
+    x[:, 0] = rng.standard_normal(4000)
+    e = rng.standard_normal((4000, n)) * np.sqrt(1 - rho**2)
+    for t in range(1, n):
+        x[:, t] = rho * x[:, t - 1] + e[:, t]
+    sums = x.reshape(4000, blocks, block).sum(axis=2)
+    centred = sums - sums.mean(axis=1, keepdims=True)
+    u = np.sqrt(np.sum(centred**2, axis=1) * blocks / (blocks - 1)) / n    # sandwich_covariance's middle / n^2
+    z = np.abs(x.mean(axis=1)) / u
+    few = FewBlocks(blocks, block, n, 0.01)
+    assert few.few and not few.refused and few.dof == blocks - 1
+    assert few.coverage_factor == pytest.approx(2.65, abs=0.01)
+    assert np.mean(z <= 2.0) < 0.9
+    assert 0.93 <= np.mean(z <= few.coverage_factor) <= 0.97
+    assert "Student's t, k = 2.65" in few.describe()
+    # enough blocks: k = 2 as before, nothing said
+    assert FewBlocks(MIN_BLOCKS, block, MIN_BLOCKS * block).coverage_factor == 2.0
+    assert FewBlocks(MIN_BLOCKS, block, MIN_BLOCKS * block).describe() == ""
+    # too few: a refusal with the cause and how much longer to record
+    short = FewBlocks(MIN_HONEST_BLOCKS - 2, 2000, 6000, 0.005)
+    assert short.refused
+    error = short.refusal("the gains")
+    assert isinstance(error, CalibrationError)
+    assert "wanders more slowly than the record can measure" in str(error) and "blocks of 10 s" in str(error)
+    assert "record at least 2 times longer" in error.hint and "settle" in error.hint
 
 
 def test_sandwich_reduces_to_the_usual_covariance_for_white_noise():

@@ -469,3 +469,30 @@ def test_segments_of_earlier_daemons_name_their_device_as_recordings_do(tmp_path
     from accelrig.recording import check_meta
 
     check_meta(meta, "read back")   # the recording's own metadata types hold
+
+
+def test_a_directory_whose_channels_or_flashed_offsets_change_reads_as_one_or_by_stretch(tmp_path):
+    """A daemon that recorded raw counts until its profile came, then calibrated (and flashed): a channel
+    the raw stretch lacks is NaN there; a change of flashed offsets is refused over both stretches, since
+    one recording takes one, and each stretch reads by --start/--stop."""
+    with SegmentWriter(tmp_path, stem="dev", meta={"identity": "x"}, scale=0.001) as w:
+        write_blocks(w, range(2), jitter=False)
+    with SegmentWriter(tmp_path, stem="dev", meta={"identity": "x"}, scale=0.001, channels=("theta",)) as w:
+        write_blocks(w, range(2, 4), jitter=False)
+    _, counts, theta = expected(range(4), jitter=False)
+    _, acc, _, channels, _ = read_arrays(tmp_path, units="counts")
+    np.testing.assert_array_equal(acc, counts)
+    assert np.isnan(channels["theta"][:128]).all()
+    np.testing.assert_array_equal(channels["theta"][128:], theta[128:])
+    flashed = {"identity": "x", "hardware_bias_removed": [0.25, -0.0575, 0.0287]}
+    with SegmentWriter(tmp_path, stem="dev", meta=flashed, scale=0.001, channels=("theta",)) as w:
+        write_blocks(w, range(4, 6), jitter=False)
+    with pytest.raises(DataError, match=r"the chip's flashed offsets change between the segments read \(no offsets "
+                                        r"flashed from dev\.000000\.\S+; offsets \[0\.25, -0\.0575, 0\.0287\] m/s\^2 "
+                                        r"flashed from dev\.000002\.\S+\)") as err:
+        read_arrays(tmp_path)
+    assert "--start/--stop" in err.value.hint
+    t, _, _ = expected(range(6), jitter=False)
+    _, acc, _, _, meta = read_arrays(tmp_path, start=float(t[256]), units="counts")   # the flashed stretch alone
+    assert len(acc) == 128 and meta["hardware_bias_removed"] == flashed["hardware_bias_removed"]
+    assert len(read_arrays(tmp_path, stop=float(t[256]))[1]) == 256

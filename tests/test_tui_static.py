@@ -51,10 +51,12 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
                 for face in ("+z", "-z")}
         assert "✓✓✓ done" in grid["+z"] and "✓✓ done" in grid["-z"]   # held three times; its opposite twice
         assert "holds 15 of 15" in str(wizard.query_one("#pose-state").render())
-        # the last round was asked for with its reason, in one line of the log
+        # the opposite faces and the last round were asked for with their reasons, each in one line of the log
         logged = " ".join(" ".join(line.text.split()) for line in wizard.query_one("#events").lines)
-        assert ("drift check, last round: now put -z, -x and -y down once more (the opposite faces), so the "
+        assert ("drift check, round 2 of 3: now put -z, -x and -y down once more (the opposite faces), so the "
                 "fit can test the drift between the holds") in logged
+        assert ("drift check, last round: now put +z, +x and +y down a third time, so their holds, spread over "
+                "the run, show the drift's shape") in logged
         assert wizard.recorder.reader.lost_total == 0
         results = app.screen
         await wait_for(pilot, lambda: bool(results.query("#results-warnings")))   # composed (as in the helper above)
@@ -117,8 +119,9 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         before = driver.chip.read_offset_words()
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
-        question = str(app.screen.query_one("#question").render())
-        assert "Flash plan for" in question and "OFFSET" in question.upper() and "Write to the device?" in question
+        plan = str(app.screen.query_one("#details-text").render())
+        assert "Flash plan for" in plan and "OFFSET" in plan.upper()
+        assert "Write to the device?" in str(app.screen.query_one("#question").render())
         await pilot.press("n")  # cancel: nothing written
         await wait_for(pilot, lambda: "nothing was written" in status(app))
         assert driver.chip.read_offset_words() == before
@@ -154,7 +157,8 @@ async def test_results_read_their_checks_and_a_second_save_offers_the_first_file
     from accelrig.acquisition.recorder import record
     from accelrig.procedures.static.procedure import calibrate_static
 
-    # twelve holds (a file recorded before the wizard's last round): every degree of freedom is taken
+    # twelve holds (an older wizard's file: three faces three times, their opposites once): every degree of
+    # freedom is taken
     with driver_for(DEVICE + "&order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z,+x,+y") as driver:
         recording = record(driver)
     result = calibrate_static(recording)

@@ -68,3 +68,25 @@ async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
         value = np.array(parameters[name]["value"])
         u = np.array(parameters[name]["uncertainty"])
         assert np.all(np.abs(value - np.array(truth[name])) < 4 * u), (name, value, truth[name], u)
+
+
+@async_test
+async def test_wheel_wizard_result_says_the_link_lost_samples(tmp_path):
+    """The status line's drop count is gone once the results are up: heavy link loss must be in the result's
+    warnings (and so in the profile), as every command line calibration says it."""
+    app = AccelrigApp(device=DEVICE + "&drop=0.05&block=4", refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        menu = app.screen.query_one("#wizards")
+        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await pilot.press(*"0.28", "enter", "enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=80)
+        warnings = str(app.screen.query_one("#results-warnings").render())
+        await wait_for(pilot, lambda: app.screen.profile is not None)
+        profile_warnings = app.screen.profile.data["warnings"]
+    assert "the link lost" in warnings and "check the cable or radio link" in warnings
+    assert any("the link lost" in w for w in profile_warnings)

@@ -18,7 +18,7 @@ from accelrig.tui.screens.dialogs import ConfirmScreen, SettingsForm  # noqa: E4
 from accelrig.tui.screens.live import LiveScreen  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wizard import ProcedureWizard  # noqa: E402
-from tui_support import async_test, wait_for  # noqa: E402
+from tui_support import async_test, choose, wait_for  # noqa: E402
 
 
 class MeanProcedure(Procedure):
@@ -228,8 +228,11 @@ async def test_an_action_after_the_results_resumes_feeding_from_the_live_stream(
         # title update when its screen is removed first)
         await wait_for(pilot, lambda: first.query_one("#parameters").row_count == 3)
         await pilot.pause(0.2)
-        await pilot.press("escape")
+        await pilot.press("escape")   # the result is not saved: it asks, and is discarded
+        await choose(pilot, "discard")
         await wait_for(pilot, lambda: app.screen is wizard)
+        # the headline no longer says "results are shown": what became of them and what can be done
+        assert "results closed without saving: c shows them again" in str(wizard.query_one("#instruction").render())
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and app.screen is not first)
         assert wizard.procedure.fed > fed and wizard.procedure.done

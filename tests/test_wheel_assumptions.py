@@ -95,6 +95,30 @@ def test_correlated_noise_widens_u_with_the_sandwich_and_says_so():
     assert not any("mounting hides" in w for w in result.warnings)
 
 
+def test_noise_slower_than_the_record_is_refused_naming_the_cause():
+    """AR(1) 0.999 at 200 Hz (a memory of 5 s) in a 90 s coast: the blocks its correlation asks for fit once in the
+    record.  Batch means over so few blocks gave u of any size (held-out: errors of 26 u, warned "record longer");
+    below residuals.MIN_HONEST_BLOCKS the wheel refuses, saying why and what to do."""
+    rec, _ = record(seed=1, ar1=0.999)
+    with pytest.raises(CalibrationError, match="wanders more slowly than the record can measure") as caught:
+        calibrate_wheel(rec, radius=0.28)
+    assert "times longer" in caught.value.hint and "settle" in caught.value.hint
+
+
+def test_few_blocks_widen_the_coverage_factor_to_students_t():
+    """AR(1) 0.997 leaves 5 batch-means blocks here: u stands, but its expanded form takes Student's t on their 4
+    degrees of freedom (k 2.87, not 2), and the result says so in the uncertainty line, a warning and details."""
+    rec, _ = record(seed=0, ar1=0.997)
+    result = calibrate_wheel(rec, radius=0.28)
+    blocks = result.quality["residual_checks"]["batch_means"]
+    assert blocks["blocks"] == 5 and blocks["dof"] == 4
+    assert result.details["coverage_factor"] == pytest.approx(2.87, abs=0.01)
+    assert result.details["coverage_dof"] == 4
+    assert "Student's t, k = 2.87" in result.quality["uncertainty"]
+    assert any("only 5 independent blocks" in w and "k = 2.87" in w for w in result.warnings)
+    assert np.all(np.abs(z_scores(result)) < result.details["coverage_factor"])
+
+
 def test_scattered_lost_samples_only_cost_data():
     rec, _ = record(seed=4)
     keep = np.random.default_rng(4).random(rec.t.size) >= 0.05
@@ -320,7 +344,9 @@ def test_white_noise_keeps_the_crb_and_stays_quiet():
     result = calibrate_wheel(rec, radius=0.28)
     assert result.quality["residual_checks"]["noise"] == "white"
     assert "CRB" in result.quality["uncertainty"]
-    assert result.warnings == []   # the cross-axis prior is stated with the checks (quality.cross_axis)
+    # the cross-axis prior is stated with the checks (quality.cross_axis); the one warning is that the record has
+    # no rest (what the coast alone cannot see)
+    assert [w for w in result.warnings if not w.startswith("the recording holds no rest")] == []
     assert "axis_nod_deg" not in result.quality["residual_checks"]
 
 

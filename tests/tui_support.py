@@ -36,3 +36,32 @@ async def wait_for(pilot, condition, timeout=40.0):
     # their first events (Textual's Header sets its title on a queued callback that fails with NoMatches when
     # the app exits before it runs, as a test does right after its last wait)
     await pilot.pause(0)
+
+
+def screen_lines(app) -> list[str]:
+    """The terminal's text as drawn now, one string per row (dialogs over the screens below them, as an
+    operator sees it; what App.export_screenshot draws, as text)."""
+    import io
+
+    from rich.console import Console
+
+    width, height = app.size
+    console = Console(width=width, height=height, file=io.StringIO(), force_terminal=True, record=True,
+                      legacy_windows=False, safe_box=False)
+    console.print(app.screen._compositor.render_update(full=True, screen_stack=app._background_screens))
+    return console.export_text().splitlines()
+
+
+async def choose(pilot, choice: str, timeout=40.0):
+    """Pick the option ``choice`` (its id) of the ChoiceScreen that is open or about to open, as the arrows and
+    enter would."""
+    from textual.widgets import OptionList
+
+    from accelrig.tui.screens.dialogs import ChoiceScreen
+
+    app = pilot.app
+    await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen), timeout)
+    options = app.screen.query_one(OptionList)
+    options.highlighted = options.get_option_index(choice)
+    await pilot.press("enter")
+    await wait_for(pilot, lambda: not isinstance(app.screen, ChoiceScreen), timeout)

@@ -90,6 +90,11 @@ class Driver(abc.ABC):
         """The URL options this driver understands (None: it checks them only when it opens)."""
         return None
 
+    def chip_named(self) -> str | None:
+        """The chip this URL names, known without opening anything (a profile's chip is compared with it
+        before a deployment starts); None: known only once the device answers."""
+        return None
+
     def check_url(self) -> None:
         """Refuse, without opening anything, a URL with an option this driver does not know: a typo is
         a mistake to correct, not a device to keep reconnecting to (the daemon checks this at start)."""

@@ -22,7 +22,8 @@ def register(sub, groups) -> None:
         "between. Poses are found on the raw data; '+z down' means the +z axis points down (reads -g). "
         "A pose too far from a face for six-face mode is refused by name; no profile is written then. "
         "The drift check (the TUI wizard's fifteen holds): after the six faces one face of each axis again, "
-        "then the same faces again, then their opposite faces once more; a recording with fewer holds "
+        "then their opposite faces once more, then the first faces a third time (last, so that their holds "
+        "span the run); a recording with fewer holds or another order "
         "calibrates too and says what it could not check.",
     )
     p.add_argument("recording", help="recording (.csv interchange, .npz, or segments: a .parquet file or a directory)")

@@ -94,6 +94,9 @@ def _human(result) -> str:
     lines.append("  C diag " + " ".join(v for v, _ in diag) + "   u " + " ".join(u for _, u in diag))
     lines.append("  b      " + " ".join(v for v, _ in bias) + "   u " + " ".join(u for _, u in bias) + " m/s²")
     lines += [f"{what}: {sentence}" for what, sentence in check_lines(result.to_json_dict())]
+    if "coverage_factor" in result.details:   # few batch-means blocks: U = k u with Student's t, not 2
+        lines.append(f"expanded uncertainty U = k u with k = {result.details['coverage_factor']:.2f} (Student's t on "
+                     f"the {result.details['coverage_dof']:g} degrees of freedom of u), not 2")
     lines.append(f"fit time {q['time_s']:.2f} s")
     for w in result.warnings:
         lines.append(f"warning: {w}")

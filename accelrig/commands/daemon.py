@@ -11,7 +11,10 @@ def register(sub, groups) -> None:
     p = sub.add_parser(
         "daemon",
         description="Record several devices to disk for weeks: reconnects, gaps recorded with their cause, "
-        "SIGTERM/SIGINT stop cleanly, SIGHUP reloads the configuration. See docs/daemon.md.",
+        "SIGTERM/SIGINT stop cleanly, SIGHUP reloads the configuration. A device whose profile is missing "
+        "records its raw counts anyway, in state 'recording raw' with the reason in its status, log and "
+        "segments (per device, without_profile: stop stops it instead); the reload after filing the profile "
+        "restarts it with it. See docs/daemon.md.",
         epilog="Minimal configuration: 'output: DIR' and 'devices: [{url: sim://still?seed=1, name: bench-a}]'. "
         "The JSON Schema is profiles/daemon-config-v1.json.",
     )
@@ -20,11 +23,15 @@ def register(sub, groups) -> None:
     kinds = p.add_subparsers(dest="daemon_command", metavar="ACTION")
     check = kinds.add_parser("check", help="validate a configuration without starting anything",
                              description="Validate a configuration without opening any device: every field, "
-                             "the device URL schemes, profile files, and that the output can be written.")
+                             "the device URLs, profile files (and their chip against the one a URL names), "
+                             "flash only where the device can hold offsets, and that the output can be "
+                             "written; notes say what will be looked up when the devices answer.")
     check.add_argument("config", help="the daemon's YAML configuration")
     check.set_defaults(func=run_check)
     status = kinds.add_parser("status", help="the devices of a running daemon, as a table",
-                              description="Ask a running daemon for its devices' status through its socket.")
+                              description="Ask a running daemon for its devices' status through its socket: "
+                              "every configured device (state starting until it connects), and under the "
+                              "table what is wrong with each (e.g. why it is recording raw).")
     where = status.add_mutually_exclusive_group(required=True)
     where.add_argument("--config", dest="status_config", help="the running daemon's configuration (finds its socket)")
     where.add_argument("--socket", help="the daemon's status socket")

@@ -11,7 +11,8 @@ def register(sub, groups) -> None:
     p = sub.add_parser(
         "fleet",
         description="The devices publishing to an MQTT broker, from their retained status and meta messages: "
-        "host, state, last seen, rate, gaps, profile and its age. One look, then exit. See docs/fleet.md.",
+        "host, state, last seen, rate, gaps, profile and its age, and under the table what each daemon says is "
+        "wrong (e.g. why a device is recording raw). One look, then exit. See docs/fleet.md.",
     )
     add_broker_arguments(p)
     p.add_argument("--timeout", type=float, default=3.0, help="seconds to wait for the broker's answer (default 3)")

@@ -123,13 +123,22 @@ def format_report(result) -> str:
         f"expanded U = {format_value(r.value * 1e3, v.get('radius_k', 2.0) * r.uncertainty * 1e3)[1]} mm at k = "
         f"{coverage_text(v.get('radius_k', 2.0), v.get('radius_nu_eff'))}"
     )
+    if v.get("radius_profile_u_m"):
+        lines.append(f"  u includes the profile's own u of the scale along the motion, "
+                     f"{100 * v['profile_scale_u_rel']:.3g} % ({format_value(r.value * 1e3, v['radius_profile_u_m'] * 1e3)[1]}"
+                     " mm; its gain u, u(g) included): the same in every step, so judged once, never averaged down")
     lines.append(
         "motor roll-off: " + (f"tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else "none seen")
     )
     for w in result.warnings:
         lines.append(f"warning: {w}")
-    verdict = {"holds": "the static calibration holds under motion",
-               "does not hold": "the static calibration does not hold under motion",
-               "inconclusive": "inconclusive, whether the static calibration holds under motion is not decided"}
+    if v["profile"]:
+        verdict = {"holds": "the static calibration holds under motion",
+                   "does not hold": "the static calibration does not hold under motion",
+                   "inconclusive": "inconclusive, whether the static calibration holds under motion is not decided"}
+    else:   # raw data: no calibration was applied, so none is judged (the reason says so)
+        verdict = {"holds": "the raw readings agree with the caliper",
+                   "does not hold": "the raw readings disagree with the caliper",
+                   "inconclusive": "inconclusive"}
     lines.append(f"verdict: {verdict.get(v['verdict'], v['verdict'])}: {v['verdict_reason']}")
     return "\n".join(lines)

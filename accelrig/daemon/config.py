@@ -59,6 +59,11 @@ DEVICE = Object(
             "volatile); default no"))),
         "csv": optional(Boolean(description=(
             "also write each finished segment as CSV; default no"))),
+        "without_profile": optional(String(enum=("raw", "stop"), description=(
+            "when the profile this device needs (output calibrated, flash, or a profile file) is missing or "
+            "made for another device: raw (default): record the raw counts anyway, in state 'recording raw' "
+            "with the reason in the status, log and segments (calibrate them later with 'accelrig profile "
+            "apply'); stop: stop the device"))),
     },
     description="one device the daemon records",
 )
@@ -129,6 +134,7 @@ class DeviceConfig:
     uncertainty: bool = False
     flash: bool = False
     csv: bool = False
+    without_profile: str = "raw"    # "raw": record raw counts when the profile it needs is unusable; "stop"
     index: int = 0                  # position in the file, for messages that name the field
 
     def field(self, name: str) -> str:
@@ -200,7 +206,7 @@ def parse_config(data, source: str = "<config>", base: Path | None = None) -> Da
         device = DeviceConfig(
             url=entry["url"], name=name, profile=profile, output=entry.get("output", "raw"),
             uncertainty=entry.get("uncertainty", False), flash=entry.get("flash", False),
-            csv=entry.get("csv", False), index=i,
+            csv=entry.get("csv", False), without_profile=entry.get("without_profile", "raw"), index=i,
         )
         if device.output == "calibrated" and device.profile == "none":
             raise ConfigError(f"{source}: devices[{i}].output: calibrated output needs a profile, but profile is none",
@@ -295,6 +301,7 @@ def check_config(config: DaemonConfig) -> list[str]:
     a profile file that does not load.  An output directory that cannot be
     written is refused too (the daemon refuses it at start).
     """
+    from accelrig.acquisition.url import DeviceURL
     from accelrig.profiles.io import load_profile
     from accelrig.profiles.store import ProfileStore
 
@@ -304,10 +311,18 @@ def check_config(config: DaemonConfig) -> list[str]:
         path = device.profile_path
         if path is not None:
             try:
-                load_profile(path)
+                profile = load_profile(path)
             except AccelrigError as exc:
                 raise ConfigError(f"{device.field('profile')}: {exc}") from None
-        elif device.profile == "store":
+            _check_chip(device, profile, device.field("profile"))
+        url_profile = DeviceURL.parse(device.url).get_str("profile")
+        if url_profile:
+            try:
+                profile = load_profile(url_profile)
+            except AccelrigError as exc:
+                raise ConfigError(f"{device.field('url')}: profile={url_profile}: {exc}") from None
+            _check_chip(device, profile, f"{device.field('url')}: profile={url_profile}")
+        if path is None and device.profile == "store":
             store = ProfileStore(config.profile_store)
             note = (f"{device.name}: profile from the store {store.root} by the device's identity "
                     "(looked up when it connects)")
@@ -316,9 +331,11 @@ def check_config(config: DaemonConfig) -> list[str]:
                 # to fail: say so now rather than when the deployment starts
                 held = store.identities()
                 need = "output calibrated" if device.output == "calibrated" else "flash"
-                note += (f"; {need} needs one, and without it this device records nothing: the store holds "
+                without = ("records nothing (without_profile: stop)" if device.without_profile == "stop"
+                           else "records raw counts only, in state 'recording raw'")
+                note += (f"; {need} needs one, and without it this device {without}: the store holds "
                          + (f"profiles for {', '.join(held)}" if held else "no profile at all")
-                         + " (`accelrig profile add PROFILE` files one; `output: raw` records without one)")
+                         + " (`accelrig profile add PROFILE` files one)")
             notes.append(note)
     if config.mqtt is not None:
         notes.append(check_mqtt(config.mqtt))
@@ -326,16 +343,36 @@ def check_config(config: DaemonConfig) -> list[str]:
     return notes
 
 
+def _check_chip(device: DeviceConfig, profile, where: str) -> None:
+    """A profile made for another chip than the one the URL names (``sim://`` is chip "sim", ``i2c://...?chip=``
+    and ``i2c-sim://CHIP`` name theirs): the device would record without it, so check refuses it now.
+    URLs whose chip is known only when the device answers (serial, BLE) are checked when it connects."""
+    from accelrig.acquisition.driver import driver_for
+
+    named = driver_for(device.url).chip_named()
+    made_for = profile.device.get("chip")
+    if named and made_for and str(made_for).lower() != named.lower():
+        raise ConfigError(f"{where}: {profile.path} was made for chip {made_for!r}, but the device at {device.url} is "
+                          f"chip {named!r} (device {device.name!r})",
+                          "give the profile made for this device, or correct the URL")
+
+
 def check_urls(config: DaemonConfig) -> None:
     """Every device's URL: a scheme some driver handles and only options that driver knows (a typo would
-    otherwise be retried for ever as a device that does not answer).  ConfigError naming the device."""
-    from accelrig.acquisition.driver import driver_for
+    otherwise be retried for ever as a device that does not answer), and ``flash`` only where the device
+    can hold offsets (else every connect would fail and nothing be recorded).  ConfigError naming the device."""
+    from accelrig.acquisition.driver import Driver, driver_for
 
     for device in config.devices:
         try:
-            driver_for(device.url).check_url()
+            driver = driver_for(device.url)
+            driver.check_url()
         except AccelrigError as exc:
             raise ConfigError(f"{device.field('url')}: {exc} (device {device.name!r})") from None
+        if device.flash and type(driver).plan_flash is Driver.plan_flash:
+            raise ConfigError(f"{device.field('flash')}: a {driver.scheme}:// device cannot hold offsets "
+                              f"(device {device.name!r})",
+                              "set flash to no: with output calibrated the host applies the whole profile")
 
 
 def check_mqtt(mqtt: MqttConfig) -> str:

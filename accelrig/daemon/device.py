@@ -18,10 +18,15 @@ A DeviceRunner owns one thread that keeps its device recorded:
   duration at the start of the next connection's segments.  Gaps the driver
   reports (FIFO overflow, corrupt or lost frames) become gap records where
   they happened.  A full disk drops samples, counted, until a write succeeds
-  again, and then a "disk full" gap record says how many and how long.  A
-  problem no retry can fix (a profile for another device, a missing stored
-  profile the configuration requires) stops this device only, with the field
-  named.
+  again, and then a "disk full" gap record says how many and how long.
+* a profile this device needs that cannot be used (none stored for its
+  identity, a file that does not load, one made for another device, chip or
+  range): the raw counts are recorded anyway, in state "recording raw", with
+  the reason in the status, the log, the journal and every segment's
+  metadata, so nothing is lost and ``accelrig profile apply`` calibrates the
+  data later (``without_profile: stop`` stops the device instead).  A reload
+  restarts such a device once its profile is there.  Other problems no retry
+  can fix (a URL no driver takes) stop this device only, with the field named.
 
 Accounting, kept in ``counts`` and written to the device's journal when it
 stops: delivered = written + dropped (each dropped sample in a "disk full"
@@ -54,6 +59,8 @@ POLL = 0.2                 # s between writes of what arrived
 DISK_RETRY = 2.0           # s between write attempts while the disk is full
 CALIBRATED_CHANNELS = ("cal_x", "cal_y", "cal_z")
 UNCERTAINTY_CHANNELS = ("u_x", "u_y", "u_z")
+RECORDING_STATES = ("streaming", "recording raw")   # samples are being written ("recording raw": without
+                                                    # the profile the configuration asks for)
 
 
 def utc_text(seconds: float | None) -> str | None:
@@ -145,6 +152,9 @@ class DeviceRunner:
         self.state = "starting"
         self.last_error: str | None = None
         self.profile_note = "none"
+        self.profile_problem: str | None = None   # why the profile it needs is not used: recording raw
+        self._problems: list[str] = []            # this connection's unusable profiles, with their fixes
+        self._problem_sources: set[str] = set()   # where they were named: "url" (profile=PATH), "profile"
         self.info: DeviceInfo | None = None
         self.session: Session | None = None
         self.writer = None
@@ -330,9 +340,14 @@ class DeviceRunner:
         session = Session(driver=driver, buffer_seconds=30.0)
         try:
             info = session.open()
-            flash_url_profile(driver)            # a URL's profile=PATH, as everywhere else
+            self.profile_problem, self._problems, self._problem_sources = None, [], set()
+            try:
+                flash_url_profile(driver)        # a URL's profile=PATH, as everywhere else
+            except ProfileError as exc:          # not written: the chip keeps its factory offsets
+                self._without_profile(f"the URL's profile=PATH was not flashed: {exc.message}",
+                                      "give the URL a profile made for this device", "url")
             self._profile = self._choose_profile(info)
-            flashed = self._flash(driver) if self.device.flash else None
+            flashed = self._flash(driver) if self.device.flash and self._profile is not None else None
             self._open_writer(info, driver.clock, flashed)
             recorder = Recorder(info, session.reader(from_oldest=True, lossless=True), session, writer=self,
                                 utc_times=True)
@@ -349,48 +364,104 @@ class DeviceRunner:
         self.counts.connects += 1
         self._journal("connect", connection=self.counts.connects, url=info.url, identity=info.identity,
                       nominal_rate=info.nominal_rate, profile=self._profile_reference(), flashed=flashed,
-                      hardware_bias_removed=info.hardware_bias_removed)
+                      hardware_bias_removed=info.hardware_bias_removed, recording_raw=self.profile_problem)
         self.last_data = time.monotonic()
-        self._set("streaming", None)
+        self._set(*self._streaming_state())
         self.log(f"{self.device.name}: connected to {info.url} ({info.chip} {info.identity}, "
                  f"{info.nominal_rate:g} Hz), profile {self.profile_note}")
+        if self.profile_problem is not None:
+            self.log(f"{self.device.name}: WARNING: {self.profile_problem}")
+
+    def _streaming_state(self) -> tuple[str, str | None]:
+        """(state, why) while samples are written: "recording raw" says the profile it needs is not used."""
+        if self.profile_problem is not None:
+            return "recording raw", self.profile_problem
+        return "streaming", None
+
+    def _without_profile(self, problem: str, fix: str, source: str) -> None:
+        """The profile this device needs (``source``: "url" for the URL's profile=PATH, "profile" for its
+        field) cannot be used: record the raw counts anyway, saying so everywhere (``without_profile:
+        raw``), or stop the device (``stop``: the ProfileError)."""
+        if self.device.without_profile == "stop":
+            raise ProfileError(problem, fix)
+        self._problems.append(f"{problem}; {fix}")
+        self._problem_sources.add(source)
+        gains = [gain for gain, wanted in (("get calibrated channels", self.device.output == "calibrated"),
+                                           ("flash its offsets", self.device.flash)) if wanted]
+        self.profile_problem = (f"recording raw: {'; '.join(self._problems)}, then reload the daemon (SIGHUP or "
+                                f"systemctl reload){' to ' + ' and '.join(gains) if gains else ''}; "
+                                "`accelrig profile apply` calibrates what was recorded raw")
+        self._journal("recording_raw", problem=problem)
 
     def _choose_profile(self, info: DeviceInfo):
         """The profile this connection uses (or None), checked against the device."""
+        device = self.device
+        try:
+            profile, warnings = self._find_profile(info)
+        except ProfileError as exc:
+            self.profile_note = "none"
+            self._without_profile(exc.message, "calibrate the device and file its profile (accelrig profile add "
+                                  "PROFILE)" if device.profile == "store" else
+                                  f"give {device.field('profile')} a profile made for this device", "profile")
+            return None
+        for warning in warnings:
+            self.log(f"{device.name}: {warning}")
+        if profile is not None:
+            self.profile_note = str(profile.path)
+        elif device.profile == "store":
+            self.profile_note = f"none (no stored profile for {info.identity!r})"
+        else:
+            self.profile_note = "none"
+        return profile
+
+    def _find_profile(self, info: DeviceInfo):
+        """(profile, warnings) as configured for this device: (None, []) when it is to use none (``profile:
+        none``, or a raw device with none stored); ProfileError when the one it needs cannot be used."""
         from accelrig.profiles.apply import check_compatible
         from accelrig.profiles.io import load_profile
         from accelrig.profiles.store import ProfileStore
 
         device = self.device
         if device.profile == "none":
-            self.profile_note = "none"
-            return None
+            return None, []
         if device.profile == "store":
             store = ProfileStore(self.config.profile_store)
             try:
                 choice = store.choose(info.identity)
-            except ProfileError as exc:
+            except ProfileError:
                 if device.output == "raw" and not device.flash:
-                    self.profile_note = f"none (no stored profile for {info.identity!r})"
-                    return None
-                raise ProfileError(f"{exc.message}; output {device.output}"
-                                   + (" and flash" if device.flash else "") + " need one", exc.hint) from None
-            for warning in choice.warnings:
-                self.log(f"{device.name}: {warning}")
-            profile = choice.stored.profile
+                    return None, []
+                held = store.identities()
+                raise ProfileError(f"no profile for {info.identity!r} in the store {store.root} "
+                                   + (f"(it holds {', '.join(held)})" if held else "(it is empty)")) from None
+            profile, warnings = choice.stored.profile, list(choice.warnings)
         else:
-            profile = load_profile(device.profile_path)
-        for warning in check_compatible(profile, info.to_dict(), "counts"):
-            self.log(f"{device.name}: profile: {warning}")
-        self.profile_note = str(profile.path)
-        return profile
+            profile, warnings = load_profile(device.profile_path), []
+        return profile, warnings + [f"profile: {w}" for w in check_compatible(profile, info.to_dict(), "counts")]
+
+    def profile_now_usable(self) -> bool:
+        """Recording raw for want of a profile that can be used now (a reload restarts the device for it)."""
+        from accelrig.acquisition.url import DeviceURL
+        from accelrig.profiles.apply import check_compatible
+        from accelrig.profiles.io import load_profile
+
+        info = self.info
+        if self.profile_problem is None or info is None:
+            return False
+        try:
+            if "url" in self._problem_sources:
+                path = DeviceURL.parse(self.device.url).get_str("profile")
+                check_compatible(load_profile(path), info.to_dict(), "counts")
+            if "profile" in self._problem_sources:
+                self._find_profile(info)
+        except ProfileError:
+            return False
+        return True
 
     def _flash(self, driver) -> dict:
         """Write the profile's offsets to the chip (every connect: the registers are volatile)."""
         from accelrig.profiles.flash import plan_flash
 
-        if self._profile is None:
-            raise ProfileError("flash needs a profile and none was found")
         report = driver.flash(plan_flash(driver, self._profile))
         if not report.verified:
             raise AccelrigError(f"flashing the offsets was not verified: {'; '.join(report.notes)}")
@@ -405,9 +476,14 @@ class DeviceRunner:
                 "created": p.data["provenance"]["created"], "procedure": p.procedure, "method": p.method}
 
     # ------------------------------------------------------------------ writing
+    @property
+    def _calibrating(self) -> bool:
+        """Calibrated channels are written: asked for, and the profile is there."""
+        return self.device.output == "calibrated" and self._profile is not None
+
     def _channel_names(self, info: DeviceInfo) -> tuple[str, ...]:
         names = tuple(info.channels)
-        if self.device.output == "calibrated":
+        if self._calibrating:
             names += CALIBRATED_CHANNELS + (UNCERTAINTY_CHANNELS if self.device.uncertainty else ())
         return names
 
@@ -429,7 +505,11 @@ class DeviceRunner:
             "output": self.device.output,
             "flashed": flashed,
         })
-        if self.device.output == "calibrated":
+        if self.profile_problem is not None:
+            # the configuration asked for a profile this segment does without: its raw counts are complete,
+            # and `accelrig profile apply PROFILE` (device checked by identity, chip, range) calibrates them
+            meta["recording_raw"] = self.profile_problem
+        if self._calibrating:
             meta["calibrated_channels"] = {
                 "cal_x, cal_y, cal_z": "calibrated acceleration, m/s^2: C @ (counts x scale - b) of the profile",
                 **({"u_x, u_y, u_z": "standard uncertainty of each calibrated axis, m/s^2"}
@@ -556,7 +636,7 @@ class DeviceRunner:
         sample written again."""
         seconds = resumed - full["since"]
         self._disk_full = None
-        self._set("streaming", None)
+        self._set(*self._streaming_state())
         self._journal("gap", cause=full["cause"], samples=full["samples"], at=utc_text(full["since"]),
                       seconds=seconds)
         self.log(f"{self.device.name}: writing again after {full['cause']} "
@@ -601,7 +681,7 @@ class DeviceRunner:
         from accelrig.profiles.apply import calibrated
 
         out = dict(channels or {})
-        if self.device.output == "calibrated":
+        if self._calibrating:
             device = {"hardware_bias_removed": self.info.hardware_bias_removed}
             cal = calibrated(Chunk(0, counts, t, self.info.scale), self._profile, self.device.uncertainty,
                              device=device)

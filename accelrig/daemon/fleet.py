@@ -150,6 +150,7 @@ def rows(devices: dict, now: datetime | None = None, recalibrate_days: float | N
             "spooled": mqtt.get("spooled"), "spool_dropped_samples": mqtt.get("dropped_samples"),
             "profile": f"{profile.get('procedure')}/{profile.get('method')}" if profile else None,
             "profile_created": profile.get("created"), "profile_age_seconds": age, "recalibration": due,
+            "error": status.get("error"),   # what is wrong, as the daemon says it (e.g. why it records raw)
         })
     return out
 
@@ -182,5 +183,10 @@ def format_table(table: list[dict], recalibrate_days: float | None = None) -> st
         return NO_DEVICES
     lines = [columns(recalibrate_days), *(cells(r, recalibrate_days) for r in table)]
     widths = [max(len(str(line[i])) for line in lines) for i in range(len(lines[0]))]
-    return "\n".join("  ".join(str(v).ljust(w) for v, w in zip(line, widths, strict=True)).rstrip()
-                     for line in lines)
+    return "\n".join(["  ".join(str(v).ljust(w) for v, w in zip(line, widths, strict=True)).rstrip()
+                      for line in lines] + notes(table))
+
+
+def notes(table: list[dict]) -> list[str]:
+    """What the daemons say is wrong, one line per device, under the table (``accelrig fleet``, the TUI)."""
+    return [f"{r['site']}/{r['device']}: {r['error']}" for r in table if r.get("error")]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from accelrig.daemon.device import RECORDING_STATES
 from accelrig.errors import require_extra
 
 COUNTERS = (
@@ -53,10 +54,11 @@ def serve_metrics(port: int, snapshot: Callable[[], dict]):
                 yield family
             rate = GaugeMetricFamily("accelrig_delivered_rate_hz", "samples delivered per second, recent",
                                      labels=["device"])
-            up = GaugeMetricFamily("accelrig_device_up", "1 while the device is streaming", labels=["device", "state"])
+            up = GaugeMetricFamily("accelrig_device_up", "1 while the device is recording (state streaming, or "
+                                   "recording raw: without the profile it needs)", labels=["device", "state"])
             for d in devices:
                 rate.add_metric([d["name"]], d["delivered_rate"] or 0.0)
-                up.add_metric([d["name"], d["state"]], 1.0 if d["state"] == "streaming" else 0.0)
+                up.add_metric([d["name"], d["state"]], 1.0 if d["state"] in RECORDING_STATES else 0.0)
             yield rate
             yield up
             publishing = [d for d in devices if d.get("mqtt")]

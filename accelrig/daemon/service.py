@@ -3,8 +3,9 @@
 * SIGTERM / SIGINT: every device flushes and closes its segments; exit 0
   (within ``STOP_SECONDS``: a driver read that hangs longer is abandoned).
 * SIGHUP: the configuration is read again.  Devices added start, removed ones
-  stop cleanly, changed ones (their entry, or a setting they use) restart;
-  unchanged ones keep streaming untouched, so their data have no gap.  A
+  stop cleanly, changed ones (their entry, or a setting they use) restart, and
+  so does one recording raw whose missing profile is there now; unchanged ones
+  keep streaming untouched, so their data have no gap.  A
   configuration that no longer validates is refused in the log and the old
   one kept: a typo must not stop the recording.
 * Every ``status_interval`` seconds one status line per device on standard
@@ -75,6 +76,11 @@ class Daemon:
         for signum in (signal.SIGTERM, signal.SIGINT):
             signal.signal(signum, lambda *_: self._stop.set())
         signal.signal(signal.SIGHUP, lambda *_: self._reload.set())
+        # every configured device is listed from the status socket's first answer ("starting" until its
+        # thread connects): a device that takes long to start (a crashed run's segment to recover) must
+        # not hide the ones after it
+        for device in self.config.devices:
+            self._add(device)
         self.server = StatusServer(self.config.status_socket, self.snapshot)
         self.server.start()
         try:
@@ -85,8 +91,8 @@ class Daemon:
             # for the daemon's life: out of the cyclic collector's sight, a full collection takes
             # 0.1 ms instead of about 100 ms, during which no device is read (an I2C FIFO holds 21 ms).
             gc.freeze()
-            for device in self.config.devices:
-                self._start(device)
+            for runner in list(self.runners.values()):
+                runner.start()
             self._loop()
         finally:
             self._shutdown()
@@ -136,10 +142,11 @@ class Daemon:
             self.metrics.shutdown()
         log("stopped")
 
-    def _start(self, device) -> None:
+    def _add(self, device) -> DeviceRunner:
+        """A device's runner, listed in status (state "starting") before it is started."""
         runner = DeviceRunner(device, self.config, log, finisher=self.finisher)
         self.runners[device.name] = runner
-        runner.start()
+        return runner
 
     # ------------------------------------------------------------------ reload
     def reload(self) -> None:
@@ -158,9 +165,16 @@ class Daemon:
         new_devices = {d.name: d for d in new.devices}
         stop = [name for name, d in old_devices.items()
                 if name not in new_devices or everything or not d.same_as(new_devices[name])]
+        # a device recording raw for want of its profile is restarted once the profile is there (filed in
+        # the store, or the file fixed): the reload an operator sends after calibrating it
+        found = [name for name in new_devices if name not in stop and name in self.runners
+                 and self.runners[name].profile_now_usable()]
         for name in stop:
             self.runners[name].stop("removed from the configuration" if name not in new_devices
                                     else "restarted: its configuration changed")
+        for name in found:
+            self.runners[name].stop("restarted: the profile it lacked is there now")
+        stop += found
         deadline = time.monotonic() + STOP_SECONDS
         for name in stop:
             if not self.runners[name].join(max(deadline - time.monotonic(), 0.0)):
@@ -174,20 +188,28 @@ class Daemon:
         started = []
         for device in new.devices:
             if device.name not in self.runners:
-                self._start(device)
+                self._add(device)
                 started.append(device.name)
             else:
                 self.runners[device.name].device = device  # same entry; its place in the list may differ
+        self.runners = {d.name: self.runners[d.name] for d in new.devices}   # listed in the file's order
+        for name in started:
+            self.runners[name].start()
         self.reloads += 1
         removed = [n for n in stop if n not in new_devices]
-        restarted = [n for n in stop if n in new_devices]
-        added = [n for n in started if n not in restarted]
+        restarted = [n for n in stop if n in new_devices and n not in found]
+        added = [n for n in started if n not in restarted and n not in found]
         kept = [n for n in new_devices if n not in started]
         def names(group: list[str]) -> str:
             return ", ".join(group) or "none"
 
         log(f"reloaded {self.config_path}: added {names(added)}; removed {names(removed)}; "
-            f"restarted {names(restarted)}; unchanged {names(kept)}")
+            f"restarted {names(restarted)}; unchanged {names(kept)}"
+            + (f"; restarted with the profile they lacked: {names(found)}" if found else ""))
+        for name in new_devices:
+            runner = self.runners[name]
+            if name not in started and runner.profile_problem is not None:
+                log(f"{name}: still {runner.profile_problem}")
 
     # ------------------------------------------------------------------ health
     def snapshot(self) -> dict:

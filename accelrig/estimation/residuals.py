@@ -50,6 +50,9 @@ ALPHA = 0.01                 # false alarm rate of each test
 MATERIAL_INFLATION = 1.1     # u growing by less than 10 % is not worth a change of method
 SOKAL_WINDOW = 5.0           # window M >= c tau (Sokal 1997): bias of tau below e^-c
 MIN_BLOCKS = 20              # batch means need this many blocks for a usable middle matrix
+# Fewer than MIN_BLOCKS blocks: u is still the batch means', but its expanded form takes Student's t on their K - 1
+# degrees of freedom (``FewBlocks``); fewer than MIN_HONEST_BLOCKS: refused (``FewBlocks.refusal``, argued there).
+MIN_HONEST_BLOCKS = 5
 BLOCK_PER_TAU = 20           # block length in units of tau: the batch-means bias ~ tau / block
 SOKAL_FIRST_LAGS = 4096      # lags first computed for tau (more only while Sokal's window is not reached)
 
@@ -111,6 +114,10 @@ class Whiteness:
     q: float               # Ljung-Box statistic over ``lags``
     lags: int
     p_value: float
+    # Sokal's window was reached within the lags the series allows, so tau is measured.  When it was not, the
+    # correlation still runs at the last lag and tau is only a lower bound: the noise wanders more slowly than the
+    # series can show (``FewBlocks`` says what that costs a batch-means u)
+    resolved: bool = True
 
     @property
     def inflation(self) -> float:
@@ -133,7 +140,7 @@ class Whiteness:
     def to_dict(self) -> dict:
         return {"n": self.n, "lag1": self.lag1, "tau_samples": self.tau, "window": self.window,
                 "ljung_box_q": self.q, "lags": self.lags, "p_value": self.p_value,
-                "inflation": self.inflation, "correlated": self.correlated}
+                "inflation": self.inflation, "correlated": self.correlated, "resolved": self.resolved}
 
 
 def whiteness(residuals: np.ndarray, lags: int | None = None) -> Whiteness:
@@ -161,7 +168,7 @@ def whiteness(residuals: np.ndarray, lags: int | None = None) -> Whiteness:
     k = np.arange(1, lags + 1)
     q = float(n * (n + 2) * np.sum(rho[1: lags + 1] ** 2 / (n - k)))
     p = float(_sps.chi2.sf(q, lags))
-    return Whiteness(n, float(rho[1]), tau, window, q, lags, p)
+    return Whiteness(n, float(rho[1]), tau, window, q, lags, p, window >= SOKAL_WINDOW * tau)
 
 
 def whiteness_by_column(residuals: np.ndarray) -> list[Whiteness]:
@@ -209,6 +216,81 @@ class Sandwich:
     def to_dict(self) -> dict:
         return {"method": self.method, "blocks": self.blocks, "block_samples": self.block,
                 "underresolved": self.underresolved}
+
+
+@dataclass
+class FewBlocks:
+    """What a batch-means u over ``blocks`` blocks of ``block`` samples (of an ``n``-sample record, ``period`` s
+    per sample) can claim: the coverage factor of its expanded form, or a refusal.
+
+    **Student's t.**  The middle matrix is a sum of K outer products of block sums: with independent blocks a
+    Wishart with K - 1 degrees of freedom, so a parameter's u^2 is sigma^2 chi^2_(K-1) / (K - 1) and the
+    interval that covers 95.45 % is +-t(K - 1) u (GUM G.3-G.4): 13.97 at K = 2, 4.53 at 3, 3.31 at 4, 2.87
+    at 5, 2.32 at 10, 2.14 at 20.  From MIN_BLOCKS up k stays 2 (the doubling ladder keeps the widest of
+    several block lengths, which errs wide by more than t adds).
+
+    **Why not below MIN_HONEST_BLOCKS = 5.**  t presumes independent blocks; adjacent ones are not.  Their sums
+    share the correlated pairs across their boundary: for a block b long against an integrated time tau they
+    correlate by about r = tau / (4 b), which leaves the batch-means variance short by about 2 r.  And tau is
+    itself read from the residuals of the record: with the mean removed and Sokal's window M ~ 5 tau, it
+    reads low by about 2 M / n.  Blocks of 5 tau-hat (the ladder's shortest) in K = n / b of them are then
+    about 5 (1 - 2 / K) tau long: 3 tau at K = 5 (r ~ 8 %: u some 8 % short, under a t of 2.87), 2.5 tau at
+    K = 4 and 1.7 tau at K = 3 (u 15-25 % short on top of a t of 3.3-4.5 resting on 2-3 dof), and at K = 2
+    no longer than the noise's own memory: the block sums then differ by little more than the fit removed,
+    and u can be any size (held-out wheel, AR(1) 0.999 and a dominating random walk: errors of 26 u and of
+    40,000 u with 2 blocks).  Below five blocks the record cannot say how large the noise's slow part is, so
+    no u is stated.  Measured at the limit (wheel, stress simulator, AR(1) 0.995 and 0.997, 105 runs): 91 kept
+    with 5-19 blocks, 6 of them with estimates beyond k u (3.3-5.7 u, every estimate of the run together:
+    one noise moves them all), 14 refused."""
+
+    blocks: int
+    block: int
+    n: int
+    period: float = 0.0
+
+    @property
+    def dof(self) -> float:
+        return float(max(self.blocks - 1, 1))
+
+    @property
+    def few(self) -> bool:
+        return self.blocks < MIN_BLOCKS
+
+    @property
+    def refused(self) -> bool:
+        return self.blocks < MIN_HONEST_BLOCKS
+
+    @property
+    def coverage_factor(self) -> float:
+        from accelrig.estimation.gum import coverage_factor
+
+        return coverage_factor(self.dof) if self.few else 2.0
+
+    def describe(self) -> str:
+        """One clause for the uncertainty line (empty when the blocks are enough for k = 2)."""
+        if not self.few:
+            return ""
+        return (f"the batch means rest on {self.blocks} blocks ({self.blocks - 1} degrees of freedom), too few for "
+                f"k = 2: the expanded uncertainty takes Student's t, k = {self.coverage_factor:.2f} (95.45 %)")
+
+    def to_dict(self) -> dict:
+        return {"blocks": self.blocks, "block_samples": self.block, "dof": self.dof,
+                "coverage_factor": self.coverage_factor, "min_blocks_for_k2": MIN_BLOCKS,
+                "min_blocks": MIN_HONEST_BLOCKS}
+
+    def refusal(self, what: str = "the estimates"):
+        """The error to raise when ``refused``: the cause and how much longer a record would do."""
+        from accelrig.errors import CalibrationError
+
+        longer = int(np.ceil(MIN_HONEST_BLOCKS * self.block / max(self.n, 1)))
+        memory = (f"{self.block * self.period:.3g} s" if self.period > 0 else f"{self.block} samples")
+        return CalibrationError(
+            f"the noise wanders more slowly than the record can measure: its correlation asks for batch-means "
+            f"blocks of {memory} and the record holds {self.blocks} of them (at least {MIN_HONEST_BLOCKS} are needed "
+            f"to state a u for {what}; with fewer, the blocks are no longer than the noise's memory and u could be "
+            "any size)",
+            f"record at least {max(longer, 2)} times longer, or let the sensor settle at a steady temperature "
+            "(powered, still) before calibrating")
 
 
 def sandwich_covariance(normal_matrix: np.ndarray, scores: np.ndarray, block: int) -> Sandwich:
@@ -318,12 +400,13 @@ def pooled_whiteness(segments: list[np.ndarray]) -> Whiteness:
         lags_total += lags
     rho = acov / acov[0] if acov[0] > 0 else np.concatenate([[1.0], np.zeros(max_lag)])
     tau, window = integrated_time(rho)
+    resolved = window >= SOKAL_WINDOW * tau
     n_eff = sum(s.size**2 for s in segments) / n_total
     shrink = 1.0 - 2.0 * window / n_eff
     if shrink > 0.25:
         tau /= shrink
     p = float(_sps.chi2.sf(q, lags_total))
-    return Whiteness(n_total, float(rho[1]), float(tau), window, q, lags_total, p)
+    return Whiteness(n_total, float(rho[1]), float(tau), window, q, lags_total, p, resolved)
 
 
 # ---------------------------------------------------------------- short records: a parametric middle matrix

@@ -68,22 +68,38 @@ def _cell(value) -> str:
     return "(none)" if value is None else str(value)
 
 
-def _writes_table(rows: list[FlashWrite], current_label: str = "current", new_label: str = "new") -> list[str]:
+def _writes_table(rows: list[FlashWrite], current_label: str = "current", new_label: str = "new",
+                  width: int | None = None) -> list[str]:
+    """One line per write; when that is wider than ``width`` (a dialog at 80 columns), each write's
+    meaning goes on a line of its own under it, so the columns stay columns instead of wrapping."""
     table = [("target", current_label, new_label, "meaning")] + [
         (w.target, _cell(w.current), _cell(w.new), w.meaning) for w in rows
     ]
     widths = [max(len(r[i]) for r in table) for i in range(3)]
-    return ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3] for r in table]
+    lines = ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3] for r in table]
+    if width is None or max(len(line) for line in lines) <= width:
+        return lines
+    return [line for r in table for line in
+            ("  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)).rstrip(), "      " + r[3])]
 
 
-def format_plan(plan: FlashPlan) -> str:
-    """The plan as a person reads it before agreeing: every write, what stays on the host, the notes."""
+def _value_text(value) -> str:
+    """Residual figures to four significant digits (the profile keeps them whole), lists included."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_value_text(v) for v in value) + "]"
+    return str(value)
+
+
+def format_plan(plan: FlashPlan, width: int | None = None) -> str:
+    """The plan as a person reads it before agreeing: every write, what stays on the host, the notes.
+    ``width``: the columns the text is shown in (the TUI's dialog), else the table keeps one line a write."""
     lines = [f"Flash plan for {plan.device}: {len(plan.writes)} write(s)"]
-    lines += _writes_table(plan.writes)
+    lines += _writes_table(plan.writes, width=width)
     if plan.residual:
         lines.append("Residual (what the device cannot hold exactly; the host profile keeps it):")
-        lines += [f"  {name}: {value:.4g}" if isinstance(value, float) else f"  {name}: {value}"
-                  for name, value in plan.residual.items()]
+        lines += [f"  {name}: {_value_text(value)}" for name, value in plan.residual.items()]
     lines += [f"  note: {note}" for note in plan.notes]
     return "\n".join(lines)
 

@@ -22,13 +22,24 @@ REPRODUCE_RTOL = 1e-6
 
 
 def _recording_path(src: Source) -> Path | None:
+    """The file the profile names: beside the profile or from here, the one whose hash is the profile's
+    (a relative name can find another file of that name from another folder); else the first found (its
+    hash is then said to differ)."""
     name = src.provenance.get("recording_source")
     if not name:
         return None
-    for candidate in (Path(name), Path(src.path or ".").parent / name):
-        if candidate.is_file() or candidate.is_dir():
-            return candidate
-    return None
+    found = [c for c in dict.fromkeys((Path(src.path or ".").parent / name, Path(name)))
+             if c.is_file() or c.is_dir()]
+    if len(found) > 1:
+        from accelrig.recording import load_recording
+
+        for candidate in found:
+            try:
+                if load_recording(candidate).content_hash() == src.provenance.get("recording_hash"):
+                    return candidate
+            except AccelrigError:
+                continue
+    return found[0] if found else None
 
 
 def _rerun(src: Source, rec):

@@ -84,6 +84,9 @@ class LinkFaults:
     cal_fault: str | None = None
 
 
+FIRMWARE_CHIP = "sim-mpu9250"   # the chip the simulated firmware says it has (serial-sim://, ble-sim://)
+
+
 class SimFirmware:
     """The device side of the protocol, on a simulated rig and sensor."""
 
@@ -95,7 +98,7 @@ class SimFirmware:
         jitter: float = 20e-6,
         seed: int = 0,
         serial_number: str = "SIM-0001",
-        chip: str = "sim-mpu9250",
+        chip: str = FIRMWARE_CHIP,
         max_samples_per_frame: int = P.SAMPLES_PER_BLE_FRAME,
         faults: LinkFaults | None = None,
     ):

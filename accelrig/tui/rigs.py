@@ -35,8 +35,8 @@ NEEDS: dict[str, RigNeeds] = {
         "static", "still poses on six faces",
         "sim://static",
         {},
-        "a sensor put on its six faces in turn, then one face of each axis again, twice, then the opposite "
-        "faces once more, 4 s each (about 90 s)"),
+        "a sensor put on its six faces in turn, then one face of each axis again, then the opposite faces "
+        "once more, then the first faces a third time, 4 s each (about 90 s)"),
     "wheel": RigNeeds(
         "wheel", "rotation (a wheel spun and left to coast)",
         "sim://wheel?range=4&pace=fast&seconds=45&rest=5&push=2",

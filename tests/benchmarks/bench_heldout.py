@@ -54,6 +54,8 @@ from heldout_sim import (  # noqa: E402
 )
 
 PROCEDURES = ("static", "wheel", "slider_crank", "rotary")
+# what a right refusal of noise slower than the record can measure says
+SLOW = ("correlated", "wanders", "slow")
 
 
 def _command(argv: list[str]) -> tuple[dict | None, str]:
@@ -120,6 +122,11 @@ def static_conditions() -> list[Condition]:
         ("offset step 0.01 mid-run", StaticCase(drift=Drift("step", 0.01)), ("drift",)),
         ("warm-up 0.015, tau 1/4 run", StaticCase(drift=Drift("warmup", 0.015, at=0.25)), ("drift",)),
         ("thermal cycle 0.01 p-p, period 0.8 run", StaticCase(drift=Drift("thermal", 0.01, at=0.8)), ("drift",)),
+        # very slow noise (issue 18): its correlation time is seconds to tens of seconds, a hold's length or more
+        ("AR(1) rho 0.99", StaticCase(noise=Noise("ar1", s, r=0.99)), SLOW),
+        ("AR(1) rho 0.997", StaticCase(noise=Noise("ar1", s, r=0.997)), SLOW),
+        ("AR(1) rho 0.999", StaticCase(noise=Noise("ar1", s, r=0.999)), SLOW),
+        ("random walk 0.01/sqrt(s) dominates", StaticCase(noise=Noise("walk", s, walk=0.01)), SLOW + ("drift",)),
     ]
     return [Condition("static", name, _static(case), must) for name, case, must in rows]
 
@@ -148,6 +155,9 @@ def _wheel(case: WheelCase):
             out.u[f"offset_{axis}"] = p["offset"]["uncertainty"][k]
         out.errors["tilt"] = p["tilt_deg"]["value"] - truth["tilt_deg"]
         out.u["tilt"] = p["tilt_deg"]["uncertainty"]
+        k = result.get("details", {}).get("coverage_factor")
+        if k is not None:   # the tool states its own k (Student's t on few batch-means blocks)
+            out.k = dict.fromkeys(out.errors, float(k))
         # the cross-axis prior is a statement about what the wheel cannot see, not a finding about this run
         out.warnings = [w for w in result["warnings"] if "does not observe cross-axis" not in w]
         return out
@@ -166,6 +176,10 @@ def wheel_conditions() -> list[Condition]:
          ("correlated", "drift")),
         ("random walk 0.005/sqrt(s) + white", WheelCase(noise=Noise("walk", s, walk=0.005)), ("correlated", "drift")),
         ("AR(2) peak 2 Hz, r 0.95", WheelCase(noise=Noise("ar2", s, peak=2.0, r=0.95)), ("correlated",)),
+        ("AR(1) rho 0.99", WheelCase(noise=Noise("ar1", s, r=0.99)), SLOW),
+        ("AR(1) rho 0.997", WheelCase(noise=Noise("ar1", s, r=0.997)), SLOW),
+        ("AR(1) rho 0.999", WheelCase(noise=Noise("ar1", s, r=0.999)), SLOW),
+        ("random walk 0.03/sqrt(s) dominates", WheelCase(noise=Noise("walk", s, walk=0.03)), SLOW + ("drift",)),
         ("offset step 0.02 mid-run", WheelCase(drift=Drift("step", 0.02)), ("drift",)),
         ("warm-up 0.02, tau 1/4 run", WheelCase(drift=Drift("warmup", 0.02, at=0.25)), ("drift",)),
         ("tilt creeps 0.3 deg over the run", WheelCase(tilt_wander_deg=0.3), lack + ("tilt",)),
@@ -233,6 +247,10 @@ def slider_rows() -> list[tuple[str, SliderCase, tuple[str, ...]]]:
         ("white (simulator check)", SliderCase(), ()),
         ("pink 1/f^0.5, corner 20 Hz", SliderCase(noise=Noise("power", s, beta=0.5, corner=20.0)), ("correlated",)),
         ("red 1/f^1.5, corner 5 Hz", SliderCase(noise=Noise("power", s, beta=1.5, corner=5.0)), ("correlated",)),
+        ("AR(1) rho 0.99", SliderCase(noise=Noise("ar1", s, r=0.99)), SLOW),
+        ("AR(1) rho 0.997", SliderCase(noise=Noise("ar1", s, r=0.997)), SLOW),
+        ("AR(1) rho 0.999", SliderCase(noise=Noise("ar1", s, r=0.999)), SLOW),
+        ("random walk 0.05/sqrt(s) dominates", SliderCase(noise=Noise("walk", s, walk=0.05)), SLOW),
         ("sensor misaligned 2 deg on the slider", SliderCase(misalign_deg=2.0), ()),
         ("crank pin eccentric 50 um", SliderCase(eccentric=5e-5), ()),
         ("speed wobble 1 % at 5 Hz", SliderCase(wobble=0.01, wobble_hz=5.0), speed),
@@ -318,6 +336,10 @@ def rotary_conditions() -> list[Condition]:
         ("red 1/f^1.5, corner 1 Hz", RotaryCase(noise=Noise("power", s, beta=1.5, corner=1.0)), ("correlated",)),
         ("random walk 0.01/sqrt(s) + white", RotaryCase(noise=Noise("walk", s, walk=0.01)), ("correlated",)),
         ("AR(2) peak 50 Hz, r 0.98", RotaryCase(noise=Noise("ar2", s, peak=50.0, r=0.98)), ("correlated",)),
+        ("AR(1) rho 0.99", RotaryCase(noise=Noise("ar1", s, r=0.99)), SLOW),
+        ("AR(1) rho 0.997", RotaryCase(noise=Noise("ar1", s, r=0.997)), SLOW),
+        ("AR(1) rho 0.999", RotaryCase(noise=Noise("ar1", s, r=0.999)), SLOW),
+        ("random walk 0.05/sqrt(s) dominates", RotaryCase(noise=Noise("walk", s, walk=0.05)), SLOW),
         ("vibration 3-12 Hz, 0.02 + white", RotaryCase(noise=Noise("band", s, band=(3.0, 12.0), band_sd=0.02)),
          ("correlated",)),
         ("encoder 0.1 deg steps", RotaryCase(encoder_step_deg=0.1), ("encoder",)),
@@ -364,8 +386,8 @@ def main(argv=None) -> int:
             kept = [o for o in outcomes if not o.refused]
             for k in (kept[0].errors if kept else {}):
                 z = np.array([o.errors[k] / o.u[k] for o in kept if o.u.get(k)])
-                print(f"    {k:10s} cover {np.mean(np.abs(z) <= 2):.2f}  z mean {z.mean():+.2f} sd {z.std():.2f}",
-                      file=sys.stderr)
+                print(f"    {k:10s} cover {np.mean(np.abs(z) <= 2):.2f}  z mean {z.mean():+.2f} sd {z.std():.2f}"
+                      f"  max |z| {np.max(np.abs(z)):.1f}", file=sys.stderr)
             # what the warnings say, by kind (the text after the step's name, up to its first digit), in runs
             kinds = Counter(kind for o in kept for kind in {re.split(r"[0-9]", w.split("): ", 1)[-1])[0][:60]
                                                              for w in o.warnings})

@@ -8,8 +8,9 @@ real commands on them.  Nothing in accelrig may be tuned to its conditions: they
 what the project's own stress benchmark (``bench_stress.py``, built on ``accelrig.sim``) cannot.
 
 Noise (``noise``): white, power-law 1/f^beta by spectral shaping of a record four times longer
-than the one kept (so the slow part is not periodic in the record), random walk plus white, AR(2)
-with a spectral peak, band-limited vibration.  Offset drifts (``drift``): a step, an exponential
+than the one kept (so the slow part is not periodic in the record), random walk plus white, AR(1)
+(a first-order lag of white noise, stationary from its first sample), AR(2) with a spectral peak,
+band-limited vibration.  Offset drifts (``drift``): a step, an exponential
 warm-up, a sinusoidal thermal cycle, each of a stated total size.
 
 Wheel records may start as an operator's do (``rest_s``, ``push_s``, ``pushes``): the wheel at rest, then a
@@ -17,7 +18,8 @@ hand spinning it up with an irregular torque in one or more strokes, then the fr
 
 Truth for offsets: the sensor's offset during the calibration, i.e. its fixed offset plus the mean,
 over the samples the procedure uses, of every slow part (the drift and the non-white noise); for the
-wheel, over the free coast.
+wheel, over the free coast.  A stationary noise (AR(1), AR(2), a vibration) has a long-run mean of zero: its
+mean over the run is an error of the estimate, not part of the truth.
 """
 
 from __future__ import annotations
@@ -39,12 +41,13 @@ G = 9.80665
 
 @dataclass
 class Noise:
-    """Per-sample noise: ``kind`` one of white, power, walk, ar2, band.
+    """Per-sample noise: ``kind`` one of white, power, walk, ar1, ar2, band.
 
     sd          white sd per sample (m/s^2), per axis scale ``axis``
     beta        power law exponent (power): PSD(f) = white PSD * (corner / f)^beta
     corner      frequency where the coloured part's PSD equals the white PSD (power), Hz
     walk        random-walk step sd per sqrt(s) (walk), m/s^2/sqrt(s)
+    r           AR(1) coefficient per sample (ar1): x_k = r x_k-1 + e_k, marginal sd ``sd``, no white part
     peak, r     AR(2) peak frequency (Hz) and pole radius (ar2); the sd is ``sd``
     band        (low, high) Hz and ``band_sd`` m/s^2 of a vibration added to white noise (band)
     """
@@ -79,6 +82,12 @@ class Noise:
         elif self.kind == "walk":
             slow = np.cumsum(rng.standard_normal((n, 3)), axis=0) * self.walk / np.sqrt(rate)
             slow -= slow[0]
+        elif self.kind == "ar1":
+            # stationary from the first sample: x_0 drawn with the process' own sd, innovations sd sqrt(1 - r^2)
+            e = rng.standard_normal((n, 3)) * np.sqrt(1.0 - self.r**2)
+            start = rng.standard_normal(3)
+            x = signal.lfilter([1.0], [1.0, -self.r], e, axis=0, zi=(self.r * start)[None, :])[0]
+            return x * self.sd * scale, np.zeros((n, 3))
         elif self.kind == "ar2":
             # x_k = 2 r cos(w) x_k-1 - r^2 x_k-2 + e_k, scaled to sd; replaces the white part
             w = 2 * np.pi * self.peak / rate
@@ -155,7 +164,7 @@ def write_csv(path: Path, t: np.ndarray | None, columns: dict[str, np.ndarray], 
 
 
 FACES = {"+x": (0, -1), "-x": (0, 1), "+y": (1, -1), "-y": (1, 1), "+z": (2, -1), "-z": (2, 1)}
-WIZARD = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y", "-z", "-x", "-y")   # the TUI wizard's order
+WIZARD = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "-z", "-x", "-y", "+z", "+x", "+y")   # the TUI wizard's order
 
 
 @dataclass

@@ -6,7 +6,7 @@ calibrates it with ``calibrate_wheel``, the code path of ``accelrig calibrate wh
 --radius 0.28``.  Judged: the three gains, the three offsets and the tilt.
 
     white         the paper's conditions: white noise, cubic speed law
-    ar1           AR(1) noise, rho 0.9, same sd per sample
+    ar1           AR(1) noise, rho 0.9 (and 0.997: slower than a 90 s record measures), same sd per sample
     flicker       1/f noise (0.01 (m/s^2)/sqrt(Hz) at 1 Hz) on top of the white noise
     drift         the offsets drift by 0.01 m/s^2 over the run (truth: the mean offset)
     lossy         5 % of the samples lost at scattered points (the survivors keep their times)
@@ -71,6 +71,8 @@ def _judge(rec: Recording, sensor: SensorModel) -> Outcome:
         out.u[f"offset_{axis}"] = p["offset"].uncertainty[k]
     out.errors["tilt"] = p["tilt_deg"].value - TILT_DEG
     out.u["tilt"] = p["tilt_deg"].uncertainty
+    if "coverage_factor" in result.details:   # the tool states its own k (Student's t on few batch-means blocks)
+        out.k = dict.fromkeys(out.errors, float(result.details["coverage_factor"]))
     # the cross-axis prior is a statement about what the wheel cannot see, not a finding about this run
     out.warnings = [w for w in result.warnings if "does not observe cross-axis" not in w]
     return out
@@ -95,6 +97,8 @@ _COULOMB_STOP = _W0 * VISCOUS / np.expm1(VISCOUS * STOP_AT)
 CONDITIONS = [
     _condition("white"),
     _condition("ar1 rho 0.9", sensor_options={"ar1": 0.9}),
+    # noise slower than the record: 2-4 batch-means blocks (refused below residuals.MIN_HONEST_BLOCKS)
+    _condition("ar1 rho 0.997", sensor_options={"ar1": 0.997}, refusal_must_say=("wanders more slowly",)),
     _condition("1/f", sensor_options={"flicker": 0.01}),
     _condition("drift 0.01 m/s^2", sensor_options={"drift_rate": np.full(3, 0.01 / SECONDS)}),
     _condition("5 % lost", lossy=True),

@@ -61,7 +61,7 @@ from accelrig.estimation.stats import robust_sd
 from accelrig.procedures.slider_crank.motion_fit import CrankMotionFit, fit_crank_motion
 from accelrig.procedures.slider_crank.settings import DEFAULT_HARMONICS
 from accelrig.recording import Recording, count_scale
-from accelrig.result import CalibrationResult, Estimate, format_value
+from accelrig.result import CalibrationResult, Correction, Estimate, format_value
 from accelrig.units import saturated
 
 MIN_STEP_SAMPLES = 64
@@ -1544,14 +1544,35 @@ def _would_show(steady: StepResult, wandering: StepResult) -> bool:
     return bool(sideband >= RIPPLE_VISIBLE * steady.amplitude.uncertainty)
 
 
-def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: float) -> None:
+def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: float, scale_u: float = 0.0) -> None:
     """Flag each step the motor followed whose radius is outside the caliper radius +- clearance, by one
-    test at CLEARANCE_ALPHA family-wise over those steps (the verdict, on their mean, is a test of its own)."""
+    test at CLEARANCE_ALPHA family-wise over those steps (the verdict, on their mean, is a test of its own).
+    ``scale_u``: the profile's relative u of the scale along the motion (``profile_scale_u``), in each test."""
     judged = [s for s in steps if not s.motor_limited]
     for s in judged:
-        k = clearance_k(len(judged), s.radius_dof)
-        s.within_clearance = not outside_clearance(s.radius_m, crank_radius, clearance, k)
+        radius, dof = s.radius_m, s.radius_dof
+        if scale_u > 0:   # a Type B term known exactly: Welch-Satterthwaite scales the dof up
+            u = float(np.hypot(radius.uncertainty, scale_u * radius.value))
+            radius, dof = Estimate(radius.value, u, "m"), dof * (u / s.radius_m.uncertainty) ** 4
+        k = clearance_k(len(judged), dof)
+        s.within_clearance = not outside_clearance(radius, crank_radius, clearance, k)
         s.clearance_k = k
+
+
+def profile_scale_u(steps: list[StepResult], correction: Correction | None) -> float:
+    """Relative u of the scale the verified profile gives the motion (0 for raw data).
+
+    The radius is A_1 / omega^2 of the calibrated signal along the axis of motion, so the profile's own u of
+    that scale (its gain u, u(g) included) moves every step's radius alike: whether the static calibration
+    holds under motion can only be judged against both uncertainties (a GUM normalised error), else a profile
+    honest about its u(g) "does not hold" against a motion measured ten times finer.  Common to the steps:
+    added once to the mean and to each step's test, never to the weights.  The axis: the steps' PCA axes,
+    signs aligned, averaged."""
+    axes = [np.asarray(s.axis, dtype=float) for s in steps if len(s.axis) == 3]
+    if correction is None or not axes:
+        return 0.0
+    axis = sum(a if a @ axes[0] >= 0 else -a for a in axes)
+    return correction.scale_uncertainty(axis)
 
 
 def combine_radius(steps: list[StepResult]) -> tuple[Estimate, float, int, list[int], float]:
@@ -1715,7 +1736,7 @@ def frequency_response(steps: list[StepResult]) -> dict[str, np.ndarray]:
 
 
 def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float, clearance: float,
-                 profile: str | None = None) -> CalibrationResult:
+                 profile: str | None = None, correction: Correction | None = None) -> CalibrationResult:
     """The verification over all analysed steps: roll-off, weighted radius, verdict.
 
     No correction comes out (a verification judges one); the radius from the
@@ -1731,12 +1752,23 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
     compliance_check = compliance_status(steps, compliance)
     cogging = name_crank_locked_ripple(steps)
     rolloff = mark_rolloff(steps)
-    judge_clearance(steps, crank_radius, clearance)
+    scale_u = profile_scale_u(steps, correction)
+    judge_clearance(steps, crank_radius, clearance, scale_u)
     radius, chi2, dof, used, radius_dof = combine_radius(steps)
+    u_scale = scale_u * abs(radius.value) if np.isfinite(radius.value) else 0.0
+    if u_scale > 0:
+        # a Type B term of the profile's own, known exactly here: Welch-Satterthwaite scales the dof up
+        u_total = float(np.hypot(radius.uncertainty, u_scale))
+        radius_dof *= (u_total / radius.uncertainty) ** 4
+        radius = Estimate(radius.value, u_total, radius.unit)
     radius_k = coverage_factor(radius_dof)
     verdict, reason = verdict_for(radius, crank_radius, clearance, len(used), radius_k)
+    if profile is None and correction is None:
+        reason += ("; no profile was applied, so this judges the sensor's nominal scale, not a calibration "
+                   "(give the profile to verify)")
     geometry = {"crank_radius_m": crank_radius, "rod_length_m": rod_length, "lambda": crank_radius / rod_length,
                 "clearance_m": clearance, "profile": profile}
+    scale = {"profile_scale_u_rel": scale_u, "radius_profile_u_m": u_scale}
     return CalibrationResult(
         procedure="slider-crank",
         method="sine fit with harmonics per step, radius from the first harmonic",
@@ -1751,7 +1783,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
         settings=geometry,
         warnings=([compliance["warning"]] if compliance else []) + ([cogging] if cogging else [])
         + step_warnings(steps, rolloff),
-        details={**geometry, "steps": [s.to_json_dict() for s in steps], "radius_m": radius.to_dict(),
+        details={**geometry, **scale, "steps": [s.to_json_dict() for s in steps], "radius_m": radius.to_dict(),
                  "radius_chi2": chi2, "radius_dof": dof, "radius_nu_eff": _plain_dof(radius_dof), "radius_k": radius_k,
                  # what a certificate states U of the radius with (report.html): the same k the verdict used
                  "coverage_factor": radius_k, "coverage_dof": _plain_dof(radius_dof),

@@ -206,7 +206,8 @@ class SliderCrankProcedure(Procedure):
         if not self.steps:
             raise DataError("no step was kept", "; ".join(f"step {n + 1} {why}" for n, why in self.skipped)
                             or "capture at least one step")
-        result = verify_steps(self.steps, self.crank_radius, self.rod_length, self.clearance, self.profile)
+        result = verify_steps(self.steps, self.crank_radius, self.rod_length, self.clearance, self.profile,
+                              self.correction)
         result.warnings = [f"step {n + 1} left out: {why}" for n, why in self.skipped] + list(result.warnings)
         return result
 

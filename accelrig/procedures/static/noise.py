@@ -155,7 +155,7 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     """Check the still samples of the poses used (raw m/s^2, (n, 3) each, with their times).  The faces held
     again are checked once a first fit's calibration reads them free of the hand's tilt (``drift_checks``)."""
     centred = [x - x.mean(axis=0) for x in samples]
-    axes = [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
+    axes = pooled_axes(samples)
     dof = sum(len(c) - 1 for c in centred)
     sd = np.sqrt(sum(np.sum(c**2, axis=0) for c in centred) / max(dof, 1))
     per_pose = [[whiteness(c[:, k]) if len(c) >= 10 else None for k in range(3)] for c in centred]
@@ -165,7 +165,45 @@ def still_noise(samples: list[np.ndarray], times: list[np.ndarray], faces: list[
     _halves(noise, centred, span / pose_seconds if pose_seconds > 0 else 1.0)
     _trend(noise, samples, times)
     _unchecked(noise, times, faces)
+    _memory(noise, times)
     return noise
+
+
+SETTLE_HINT = ("let the sensor settle at a steady temperature (powered, still) before calibrating, or hold each "
+               "face several times longer")
+
+
+def slow_memory(axes: list[Whiteness], times: list[np.ndarray]) -> str | None:
+    """What to say when the noise's correlation outlasts what a pose can show (``Whiteness.resolved``), else None.
+
+    tau is read over lags up to a quarter of the shortest pose; when the correlation still runs there, tau is
+    a lower bound, each pose mean's u (from n / tau) too small, and neighbouring poses share the wander, so
+    their scatter around the fit does not show it either (held-out AR(1) noise with a 3-10 s memory: errors of
+    up to 15 u, and poses refused as tilted off their face: a wander that holds through a pose reads as a tilt)."""
+    slow = [axis for axis, w in zip(AXES, axes, strict=True) if w.correlated and not w.resolved]
+    if not slow or not times:
+        return None
+    worst = max((w for w in axes if not w.resolved), key=lambda w: w.tau)
+    shortest = float(min(t[-1] - t[0] for t in times))
+    return (f"the noise wanders more slowly than a hold can show ({', '.join(slow)}): its correlation still runs at "
+            f"lag {worst.window} (a quarter of the shortest hold, {shortest:.1f} s), so its integrated time is more "
+            f"than the {worst.tau:.0f} samples measured there")
+
+
+def pooled_axes(samples: list[np.ndarray]) -> list[Whiteness]:
+    """``pooled_whiteness`` of each axis over the poses' samples, each pose's own mean removed."""
+    centred = [x - x.mean(axis=0) for x in samples]
+    return [pooled_whiteness([c[:, k] for c in centred]) for k in range(3)]
+
+
+def _memory(noise: StillNoise, times: list[np.ndarray]) -> None:
+    """Warn when the noise outlasts a pose (``slow_memory``): no u is right then, the warning names the cause."""
+    said = slow_memory(noise.axes, times)
+    if said is None:
+        return
+    worst = max((w for w in noise.axes if not w.resolved), key=lambda w: w.tau)
+    noise.drift["memory"] = {"window": worst.window, "tau_lower_bound": worst.tau}
+    noise.warnings.append(f"{said}, and each pose mean's u may be too small: {SETTLE_HINT}")
 
 
 def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) -> None:
@@ -316,9 +354,36 @@ def _revisits(noise: StillNoise, readings: np.ndarray, samples, times, faces) ->
 # and last holds to tell a curve from a line: nearer to either end, the departure from the chord is too small
 # against its noise (the three holds would measure a rate twice, not a shape).  And the three must cover at
 # least half the run (first to last pose): a curvature measured over a short stretch, extrapolated to the
-# whole run, would carry its u many times over into the offsets.
+# whole run, would carry its u many times over into the offsets.  Both are in time, not in holds: the wizard
+# ends on the faces held three times (poses.py) so that their holds span 0.7-0.85 of a run held at an even
+# pace, and still over half of one whose six faces took twice as long as the rest.
 MIDDLE_SHARE = (0.2, 0.8)
 SHAPE_MIN_COVER = 0.5
+
+
+def shape_holds(centres: list[float], faces: list[str | None]) -> dict[int, tuple[str, tuple[int, int, int], float]]:
+    """Per axis, the face whose three holds can show the drift's shape (``_shape``), from the poses' centre
+    times: held at least three times, its first and last holds covering at least SHAPE_MIN_COVER of the run
+    (first to last pose centre), the hold nearest the middle of that span at a share w within MIDDLE_SHARE;
+    of several such faces the one with the most central middle hold.  axis index -> (face, (first, middle,
+    last) pose indices, w)."""
+    run = float(max(centres) - min(centres)) if centres else 0.0
+    best: dict[int, tuple[str, tuple[int, int, int], float]] = {}
+    for face in dict.fromkeys(f for f in faces if f is not None):
+        idx = [k for k, f in enumerate(faces) if f == face]
+        if len(idx) < 3:
+            continue
+        t_a, t_b = centres[idx[0]], centres[idx[-1]]
+        if t_b - t_a < SHAPE_MIN_COVER * run:
+            continue
+        j = min(range(1, len(idx) - 1), key=lambda i: abs(centres[idx[i]] - (t_a + t_b) / 2))
+        w = (centres[idx[j]] - t_a) / (t_b - t_a)
+        if not MIDDLE_SHARE[0] <= w <= MIDDLE_SHARE[1]:
+            continue
+        axis = AXES.index(face[1])
+        if axis not in best or abs(w - 0.5) < abs(best[axis][2] - 0.5):
+            best[axis] = (face, (idx[0], idx[j], idx[-1]), w)
+    return best
 
 
 def _shape(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> None:
@@ -331,38 +396,24 @@ def _shape(noise: StillNoise, readings: np.ndarray, samples, times, faces) -> No
     + w^2/n_b), plus the slow-noise wander of the three means.  D is the drift's curvature kappa (m/s^2 per
     s^2) times (t_m - t_a)(t_m - t_b) / 2: a thermal cycle that has come back by the last hold shows here at
     the offsets' own precision (the poses' own trends, ``drift_bend``, are about 5x coarser).  Per axis the
-    face with the most central middle hold is used; the departures are tested together (chi^2, one dof per
-    axis, at ALPHA) and recorded in ``drift["shape"]``; the procedure fits the curvature on these axes
+    face ``shape_holds`` picks is used; the departures are tested together (chi^2, one dof per axis, at
+    ALPHA) and recorded in ``drift["shape"]``; the procedure fits the curvature on these axes
     (``procedure._referred_to_middle``).  Axes held again without such a face are listed as
     ``unchecked_axes``."""
     tau = noise.tau_any
-    run = float(max(np.mean(t) for t in times) - min(np.mean(t) for t in times)) if times else 0.0
+    centres = [float(t.mean()) for t in times]
     best: dict[int, dict] = {}
-    for face in dict.fromkeys(f for f in faces if f is not None):
-        idx = [k for k, f in enumerate(faces) if f == face]
-        if len(idx) < 3:
-            continue
-        centre = [float(times[k].mean()) for k in idx]
-        t_a, t_b = centre[0], centre[-1]
-        if t_b - t_a < SHAPE_MIN_COVER * run:
-            continue
-        j = min(range(1, len(idx) - 1), key=lambda i: abs(centre[i] - (t_a + t_b) / 2))
-        w = (centre[j] - t_a) / (t_b - t_a)
-        if not MIDDLE_SHARE[0] <= w <= MIDDLE_SHARE[1]:
-            continue
-        axis = AXES.index(face[1])
-        a, m, b = idx[0], idx[j], idx[-1]
+    for axis, (face, (a, m, b), w) in shape_holds(centres, faces).items():
+        t_a, t_m, t_b = centres[a], centres[m], centres[b]
         departure = float(readings[m] - readings[a]) - w * float(readings[b] - readings[a])
         var = noise.sd[axis] ** 2 * tau[axis] * (1 / len(samples[m]) + (1 - w) ** 2 / len(samples[a])
                                                   + w**2 / len(samples[b]))
         var += noise.wander_var * (1 + (1 - w) ** 2 + w**2)
-        shape = (centre[j] - t_a) * (centre[j] - t_b) / 2.0
-        entry = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, centre[j], t_b],
-                 "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
-                 "z": departure / float(np.sqrt(var)),
-                 "curvature": departure / shape, "curvature_u": float(np.sqrt(var)) / abs(shape)}
-        if axis not in best or abs(w - 0.5) < abs(best[axis]["middle_share"] - 0.5):
-            best[axis] = entry
+        shape = (t_m - t_a) * (t_m - t_b) / 2.0
+        best[axis] = {"face": face, "axis": face[1], "poses": [a, m, b], "times": [t_a, t_m, t_b],
+                      "middle_share": w, "departure": departure, "u": float(np.sqrt(var)),
+                      "z": departure / float(np.sqrt(var)),
+                      "curvature": departure / shape, "curvature_u": float(np.sqrt(var)) / abs(shape)}
     revisited = sorted({r["face"][1] for r in noise.drift.get("revisits", [])})
     found = [best[k] for k in sorted(best)]
     record: dict = {"faces": found, "checked_axes": [e["axis"] for e in found],

@@ -8,15 +8,19 @@ complete, too_short, moved, not_flat, saturated, redo), ``face`` and ``time``.
 The guided sequence: the six faces in any order, then one face of each axis
 again (``again``: a face held twice, far apart in time, is the only check of a
 slow offset drift, ``noise.py`` says why, and each axis needs its own), then
-those three faces once more (the second round): a face seen at three
-well-spaced times shows the drift's shape, not only its straight line (a
-thermal cycle that has come back by the second hold); then the opposite faces
-once more (the last round): per axis the three holds of one face and the two of
-its opposite fix offset, gain, drift rate and curvature with a degree of freedom
-to spare, so a drift that leaves the curve between the holds can show
-(docs/static.md, "What twelve holds cannot see").  Six faces are enough to
-compute (``faces_done``); the sequence is complete with the three rounds
-(``again_rounds``).
+the opposite faces once more (the second round): per axis the holds of both
+faces then fix offset, gain and drift rate with a degree of freedom to spare,
+so a drift that leaves the line between the holds can show (docs/static.md,
+"What twelve holds cannot see"); then the first round's faces a third time,
+at the end (the last round): a face seen at three times spread over the run
+shows the drift's shape, not only its straight line (a thermal cycle that has
+come back by the second hold).  Ending on the face held three times makes its
+holds span most of the run (from its first hold, among the first five, to the
+last) whatever the pace of the holds, which the shape test needs
+(``noise.SHAPE_MIN_COVER``); held in the middle instead, the face first held
+fifth spanned exactly half the run and lost its test in about half the runs.
+Six faces are enough to compute (``faces_done``); the sequence is complete
+with the three rounds (``again_rounds``).
 Fed a whole recording or the same samples in chunks it finds the same poses.
 
 Detection works on RAW data in m/s^2 (never on calibrated data: the
@@ -64,8 +68,9 @@ from accelrig.procedures.contract import Event
 from accelrig.recording import count_scale
 from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 
-# Why the drift check's last round is asked for, in the operator's words (the wizard says it too)
-LAST_ROUND_WHY = "so the fit can test the drift between the holds"
+# Why the drift check's second and last rounds are asked for, in the operator's words (the wizard says them too)
+OPPOSITE_ROUND_WHY = "so the fit can test the drift between the holds"
+LAST_ROUND_WHY = "so their holds, spread over the run, show the drift's shape"
 # The holds the guided sequence asks for: the six faces, then the drift check's three rounds of one per axis
 GUIDED_HOLDS = len(FACES) + 3 * len(AXES)
 
@@ -201,10 +206,10 @@ class PoseDetector:
     @property
     def again_rounds(self) -> tuple[dict[str, str], dict[str, str], dict[str, str]]:
         """The drift check's three rounds, each axis -> face.  Round 1: per axis, the first face of that axis
-        held after all six faces were done (either face).  Round 2: that same face held once more, after
-        round 1 is through on every axis (so that its three holds are spread over the run).  Round 3: the
-        opposite face of round 1's, held once more after round 2 is through on every axis (its second hold, at
-        the end of the run)."""
+        held after all six faces were done (either face).  Round 2: the opposite face of round 1's, held once
+        more after round 1 is through on every axis (each face then held twice, far apart).  Round 3: round
+        1's face a third time, after round 2 is through on every axis: at the end of the run, so that its
+        three holds span most of it whatever the pace (``noise._shape`` needs half the run)."""
         seen: set[str] = set()
         rounds: tuple[dict[str, str], dict[str, str], dict[str, str]] = ({}, {}, {})
         first, second, third = rounds
@@ -213,9 +218,9 @@ class PoseDetector:
                 axis = face[1]
                 if axis not in first:
                     first[axis] = face
-                elif len(first) == len(AXES) and axis not in second and first[axis] == face:
+                elif len(first) == len(AXES) and axis not in second and first[axis] == opposite_face(face):
                     second[axis] = face
-                elif len(second) == len(AXES) and axis not in third and first[axis] == opposite_face(face):
+                elif len(second) == len(AXES) and axis not in third and first[axis] == face:
                     third[axis] = face
             seen.add(face)
         return rounds
@@ -236,12 +241,13 @@ class PoseDetector:
     @property
     def again_missing(self) -> list[str]:
         """The faces to hold again in the round under way: in round 1 per axis not yet checked the face first
-        held on it; in round 2 the face each axis was held again with in round 1; in round 3 its opposite."""
+        held on it; in round 2 the opposite of the face each axis was held again with in round 1; in round 3
+        that round-1 face itself (its third hold)."""
         first_round, second_round, third_round = self.again_rounds
         if len(second_round) == len(AXES):
-            return [opposite_face(face) for axis, face in first_round.items() if axis not in third_round]
+            return [face for axis, face in first_round.items() if axis not in third_round]
         if len(first_round) == len(AXES):
-            return [face for axis, face in first_round.items() if axis not in second_round]
+            return [opposite_face(face) for axis, face in first_round.items() if axis not in second_round]
         first: dict[str, str] = {}
         for face in self._flat_faces():
             first.setdefault(face[1], face)
@@ -251,8 +257,8 @@ class PoseDetector:
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces, then one face of each axis again, twice, then its
-        opposite face once more."""
+        """The guided sequence is through: six faces, then one face of each axis again, then its opposite face
+        once more, then the first face a third time."""
         return not self.missing_faces and self.again_round is None
 
     @property
@@ -266,8 +272,8 @@ class PoseDetector:
             "holds_asked": GUIDED_HOLDS,
             "missing": self.missing_faces,
             "again_done": list(self.axes_again.values()),
-            "third_done": list(self.again_rounds[1].values()),
-            "opposite_done": list(self.again_rounds[2].values()),
+            "opposite_done": list(self.again_rounds[1].values()),
+            "third_done": list(self.again_rounds[2].values()),
             "again_round": self.again_round,
             "again_missing": self.again_missing,
             "current_face": self._seg_face if self._still and self._seg_flat else None,
@@ -384,8 +390,8 @@ class PoseDetector:
                 events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
                                          "multi-position model; for six faces put one face flat on the table", now))
             elif not self.missing_faces and face in self.again_missing:
-                which = {1: "again (the drift check)", 2: "a third time (the drift check)",
-                         3: "again (the drift check's last round)"}[self.again_round]
+                which = {1: "again (the drift check)", 2: "again (the drift check: the opposite face)",
+                         3: "a third time (the drift check's last round)"}[self.again_round]
                 events.append(pose_event("hold_still", f"{face} is down {which}: hold still", now,
                                          face))
             elif not self.missing_faces and self.again_round == 1 and face[1] not in self.axes_again:
@@ -494,16 +500,16 @@ class PoseDetector:
         plural = "s" if len(again) > 1 else ""
         if round_ == 1 and len(again) == 3:
             text = (f"all six faces captured: now put {names} down once more (either face of each axis will "
-                    "do), then the same faces once more, then their opposite faces: held far apart, the faces "
-                    "show whether the offsets drifted, steadily or in a curve. c computes without it")
+                    "do), then their opposite faces once more, then the first faces a third time: held far apart, "
+                    "the faces show whether the offsets drifted, steadily or in a curve. c computes without it")
         elif round_ == 1:
             text = f"drift check: now put {names} down once more (either face of each axis will do)"
         elif round_ == 2:
-            text = (f"drift check, round 2 of 3: now put {names} down once more (the same face{plural} "
-                    "again). c computes without it")
+            text = (f"drift check, round 2 of 3: now put {names} down once more (the opposite face{plural}), "
+                    f"{OPPOSITE_ROUND_WHY}. c computes without it")
         else:
-            text = (f"drift check, last round: now put {names} down once more (the opposite face{plural}), "
-                    f"{LAST_ROUND_WHY}. c computes without it")
+            text = (f"drift check, last round: now put {names} down a third time, {LAST_ROUND_WHY}. "
+                    "c computes without it")
         events.append(pose_event("again", text, now))
         return events
 

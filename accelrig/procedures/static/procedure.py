@@ -44,7 +44,15 @@ from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES, opposite_face
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
-from accelrig.procedures.static.noise import StillNoise, drift_bend, drift_checks, still_noise
+from accelrig.procedures.static.noise import (
+    SETTLE_HINT,
+    StillNoise,
+    drift_bend,
+    drift_checks,
+    pooled_axes,
+    slow_memory,
+    still_noise,
+)
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
 from accelrig.procedures.static.settings import MODEL_CHOICES, POSE_FLATNESS_DEG, SETTINGS
 from accelrig.recording import Recording
@@ -225,12 +233,22 @@ class StaticProcedure(Procedure):
             self._require_six_faces(set())   # says which faces were held and why they did not count
         stats = [PoseStats.from_samples(p.samples, p.face, f"pose {k}") for k, p in used]
         model = self.model
-        if model == "auto":
-            model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
+        # a wander that holds through a pose reads as a tilt: when the noise outlasts the holds, a pose found off
+        # its face is refused naming the noise, not the placement
+        slow = slow_memory(pooled_axes([p.samples for _, p in used]), [p.t for _, p in used])
+        try:
+            if model == "auto":
+                model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
+        except CalibrationError as exc:
+            if slow is None:
+                raise
+            raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
         if model != "multi-position":
             try:
                 tilts = check_faces(stats, self.pose_flatness_deg, self.detector.g)
             except CalibrationError as exc:
+                if slow is not None:
+                    raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
                 raise CalibrationError(exc.message, "use --model multi-position or place the face flat") from None
             self._require_six_faces({t.face for t in tilts})
             for s, tilt in zip(stats, tilts, strict=True):
@@ -510,17 +528,17 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
             f"({bend['allowance']['distribution']}: up to {departure:.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
     # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
-    # fewer (none left with six faces and three again, twice; the wizard's last round, the opposite faces once
-    # more, leaves some)
+    # fewer (none left with six faces and three of them twice again; the wizard's opposite faces once more
+    # leave some)
     dof = int(base.quality["dof"]) - m - q
     base.quality["dof"] = dof
     if q:
         noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
         noise.drift["shape"]["fitted"]["dof_between_holds"] = max(dof, 0)
     if q and dof > 0:
-        # the wizard's last round leaves a few degrees of freedom: enough to see a drift that leaves the curve at
-        # the opposite face, not one that is back on it at every hold (docs/static.md: a bump back to zero at
-        # every +x hold left b_x 3.9 u off, unwarned, on fifteen holds): u still assumes that much
+        # the wizard's opposite faces once more leave a few degrees of freedom: enough to see a drift that leaves
+        # the curve at the opposite face, not one that is back on it at every hold (docs/static.md, "What twelve
+        # holds cannot see": a bump back to zero at every +x hold): u still assumes that much
         base.quality["uncertainty_source"] += (
             f"; the drift's curve between the holds is tested with {dof} degree{'s' if dof != 1 else ''} of "
             "freedom: a drift that is back on the curve at every hold would still go unseen")
@@ -531,8 +549,8 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         # (docs/static.md, "What twelve holds cannot see"): say what u assumes
         opposite = ", ".join(opposite_face(shaped[k]["face"]) for k in sorted(bent, key=lambda k: shaped[k]["times"][0]))
         base.quality["uncertainty_source"] += ("; u assumes the drift follows that curve between the holds: no "
-                                               f"degree of freedom is left to test it ({opposite} held once more "
-                                               "at the end, as the wizard asks, would leave some)")
+                                               f"degree of freedom is left to test it ({opposite} held once more, "
+                                               "as the wizard asks, would leave some)")
     base.quality["p_value"] = float(chi2_dist.sf(base.quality["chi2"], dof)) if dof > 0 else float("nan")
     return base
 

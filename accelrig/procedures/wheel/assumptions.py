@@ -46,6 +46,7 @@ from accelrig.estimation.residuals import (
     LOW_OCTAVES_ABOVE,
     MATERIAL_INFLATION,
     MIN_BLOCKS,
+    FewBlocks,
     PowerLawNoise,
     Whiteness,
     fit_power_law,
@@ -135,6 +136,7 @@ class Checks:
     second_order_over_u: float | None = None      # largest bias the angle-locked take-in leaves (its 2nd order), in u
     nod_deg: float | None = None                  # the axis' nod once per turn the wobble shows (amplitude, deg)
     nod_move_over_u: float | None = None          # largest move of an estimate the nod's unseen half could make, in u
+    few_blocks: FewBlocks | None = None           # the batch means' block count and the coverage factor it allows
 
     def to_dict(self) -> dict:
         out = {"noise": "correlated" if self.correlated else "white",
@@ -162,6 +164,8 @@ class Checks:
             out["axis_nod_move_over_u"] = self.nod_move_over_u
         if self.low_frequency is not None:
             out["low_frequency_noise"] = [w.to_dict() for w in self.low_frequency]
+        if self.few_blocks is not None:
+            out["batch_means"] = self.few_blocks.to_dict()
         return out
 
 
@@ -566,8 +570,12 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # in every block (an earlier version kept the wider of the two sandwiches: u 12-28x the sd on held-out
     # pink, red and random-walk noise, 2-4x on an unbalanced wheel, whose swing the before residuals hold).
     noisy_before = bool(taken) and correlated_before
+    few_blocks = None            # white: no batch means
     if correlated or noisy_before:
         sandwich, block_used, blocks_used, longest = _widest_sandwich(full, block_scores, block, full_inv)
+        few_blocks = FewBlocks(blocks_used, block_used, n, period)
+        if few_blocks.refused:
+            raise few_blocks.refusal("the wheel's gains, offsets and tilt")
         # the noise slower than the longest blocks: a power law fitted to the residuals' lowest octaves
         low_cov, low_noise = _low_frequency(low, keep, longest, n, full_inv, slice(p - 3, p),
                                            1.0 / weight)
@@ -583,6 +591,8 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
                   f"(lag-1 {worst.lag1:.2f}, integrated time {worst.tau:.1f} samples), so a "
                   "white-noise u would be too small")
         law = low_noise[0]
+        if few_blocks.few:
+            source += "; " + few_blocks.describe()
         if growth > 1.0 + 1e-6:
             source += (f"; plus the noise slower than blocks of {longest} samples: the residuals' spectrum over the "
                        f"two octaves above fitted as white + 1/f^{law.beta:.2f} (test against white p = "
@@ -594,9 +604,12 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
                          f"{growth:.1f}x the batch-means u), which assumes the spectrum keeps rising below what the "
                          "record shows as it does within it; a sensor that has settled at a steady temperature "
                          "wanders less, and a longer record pins it down better")
-        elif blocks_used < MIN_BLOCKS:
+        if few_blocks.few:
             notes.append(f"the noise is correlated over {block_used} samples: only {blocks_used} independent "
-                         "blocks in the record, too few to pin the uncertainty down; record longer")
+                         f"blocks in the record, so u itself is known only roughly ({blocks_used - 1} degrees of "
+                         f"freedom): the expanded uncertainty takes k = {few_blocks.coverage_factor:.2f} (Student's "
+                         f"t) instead of 2; a record {int(np.ceil(MIN_BLOCKS / blocks_used))} times longer would "
+                         "pin u down")
     elif taken:
         # white around the larger model: its covariance, with each axis' noise as left after the structure
         # (the fit weighted the axes by their sd with the structure still in the residuals)
@@ -663,7 +676,7 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
                   drift_per_axis, extra_step if taken else None, notes, drift_shape, angle, wobble, causes,
                   wobble_deg, low_noise if correlated else None, drift_move_over_u, second_order, nod_deg,
-                  nod_move_over_u)
+                  nod_move_over_u, few_blocks)
 
 
 def _second_order_bias(t, v, residuals, moved: WheelState, reference: WheelState, free: FreeSet, time_scale: float,

@@ -192,6 +192,11 @@ def calibrate_wheel(
         quality["coast"] = coast
     result = _build_result(method, state, cov, free, sigma, resid, t, steps, look, warnings, quality,
                            elapsed, radius, tilt, g, uncertainty_source, cross_axis_sd)
+    few = checks.few_blocks if method == "joint" else None
+    if few is not None and few.few:
+        # u rests on few batch-means blocks: its expanded form takes Student's t on their dof (residuals.FewBlocks)
+        result.details["coverage_factor"] = few.coverage_factor
+        result.details["coverage_dof"] = few.dof
     if origin:
         # t, theta0 and the speed law count from the free coast's first sample
         result.settings["time_origin"] = f"first sample of the free coast, {origin:.3f} s after the recording's first"
@@ -285,8 +290,14 @@ def _rest_check(rests: list[Rest], t: np.ndarray, state, cov: np.ndarray, free, 
         limit = (f"; a drift along the wheel's plane of {said} would go unseen{colour} (the drift tests find it half "
                  f"the time) and would move {worst['moves_most']} by up to {worst['largest_move_over_u']:.2g} u; u "
                  "does not include it: record 5 s with the wheel still before the push")
+        # and warned: u leaves out a move the record cannot rule out (38 u on the docs' 45 s coast), so the result
+        # must not read "no warnings"; the wizard's record has its rest and never sees this
+        warning = (f"the recording holds no rest before the push, so a drift of the offsets along the wheel's plane "
+                   f"({said}) would go unseen and could move {worst['moves_most']} by up to "
+                   f"{worst['largest_move_over_u']:.2g} u, which u does not include: record 5 s with the wheel "
+                   "still before the push")
         return nothing, {"made": False, "why": why, "unseen_drift": unseen}, \
-            f"; not checked against the wheel at rest: {why}{limit}", []
+            f"; not checked against the wheel at rest: {why}{limit}", [warning]
     if drift_taken:
         why = ("the offsets drifted during the coast and the fit took the drift in, so the offset at the coast's "
                "ends is known too roughly for the rest to test it")

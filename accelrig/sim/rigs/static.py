@@ -41,9 +41,9 @@ from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel
 from accelrig.units import STANDARD_GRAVITY
 
-# The wizard's sequence: the six faces, then one face of each axis again, twice, then the opposite faces once
-# more (the drift check's three rounds)
-DEFAULT_ORDER = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "+z", "+x", "+y", "-z", "-x", "-y")
+# The wizard's sequence: the six faces, then one face of each axis again, then the opposite faces once more,
+# then the first faces a third time (the drift check's three rounds; poses.PoseDetector.again_rounds)
+DEFAULT_ORDER = ("+z", "-z", "+x", "-x", "+y", "-y", "+z", "+x", "+y", "-z", "-x", "-y", "+z", "+x", "+y")
 
 # Rotation (body -> world) that puts the named body axis pointing down (-z world).
 _FACE_DOWN = {
@@ -85,7 +85,7 @@ class StaticRig(Rig):
     description = ("static calibration: still poses (faces down, or any orientation with orientations=N) "
                    "with handling motion between them")
     options = {
-        "order": "faces down in the operator's order, comma separated (default +z,-z,+x,-x,+y,-y,+z,+x,+y,+z,+x,+y,-z,-x,-y: the six faces, then one of each axis again, twice, then the opposite faces once more); repeats allowed",
+        "order": "faces down in the operator's order, comma separated (default +z,-z,+x,-x,+y,-y,+z,+x,+y,-z,-x,-y,+z,+x,+y: the six faces, then one of each axis again, then the opposite faces once more, then the first faces a third time); repeats allowed",
         "hold": "seconds each pose is held still (default 4)",
         "tilt": "hand placement: sd of each of the two components of a pose's random tilt from face-down, "
                 "degrees (default 0)",

@@ -4,15 +4,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Header, Static
+from textual.widgets import Header, Static
 
 from accelrig.daemon.status import COLUMNS, device_row, query
 from accelrig.errors import AccelrigError
 from accelrig.tui.widgets.keys import KeyFooter
+from accelrig.tui.widgets.table import FittedTable
+
+# what a narrow terminal keeps, most important first: whether each device records, its losses, the profile;
+# delivered is written + dropped, and the counts of samples and connects are in `accelrig daemon status`
+PRIORITY = ("name", "state", "rate", "gaps", "missing", "dropped", "profile", "size", "written", "connects",
+            "delivered")
 
 
 class DaemonScreen(Screen):
@@ -29,14 +36,12 @@ class DaemonScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header()
         yield Static(f"daemon status socket {self.socket_path} (read-only)", id="daemon-title")
-        yield DataTable(id="daemon-devices", show_cursor=False, zebra_stripes=True)
+        keys = [key for key, _ in COLUMNS]
+        yield FittedTable([keys.index(key) for key in PRIORITY], id="daemon-devices")
         yield Static("", id="daemon-errors")
         yield KeyFooter()
 
     def on_mount(self) -> None:
-        table = self.query_one("#daemon-devices", DataTable)
-        for key, title in COLUMNS:
-            table.add_column(title, key=key)
         self.action_refresh_now()
         self.set_interval(self.interval, self.action_refresh_now)
 
@@ -61,13 +66,19 @@ class DaemonScreen(Screen):
         self.query_one("#daemon-title", Static).update(
             f"daemon pid {daemon['pid']}, up {daemon['uptime']:.0f} s, config {daemon['config']}, "
             f"output {daemon['output']} (read-only)")
-        table = self.query_one("#daemon-devices", DataTable)
-        table.clear()
+        table = self.query_one("#daemon-devices", FittedTable)
+        rows = []
         for device in status["devices"]:
             row = device_row(device)
-            table.add_row(*(row[key] for key, _ in COLUMNS), key=device["name"])
-        errors = [f"{d['name']}: {d['error']}" for d in status["devices"] if d.get("error")]
-        self.query_one("#daemon-errors", Static).update("\n".join(errors))
+            if "/" in row["profile"]:   # a profile file: its name says which (the path is in daemon status)
+                row["profile"] = Path(row["profile"]).name
+            rows.append([row[key] for key, _ in COLUMNS])
+        table.show([title for _, title in COLUMNS], rows, [d["name"] for d in status["devices"]])
+        lines = [escape(f"{d['name']}: {d['error']}") for d in status["devices"] if d.get("error")]
+        if table.left_out:
+            lines.append(f"[dim]left out at this width: {', '.join(table.left_out)} (accelrig daemon status "
+                         "shows every column)[/]")
+        self.query_one("#daemon-errors", Static).update("\n".join(lines))
 
     def action_back(self) -> None:
         if len(self.app.screen_stack) > 2:

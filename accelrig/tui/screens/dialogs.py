@@ -1,17 +1,23 @@
-"""Small modal dialogs: yes/no confirmation, a path prompt, and a procedure's settings form."""
+"""Small modal dialogs: yes/no confirmation, a path prompt, a choice, and a procedure's settings form.
+
+Each dialog has its own key footer: the screen below keeps its footer under the dialog, and its keys
+(a wizard's "w Write data", "r redo a face") do nothing, or the wrong thing, while a dialog is open.
+"""
 
 from __future__ import annotations
 
-from textual import on
+from rich.markup import escape
+from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Button, Input, Label, OptionList, Static
+from textual.widgets import Button, Input, OptionList, Static
 from textual.widgets.option_list import Option
 
 from accelrig.errors import AccelrigError, DataError
 from accelrig.settings import Setting, values_from_texts
+from accelrig.tui.widgets.keys import KeyFooter
 
 
 def tell(status: Static, text: str) -> None:
@@ -21,28 +27,53 @@ def tell(status: Static, text: str) -> None:
     status.app.notify(text, severity="error" if text.startswith("[red]") else "information")
 
 
+DIALOG_TEXT_WIDTH = 66   # a .dialog's 72 columns less its border, padding and a scrollbar
+
+
 class ConfirmScreen(ModalScreen[bool]):
-    """Ask a yes/no question; dismisses with True only on an explicit yes."""
+    """Ask a yes/no question; dismisses with True only on an explicit yes.
+
+    ``details`` (what the answer will do, e.g. a flash plan's register table) scroll above the question
+    when they are taller than the screen leaves them (up/down, page up/down), so their top, the
+    question and the buttons all stay in sight."""
 
     BINDINGS = [
-        Binding("y", "answer(True)", "Yes"),
-        Binding("n,escape", "answer(False)", "No"),
+        Binding("escape", "answer(False)", "No", show=False),
+        Binding("up", "scroll_details(-1)", "Scroll up", show=False),
+        Binding("down", "scroll_details(1)", "Scroll down", show=False),
+        Binding("pageup", "scroll_details(-10)", "Page up", show=False),
+        Binding("pagedown", "scroll_details(10)", "Page down", show=False),
     ]
 
-    def __init__(self, question: str, yes: str = "Yes", no: str = "No"):
+    def __init__(self, question: str, yes: str = "Yes", no: str = "No", details: str | None = None):
         super().__init__()
         self.question = question
+        self.details = details
         self.yes, self.no = yes, no
+        # the footer names the answers as the buttons do ("y Leave  n Stay")
+        self._bindings.bind("y", "answer(True)", yes)
+        self._bindings.bind("n", "answer(False)", no)
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
+            if self.details is not None:
+                with VerticalScroll(id="details"):
+                    yield Static(self.details, id="details-text")
             yield Static(self.question, id="question")
             with Horizontal(classes="dialog-buttons"):
                 yield Button(f"{self.yes} (y)", id="yes", variant="warning")
                 yield Button(f"{self.no} (n)", id="no", variant="primary")
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.query_one("#no", Button).focus()  # the safe answer is the default
+        if self.details is not None:
+            self.call_after_refresh(self._say_it_scrolls)
+
+    def _say_it_scrolls(self) -> None:
+        if self.query_one("#details", VerticalScroll).max_scroll_y > 0:
+            self.query_one("#question", Static).update(f"{self.question}  [dim](↑/↓, PgUp/PgDn scroll the text "
+                                                       "above)[/]")
 
     @on(Button.Pressed)
     def pressed(self, event: Button.Pressed) -> None:
@@ -51,11 +82,16 @@ class ConfirmScreen(ModalScreen[bool]):
     def action_answer(self, answer: bool) -> None:
         self.dismiss(answer)
 
+    def action_scroll_details(self, lines: int) -> None:
+        if self.details is not None:
+            self.query_one("#details", VerticalScroll).scroll_relative(y=lines, animate=False)
+
 
 class PathScreen(ModalScreen[str | None]):
     """Ask for a file path; dismisses with the path, or None on escape."""
 
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+    # enter is the field's own key; bound here too (priority) so the footer shows it
+    BINDINGS = [Binding("enter", "submit", "Save", priority=True), Binding("escape", "cancel", "Cancel")]
 
     def __init__(self, prompt: str, default: str):
         super().__init__()
@@ -67,10 +103,10 @@ class PathScreen(ModalScreen[str | None]):
             yield Static(self.prompt)
             yield Input(value=self.default, id="path")
             yield Static("[dim]enter saves, escape cancels[/dim]")
+        yield KeyFooter()
 
-    @on(Input.Submitted, "#path")
-    def submitted(self, event: Input.Submitted) -> None:
-        path = event.value.strip()
+    def action_submit(self) -> None:
+        path = self.query_one("#path", Input).value.strip()
         if path:
             self.dismiss(path)
 
@@ -93,6 +129,7 @@ class ChoiceScreen(ModalScreen[str | None]):
             yield Static(self.question, id="question")
             yield OptionList(*[Option(text, id=key) for key, text in self.choices], id="choices")
             yield Static("[dim]enter picks, escape goes back[/dim]")
+        yield KeyFooter()
 
     @on(OptionList.OptionSelected, "#choices")
     def picked(self, event: OptionList.OptionSelected) -> None:
@@ -103,46 +140,131 @@ class ChoiceScreen(ModalScreen[str | None]):
         self.dismiss(None)
 
 
+class AsksBeforeClosing:
+    """escape on a screen that holds a result (results, verification, campaign): a result that can be saved
+    and is not asks "save it / discard it / stay" before the screen closes, as a careful editor asks
+    before it closes an unsaved file; a saved result closes at once.
+
+    The screen names what s saves (``saved_thing``), says whether it is unsaved (``unsaved_result``) and
+    saves it after asking where (``save_result``, True once written).
+    """
+
+    saved_thing = "the result"
+
+    def unsaved_result(self) -> bool:
+        return getattr(self, "saved_path", None) is None
+
+    async def save_result(self) -> bool:
+        raise NotImplementedError
+
+    def action_close(self) -> None:
+        if self.unsaved_result():
+            self.ask_before_closing()
+        else:
+            self.app.pop_screen()
+
+    @work(exclusive=True, group="close")
+    async def ask_before_closing(self) -> None:
+        thing = self.saved_thing
+        question = (f"{thing[0].upper()}{thing[1:]} is not saved: closing the results without saving loses "
+                    "it (the wizard keeps the captured data, and c there computes it again).")
+        choices = [("save", f"Save {thing}, then close"), ("discard", f"Discard {thing} and close"),
+                   ("stay", "Stay on the results")]
+        choice = await self.app.push_screen_wait(ChoiceScreen(question, choices))
+        if choice == "discard" or (choice == "save" and await self.save_result()):
+            self.app.pop_screen()
+
+
 class SettingsForm(ModalScreen):
     """A procedure's declared settings as a form: one field per ``Setting``.
 
-    Each field starts with what the operator typed last time (``texts``) or
-    blank; a blank field takes the setting's default, shown beside it.  The
-    texts are parsed by ``values_from_texts``, so a value is taken or refused
-    with the same words as the command line's flag.  ``check(values)`` may
-    refuse a combination (raising AccelrigError), e.g. a procedure that cannot
-    start from these values.  Enter starts (tab and the arrows move between
-    fields); a refusal is shown in red and puts the cursor in the field it
-    names.  Dismisses with ``(values, texts)``, or None on escape.
+    Each field starts with ``texts`` (what the operator typed last time, or a simulated rig's values) or
+    blank; a blank field takes the setting's default, shown beside it.  What came from last time
+    (``remembered``) and differs from the default is listed under the title, and ctrl+r puts every field
+    back to its default (or to the simulated rig's value, ``filled``): a choice made once by someone else
+    (a model, a flatness) is seen before it is used.  The texts are parsed by ``values_from_texts``, so a
+    value is taken or refused with the same words as the command line's flag.  ``check(values)`` may
+    refuse a combination (raising AccelrigError), e.g. a procedure that cannot start from these values.
+    Enter starts (tab and the arrows move between fields); a refusal is shown in red and puts the cursor
+    in the field it names.  Dismisses with ``(values, texts)``, or None on escape.
     """
 
     BINDINGS = [
+        # enter is each field's own key; bound here too (priority) so the footer shows it
+        Binding("enter", "submit", "Start", priority=True),
         Binding("escape", "cancel", "Cancel"),
+        Binding("ctrl+r", "defaults", "Defaults"),
         Binding("down", "app.focus_next", "Next field", show=False),
         Binding("up", "app.focus_previous", "Previous field", show=False),
     ]
     AUTO_FOCUS = ".setting-input"
 
     def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
-                 check=None):
+                 check=None, remembered: dict[str, str] | None = None, filled: dict[str, str] | None = None):
         super().__init__()
         self.title_text = title
         self.settings = tuple(settings)
         self.texts = dict(texts or {})
         self.check = check
+        self.remembered = dict(remembered or {})
+        self.filled = dict(filled or {})
 
     def compose(self) -> ComposeResult:
         with VerticalScroll(classes="dialog settings-form"):
-            yield Label(f"[b]{self.title_text}[/b]")
+            # a Static wraps a title wider than the dialog (a Label cut it, and its closing parenthesis)
+            yield Static(f"[b]{escape(self.title_text)}[/b]", id="settings-title")
+            yield Static(self.remembered_text(), id="settings-remembered")
             for s in self.settings:
                 with Horizontal(classes="setting-row"):
-                    yield Label(s.describe(s.title), classes="setting-label")
+                    yield Static(escape(s.describe(s.title)), id=f"label-{s.name}", classes="setting-label")
                     field = Input(value=self.texts.get(s.name, ""), placeholder=f"e.g. {s.example}" if s.example else s.default_text(),
                                   id=f"setting-{s.name}", classes="setting-input")
                     field.tooltip = s.describe()
                     yield field
             yield Static("[dim]enter starts, tab or the arrows move between fields, escape cancels[/dim]",
                          id="setup-status")
+        yield KeyFooter()
+
+    def kept_from_last_time(self) -> list[Setting]:
+        """The settings whose field still holds last time's text, where that text is not the default."""
+        return [s for s in self.settings if (text := self.remembered.get(s.name, "").strip())
+                and self.field_text(s.name) == text and text != s.default_text()]
+
+    def field_text(self, name: str) -> str:
+        fields = self.query(f"#setting-{name}")
+        return fields.first(Input).value.strip() if fields else self.texts.get(name, "").strip()
+
+    def remembered_text(self) -> str:
+        kept = self.kept_from_last_time()
+        if not kept:
+            return ""
+        # the label without its explanation: "model", not "model (multi-position: hold it still in ...)"
+        listed = "; ".join(f"{s.title.split(' (')[0]}: {self.remembered[s.name].strip()}" for s in kept)
+        return (f"[yellow]kept from last time:[/] {escape(listed)} "
+                "[dim](ctrl+r puts every field back to its default)[/]")
+
+    def refresh_remembered(self) -> None:
+        """The note under the title, and the labels of the fields it lists in its colour."""
+        kept = {s.name for s in self.kept_from_last_time()}
+        note = self.query_one("#settings-remembered", Static)
+        note.update(self.remembered_text())
+        note.display = bool(kept)
+        for s in self.settings:
+            self.query_one(f"#label-{s.name}", Static).set_class(s.name in kept, "remembered")
+
+    def on_mount(self) -> None:
+        self.refresh_remembered()
+
+    @on(Input.Changed, ".setting-input")
+    def edited(self) -> None:
+        self.refresh_remembered()
+
+    def action_defaults(self) -> None:
+        """ctrl+r: every field blank (its default), or the simulated rig's value where the wizard filled one."""
+        for s in self.settings:
+            self.field(s.name).value = self.filled.get(s.name, "")
+        self.refresh_remembered()
+        self.query_one("#setup-status", Static).update("every field is back to its default: enter starts")
 
     def field(self, name: str) -> Input:
         return self.query_one(f"#setting-{name}", Input)
@@ -155,7 +277,7 @@ class SettingsForm(ModalScreen):
             if self.check is not None:
                 self.check(values)
         except AccelrigError as exc:
-            self.query_one("#setup-status", Static).update(f"[red]{exc}[/]")
+            self.query_one("#setup-status", Static).update(f"[red]{escape(str(exc))}[/]")
             bad = next((s for s in self.settings if not _accepts(s, texts[s.name])), None)
             if bad is not None:
                 self.field(bad.name).focus()

@@ -15,10 +15,16 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Header, Static
+from textual.widgets import Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.tui.widgets.keys import KeyFooter
+from accelrig.tui.widgets.table import FittedTable
+
+# what a narrow terminal keeps, most important first (titles of daemon.fleet.columns; the recalibration
+# column, when asked for, after gaps): whether each device records and when it was last heard of
+PRIORITY = ("site/device", "state", "last seen", "rate Hz", "gaps", "RECAL", "profile age", "profile", "spooled",
+            "host")
 
 
 @dataclass
@@ -50,7 +56,7 @@ class FleetScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header()
         yield Static(f"fleet at {escape(self.options.broker)}: connecting ...", id="fleet-title")
-        yield DataTable(id="fleet-devices", show_cursor=False, zebra_stripes=True)
+        yield FittedTable(self.priority(), id="fleet-devices")
         yield Static("", id="fleet-note")
         yield KeyFooter()
 
@@ -60,12 +66,16 @@ class FleetScreen(Screen):
                 "a device is silent; [b]offline[/b] is the last will of a daemon that went away; 'spooled' counts "
                 "blocks a daemon keeps on disk until the broker takes them.  This screen only reads.")
 
-    def on_mount(self) -> None:
+    def priority(self) -> list[int]:
         from accelrig.daemon.fleet import columns
 
+        titles = columns(self.options.recalibrate_days)
+        recal = titles[-1] if self.options.recalibrate_days is not None else None
+        return [titles.index(recal if title == "RECAL" else title) for title in PRIORITY
+                if title != "RECAL" or recal is not None]
+
+    def on_mount(self) -> None:
         self.sub_title = "fleet (read-only)"
-        table = self.query_one("#fleet-devices", DataTable)
-        table.add_columns(*columns(self.options.recalibrate_days))
         self.start_connect()
         self.set_interval(self.interval, self.action_refresh_now)
 
@@ -103,7 +113,7 @@ class FleetScreen(Screen):
         self.action_refresh_now()
 
     def action_refresh_now(self) -> None:
-        from accelrig.daemon.fleet import NO_DEVICES, cells, rows
+        from accelrig.daemon.fleet import NO_DEVICES, cells, columns, notes, rows
 
         title = self.query_one("#fleet-title", Static)
         if self.watcher is not None and self.watcher.login_refused:
@@ -119,15 +129,19 @@ class FleetScreen(Screen):
                  else f"[red]{escape(self.said(self.watcher.error or 'not connected'))}[/]")
         title.update(f"fleet at {self.where}: {state}, {len(self.table_rows)} devices (read-only; r refreshes, "
                      "escape goes back)")
-        table = self.query_one("#fleet-devices", DataTable)
-        table.clear()
-        for r in self.table_rows:
-            table.add_row(*cells(r, self.options.recalibrate_days), key=f"{r['site']}/{r['device']}")
+        table = self.query_one("#fleet-devices", FittedTable)
+        days = self.options.recalibrate_days
+        table.show(columns(days), [cells(r, days) for r in self.table_rows],
+                   [f"{r['site']}/{r['device']}" for r in self.table_rows])
         offline = [f"{r['site']}/{r['device']}" for r in self.table_rows if r["state"] == "offline"]
-        note = NO_DEVICES if not self.table_rows else (
-            f"[yellow]offline:[/] {escape(', '.join(offline))} (the broker's last will: the daemon went away)"
-            if offline else "")
-        self.query_one("#fleet-note", Static).update(note)
+        lines = [NO_DEVICES] if not self.table_rows else [escape(line) for line in notes(self.table_rows)]
+        if offline:
+            lines.append(f"[yellow]offline:[/] {escape(', '.join(offline))} (the broker's last will: the daemon "
+                         "went away)")
+        if table.left_out:
+            lines.append(f"[dim]left out at this width: {', '.join(table.left_out)} (accelrig fleet shows every "
+                         "column)[/]")
+        self.query_one("#fleet-note", Static).update("\n".join(lines))
 
     def said(self, message: str) -> str:
         """A watcher's message without the broker it starts with: the title already names it once."""

@@ -8,6 +8,8 @@ from textual.containers import VerticalScroll
 from textual.screen import ModalScreen, Screen
 from textual.widgets import Static
 
+from accelrig.tui.widgets.keys import KeyFooter
+
 INTRO = (
     "[b]accelrig[/b] calibrates 3-axis accelerometers.  Connect a device (c), watch it live, "
     "then run a calibration wizard (k).  Every wizard step can be cancelled (escape) "
@@ -38,6 +40,7 @@ class HelpScreen(ModalScreen):
             yield Static("[b]Keys on this screen[/b]\n" + "\n".join(rows), id="help-keys")
             yield Static("[dim]tab / shift+tab move between fields, enter activates, "
                          "the mouse works too.  escape closes this help.[/dim]")
+        yield KeyFooter()   # the help's own key: the screen below's keys do not work while it is open
 
     def action_close(self) -> None:
         self.dismiss()

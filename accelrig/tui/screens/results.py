@@ -27,7 +27,7 @@ from accelrig.recording import Recording
 from accelrig.report.html import format_value, scalar_estimates
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.dialogs import DIALOG_TEXT_WIDTH, AsksBeforeClosing, ConfirmScreen, PathScreen, tell
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -239,7 +239,8 @@ def default_profile_name(result: CalibrationResult, session: Session | None) -> 
     return f"{file_stem(identity)}-{result.procedure}.yaml"
 
 
-class ResultsScreen(Screen):
+class ResultsScreen(AsksBeforeClosing, Screen):
+    saved_thing = "the profile"
     BINDINGS = [
         Binding("s", "save", "Save profile"),
         Binding("f", "flash", "Flash to device"),
@@ -268,8 +269,8 @@ class ResultsScreen(Screen):
                          + ", n shows the next plot, c writes the certificate", id="results-status")
             # warnings first: what the operator must read before saving (the quality figures follow the plot)
             yield Static(self.warnings_text(), id="results-warnings")
-            # then what the checks found and what u holds, in sentences (the raw figures come last)
-            yield Static(self.checks_text(), id="results-checks")
+            # then the numbers, in view on opening: the sentences below them have grown long enough to push
+            # the last parameter row below the fold of a 120x40 terminal
             if r.correction is not None:
                 yield Static("[b]Correction[/b] a = C (raw − b), what the profile applies; under each axis its u "
                             "(k = 1), values rounded to it")
@@ -277,6 +278,8 @@ class ResultsScreen(Screen):
             yield Static("[b]Parameters[/b] as the method estimates them, u at k = 1"
                          + (f": {escape(r.parameter_meaning)}" if r.parameter_meaning else ""), id="parameters-title")
             yield DataTable(id="parameters", show_cursor=False, zebra_stripes=True)
+            # what the checks found and what u holds, in sentences (the raw figures come last)
+            yield Static(self.checks_text(), id="results-checks")
             with Vertical(id="plot-box"):
                 yield LinePlot("", id="result-plot")
             if self.result.details.get("poses"):
@@ -335,13 +338,14 @@ class ResultsScreen(Screen):
                 "Correction: what the profile applies to raw readings, a = C (raw - b).  Parameters: what the method "
                 "estimated.  Every u is a standard uncertainty (k = 1); a coverage factor, where one is stated, "
                 "is named next to it.\n"
-                "Below the warnings, the checks say what u holds, whether the model fits, the noise found and "
+                "Below the tables, the checks say what u holds, whether the model fits, the noise found and "
                 "the local gravity the gains are scaled to.  Parameters name their form: a static gain and offset "
                 "correct the reading, the wheel's are the sensor's own; the correction is the same form for all.\n"
                 "The figure below the tables shows the fit against the data (n for the next one); every quality "
                 "figure follows at the end, as the profile keeps it.\n"
                 "s saves the device profile to the store, c writes a certificate, f (when the device can take "
-                "it) flashes the profile to it; escape goes back to the wizard, where the captured data are kept.")
+                "it) flashes the profile to it; escape goes back to the wizard, where the captured data are kept (asking "
+                "first, while the profile is not saved, whether to save it, discard it or stay).")
 
     def quality_text(self) -> str:
         """Scalar and short numeric quality figures; tables (lists of rows) are shown separately."""
@@ -415,6 +419,14 @@ class ResultsScreen(Screen):
 
     @work(exclusive=True, group="save")
     async def save_flow(self) -> None:
+        await self.save_result()
+
+    def unsaved_result(self) -> bool:
+        """A profile was made and is not saved (a result that makes none has nothing to save)."""
+        return self.profile is not None and self.saved_path is None
+
+    async def save_result(self) -> bool:
+        """Ask where, then save the profile (asking before replacing a file); True once it is written."""
         from accelrig.profiles import save_profile
         from accelrig.profiles.store import ProfileStore
 
@@ -430,20 +442,21 @@ class ResultsScreen(Screen):
         path = await self.app.push_screen_wait(PathScreen("Save the profile to (the store by default):", default))
         if path is None:
             self.set_status("not saved")
-            return
+            return False
         target = Path(path).expanduser()
         if target.exists():
             if not await self.app.push_screen_wait(ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
                 self.set_status(f"not saved: {target} kept as it was")
-                return
+                return False
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             save_profile(self.profile, target, overwrite=True)
         except (AccelrigError, OSError) as exc:
             self.set_status(f"[red]not saved:[/] {exc}")
-            return
+            return False
         self.saved_path = target
         self.set_status(f"[green]profile saved to[/] {target}")
+        return True
 
     # ------------------------------------------------------------------ certificate
     def device_facts(self) -> dict | None:
@@ -484,7 +497,8 @@ class ResultsScreen(Screen):
 
     @work(exclusive=True, group="flash-confirm")
     async def confirm_flash(self, plan: FlashPlan) -> None:
-        if await self.app.push_screen_wait(ConfirmScreen(escape(format_plan(plan)) + "\nWrite to the device?", "Write", "Cancel")):
+        plan_text = escape(format_plan(plan, width=DIALOG_TEXT_WIDTH))
+        if await self.app.push_screen_wait(ConfirmScreen("Write to the device?", "Write", "Cancel", details=plan_text)):
             self.set_status("writing ...")
             self.write_flash(plan)
         else:
@@ -500,6 +514,3 @@ class ResultsScreen(Screen):
         verdict = "[green]written and verified[/]" if report.verified else "[red]written but NOT verified[/]"
         self.app.call_from_thread(self.set_status, f"{verdict}: " + "; ".join(
             f"{w.target} {w.current}" for w in report.readback) + ("\n" + "\n".join(report.notes) if report.notes else ""))
-
-    def action_close(self) -> None:
-        self.app.pop_screen()

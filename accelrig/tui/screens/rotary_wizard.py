@@ -18,7 +18,7 @@ from textual.widgets import DataTable, Header, Static
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.dialogs import AsksBeforeClosing, ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
@@ -89,12 +89,13 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
     ]
 
 
-class CampaignScreen(Screen):
+class CampaignScreen(AsksBeforeClosing, Screen):
     """The campaign of the steps recorded: per-step sensitivities, budget, linearity, groups; s saves the
     report (Markdown, or YAML by the suffix); c writes the certificate (accelrig.report, as 'accelrig report')."""
 
     BINDINGS = [Binding("s", "save", "Save report"), Binding("c", "certificate", "Certificate"),
                 Binding("escape", "close", "Close")]
+    saved_thing = "the campaign report"
 
     def __init__(self, result, device: dict | None = None):
         super().__init__()
@@ -138,24 +139,29 @@ class CampaignScreen(Screen):
 
     @work(exclusive=True, group="save-report")
     async def save_flow(self) -> None:
-        default = str(Path(self.app.output_dir) / "rotary-campaign.md")
+        await self.save_result()
+
+    async def save_result(self) -> bool:
+        """Ask where, then write the report (asking before replacing a file); True once it is written."""
+        default = str(self.saved_path or Path(self.app.output_dir) / "rotary-campaign.md")
         path = await self.app.push_screen_wait(PathScreen("Save the campaign report to (.md, or .yaml):", default))
         if path is None:
-            return
+            return False
         target = Path(path).expanduser()
         status = self.query_one("#campaign-status", Static)
         if target.exists() and not await self.app.push_screen_wait(
                 ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
             tell(status, f"not saved: {escape(str(target))} kept as it was")
-            return
+            return False
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             write_report(self.report, target)
         except (AccelrigError, OSError) as exc:
             tell(status, f"[red]not saved:[/] {escape(str(exc))}")
-            return
+            return False
         self.saved_path = target
         tell(status, f"[green]report saved to[/] {escape(str(target))}")
+        return True
 
     def action_certificate(self) -> None:
         self.certificate_flow()
@@ -168,6 +174,3 @@ class CampaignScreen(Screen):
         written = await write_certificate_flow(self, self.report, None, self.device, lambda text: tell(status, text))
         if written is not None:
             self.certificate_path = written
-
-    def action_close(self) -> None:
-        self.app.pop_screen()

@@ -23,7 +23,7 @@ from accelrig.profiles import load_profile
 from accelrig.profiles.apply import check_compatible, correction_for
 from accelrig.report.checks import check_lines
 from accelrig.result import format_value, to_plain
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.dialogs import AsksBeforeClosing, ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.results import result_views
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
@@ -76,11 +76,12 @@ class SliderCrankWizard(ProcedureWizard):
         return VerificationScreen(result)
 
 
-class VerificationScreen(Screen):
+class VerificationScreen(AsksBeforeClosing, Screen):
     """A slider-crank verification: verdict, radius from the motion, steps, frequency response."""
 
     BINDINGS = [Binding("s", "save", "Save verification"), Binding("n", "next_plot", "Next plot"),
                 Binding("escape", "close", "Close")]
+    saved_thing = "the verification"
 
     def __init__(self, verification):
         super().__init__()
@@ -95,25 +96,30 @@ class VerificationScreen(Screen):
 
     @work(exclusive=True, group="save-verification")
     async def save_flow(self) -> None:
-        """The verification as YAML (the fields of --json), where the operator says."""
-        default = str(Path(self.app.output_dir) / "slider-crank-verification.yaml")
+        await self.save_result()
+
+    async def save_result(self) -> bool:
+        """The verification as YAML (the fields of --json), where the operator says; True once written."""
+        default = str(self.saved_path or Path(self.app.output_dir) / "slider-crank-verification.yaml")
         path = await self.app.push_screen_wait(PathScreen("Save the verification (YAML) to:", default))
         if path is None:
-            return
+            return False
         target = Path(path).expanduser()
         status = self.query_one("#verification-status", Static)
         if target.exists() and not await self.app.push_screen_wait(
                 ConfirmScreen(f"{target} exists. Overwrite it?", "Overwrite", "Keep it")):
-            return
+            tell(status, f"not saved: {escape(str(target))} kept as it was")
+            return False
         text = yaml.safe_dump(to_plain(self.verification.to_json_dict()), sort_keys=False)
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             atomic_write(target, lambda fh: fh.write(text), text=True)
         except (AccelrigError, OSError) as exc:
             tell(status, f"[red]not saved:[/] {escape(str(exc))}")
-            return
+            return False
         self.saved_path = target
         tell(status, f"[green]verification saved to[/] {escape(str(target))}")
+        return True
 
     def compose(self) -> ComposeResult:
         v, r = self.verification.details, self.verification.parameters["radius"]
@@ -169,6 +175,3 @@ class VerificationScreen(Screen):
     def action_next_plot(self) -> None:
         self.plot_index += 1
         self.show_plot()
-
-    def action_close(self) -> None:
-        self.app.pop_screen()

@@ -30,6 +30,7 @@ from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, pla
 from accelrig.tui.screens.dialogs import ChoiceScreen
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
+from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
 
@@ -46,6 +47,7 @@ class RedoScreen(ModalScreen[str | None]):
         with Vertical(classes="dialog"):
             yield Label("Take which face again? (enter picks, escape cancels)")
             yield OptionList(*[Option(f"{face} down", id=face) for face in self.done], id="redo-faces")
+        yield KeyFooter()   # this dialog's keys, not the wizard's below it
 
     @on(OptionList.OptionSelected, "#redo-faces")
     def picked(self, event: OptionList.OptionSelected) -> None:
@@ -132,11 +134,12 @@ class StaticWizard(ProcedureWizard):
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
         elif faces["again_missing"] and faces.get("again_round") == 3:
-            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down once more, "
+            state = (f"[yellow]last round[/]: put {', '.join(faces['again_missing'])} down a third time, "
                      f"{LAST_ROUND_WHY} (c computes without)")
         elif faces["again_missing"] and faces.get("again_round") == 2:
+            # the reason is in the log's line (OPPOSITE_ROUND_WHY): with it this line takes three rows at 80 columns
             state = (f"[yellow]drift check, round 2 of 3[/]: put {', '.join(faces['again_missing'])} down once "
-                     "more (the same faces), or c to compute without it")
+                     "more (the opposite faces), or c to compute without it")
         elif faces["again_missing"]:
             state = (f"[yellow]drift check[/]: put {', '.join(faces['again_missing'])} down once more "
                      "(either face of each axis), or c to compute without it")

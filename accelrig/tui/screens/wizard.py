@@ -51,7 +51,7 @@ from accelrig.acquisition.session import Session, State
 from accelrig.errors import AccelrigError, DeviceError
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.profiles.flash import flash_url_profile
-from accelrig.recording import save_recording
+from accelrig.recording import loss_warning, save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 from accelrig.tui.widgets.keys import KeyFooter
 
@@ -280,9 +280,13 @@ class ProcedureWizard(Screen):
     async def ask_settings(self, filled: dict[str, str] | None = None) -> None:
         """The settings form: what was typed last for this procedure, or ``filled`` (a simulated rig's)."""
         cls = self.procedure_class
-        texts = {**self.app.setting_texts.get(cls.name, {}), **(filled or {})}
+        filled = dict(filled or {})
+        remembered = {name: text for name, text in self.app.setting_texts.get(cls.name, {}).items()
+                      if name not in filled}
         title = f"{cls.title}: settings" + (" (filled in for the simulated rig)" if filled else "")
-        answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, texts, check=self.make_procedure))
+        answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, {**remembered, **filled},
+                                                              check=self.make_procedure, remembered=remembered,
+                                                              filled=filled))
         if answer is None:
             self.app.pop_screen()
             return
@@ -555,6 +559,10 @@ class ProcedureWizard(Screen):
             self.app.call_from_thread(self.fit_failed, generation, str(exc))
             return
         recording = self.recorder.recording()
+        # heavy link loss says so in the result (and the profile) as the CLI's commands say it (warn_loss):
+        # the status line's drop count is gone once the results are up
+        if (loss := loss_warning(recording)) is not None and loss not in result.warnings:
+            result.warnings.append(loss)
         self.app.call_from_thread(self._show, generation, result, recording)
 
     def fit_failed(self, generation: int, message: str) -> None:
@@ -572,6 +580,17 @@ class ProcedureWizard(Screen):
         self.set_instruction("done: results are shown (escape on the results returns here)", "bold green")
         self.results_screen = self.result_screen(result, recording)
         self.app.push_screen(self.results_screen)
+
+    def on_screen_resume(self) -> None:
+        """Back from the results: the headline said "results are shown"; it says what was kept and what
+        can be done now."""
+        shown = self.results_screen
+        if not self.result_shown or shown is None or shown in self.app.screen_stack:
+            return
+        saved = getattr(shown, "saved_path", None)
+        kept = f"saved to {saved}" if saved is not None else "closed without saving"
+        self.set_instruction(f"results {kept}: c shows them again (computed afresh from the captured data), "
+                             "w writes the data, escape leaves")
 
     def action_restart(self) -> None:
         """Start again from a fresh procedure and a reopened device (rig screens bind it to a key)."""

@@ -1,6 +1,7 @@
 """Six face cells: done, being held (with its progress), still to do, or (after the six) to hold again,
-twice, then the opposite faces once more (the drift check: held three times, a face shows whether its offset
-drifted and in what shape; its opposite held twice lets the fit test the drift between the holds)."""
+then the opposite faces once more, then the first faces a third time (the drift check: held three times, a
+face shows whether its offset drifted and in what shape; its opposite held twice lets the fit test the drift
+between the holds)."""
 
 from __future__ import annotations
 

@@ -1,0 +1,65 @@
+"""Status tables that stay readable in a narrow terminal: the columns that fit, the most important first.
+
+At 80 columns the daemon's and the fleet's tables are wider than the screen, and a DataTable would cut
+them at the right edge (a "missing" column read as "mis").  ``FittedTable`` shows the columns that fit
+whole, chosen in order of importance and shown in the table's own order, keeps the first column in
+place when the table must scroll sideways anyway, and says which columns it left out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from textual.widgets import DataTable
+
+CELL_PADDING = 1   # DataTable's default: one space either side of every cell
+
+
+def columns_that_fit(titles: Sequence[str], rows: Sequence[Sequence[str]], width: int,
+                     priority: Sequence[int], keep: int = 2) -> list[int]:
+    """Indices of the columns to show, in the table's order: all when they fit in ``width`` cells, else
+    the most important (``priority``: indices, most important first) that fit whole; the first ``keep``
+    of ``priority`` are always shown (the table scrolls sideways when even they are too wide)."""
+    def cells(i: int) -> int:
+        return max([len(str(titles[i]))] + [len(str(row[i])) for row in rows]) + 2 * CELL_PADDING
+
+    if sum(cells(i) for i in range(len(titles))) <= width:
+        return list(range(len(titles)))
+    chosen, used = set(), 0
+    for rank, i in enumerate(priority):
+        if rank < keep or used + cells(i) <= width:
+            chosen.add(i)
+            used += cells(i)
+    return sorted(chosen)
+
+
+class FittedTable(DataTable):
+    """A read-only table redrawn whole (``show``) with the columns that fit its width."""
+
+    def __init__(self, priority: Sequence[int], **kwargs):
+        super().__init__(show_cursor=False, zebra_stripes=True, fixed_columns=1, **kwargs)
+        self.priority = list(priority)
+        self.shown: list[int] = []
+        self.left_out: list[str] = []          # titles of the columns not shown at this width
+        self._last: tuple[list[str], list[list[str]], list[str]] | None = None
+
+    def show(self, titles: Sequence[str], rows: Sequence[Sequence[str]], keys: Sequence[str]) -> None:
+        """Redraw with ``rows`` (cells in the order of ``titles``), row keys ``keys``."""
+        self._last = (list(titles), [list(r) for r in rows], list(keys))
+        # a vertical scrollbar may take two cells once there are more rows than lines
+        width = max(self.size.width - 2, 0) if self.size.width else 10**6
+        shown = columns_that_fit(titles, rows, width, [i for i in self.priority if i < len(titles)])
+        if shown != self.shown or len(self.columns) != len(shown):
+            self.clear(columns=True)
+            for i in shown:
+                self.add_column(str(titles[i]), key=str(i))
+            self.shown = shown
+        else:
+            self.clear()
+        for row, key in zip(rows, keys, strict=True):
+            self.add_row(*(row[i] for i in shown), key=key)
+        self.left_out = [str(titles[i]) for i in range(len(titles)) if i not in shown]
+
+    def on_resize(self) -> None:
+        if self._last is not None:
+            self.show(*self._last)
