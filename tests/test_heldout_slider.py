@@ -141,6 +141,20 @@ def test_a_stiff_link_ringing_at_the_dead_centres_is_named_by_its_frequency_not_
     assert any("rings the link at its own resonance" in w for w in result["warnings"])
 
 
+def test_a_stiff_link_on_a_slide_whose_friction_turns_over_a_broad_band_is_not_called_play(tmp_path):
+    """A 450 Hz link on a rail whose friction turns over 10 mm/s (Stribeck, 1.5 times the sliding friction at rest):
+    the slow steps cross the band too slowly to ring the link fully, so its ring grows with speed (g 1.6 here), and
+    its trend is too weak to rule out a rigid link; but it rings at one phase against the dead centres at every speed,
+    where play's knock would come a fixed crank angle after them.  On main the growth alone named it backlash."""
+    case = SliderCase(steps=(4.5, 6.5, 8.5, 10.0), seconds=1.0, settle=0.3, link_hz=450.0, breakaway=1.5,
+                      stribeck_v=0.005, reversal_v=0.01)
+    _, result, _ = _verify(tmp_path, case, seed=4)
+    steps = result["details"]["steps"]
+    assert not any(s["backlash"] for s in steps) and not any("backlash" in w for w in result["warnings"])
+    ringing = [s for s in steps if s["link_ringing"]]
+    assert len(ringing) >= 3 and all(abs(s["ring_hz"] - 450.0) < 15.0 for s in ringing)
+
+
 def test_a_flexing_link_check_not_made_says_so_and_why():
     """Two steady steps cannot fit the trend (three unknowns): the result says the check was not made, why, and how
     many steps it needs, in quality and in the check sentences (the verification screen shows them)."""

@@ -14,17 +14,26 @@ from accelrig.procedures.slider_crank import analysis
 SPEEDS = (3.0, 4.5, 6.5, 8.5, 10.0)
 
 
-def flagged_steps(knocks, ring_hz=450.0):
-    return [SimpleNamespace(backlash=True, take_up_deg=0.0, knock_peak=k, ring=ring_hz,
+def flagged_steps(knocks, ring_hz=450.0, delay_rad=0.0):
+    """Stand-ins flagged at the dead centres; ``delay_rad``: the crank angle after them at which the event starts
+    (play crossed by the pin: sqrt(2 play / r); a link's friction ring: 0)."""
+    return [SimpleNamespace(backlash=True, take_up_deg=0.0, knock_peak=k, ring=ring_hz, delay=delay_rad,
                             frequency_hz=SimpleNamespace(value=f), state=SimpleNamespace(times=np.zeros(4)))
             for f, k in zip(SPEEDS, knocks, strict=True)]
 
 
+def phase_of(step, f_ring):
+    """What ring_phase reads on a stand-in: a ring starting ``delay`` rad of crank after the dead centre, i.e.
+    delay / (2 pi f) s, has its phase at f_ring moved by 2 pi f_ring times that (plus a common 2.9 rad); u 2 deg."""
+    return 2.9 - f_ring * step.delay / step.frequency_hz.value, np.radians(2.0), -0.04
+
+
 @pytest.fixture
 def rings_read_on(monkeypatch):
-    """ring_frequency reads each stand-in's ring on a periodogram of the given bin (Hz)."""
+    """ring_frequency reads each stand-in's ring on a periodogram of the given bin (Hz); ring_phase its timing."""
     def use(bin_hz):
         monkeypatch.setattr(analysis, "ring_frequency", lambda s: (s.ring, 1.0, bin_hz))
+        monkeypatch.setattr(analysis, "ring_phase", phase_of, raising=False)   # raising: main had none
     return use
 
 
@@ -46,7 +55,8 @@ def test_a_trend_that_cannot_rule_out_a_rigid_link_names_the_ring_only_if_it_kee
     c_ring = c_of(450.0)
     c, u_c = 0.4 * c_ring, 0.45 * c_ring
     assert analysis._is_link_ringing(flagged_steps([0.7, 0.9, 1.0, 1.0, 1.0]), c, u_c)        # a friction step
-    assert not analysis._is_link_ringing(flagged_steps([0.3 * f for f in SPEEDS]), c, u_c)   # an impact
+    # an impact after the pin crossed 10 um of play (sqrt(2 x 10 um / 8 mm) = 0.05 rad)
+    assert not analysis._is_link_ringing(flagged_steps([0.3 * f for f in SPEEDS], delay_rad=0.05), c, u_c)
     # a trend that rules out a rigid link decides alone, whatever the event's size does
     assert analysis._is_link_ringing(flagged_steps([0.3 * f for f in SPEEDS]), c_ring, 0.2 * c_ring)
     # and a trend that rules out this ring's compliance names play, however steady the event
@@ -69,3 +79,35 @@ def test_rings_at_different_frequencies_are_play_whatever_the_trend(rings_read_o
     for s, f in zip(steps, (66.0, 90.0, 120.0, 150.0, 174.0), strict=True):
         s.ring = f
     assert not analysis._is_link_ringing(steps, c_of(120.0), 0.1 * c_of(120.0))
+
+
+def test_a_ring_that_grows_with_speed_is_the_link_only_if_it_keeps_its_timing_at_the_dead_centres(rings_read_on):
+    """A rail whose friction turns over a broad band of speed rings the link more at the faster steps (g 1.3-1.5 on the
+    held-out 450 Hz link, friction turning over 10 mm/s), but its force reverses about the moment the velocity does:
+    one phase against the dead centres at every speed.  Play's knock comes a fixed crank angle after them, later in
+    time at a slower step: its phase at the ring frequency moves.  On main the growth alone named it play."""
+    rings_read_on(0.5)
+    c_ring = c_of(450.0)
+    c, u_c = 0.4 * c_ring, 0.45 * c_ring
+    growing = [0.02 * f**1.5 for f in SPEEDS]
+    assert analysis.knock_growth(flagged_steps(growing)) == pytest.approx(1.5)
+    assert analysis._is_link_ringing(flagged_steps(growing), c, u_c)
+    # 1 um of play (0.016 rad): the knock's phase moves by 450 x 0.016 x (1/3 - 1/10) = 1.7 rad over the steps
+    assert not analysis._is_link_ringing(flagged_steps(growing, delay_rad=0.016), c, u_c)
+    # one step cannot show a timing that holds
+    assert not analysis._is_link_ringing(flagged_steps(growing)[:1], c, u_c)
+
+
+def test_the_ring_timing_test_takes_the_ring_frequencys_u_and_wraps_the_phase(monkeypatch):
+    steps = flagged_steps([1.0] * 5)
+    phases = iter(np.radians([179.0, -179.0, 178.0, -178.0, 180.0]))     # one phase across the +-180 deg cut
+    monkeypatch.setattr(analysis, "ring_phase", lambda s, f: (next(phases), np.radians(2.0), 0.0))
+    assert analysis.ring_keeps_timing(steps, 450.0, 0.5)
+    # 10 deg apart with u 2 deg: not one timing, unless the ring frequency's u moves them that much (0.2 rad/Hz)
+    spread = [0.0, 10.0, 0.0, 10.0, 0.0]
+    phases = iter(np.radians(spread))
+    monkeypatch.setattr(analysis, "ring_phase", lambda s, f: (next(phases), np.radians(2.0), 0.0))
+    assert not analysis.ring_keeps_timing(steps, 450.0, 0.5)
+    phases = iter(np.radians(spread))
+    monkeypatch.setattr(analysis, "ring_phase", lambda s, f: (next(phases), np.radians(2.0), 0.2))
+    assert analysis.ring_keeps_timing(steps, 450.0, 0.5)

@@ -25,6 +25,7 @@ mean over the run is an error of the estimate, not part of the truth.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -519,7 +520,14 @@ class SliderCase:
                             hits the other side (a contact at contact_hz, damping ratio contact_zeta)
     link_hz, link_zeta      a compliant link: spring-damper between rod and slider (resonance link_hz);
                             0 = rigid.  Friction reversing at the dead centres excites it twice per turn
-    friction                Coulomb friction of the rail over the slider's weight (mu), viscous ``damping`` 1/s
+    friction                Coulomb friction of the rail over the slider's weight (mu), viscous ``damping`` 1/s;
+                            a preloaded (braked) slide has mu well above 1: then the slider's inertia never
+                            outweighs it and play is crossed where the velocity reverses, at the dead centres
+    breakaway, stribeck_v   Stribeck friction: at rest the rail holds ``breakaway`` times the sliding friction,
+                            falling to it over speeds of about ``stribeck_v`` (m/s); 1 = plain Coulomb
+    reversal_v              the speed band over which the friction's direction turns (m/s): a hard contact
+                            reverses within about 1 mm/s, a greased or polymer slide over tens of mm/s (its
+                            lubricant film and the contact's elastic pre-sliding carry the force meanwhile)
     misalign_deg            the sensor sits rotated by this much on the slider (about a random axis)
     """
 
@@ -545,6 +553,9 @@ class SliderCase:
     link_zeta: float = 0.05
     mass: float = 0.05
     friction: float = 0.15
+    breakaway: float = 1.0
+    stribeck_v: float = 0.01
+    reversal_v: float = 1e-3
     damping: float = 0.5
     misalign_deg: float = 0.5
     bandwidth: float = 450.0
@@ -588,12 +599,20 @@ def _second_derivative(x: np.ndarray, h: float) -> np.ndarray:
     return d
 
 
+def rail_friction(case: SliderCase, v: float, sliding: float) -> float:
+    """The rail's dry friction on a slider moving at v (N): ``sliding`` N when sliding fast, up to ``breakaway`` times
+    that near rest (falling over about ``stribeck_v``: a Gaussian Stribeck curve), its direction turning over
+    about ``reversal_v`` (a tanh)."""
+    level = sliding * (1.0 + (case.breakaway - 1.0) * math.exp(-(v / case.stribeck_v) ** 2))
+    return level * math.tanh(v / case.reversal_v)
+
+
 def _driven_slider(case: SliderCase, pin: np.ndarray, h: float) -> np.ndarray:
     """The slider's acceleration when driven through play or a spring: semi-implicit Euler on the fine grid.
 
     Forces on the slider: the link (dead zone: a contact spring-damper acting only while the pin presses on
-    a side; compliance: a spring-damper always), Coulomb friction mu m g (smoothed over 1 mm/s) and viscous
-    friction.  Returns the net force over the mass at each grid point.
+    a side; compliance: a spring-damper always), the rail's friction (``rail_friction``) and viscous friction.
+    Returns the net force over the mass at each grid point.
     """
     m = case.mass
     pin_v = np.gradient(pin, h)
@@ -623,7 +642,7 @@ def _driven_slider(case: SliderCase, pin: np.ndarray, h: float) -> np.ndarray:
                 force = 0.0
         else:
             force = -k * gap - c * rel_v
-        force -= coulomb * np.tanh(v / 1e-3) + viscous * v
+        force -= rail_friction(case, v, coulomb) + viscous * v
         a = force / m
         acc[i] = a
         v += a * h

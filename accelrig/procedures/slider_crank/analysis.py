@@ -119,6 +119,15 @@ RING_SPREAD = 0.05
 # simulator's dwell 1.7-1.9, held-out play taken up at the dead centres of a braked slider 0.9-1.2).  The exponent
 # of the knock's size against the step's speed is judged against the midpoint of the two laws.
 RING_GROWTH = 0.5
+# ... or, where it grows, when it keeps its timing against the dead centres: a rail whose friction turns over a broad
+# band of speed (a greased or polymer slide, tens of mm/s) reverses too slowly at the slow steps to ring the link fully,
+# so a link's ring can grow with speed too (held-out 450 Hz link, friction turning over 10 mm/s: g 1.3-1.5).  Its force
+# reverses symmetrically about the moment the velocity does, so its ring keeps one phase against the dead centre at
+# every speed (measured 160-174 deg over 4.5-10 Hz); play's knock comes after the pin has crossed the gap, a fixed
+# crank angle (sqrt(2 play / r) for a slider held by its friction), i.e. later in time at slower steps, and its
+# phase at the ring frequency moves by f_ring times that delay (held-out braked slide, 10 um: hundreds of degrees).
+# The phases are judged as one at this false-alarm rate (ring_keeps_timing).
+RING_TIMING_ALPHA = 1e-3
 # A dead-centre event counts as mirrored (odd harmonics only, _mirrored) when the power of its part that repeats
 # half a turn on is below this share of the power of its part that flips.
 MIRROR_SHARE = 0.1
@@ -1278,8 +1287,56 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     if c > RING_AGREE * u_both:   # the trend rules out a rigid link: its ring is the link's
         return True
     # a trend that cannot rule out a rigid link agrees with a knock at one contact frequency as well: the link's
-    # ring is a friction step's, the same size at every speed; a knock grows with speed (RING_GROWTH)
-    return knock_growth(flagged) < RING_GROWTH
+    # ring is a friction step's, the same size at every speed; a knock grows with speed (RING_GROWTH).  A friction
+    # that turns over a broad band rings the link more as the speed rises, but at one timing against the dead
+    # centres; a knock comes a fixed crank angle after them, later in time at a slower step (RING_TIMING_ALPHA)
+    return knock_growth(flagged) < RING_GROWTH or ring_keeps_timing([s for _, s in found], f_ring, u_f)
+
+
+def ring_phase(step: StepResult, f_ring: float) -> tuple[float, float, float]:
+    """The phase (rad) at ``f_ring`` of a step's phase-locked event timed from the dead centres, its u from the noise,
+    and its rate of change with f_ring (rad/Hz, for the u the ring frequency's own u adds).
+
+    The sine fit's residuals in the window (as ``dead_centre_window``) about each dead centre, each sample timed
+    from its dead centre by its own crank angle (not a fold's bin: at 450 Hz a bin one sample wide spans 80 deg of
+    the ring, and a step of a few turns fills it unevenly).  The event flips between the two dead centres (the
+    friction, or the play's side, reverses): the sum at the second is subtracted from the one at the first."""
+    fit = step.state.fit
+    theta = 2 * np.pi * fit.frequency * step.state.times + float(fit.phase[0])
+    after = min(0.25, 0.030 * fit.frequency) * 2 * np.pi
+    before = 0.02 * 2 * np.pi
+    z, dz, n = 0j, 0j, 0
+    for sign, dead_centre in ((1.0, 0.0), (-1.0, np.pi)):
+        delta = np.angle(np.exp(1j * (theta - dead_centre)))
+        near = (delta >= -before) & (delta <= after)
+        tau = delta[near] / (2 * np.pi * fit.frequency)
+        turn = np.exp(-2j * np.pi * f_ring * tau)
+        z += sign * np.sum(fit.residuals[near] * turn)
+        dz += sign * np.sum(fit.residuals[near] * (-2j * np.pi * tau) * turn)
+        n += int(near.sum())
+    if abs(z) == 0:
+        return float("nan"), float("inf"), 0.0
+    return float(np.angle(z)), float(step.state.noise_sd * np.sqrt(n / 2) / abs(z)), float(np.imag(dz / z))
+
+
+def ring_keeps_timing(steps: list[StepResult], f_ring: float, u_f: float) -> bool:
+    """Whether the steps' events ring at one phase against the dead centres (ring_phase at f_ring): their phases'
+    scatter about the weighted circular mean is within what the noise and the ring frequency's u (``u_f``) explain,
+    by a chi-square at RING_TIMING_ALPHA.  Needs two steps."""
+    if len(steps) < 2:
+        return False
+    phases, u = [], []
+    for s in steps:
+        phase, u_noise, slope = ring_phase(s, f_ring)
+        phases.append(phase)
+        u.append(float(np.hypot(u_noise, slope * u_f)))
+    phases, u = np.array(phases), np.array(u)
+    if not (np.all(np.isfinite(phases)) and np.all(np.isfinite(u)) and np.all(u > 0)):
+        return False
+    weight = 1.0 / u**2
+    mean = np.angle(np.sum(weight * np.exp(1j * phases)))
+    chi2 = float(np.sum(weight * np.angle(np.exp(1j * (phases - mean))) ** 2))
+    return bool(stats.chi2.sf(chi2, phases.size - 1) >= RING_TIMING_ALPHA)
 
 
 def knock_growth(steps: list[StepResult]) -> float:
