@@ -60,11 +60,11 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
             def percent(symbol, parts=parts):
                 return f"{100 * parts[symbol]:.3f}" if symbol in parts else "left out"
 
-            # the budget's own combination (Table 2, with the campaign's correlation), not the group result
-            # (Table 3, which adds the spread of the results and has its own table below)
+            # the budget's own combination (Table 2, the spread of the results one of its lines): the same
+            # u_c and U as the axis's group result (Table 3, case 1) below
             b = e["budget"]
             budget.append((f"{sensor} {axis}", f"{e['mean_sensitivity']:.3f}", percent("u_r"), percent("u_l"),
-                           percent("u_ref"), f"{100 * b['combined_standard_uncertainty']:.3f}",
+                           percent("u_ref"), percent("u_s"), f"{100 * b['combined_standard_uncertainty']:.3f}",
                            f"{b['expanded_uncertainty_absolute']:.3f}"))
             line = e["linearity"]
             linearity.append((f"{sensor} {axis}", *((f"{line['slope']:.3f}", f"{line['slope_sd']:.2g}",
@@ -80,8 +80,8 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
         ("Sensitivity per step (counts per m/s², u at k = 1)",
          ("step", "label", "rate Hz", "axis", "component", "S", "u"), steps),
         (f"Budget per axis (Table 2: relative u in %, k = 1, combined with correlation "
-         f"{report['correlation']:g}; U at k = {k:g} in counts per m/s²)",
-         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_c %", f"U (k={k:g})"), budget),
+         f"{report['correlation']:g}, the spread of the results u_s uncorrelated; U at k = {k:g} in counts per m/s²)",
+         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_s %", "u_c %", f"U (k={k:g})"), budget),
         ("Linearity q_o = S q_i + b (S in counts per m/s², b in counts)",
          ("axis", "S", "u(S)", "b", "R²", "n"), linearity),
         (f"Group results (Table 3; u in % at k = 1, U at k = {k:g} in counts per m/s²)",
