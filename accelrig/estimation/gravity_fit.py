@@ -586,7 +586,10 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     source = "noise" if flat == 0 else f"noise + flatness prior {flat:g} deg (Type B)"
     tilt_mean, tilt_scale, tilt_dof = _tilt_statistic_null(jac, n_t)
     # the six-face model's own test of fit: do the tilts the poses need stay within the stated flatness?
-    tilt_p = float(chi2_dist.sf(chi2_t / tilt_scale, tilt_dof)) if flat > 0 and tilt_dof > 0 else float("nan")
+    # the statistic as tested: chi2_t / tilt_scale follows chi^2 with tilt_dof degrees of freedom, so this one
+    # figure, its dof and its p are said together (the warning and the check line), before any refit
+    tilt_stat = chi2_t / tilt_scale if tilt_scale > 0 else 0.0
+    tilt_p = float(chi2_dist.sf(tilt_stat, tilt_dof)) if flat > 0 and tilt_dof > 0 else float("nan")
     # The flatness the tilts show: method of moments (the statistic scales with flatness^2, its null mean is
     # tilt_mean), widened by the Student factor of its tilt_dof degrees of freedom so that +-2u stays a
     # 95 % interval although the flatness is estimated from a few tilt combinations.
@@ -598,8 +601,9 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         # when they are beyond what the stated flatness explains (p < CHI2_ALPHA); the source says it always.
         if tilt_p < CHI2_ALPHA:
             tilts_rejected = True
-            notes.append(f"tilts exceed the stated flatness {flat:g} deg (chi^2 {chi2_t:.3g}, expected {tilt_mean:.3g} "
-                         f"with {tilt_dof:.3g} dof): flatness {observed:.2g} deg from the observed tilts used")
+            notes.append(f"tilts exceed the stated flatness {flat:g} deg (χ² = {tilt_stat:.3g} for {tilt_dof:.3g} "
+                         f"degrees of freedom, p = {tilt_p:.3g}): flatness {observed:.2g} deg from the observed "
+                         "tilts used")
         source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
         flat = observed
         x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
@@ -633,7 +637,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                       _magnitudes(correction, poses, g), _names(poses), g, pose_flatness_deg=flat,
                       tilts_deg=tilts, n_evaluations=n_eval, seconds=time.perf_counter() - start,
                       repeatability_sd=sigma_r, chi2_before=chi2_before,
-                      extra={"chi2_tilts": chi2_t, "tilt_dof": round(tilt_dof, 2), "tilt_p_value": tilt_p,
+                      extra={"chi2_tilts": tilt_stat, "tilt_dof": round(tilt_dof, 2), "tilt_p_value": tilt_p,
                              "notes": notes,
                              "stated_flatness_deg": float(pose_flatness_deg)})
 

@@ -605,9 +605,14 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         if fit.tilts_deg is not None:
             extra["tilts_deg"] = fit.tilts_deg
         arrays = {}
-        warnings += list(fit.extra.get("notes", []))
-        if fit.inflated:
-            warnings.append(f"uncertainty: {source}")
+        notes = list(fit.extra.get("notes", []))
+        warnings += notes
+        if fit.inflated and fit.dof > 0 and fit.p_value < CHI2_ALPHA:
+            # the magnitudes' own test rejected (the tilts' says so in its note): say what was seen, once; the
+            # uncertainty line says what was done about it
+            warnings.append(f"the poses disagree with the model beyond their noise (χ² = {chi2:.3g} for {dof} "
+                            f"degrees of freedom, p = {p_value:.2g}): the uncertainty allows for it (see the "
+                            "uncertainty line)")
     magnitudes = np.linalg.norm(corr.apply(data.means), axis=1) - g
     used_rows = [r for r in rows if r["fate"] == "used"]
     for r, m in zip(used_rows, magnitudes, strict=True):
