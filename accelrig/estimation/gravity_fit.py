@@ -281,7 +281,7 @@ def _multi_covariance_to_correction(cov9: np.ndarray) -> np.ndarray:
 
 def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
                       min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability",
-                      wander_var: float = 0.0) -> GravityFit:
+                      wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
     """Tedaldi et al. (imu_tk) multi-position fit: |C (m_p - b)| = g, C upper triangular (9 parameters).
 
     Refuses (CalibrationError) with fewer than ``min_distinct`` orientations more than DISTINCT_DEG apart,
@@ -333,7 +333,7 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
             f"the {len(poses)} poses ({n_distinct} orientations) do not span the sphere enough to determine "
             f"C and b ({problem or f'reciprocal condition {sv[-1] / sv[0]:.1e}'})",
             "add poses in orientations far from the ones held, e.g. tilted between two faces")
-    dof = len(poses) - 9
+    dof = len(poses) - 9 - spent_dof
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2 if wander_var == 0 else solve(0.0)[3]
     birge, rejected = _birge(chi2_before, dof)
@@ -344,11 +344,11 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
         x, resid, jw, chi2 = solve(v)
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
-        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened{replaces})")
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
+                   f"{dof} degrees of freedom; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
-        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2:.3g} for {dof} dof)"
+        source += f" x Birge ratio {birge:.3g} (χ² = {chi2:.3g} for {dof} degrees of freedom)"
     cov9 = np.linalg.inv(jw.T @ jw) * cov_scale
     cov9 = 0.5 * (cov9 + cov9.T)
     correction = Correction(_upper(x), x[6:9], _multi_covariance_to_correction(cov9))
@@ -531,7 +531,7 @@ def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: f
 
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 inflation: str = "repeatability", wander_var: float = 0.0) -> GravityFit:
+                 inflation: str = "repeatability", wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
     """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
 
     model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
@@ -547,6 +547,8 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
       magnitudes |C (m_p - b)| - g against P - 6 dof (tilt-free: what the data say beyond the faces):
                  when it rejects, ``inflation`` ("repeatability": an additive per-pose sd, or "birge").
     With flatness 0 (exact faces) the test is the whole chi^2 against 3 P - parameters.
+    ``spent_dof``: degrees of freedom the pose means already gave to something fitted out of them (a drift
+    referred to the middle of the run): the magnitudes' test has that many fewer.
     """
     start = time.perf_counter()
     _check_inflation(inflation)
@@ -607,7 +609,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
         flat = observed
         x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
-    dof = n_pose - 6 if flat > 0 else 3 * n_pose - m.size
+    dof = (n_pose - 6 if flat > 0 else 3 * n_pose - m.size) - spent_dof
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2_m if wander_var == 0 else solve(flat, 0.0)[2]
     birge, rejected = _birge(chi2_before, dof)
@@ -618,11 +620,11 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
-        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened{replaces})")
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
+                   f"{dof} degrees of freedom; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
-        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2_m:.3g} for {dof} dof)"
+        source += f" x Birge ratio {birge:.3g} (χ² = {chi2_m:.3g} for {dof} degrees of freedom)"
     cov = np.linalg.inv(jac.T @ jac)[:m.size, :m.size] * cov_scale
     p = x[:m.size]
     corr_values, corr_cov = propagate_covariance(m.to_correction, p, cov)

@@ -473,7 +473,7 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     referred_stats, means = referred(rate, bend_fitted)
     # before the result is built: its warning and record go with the noise's
     bend = drift_bend(noise, anchors, middle, measured=bent)
-    base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means)
+    base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means, spent_dof=m + q)
     extra = jac @ theta_cov @ jac.T
     # the drift's curvature allowed on the axes whose shape was not measured (type B): through the same
     # fits, one step of its sd per such axis (central differences; the departure is linear in it)
@@ -512,8 +512,7 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
     # fewer (none left with six faces and three again, twice; the wizard's last round, the opposite faces once
     # more, leaves some)
-    dof = int(base.quality["dof"]) - m - q
-    base.quality["dof"] = dof
+    dof = int(base.quality["dof"])   # build_result took the m + q out of every test
     if q:
         noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
         noise.drift["shape"]["fitted"]["dof_between_holds"] = max(dof, 0)
@@ -542,11 +541,14 @@ def _names(axes: list[int]) -> str:
 
 
 def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
-                 settings: dict, noise: StillNoise, means: list[np.ndarray] | None = None) -> CalibrationResult:
+                 settings: dict, noise: StillNoise, means: list[np.ndarray] | None = None,
+                 spent_dof: int = 0) -> CalibrationResult:
     """Fit ``model`` (exact-face paper / affine, six-face, multi-position) and package the CalibrationResult.
 
     ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order;
-    ``means`` the pose means to fit when not the poses' own (referred to the middle of the run)."""
+    ``means`` the pose means to fit when not the poses' own (referred to the middle of the run);
+    ``spent_dof`` the degrees of freedom that referring them used (the drift's rates and curvatures): every
+    lack-of-fit test, and the inflation it decides, has that many fewer."""
     g = settings["g"]
     data = PoseData([s.face for s in stats], means if means is not None else [p.mean for p in poses],
                     [len(p.samples) for p in poses],
@@ -556,7 +558,9 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         fit = fit_model(data, model, method if model == "paper" else "vp")
         corr, source = fit.correction, "noise of the pose means (faces assumed exact: a tilted pose biases the fit)"
         names, values, uncertainty, units, cov = fit.names, fit.values, fit.uncertainty, fit.units, fit.covariance
-        chi2, dof, p_value, label, method_used = fit.chi2, fit.dof, fit.p_value, fit.model, fit.method
+        chi2, label, method_used = fit.chi2, fit.model, fit.method
+        dof = fit.dof - spent_dof
+        p_value = float(chi2_dist.sf(chi2, dof)) if dof > 0 else float("nan")
         n_eval, seconds = fit.n_evaluations, fit.seconds
         n_obs = 3 * int(np.sum(data.counts))
         extra = {"model_selection": {model: {"chi2": fit.chi2, "dof": fit.dof, "p_value": fit.p_value,
@@ -579,20 +583,21 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
             birge = float(np.sqrt(chi2 / dof))
             cov, uncertainty = cov * birge**2, uncertainty * birge
             corr = Correction(corr.matrix, corr.bias, corr.covariance * birge**2)
-            source = (f"noise of the pose means x Birge ratio {birge:.3g} (chi^2 {chi2:.1f} for {dof} dof: "
+            source = (f"noise of the pose means x Birge ratio {birge:.3g} (χ² = {chi2:.3g} for {dof} degrees of freedom: "
                       "the poses are not exact faces)")
-            warnings.append(f"the poses disagree with the {label} model beyond their noise (chi2 = "
-                            f"{chi2:.1f} for {dof} dof): table not level, cube not square or a pose "
+            warnings.append(f"the poses disagree with the {label} model beyond their noise (χ² = "
+                            f"{chi2:.3g} for {dof} degrees of freedom): table not level, cube not square or a pose "
                             f"not flat? The uncertainties are scaled by the Birge ratio {birge:.3g}; the six-face "
                             "model (--model six-face) allows for tilted poses.")
         if fit.extra.get("converged") is False:
             warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
     else:
         if model == "six-face":
-            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var)
+            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var,
+                               spent_dof=spent_dof)
             method_used = "map"
         else:
-            fit = fit_multiposition(stats, g, wander_var=noise.wander_var)
+            fit = fit_multiposition(stats, g, wander_var=noise.wander_var, spent_dof=spent_dof)
             method_used = "lm"
         corr, source, label = fit.correction, fit.uncertainty_source, model
         names, values, uncertainty, cov = fit.names, fit.values, fit.uncertainty, fit.covariance
