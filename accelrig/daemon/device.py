@@ -368,19 +368,20 @@ class DeviceRunner:
         if device.profile == "store":
             store = ProfileStore(self.config.profile_store)
             try:
-                choice = store.choose(info.identity)
+                choice = store.choose(info.identity, data=info.to_dict(), units="counts")
             except ProfileError as exc:
                 if device.output == "raw" and not device.flash:
                     self.profile_note = f"none (no stored profile for {info.identity!r})"
                     return None
                 raise ProfileError(f"{exc.message}; output {device.output}"
                                    + (" and flash" if device.flash else "") + " need one", exc.hint) from None
-            for warning in choice.warnings:
-                self.log(f"{device.name}: {warning}")
+            for line in choice.notes + choice.warnings:
+                self.log(f"{device.name}: {line}")
             profile = choice.stored.profile
         else:
             profile = load_profile(device.profile_path)
-        for warning in check_compatible(profile, info.to_dict(), "counts"):
+        for warning in check_compatible(profile, info.to_dict(), "counts",
+                                        force_hint="name the profile made for this device in the config"):
             self.log(f"{device.name}: profile: {warning}")
         self.profile_note = str(profile.path)
         return profile

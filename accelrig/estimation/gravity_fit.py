@@ -70,6 +70,9 @@ FACE_REFUSE_SD = 5.0
 CHI2_ALPHA = 0.01            # chi^2 p-value below which the model is rejected and the scatter inflation applied
 INFLATIONS = ("repeatability", "birge", "none")
 MULTI_MIN_DISTINCT = 9       # 9 parameters: at least 9 distinct orientations
+# The wizard asks for more: 9 orientations fix the 9 parameters exactly and leave nothing to test the fit with
+MULTI_ASKED = 12
+MULTI_ASKED_WHY = "so the fit has orientations to spare and can test itself (9 fix its 9 unknowns exactly)"
 DISTINCT_DEG = 10.0          # two poses closer than this repeat (nearly) the same orientation
 MULTI_MIN_RCOND = 1e-6       # reciprocal condition of the column-scaled Jacobian below which we refuse
 

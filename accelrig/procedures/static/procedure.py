@@ -29,6 +29,8 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.gravity_fit import (
     CHI2_ALPHA,
+    MULTI_ASKED,
+    MULTI_ASKED_WHY,
     DISTINCT_DEG,
     FACE_REFUSE_SD,
     MULTI_MIN_DISTINCT,
@@ -102,7 +104,8 @@ class StaticProcedure(Procedure):
 
     def _orientation_events(self, events: list[Event]) -> list[Event]:
         """The detector's face-flow events retold for the any-orientation flow: a pose is an orientation,
-        progress counts distinct orientations, and it is ready at MULTI_MIN_DISTINCT of them."""
+        progress counts distinct orientations; it can compute at MULTI_MIN_DISTINCT of them and is through at
+        MULTI_ASKED (the ones beyond the minimum test the fit)."""
         out = []
         for event in events:
             kind = event.data.get("kind")
@@ -117,11 +120,12 @@ class StaticProcedure(Procedure):
                 means = np.array([p.mean for p in self.detector.accepted()[:self._n_captured]])
                 n_before, n = self._n_distinct, distinct_orientations(means)
                 self._n_distinct = n
-                more = max(MULTI_MIN_DISTINCT - n, 0)
-                out.append(pose_event("progress", f"{n} distinct orientation{'s' if n != 1 else ''}"
-                                      + (f", {more} more needed" if more else ""), time,
-                                      progress=min(n / MULTI_MIN_DISTINCT, 1.0)))
-                if n >= MULTI_MIN_DISTINCT > n_before:
+                more, asked = max(MULTI_MIN_DISTINCT - n, 0), max(MULTI_ASKED - n, 0)
+                said = (f", {more} more needed" if more else
+                        f": c computes now; {asked} more asked, {MULTI_ASKED_WHY}" if asked else "")
+                out.append(pose_event("progress", f"{n} distinct orientation{'s' if n != 1 else ''}" + said, time,
+                                      progress=min(n / MULTI_ASKED, 1.0)))
+                if n >= MULTI_ASKED > n_before:
                     out.append(pose_event("complete", f"{n} distinct orientations captured", time, progress=1.0))
             elif kind in ("progress", "complete"):
                 continue   # face counts: not this flow's
@@ -156,7 +160,7 @@ class StaticProcedure(Procedure):
     @property
     def progress(self) -> float:
         if self.any_orientation:
-            return min(self.orientations["n_distinct"] / MULTI_MIN_DISTINCT, 1.0)
+            return min(self.orientations["n_distinct"] / MULTI_ASKED, 1.0)
         return len(self.faces_done) / len(FACES)
 
     @property
@@ -167,9 +171,10 @@ class StaticProcedure(Procedure):
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces, then the drift check's three rounds."""
+        """The guided sequence is through: six faces, then the drift check's three rounds; or the orientations
+        asked for (MULTI_ASKED: a few beyond the minimum, so that the fit can be tested)."""
         if self.any_orientation:
-            return self.done
+            return self.orientations["n_distinct"] >= MULTI_ASKED
         return self.detector.complete
 
     @property
@@ -182,7 +187,8 @@ class StaticProcedure(Procedure):
         n = distinct_orientations(means) if len(means) else 0
         octants = {tuple(int(v) for v in np.sign(d) >= 0) for d in directions}
         return {"directions": directions, "n_distinct": n, "needed": MULTI_MIN_DISTINCT,
-                "more": max(MULTI_MIN_DISTINCT - n, 0), "octants": len(octants), "n_poses": len(means),
+                "more": max(MULTI_MIN_DISTINCT - n, 0), "asked": MULTI_ASKED, "more_asked": max(MULTI_ASKED - n, 0),
+                "octants": len(octants), "n_poses": len(means),
                 "distinct_deg": DISTINCT_DEG}
 
     @property
@@ -599,6 +605,12 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         else:
             fit = fit_multiposition(stats, g, wander_var=noise.wander_var, spent_dof=spent_dof)
             method_used = "lm"
+            if fit.dof <= 0:
+                # nothing is left to test the fit with: the result must not read as "no warnings"
+                warnings.append(f"the fit could not be tested: {len(stats)} poses fix the 9 parameters exactly "
+                                "(no degree of freedom left for a lack-of-fit test), so a pose that moved or a "
+                                f"model that does not hold would go unseen; hold at least {MULTI_ASKED} "
+                                f"distinct orientations, {MULTI_ASKED_WHY}")
         corr, source, label = fit.correction, fit.uncertainty_source, model
         names, values, uncertainty, cov = fit.names, fit.values, fit.uncertainty, fit.covariance
         units = [_units(n) for n in names]

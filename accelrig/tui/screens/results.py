@@ -476,7 +476,7 @@ class ResultsScreen(Screen):
     @work(thread=True, exclusive=True, group="flash")
     def plan_flash(self) -> None:
         try:
-            plan = plan_flash(self.session, self.profile)
+            plan = plan_flash(self.session, self.profile, force_hint="")   # the TUI has no force for a flash
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_status, f"[red]cannot flash:[/] {exc}")
             return

@@ -49,7 +49,8 @@ class SliderCrankWizard(ProcedureWizard):
             self.profile_warnings = []
             return {}
         profile = load_profile(values["profile"])
-        self.profile_warnings = check_compatible(profile, self.device, profile.units, values["force"])
+        self.profile_warnings = check_compatible(profile, self.device, profile.units, values["force"],
+                                                 force_hint="set force to yes to use it anyway")
         return {"correction": correction_for(profile, self.device)}
 
     def compose_body(self) -> ComposeResult:
