@@ -22,7 +22,7 @@ from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
 from accelrig.recording import Recording, load_recording, save_recording
-from accelrig.result import Estimate, to_json
+from accelrig.result import Estimate, format_value, to_json
 from accelrig.units import STANDARD_GRAVITY
 
 
@@ -144,8 +144,9 @@ def _fmt(value, unc=None, digits: int = 6) -> str:
         if unc is None:
             return "[" + ", ".join(_fmt(v, None, digits) for v in value) + "]"
         return "[" + ", ".join(_fmt(v, u, digits) for v, u in zip(value, unc, strict=True)) + "]"
-    text = f"{value:.{digits}g}"
-    return text if unc is None else f"{text} +- {unc:.2g}"
+    if unc is None:
+        return f"{value:.{digits}g}"
+    return " +- ".join(format_value(value, unc))   # rounded together, as on every face
 
 
 def run_show(args) -> int:
@@ -185,7 +186,10 @@ def run_show(args) -> int:
     for key, value in q.items():
         if value is None:
             continue
-        shown = f"{value:.4g}" if isinstance(value, float) else _short(value)
+        # a count is an integer (YAML may hold it as 11000.0: it read "1.1e+04")
+        count = key.startswith("n_") or key == "dof"
+        shown = (f"{value:.0f}" if count and isinstance(value, float) and value.is_integer()
+                 else f"{value:.4g}" if isinstance(value, float) else _short(value))
         unit = " m/s^2" if key == "residual_rms" else ""
         say(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
@@ -195,7 +199,7 @@ def run_show(args) -> int:
             dens = f["density"]
             ug = 1e6 / STANDARD_GRAVITY
             bi = f["bias_instability"]
-            say(f"  {axis}: {dens['value'] * ug:.1f} +- {dens['uncertainty'] * ug:.1f} ug/sqrt(Hz)"
+            say(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
                   + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
     for w in d["warnings"]:
         say(f"warning      {w}")

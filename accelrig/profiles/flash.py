@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 
+import numpy as np
 import yaml
 
 from accelrig.acquisition.driver import Driver
@@ -78,14 +79,23 @@ def _writes_table(rows: list[FlashWrite], current_label: str = "current", new_la
     return ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3] for r in table]
 
 
+def _plain_number(value) -> str:
+    """A number with no u beside it, to 6 significant digits (lists and matrices too): the registers' step is
+    about 0.01 m/s^2, and "-0.0020423482931097026" said nothing more than "-0.00204235"."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_plain_number(v) for v in value) + "]"
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.6g}"
+    return str(value)
+
+
 def format_plan(plan: FlashPlan) -> str:
     """The plan as a person reads it before agreeing: every write, what stays on the host, the notes."""
     lines = [f"Flash plan for {plan.device}: {len(plan.writes)} write(s)"]
     lines += _writes_table(plan.writes)
     if plan.residual:
         lines.append("Residual (what the device cannot hold exactly; the host profile keeps it):")
-        lines += [f"  {name}: {value:.4g}" if isinstance(value, float) else f"  {name}: {value}"
-                  for name, value in plan.residual.items()]
+        lines += [f"  {name}: {_plain_number(value)}" for name, value in plan.residual.items()]
     lines += [f"  note: {note}" for note in plan.notes]
     return "\n".join(lines)
 

@@ -29,10 +29,10 @@ from accelrig.errors import CalibrationError, DataError
 from accelrig.estimation.distributions import chi2 as chi2_dist
 from accelrig.estimation.gravity_fit import (
     CHI2_ALPHA,
-    MULTI_ASKED,
-    MULTI_ASKED_WHY,
     DISTINCT_DEG,
     FACE_REFUSE_SD,
+    MULTI_ASKED,
+    MULTI_ASKED_WHY,
     MULTI_MIN_DISTINCT,
     PoseStats,
     check_faces,

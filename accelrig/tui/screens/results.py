@@ -349,7 +349,9 @@ class ResultsScreen(Screen):
         for key, value in self.result.quality.items():
             if isinstance(value, bool) or value is None:
                 parts.append(f"{key} {value}")
-            elif isinstance(value, (int, float, np.floating, np.integer)):
+            elif isinstance(value, (int, np.integer)):
+                parts.append(f"{key} {int(value)}")   # a count is an integer ("n_samples 1.118e+04" before)
+            elif isinstance(value, (float, np.floating)):
                 # NaN is how a figure that could not be computed is kept (a p-value with no degrees of freedom)
                 parts.append(f"{key} not computed" if np.isnan(value) else f"{key} {value:.4g}")
             elif isinstance(value, str):
