@@ -18,7 +18,7 @@ from accelrig.profiles import load_profile, profile_from_result, save_profile
 from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_uncertainty
 from accelrig.profiles.store import ProfileStore, default_store_dir, device_key
 from accelrig.recording import Recording, read_csv, write_csv
-from accelrig.result import CalibrationResult, Correction
+from accelrig.result import CalibrationResult, Correction, format_value
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -263,7 +263,8 @@ def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
     assert r.returncode == 0, r.stderr
     angle = next(line for line in r.stdout.splitlines() if line.strip().startswith("angle_x"))
     stored = load_profile(example).data["calibration"]["parameters"]["angle_x"]
-    assert angle.endswith(" deg") and f"{np.degrees(stored['value']):.6g}" in angle
+    value, u = format_value(np.degrees(stored["value"]), np.degrees(stored["uncertainty"]))   # rounded with u
+    assert angle.endswith(" deg") and f"{value} +- {u}" in angle
 
 
 def test_apply_from_the_store_picks_the_newest_profile_that_applies_and_says_why(tmp_path, cli):
