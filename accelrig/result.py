@@ -199,6 +199,8 @@ class CalibrationResult:
         if gravity.u and scaled:
             self._scale_with_gravity(gravity.u / gravity.value, scaled)
         self.settings.update(gravity.to_dict())
+        if gravity.warning and gravity.warning not in self.warnings:
+            self.warnings.append(gravity.warning)
         if gravity.u:
             note = f"local gravity u(g) {gravity.u:.2g} m/s^2 ({gravity.u / gravity.value:.1e} of the gains)"
             # appended to what the procedure says u holds, under the key it uses (the wheel's is "uncertainty")

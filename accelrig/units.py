@@ -45,6 +45,9 @@ def normal_gravity(latitude_deg: float, height_m: float = 0.0) -> float:
                           + 3.0 * h * h / _WGS84_A**2))
 
 
+TYPED_G_SOURCE = "given (--g); u is its rounding as typed"
+
+
 @dataclass
 class LocalGravity:
     """The g a calibration uses, its standard uncertainty and where it came from."""
@@ -55,6 +58,19 @@ class LocalGravity:
 
     def to_dict(self) -> dict:
         return {"g": self.value, "g_u": self.u, "g_source": self.source}
+
+    @property
+    def warning(self) -> str | None:
+        """A g typed with many digits gets a tiny u by the documented rule (its rounding as typed): 9.81744 gives
+        2.9e-6 m/s^2, 300 times below what a g can honestly have without a survey (NORMAL_GRAVITY_U, the normal
+        gravity formula's own accuracy for a latitude and height); the gains' u would shrink with it and such a
+        device would dominate a weighted mean.  Said, with the way to state u(g); the rule stays."""
+        if not self.source.startswith(TYPED_G_SOURCE) or self.u >= NORMAL_GRAVITY_U:
+            return None
+        return (f"u(g) {self.u:.2g} m/s^2 comes from the digits of g {self.value:g} as typed, below the "
+                f"{NORMAL_GRAVITY_U:g} m/s^2 a g can have without a survey (the accuracy of the normal gravity "
+                "formula for a latitude and height): the gains' u rests on it; unless g was surveyed that well, "
+                f"state u(g) itself (--g-u, e.g. {NORMAL_GRAVITY_U:g}), or give the latitude and height instead")
 
 
 def _typed_rounding_u(value: float) -> float:
@@ -87,7 +103,7 @@ def local_gravity(g: float | None = None, latitude: float | None = None, height:
                                        "(Somigliana, free-air)")
     elif given_g:
         value = float(g)
-        u, source = _typed_rounding_u(value), "given (--g); u is its rounding as typed"
+        u, source = _typed_rounding_u(value), TYPED_G_SOURCE
     else:
         value = STANDARD_GRAVITY
         u, source = STANDARD_GRAVITY_U, ("standard gravity, standing for anywhere on Earth "

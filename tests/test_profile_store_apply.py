@@ -18,7 +18,7 @@ from accelrig.profiles import load_profile, profile_from_result, save_profile
 from accelrig.profiles.apply import CalibratedReader, apply_profile, sample_uncertainty
 from accelrig.profiles.store import ProfileStore, default_store_dir, device_key
 from accelrig.recording import Recording, read_csv, write_csv
-from accelrig.result import CalibrationResult, Correction
+from accelrig.result import CalibrationResult, Correction, format_value
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.still import StillRig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -263,4 +263,40 @@ def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
     assert r.returncode == 0, r.stderr
     angle = next(line for line in r.stdout.splitlines() if line.strip().startswith("angle_x"))
     stored = load_profile(example).data["calibration"]["parameters"]["angle_x"]
-    assert angle.endswith(" deg") and f"{np.degrees(stored['value']):.6g}" in angle
+    value, u = format_value(np.degrees(stored["value"]), np.degrees(stored["uncertainty"]))   # rounded with u
+    assert angle.endswith(" deg") and f"{value} +- {u}" in angle
+
+
+def test_apply_from_the_store_picks_the_newest_profile_that_applies_and_says_why(tmp_path, cli):
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)   # +-2 g
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.5, seed=1)
+    rec.meta["identity"] = "dev-1"
+    raw = tmp_path / "raw.csv"
+    write_csv(rec, raw)
+    store = ProfileStore(tmp_path / "store")
+    static = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
+    wheel = truth_profile(sensor, created="2026-11-20T00:00:00Z")
+    wheel.data["device"]["range_g"] = 4.0          # the wheel's profile: another range, newer
+    wheel.data["device"]["scale"] = 2 * sensor.scale
+    wheel = store.add(wheel)
+    for spec in ("auto", "dev-1"):
+        out = tmp_path / f"cal-{spec}.csv"
+        r = cli("profile", "apply", spec, str(raw), "-o", str(out), "--store", str(store.root))
+        assert r.returncode == 0, r.stderr    # was: refused with the +-4 g profile, the +-2 g one in the store
+        np.testing.assert_allclose(read_csv(out).acc.mean(axis=0), [0, 0, 9.80665], atol=2e-3)
+        assert f"profile {static.name} (static_faces, ±2 g" in r.stderr and "that applies to the data" in r.stderr
+        assert f"passed over {wheel.name}" in r.stderr and "+-4 g range but the data were taken at +-2 g" in r.stderr
+    # none applies: refused, and the CLI's hint says only what the CLI can do
+    static.unlink()
+    r = cli("profile", "apply", "dev-1", str(raw), "-o", str(tmp_path / "none.csv"), "--store", str(store.root))
+    assert r.returncode != 0 and "+-4 g range" in r.stderr and "--force" in r.stderr and "TUI" not in r.stderr
+
+
+def test_a_profile_and_data_that_both_leave_the_device_unnamed_are_said_in_grammar():
+    sensor = SensorModel(noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.2, seed=1)
+    rec = Recording(rec.t, rec.acc, "m/s^2", {}, dict(rec.meta, identity=None))
+    profile = truth_profile(sensor)
+    profile.data["device"]["identity"] = None
+    warnings = apply_profile(profile, rec)[1]
+    assert "neither the profile nor the data name the device" in " ".join(warnings)

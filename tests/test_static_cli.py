@@ -46,6 +46,14 @@ def test_paper_method_and_model_in_one_run_and_text_report(six_face_csv, capsys)
     assert main(["calibrate", "static", str(path), "--model", "paper"]) == 0
     text = capsys.readouterr().out
     assert "angle_x" in text and "deg" in text and "calibrated = C @ (raw - b)" in text
+    # the correction rounded as every face rounds it (was "+1.002937(0.001581)": six digits whatever u)
+    from accelrig.result import format_value
+
+    corr = nm["correction"]
+    value, u = format_value(corr["matrix"][0][0], corr["matrix_uncertainty"][0][0])
+    assert f"  C  +{value}({u})" in text
+    value, u = format_value(corr["bias"][2], corr["bias_uncertainty"][2])
+    assert f"{'' if value.startswith('-') else '+'}{value}({u}) m/s^2" in text
 
 
 def _fails(argv, capsys):

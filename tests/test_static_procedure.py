@@ -307,8 +307,10 @@ def test_done_while_the_sixth_face_is_still_held_and_the_result_uses_it():
 @pytest.mark.parametrize("block", [37, 100_000])
 def test_any_orientation_flow_counts_distinct_orientations_capture_by_capture(block):
     """model multi-position: progress counts orientations (not faces), one message per capture whatever the
-    block size, ready at 9 distinct ones; the fit is the multi-position one within 4 u of the truth."""
-    from accelrig.estimation.gravity_fit import MULTI_MIN_DISTINCT, upper_gauge
+    block size, ready at 9 distinct ones and through at the 12 asked (9 leave nothing to test the fit with: said,
+    and the result computed at 9 warns that it could not be tested); the fit is the multi-position one within 4 u
+    of the truth."""
+    from accelrig.estimation.gravity_fit import MULTI_ASKED, MULTI_ASKED_WHY, MULTI_MIN_DISTINCT, upper_gauge
 
     rec, rig, sensor = _record("sim://static?orientations=11&hold=4", seed=21)
     proc = StaticProcedure(rec.rate, model="multi-position")
@@ -319,15 +321,38 @@ def test_any_orientation_flow_counts_distinct_orientations_capture_by_capture(bl
             break
     counts = [e.message for e in events if e.data["kind"] == "progress"]
     assert counts[0] == "1 distinct orientation, 8 more needed"
-    assert counts[MULTI_MIN_DISTINCT - 1].startswith(f"{MULTI_MIN_DISTINCT} distinct orientations")
-    assert [e.data["kind"] for e in events].count("complete") == 1
+    assert counts[MULTI_MIN_DISTINCT - 1] == (f"{MULTI_MIN_DISTINCT} distinct orientations: c computes now; "
+                                              f"{MULTI_ASKED - MULTI_MIN_DISTINCT} more asked, {MULTI_ASKED_WHY}")
+    assert [e.data["kind"] for e in events].count("complete") == 0 and not proc.complete
     assert not any("of 6" in e.message or "faces" in e.message for e in events)
-    assert proc.done and proc.progress == 1.0 and proc.orientations["more"] == 0
+    n = proc.orientations["n_distinct"]   # 9, or all 11 when one block holds the whole record
+    assert proc.done and proc.progress == n / MULTI_ASKED and proc.orientations["more"] == 0
+    assert proc.orientations["more_asked"] == MULTI_ASKED - n
     with pytest.raises(DataError, match="no face to redo"):
         proc.act("redo", face="+x")
     result = proc.result()
-    assert result.model == "multi-position"
+    assert result.model == "multi-position" and result.quality["dof"] == n - MULTI_MIN_DISTINCT
+    # computed at 0 dof anyway: the result says the fit could not be tested (was "no warnings")
+    assert any(w.startswith("the fit could not be tested") for w in result.warnings) == (n == MULTI_MIN_DISTINCT)
     truth = sensor.correction()
     free = np.triu_indices(3)
     z = (result.correction.matrix - upper_gauge(truth.matrix))[free] / result.correction.matrix_uncertainty[free]
     assert np.all(np.abs(z) < 4)
+
+
+def test_six_tilted_faces_say_one_tilt_statistic_with_its_own_dof_and_p_and_warn_once():
+    from accelrig.estimation.distributions import chi2 as chi2_dist
+    from accelrig.report.checks import check_lines
+
+    rec, _, _ = _record("sim://static?tilt=2&order=+z,-z,+x,-x,+y,-y", seed=1)
+    result = calibrate_static(rec)
+    q = result.quality
+    assert q["tilt_p_value"] < 1e-3   # the tilts are beyond the stated 1 deg
+    # the figure said is the one tested: its p belongs to it and its dof (was 6.68 after the refit, p of 63.7)
+    assert q["tilt_p_value"] == pytest.approx(float(chi2_dist.sf(q["chi2_tilts"], q["tilt_dof"])), rel=1e-6)
+    stated = f"χ² = {q['chi2_tilts']:.3g} for {q['tilt_dof']:.3g} degrees of freedom"
+    (line,) = [s for what, s in check_lines(result.to_json_dict()) if what == "pose tilts"]
+    (warning,) = [w for w in result.warnings if w.startswith("tilts exceed")]
+    assert stated in line and stated in warning
+    # the uncertainty line is said once, with the checks, not again as a warning
+    assert not any(w.startswith("uncertainty:") for w in result.warnings)

@@ -97,6 +97,20 @@ def test_imucal_through_the_cli_reports_every_pose_and_writes_the_profile(tmp_pa
     assert "uncertainty: noise + flatness prior 1 deg" in text and "13 of" in text
 
 
+def test_imucal_paper_model_says_one_dof_the_same_way_in_every_line():
+    from accelrig.report.checks import check_lines
+
+    result = calibrate_static(load_recording(IMUCAL), g=IMUCAL_G, model="paper")
+    q = result.quality
+    # 13 poses x 3 - 9 parameters, less the 3 drift rates the faces held again were spent on
+    assert q["dof"] == 27
+    said = f"χ² = {q['chi2']:.3g} for {q['dof']} degrees of freedom"   # was "chi^2 20714.3 for 30 dof" beside 27
+    (line,) = [s for what, s in check_lines(result.to_json_dict()) if what == "lack of fit"]
+    assert said in line and said in q["uncertainty_source"]
+    assert any(said in w for w in result.warnings)
+    assert f"Birge ratio {np.sqrt(q['chi2'] / q['dof']):.3g}" in q["uncertainty_source"]
+
+
 def test_imucal_session_is_refused_by_multi_position_saying_why(capsys):
     assert main(["calibrate", "static", str(IMUCAL), "--g", "9.81", "--model", "multi-position"]) != 0
     err = capsys.readouterr().err.strip()

@@ -51,10 +51,19 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
         # the budget's u_c is Table 2's combination of the contributions shown, as in the saved report
         entry = campaign.report.details["per_axis"]
         entry = entry[next(iter(entry))]["x"]["budget"]
-        assert budget.get_row_at(0)[5] == f"{100 * entry['combined_standard_uncertainty']:.3f}"
+        assert budget.get_row_at(0)[6] == f"{100 * entry['combined_standard_uncertainty']:.3f}"
+        # and its U is the group result's (Table 3, case 1), the same number on both tables
+        groups = campaign.query_one("#campaign-3")
+        assert budget.get_row_at(0)[7] == groups.get_row_at(0)[4]
         assert campaign.query_one("#campaign-0").row_count == 4   # 2 steps x 2 axes
         # numbered as the wizard numbered the steps (from 1), the device named, each step's recording traced
         assert [campaign.query_one("#campaign-0").get_row_at(i)[0] for i in range(4)] == ["1", "1", "2", "2"]
+        # S and its u rounded together, as on every screen (was "416.324" beside "1.2")
+        from accelrig.result import format_value
+
+        row = campaign.query_one("#campaign-0").get_row_at(0)
+        step = campaign.report.details["tests"][0]["sensitivity"][row[3]]
+        assert tuple(row[5:7]) == format_value(step["value"], step["uncertainty"]) and len(row[6]) <= 4
         identity = app.session.info.identity
         assert campaign.report.details["campaign"] == f"{identity}: live session"
         records = campaign.report.details["records"]

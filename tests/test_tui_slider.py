@@ -52,6 +52,12 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert [round(s["frequency_hz"]["value"]) for s in verification["steps"]] == [3, 6, 9]
         screen = app.screen
         await wait_for(pilot, lambda: screen.query_one("#steps").row_count == 3)   # filled once mounted
+        # each value rounded with its u, as on every screen (was amplitude "20.3" beside u "0.003")
+        from accelrig.result import format_value
+
+        row, step = screen.query_one("#steps").get_row_at(0), verification["steps"][0]
+        assert tuple(row[2:4]) == format_value(step["amplitude"]["value"], step["amplitude"]["uncertainty"])
+        assert tuple(row[5:7]) == format_value(step["radius_m"]["value"] * 1e3, step["radius_m"]["uncertainty"] * 1e3)
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
         # the step table's k, the clearance flag's and the verdict's are told apart under the table
         meaning = str(screen.query_one("#verification-k").render())

@@ -57,3 +57,20 @@ def test_local_gravity_enters_the_parameters_that_scale_with_it():
     assert result.parameters["offset"].uncertainty == [0.01, 0.01, 0.01]
     cov = result.covariance
     assert np.isclose(cov[1, 1], 4e-6) and np.isclose(cov[0, 1], -2e-7) and cov[4, 4] == 0.0
+
+
+def test_a_g_typed_with_many_digits_keeps_its_rule_but_warns_how_to_state_u():
+    """--g 9.81744 gives u(g) 2.9e-6 by the documented rule (its rounding as typed): 300 times below what a g
+    has without a survey, so the gains' u drops 10x and such a device dominates a batch's mean. Said."""
+    from accelrig.result import CalibrationResult, Correction
+    from accelrig.units import NORMAL_GRAVITY_U, local_gravity
+
+    typed = local_gravity(9.81744)
+    assert typed.u == 0.5e-5 / 3**0.5 and typed.u < NORMAL_GRAVITY_U   # the rule stays
+    result = CalibrationResult("p", "m", "model", Correction.identity(), {}).with_local_gravity(typed)
+    (warning,) = result.warnings
+    assert "9.81744 as typed" in warning and "--g-u" in warning and "without a survey" in warning
+    # u(g) stated, a coarse g, the formula or standard gravity: nothing to say
+    for honest in (local_gravity(9.81744, g_u=1e-5), local_gravity(9.81), local_gravity(latitude=48.0),
+                   local_gravity()):
+        assert honest.warning is None

@@ -88,9 +88,18 @@ def text_report(result) -> str:
         lines.append(f"  {label:<20} {value:>14} +- {unc:<12} {unit}")
     c = result.correction
     lines.append("correction: calibrated = C @ (raw - b)")
-    for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True):
-        lines.append("  C  " + "  ".join(f"{v:+.6f}({u:.6f})" for v, u in zip(row, urow, strict=True)))
-    lines.append("  b  " + "  ".join(f"{v:+.5f}({u:.5f})" for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
+
+    def paired(v: float, u: float) -> str:   # value(u), rounded together as every face rounds (format_value)
+        if v == 0 and u == 0:
+            return "0"   # fixed by the model's gauge (multi-position's C is upper triangular)
+        value, unc = format_value(v, u)
+        return f"{'' if value.startswith('-') else '+'}{value}({unc})"
+
+    cells = [[paired(v, u) for v, u in zip(row, urow, strict=True)]
+             for row, urow in zip(c.matrix, c.matrix_uncertainty, strict=True)]
+    width = max(len(cell) for row in cells for cell in row)
+    lines += ["  C  " + "  ".join(f"{cell:<{width}}" for cell in row).rstrip() for row in cells]
+    lines.append("  b  " + "  ".join(paired(v, u) for v, u in zip(c.bias, c.bias_uncertainty, strict=True)) + " m/s^2")
     lines += [f"{what}: {sentence}" for what, sentence in check_lines(result.to_json_dict())]
     lines.append(f"largest |g| residual of a pose {q['max_magnitude_residual']:.4f} m/s^2")
     lines += [f"warning: {w}" for w in result.warnings]

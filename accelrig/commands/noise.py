@@ -8,6 +8,7 @@ import numpy as np
 
 from accelrig.commands import add_time_range
 from accelrig.geometry import AXES
+from accelrig.result import format_value
 from accelrig.units import STANDARD_GRAVITY
 
 UG = 1e6 / STANDARD_GRAVITY   # (m/s^2) -> micro-g
@@ -128,14 +129,16 @@ def noise_table(report) -> str:
         "| axis | density ug/sqrt(Hz) | density (m/s^2)/sqrt(Hz) | bias instability ug (tau) | rate random walk (m/s^2)/sqrt(s) |",
         "|---|---|---|---|---|",
     ]
+    def pm(value: float, u: float) -> str:   # rounded together, as on every face (format_value)
+        return " +- ".join(format_value(value, u))
+
     for axis in AXES:
         a = report.axes[axis]
         d = a.density
-        bi = (f"{a.bias_instability.value * UG:.1f} +- {a.bias_instability.uncertainty * UG:.1f} "
+        bi = (f"{pm(a.bias_instability.value * UG, a.bias_instability.uncertainty * UG)} "
               f"({a.bias_instability_tau:.3g} s)") if a.bias_instability else "not reached"
-        rw = (f"{a.random_walk.value:.3g} +- {a.random_walk.uncertainty:.2g}") if a.random_walk else "not seen"
-        lines.append(f"| {axis} | {d.value * UG:.1f} +- {d.uncertainty * UG:.1f} | "
-                     f"{d.value:.4g} +- {d.uncertainty:.2g} | {bi} | {rw} |")
+        rw = pm(a.random_walk.value, a.random_walk.uncertainty) if a.random_walk else "not seen"
+        lines.append(f"| {axis} | {pm(d.value * UG, d.uncertainty * UG)} | {pm(d.value, d.uncertainty)} | {bi} | {rw} |")
     lines.append("")
     lines.append("density is one-sided (datasheet convention): sigma(tau) = N / sqrt(2 tau), "
                  "per-sample sd = N sqrt(rate / 2); bias instability = min sigma / 0.664 (IEEE 952)")

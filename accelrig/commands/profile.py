@@ -3,7 +3,8 @@
 PROFILE arguments are a file path, or a device identity to look up in the
 store (the latest profile, or the one closest to --date); ``apply`` also
 takes ``auto``: the profile of the device the recording names, closest in
-time to when it was recorded.
+time to when it was recorded.  ``apply`` chooses among the profiles that
+apply to the recording (chip, range, scale, units) and says which.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
-from accelrig.recording import load_recording, save_recording
-from accelrig.result import Estimate, to_json
+from accelrig.recording import Recording, load_recording, save_recording
+from accelrig.result import Estimate, format_value, to_json
 from accelrig.units import STANDARD_GRAVITY
 
 
@@ -57,8 +58,9 @@ def register(sub, groups) -> None:
     p = group.add_parser("apply", help="calibrate a recording with a profile",
                          description="Apply a profile's correction to a recording. Refuses data from another "
                          "device, range or unit unless --force.")
-    p.add_argument("profile", help="profile file, a device identity in the store, or 'auto' (the device "
-                   "the recording names, the profile closest to when it was recorded)")
+    p.add_argument("profile", help="profile file, a device identity in the store (its latest profile that "
+                   "applies to the recording: same chip, range and scale), or 'auto' (the device the recording "
+                   "names, its applicable profile closest to when it was recorded)")
     p.add_argument("recording", help="raw recording (.csv, .npz, or segments: a .parquet file or a directory)")
     p.add_argument("-o", "--output", required=True, help="calibrated recording (.csv or .npz)")
     p.add_argument("--force", action="store_true",
@@ -96,12 +98,17 @@ def warn(message: str) -> None:
     print(f"accelrig: warning: {printable(message)}", file=sys.stderr)
 
 
-def resolve(spec: str, args, date: str | None = None) -> Profile:
-    """A profile from a path, or from the store by device identity."""
+def resolve(spec: str, args, date: str | None = None, data: Recording | None = None) -> Profile:
+    """A profile from a path, or from the store by device identity (with ``data``: the profile that applies
+    to that recording, and stderr says which was chosen and why others were passed over)."""
     path = Path(spec)
     if path.exists() or path.suffix.lower() in (".yaml", ".yml"):
         return load_profile(path)
-    choice = ProfileStore(args.store).choose(spec, date or args.date, args.max_age_days)
+    choice = ProfileStore(args.store).choose(spec, date or args.date, args.max_age_days,
+                                             data=None if data is None else data.meta,
+                                             units=None if data is None else data.units)
+    for note in choice.notes:
+        print(f"accelrig: {printable(note)}", file=sys.stderr)
     for w in choice.warnings:
         warn(w)
     return choice.stored.profile
@@ -137,8 +144,9 @@ def _fmt(value, unc=None, digits: int = 6) -> str:
         if unc is None:
             return "[" + ", ".join(_fmt(v, None, digits) for v in value) + "]"
         return "[" + ", ".join(_fmt(v, u, digits) for v, u in zip(value, unc, strict=True)) + "]"
-    text = f"{value:.{digits}g}"
-    return text if unc is None else f"{text} +- {unc:.2g}"
+    if unc is None:
+        return f"{value:.{digits}g}"
+    return " +- ".join(format_value(value, unc))   # rounded together, as on every face
 
 
 def run_show(args) -> int:
@@ -178,7 +186,10 @@ def run_show(args) -> int:
     for key, value in q.items():
         if value is None:
             continue
-        shown = f"{value:.4g}" if isinstance(value, float) else _short(value)
+        # a count is an integer (YAML may hold it as 11000.0: it read "1.1e+04")
+        count = key.startswith("n_") or key == "dof"
+        shown = (f"{value:.0f}" if count and isinstance(value, float) and value.is_integer()
+                 else f"{value:.4g}" if isinstance(value, float) else _short(value))
         unit = " m/s^2" if key == "residual_rms" else ""
         say(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
@@ -188,7 +199,7 @@ def run_show(args) -> int:
             dens = f["density"]
             ug = 1e6 / STANDARD_GRAVITY
             bi = f["bias_instability"]
-            say(f"  {axis}: {dens['value'] * ug:.1f} +- {dens['uncertainty'] * ug:.1f} ug/sqrt(Hz)"
+            say(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
                   + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
     for w in d["warnings"]:
         say(f"warning      {w}")
@@ -292,9 +303,9 @@ def run_apply(args) -> int:
         if not identity:
             raise ProfileError(f"{args.recording} does not name its device, so 'auto' cannot choose a profile",
                                "give the profile file or the device identity")
-        profile = resolve(str(identity), args, date=args.date or rec.meta.get("start_time"))
+        profile = resolve(str(identity), args, date=args.date or rec.meta.get("start_time"), data=rec)
     else:
-        profile = resolve(args.profile, args)
+        profile = resolve(args.profile, args, data=rec)
     out, warnings = apply_profile(profile, rec, force=args.force, uncertainty=args.uncertainty)
     for w in warnings:
         warn(w)

@@ -427,17 +427,19 @@ class DeviceRunner:
         if device.profile == "store":
             store = ProfileStore(self.config.profile_store)
             try:
-                choice = store.choose(info.identity)
+                choice = store.choose(info.identity, data=info.to_dict(), units="counts")
             except ProfileError:
                 if device.output == "raw" and not device.flash:
                     return None, []
                 held = store.identities()
                 raise ProfileError(f"no profile for {info.identity!r} in the store {store.root} "
                                    + (f"(it holds {', '.join(held)})" if held else "(it is empty)")) from None
-            profile, warnings = choice.stored.profile, list(choice.warnings)
+            # which profile was chosen and which newer ones were passed over, and why (store.choose)
+            profile, warnings = choice.stored.profile, list(choice.notes) + list(choice.warnings)
         else:
             profile, warnings = load_profile(device.profile_path), []
-        return profile, warnings + [f"profile: {w}" for w in check_compatible(profile, info.to_dict(), "counts")]
+        return profile, warnings + [f"profile: {w}" for w in check_compatible(
+            profile, info.to_dict(), "counts", force_hint="name the profile made for this device in the config")]
 
     def profile_now_usable(self) -> bool:
         """Recording raw for want of a profile that can be used now (a reload restarts the device for it)."""

@@ -70,6 +70,9 @@ FACE_REFUSE_SD = 5.0
 CHI2_ALPHA = 0.01            # chi^2 p-value below which the model is rejected and the scatter inflation applied
 INFLATIONS = ("repeatability", "birge", "none")
 MULTI_MIN_DISTINCT = 9       # 9 parameters: at least 9 distinct orientations
+# The wizard asks for more: 9 orientations fix the 9 parameters exactly and leave nothing to test the fit with
+MULTI_ASKED = 12
+MULTI_ASKED_WHY = "so the fit has orientations to spare and can test itself (9 fix its 9 unknowns exactly)"
 DISTINCT_DEG = 10.0          # two poses closer than this repeat (nearly) the same orientation
 MULTI_MIN_RCOND = 1e-6       # reciprocal condition of the column-scaled Jacobian below which we refuse
 
@@ -281,7 +284,7 @@ def _multi_covariance_to_correction(cov9: np.ndarray) -> np.ndarray:
 
 def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
                       min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability",
-                      wander_var: float = 0.0) -> GravityFit:
+                      wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
     """Tedaldi et al. (imu_tk) multi-position fit: |C (m_p - b)| = g, C upper triangular (9 parameters).
 
     Refuses (CalibrationError) with fewer than ``min_distinct`` orientations more than DISTINCT_DEG apart,
@@ -333,7 +336,7 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
             f"the {len(poses)} poses ({n_distinct} orientations) do not span the sphere enough to determine "
             f"C and b ({problem or f'reciprocal condition {sv[-1] / sv[0]:.1e}'})",
             "add poses in orientations far from the ones held, e.g. tilted between two faces")
-    dof = len(poses) - 9
+    dof = len(poses) - 9 - spent_dof
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2 if wander_var == 0 else solve(0.0)[3]
     birge, rejected = _birge(chi2_before, dof)
@@ -344,11 +347,11 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
         x, resid, jw, chi2 = solve(v)
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
-        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened{replaces})")
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
+                   f"{dof} degrees of freedom; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
-        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2:.3g} for {dof} dof)"
+        source += f" x Birge ratio {birge:.3g} (χ² = {chi2:.3g} for {dof} degrees of freedom)"
     cov9 = np.linalg.inv(jw.T @ jw) * cov_scale
     cov9 = 0.5 * (cov9 + cov9.T)
     correction = Correction(_upper(x), x[6:9], _multi_covariance_to_correction(cov9))
@@ -531,7 +534,7 @@ def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: f
 
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 inflation: str = "repeatability", wander_var: float = 0.0) -> GravityFit:
+                 inflation: str = "repeatability", wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
     """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
 
     model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
@@ -547,6 +550,8 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
       magnitudes |C (m_p - b)| - g against P - 6 dof (tilt-free: what the data say beyond the faces):
                  when it rejects, ``inflation`` ("repeatability": an additive per-pose sd, or "birge").
     With flatness 0 (exact faces) the test is the whole chi^2 against 3 P - parameters.
+    ``spent_dof``: degrees of freedom the pose means already gave to something fitted out of them (a drift
+    referred to the middle of the run): the magnitudes' test has that many fewer.
     """
     start = time.perf_counter()
     _check_inflation(inflation)
@@ -586,7 +591,10 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     source = "noise" if flat == 0 else f"noise + flatness prior {flat:g} deg (Type B)"
     tilt_mean, tilt_scale, tilt_dof = _tilt_statistic_null(jac, n_t)
     # the six-face model's own test of fit: do the tilts the poses need stay within the stated flatness?
-    tilt_p = float(chi2_dist.sf(chi2_t / tilt_scale, tilt_dof)) if flat > 0 and tilt_dof > 0 else float("nan")
+    # the statistic as tested: chi2_t / tilt_scale follows chi^2 with tilt_dof degrees of freedom, so this one
+    # figure, its dof and its p are said together (the warning and the check line), before any refit
+    tilt_stat = chi2_t / tilt_scale if tilt_scale > 0 else 0.0
+    tilt_p = float(chi2_dist.sf(tilt_stat, tilt_dof)) if flat > 0 and tilt_dof > 0 else float("nan")
     # The flatness the tilts show: method of moments (the statistic scales with flatness^2, its null mean is
     # tilt_mean), widened by the Student factor of its tilt_dof degrees of freedom so that +-2u stays a
     # 95 % interval although the flatness is estimated from a few tilt combinations.
@@ -598,12 +606,13 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         # when they are beyond what the stated flatness explains (p < CHI2_ALPHA); the source says it always.
         if tilt_p < CHI2_ALPHA:
             tilts_rejected = True
-            notes.append(f"tilts exceed the stated flatness {flat:g} deg (chi^2 {chi2_t:.3g}, expected {tilt_mean:.3g} "
-                         f"with {tilt_dof:.3g} dof): flatness {observed:.2g} deg from the observed tilts used")
+            notes.append(f"tilts exceed the stated flatness {flat:g} deg (χ² = {tilt_stat:.3g} for {tilt_dof:.3g} "
+                         f"degrees of freedom, p = {tilt_p:.3g}): flatness {observed:.2g} deg from the observed "
+                         "tilts used")
         source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
         flat = observed
         x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
-    dof = n_pose - 6 if flat > 0 else 3 * n_pose - m.size
+    dof = (n_pose - 6 if flat > 0 else 3 * n_pose - m.size) - spent_dof
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2_m if wander_var == 0 else solve(flat, 0.0)[2]
     birge, rejected = _birge(chi2_before, dof)
@@ -614,11 +623,11 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
-        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (chi^2 was {chi2_before:.3g} for "
-                   f"{dof} dof; Student-widened{replaces})")
+        source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
+                   f"{dof} degrees of freedom; Student-widened{replaces})")
     elif rejected and inflation == "birge":
         cov_scale = birge**2
-        source += f" x Birge ratio {birge:.3g} (chi^2 {chi2_m:.3g} for {dof} dof)"
+        source += f" x Birge ratio {birge:.3g} (χ² = {chi2_m:.3g} for {dof} degrees of freedom)"
     cov = np.linalg.inv(jac.T @ jac)[:m.size, :m.size] * cov_scale
     p = x[:m.size]
     corr_values, corr_cov = propagate_covariance(m.to_correction, p, cov)
@@ -633,7 +642,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                       _magnitudes(correction, poses, g), _names(poses), g, pose_flatness_deg=flat,
                       tilts_deg=tilts, n_evaluations=n_eval, seconds=time.perf_counter() - start,
                       repeatability_sd=sigma_r, chi2_before=chi2_before,
-                      extra={"chi2_tilts": chi2_t, "tilt_dof": round(tilt_dof, 2), "tilt_p_value": tilt_p,
+                      extra={"chi2_tilts": tilt_stat, "tilt_dof": round(tilt_dof, 2), "tilt_p_value": tilt_p,
                              "notes": notes,
                              "stated_flatness_deg": float(pose_flatness_deg)})
 

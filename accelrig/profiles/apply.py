@@ -27,7 +27,11 @@ def _same(a: float, b: float) -> bool:
     return abs(float(a) - float(b)) <= 1e-9 * max(abs(float(a)), abs(float(b)))
 
 
-def check_compatible(profile: Profile, meta: dict, units: str, force: bool = False) -> list[str]:
+CLI_FORCE_HINT = "pass --force to use it anyway"
+
+
+def check_compatible(profile: Profile, meta: dict, units: str, force: bool = False,
+                     force_hint: str = CLI_FORCE_HINT) -> list[str]:
     """Refuse data from another device, chip, range or unit (ProfileError) unless ``force``.
 
     The one check of a profile against a device: applying, verifying and
@@ -36,7 +40,9 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
 
     ``meta`` is a recording's metadata or a DeviceInfo.to_dict(); ``units`` the
     units the data are in.  Returns warnings: what could not be checked, and
-    what ``force`` let through.
+    what ``force`` let through.  ``force_hint`` says how to force where the
+    refusal is shown (the command line's ``--force`` by default; the TUI's
+    force field, or nothing where there is none).
     """
     problems: list[str] = []
     warnings: list[str] = []
@@ -46,8 +52,9 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     if dev["identity"] is not None and data_id not in (None, "") and str(data_id) != dev["identity"]:
         problems.append(f"{who} is for device {dev['identity']!r}, not {str(data_id)!r}")
     elif dev["identity"] is None or data_id in (None, ""):
-        warnings.append("cannot check the profile belongs to this device: "
-                        + ("the profile" if dev["identity"] is None else "the data") + " do not name the device")
+        unnamed = ("neither the profile nor the data name" if dev["identity"] is None and data_id in (None, "")
+                   else "the profile does not name" if dev["identity"] is None else "the data do not name")
+        warnings.append(f"cannot check the profile belongs to this device: {unnamed} the device")
     data_chip = meta.get("chip")
     if dev.get("chip") and data_chip and str(data_chip).lower() != str(dev["chip"]).lower():
         problems.append(f"{who} is for chip {dev['chip']!r}, not {str(data_chip)!r}")
@@ -62,7 +69,7 @@ def check_compatible(profile: Profile, meta: dict, units: str, force: bool = Fal
     if problems:
         if not force:
             # every problem named: the person decides on --force knowing all of them
-            raise ProfileError("; ".join(problems), "pass --force (in the TUI: force yes) to use it anyway")
+            raise ProfileError("; ".join(problems), force_hint)
         warnings.extend(f"forced: {p}" for p in problems)
     return warnings
 

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import hashlib
 
+import numpy as np
 import yaml
 
 from accelrig.acquisition.driver import Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.errors import ProfileError
-from accelrig.profiles.apply import check_compatible
+from accelrig.profiles.apply import CLI_FORCE_HINT, check_compatible
 from accelrig.profiles.io import Profile, load_profile
 
 
@@ -30,22 +31,24 @@ def profile_id(profile: Profile) -> bytes:
     return hashlib.sha256(text.encode("utf-8")).digest()[:8]
 
 
-def plan_flash(device, profile: Profile, force: bool = False) -> FlashPlan:
+def plan_flash(device, profile: Profile, force: bool = False, force_hint: str = CLI_FORCE_HINT) -> FlashPlan:
     """What storing ``profile``'s correction on ``device`` would write; reads the device, writes nothing.
 
     A profile made for another device, chip, range or scale is refused
     (ProfileError) unless ``force``; so is one that does not name its chip
     when the writes are registers of one part.  What could not be checked,
-    and what ``force`` let through, ends the plan's notes.
+    and what ``force`` let through, ends the plan's notes.  ``force_hint`` says how to force where the
+    refusal is shown ("" where it cannot be forced).
     """
-    checks = check_compatible(profile, device.info.to_dict(), "counts", force)
+    same_device = "use the profile made for this device"
+    checks = check_compatible(profile, device.info.to_dict(), "counts", force, force_hint or same_device)
     if profile.correction is None:
         raise ProfileError("the profile holds no correction to flash", "calibrate first, then save the profile")
     plan = device.plan_flash(profile.correction, profile_id(profile))
     if plan.chip_specific and profile.device.get("chip") is None:
         problem = "the profile does not say which chip it was made for"
         if not force:
-            raise ProfileError(problem, "use the profile made for this device, or --force (force=True)")
+            raise ProfileError(problem, same_device + (f", or {force_hint}" if force_hint else ""))
         plan.notes.append(f"forced: {problem}")
     plan.notes.extend(checks)
     return plan
@@ -84,9 +87,11 @@ def _writes_table(rows: list[FlashWrite], current_label: str = "current", new_la
 
 
 def _value_text(value) -> str:
-    """Residual figures to four significant digits (the profile keeps them whole), lists included."""
-    if isinstance(value, float):
-        return f"{value:.4g}"
+    """A residual figure with no u beside it, to 6 significant digits (the profile keeps it whole), lists and
+    matrices too: the registers' step is about 0.01 m/s^2, and "-0.0020423482931097026" said no more than
+    "-0.00204235"."""
+    if isinstance(value, float | np.floating):
+        return f"{float(value):.6g}"
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_value_text(v) for v in value) + "]"
     return str(value)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -72,6 +72,7 @@ class StoredProfile:
 class Choice:
     stored: StoredProfile
     warnings: list[str]
+    notes: list[str] = field(default_factory=list)   # which profile was chosen among several, and why
 
 
 class ProfileStore:
@@ -177,8 +178,17 @@ class ProfileStore:
         date: str | datetime | None = None,
         max_age_days: float = DEFAULT_MAX_AGE_DAYS,
         now: datetime | None = None,
+        data: dict | None = None,
+        units: str = "counts",
     ) -> Choice:
-        """The latest profile of a device, or the one closest in time to ``date``."""
+        """The latest profile of a device, or the one closest in time to ``date``.
+
+        With ``data`` (the metadata of the data the profile is for, in ``units``) only the profiles that
+        apply to them count (``check_compatible``: chip, range, scale, units): a device calibrated on the
+        wheel at +-4 g and statically at +-2 g gets the +-2 g profile for +-2 g data, whichever is newer.
+        The notes say which was chosen and why the ones the rule would have preferred were passed over.
+        When none applies, the rule's choice is returned as without ``data`` (its check then refuses,
+        naming what differs)."""
         try:
             Setting("max_age_days", "", unit="days", low=0.0).parse(max_age_days)
         except DataError as exc:
@@ -194,11 +204,32 @@ class ProfileStore:
             hint = f"known devices: {', '.join(known)}" if known else f"the store {self.root} is empty"
             raise ProfileError(f"no stored profile for device {identity!r}", hint)
         if date is None:
-            chosen = entries[-1]
             reference = now or datetime.now(UTC)
+            order = entries[::-1]   # newest first
+            rule = "the newest"
         else:
             reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(UTC)
-            chosen = min(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
+            order = sorted(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
+            rule = f"the closest to {reference.strftime('%Y-%m-%d %H:%M')} UTC"
+        chosen, notes = order[0], []
+        if data is not None and len(entries) > 1:
+            from accelrig.profiles.apply import check_compatible
+
+            why_not = {}
+            for stored in order:
+                try:
+                    check_compatible(stored.profile, data, units)
+                except ProfileError as exc:
+                    why_not[stored.path] = exc.message
+                    continue
+                chosen = stored
+                break
+            if chosen.path in why_not:
+                notes.append(f"no stored profile of {identity!r} applies to the data ({len(entries)} stored)")
+            elif why_not:
+                notes.append(f"profile {chosen.path.name} ({_describe(chosen)}): {rule} that applies to the data")
+                notes += [f"passed over {s.path.name} ({_describe(s)}): {why_not[s.path]}"
+                          for s in order[:order.index(chosen)]]
         warnings = []
         age = reference - chosen.created
         if age > timedelta(days=max_age_days):
@@ -207,4 +238,13 @@ class ProfileStore:
                 f"profile {chosen.path.name} is {age.days} days older than {when} "
                 f"(more than {max_age_days:g}); recalibrate the device"
             )
-        return Choice(chosen, warnings)
+        return Choice(chosen, warnings, notes)
+
+
+def _describe(stored: StoredProfile) -> str:
+    """A stored profile in a few words: procedure, range, date."""
+    dev, parts = stored.profile.device, [stored.profile.procedure]
+    if dev.get("range_g") is not None:
+        parts.append(f"±{dev['range_g']:g} g")
+    parts.append(stored.created.strftime("%Y-%m-%d %H:%M"))
+    return ", ".join(parts)

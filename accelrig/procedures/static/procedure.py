@@ -31,6 +31,8 @@ from accelrig.estimation.gravity_fit import (
     CHI2_ALPHA,
     DISTINCT_DEG,
     FACE_REFUSE_SD,
+    MULTI_ASKED,
+    MULTI_ASKED_WHY,
     MULTI_MIN_DISTINCT,
     PoseStats,
     check_faces,
@@ -110,7 +112,8 @@ class StaticProcedure(Procedure):
 
     def _orientation_events(self, events: list[Event]) -> list[Event]:
         """The detector's face-flow events retold for the any-orientation flow: a pose is an orientation,
-        progress counts distinct orientations, and it is ready at MULTI_MIN_DISTINCT of them."""
+        progress counts distinct orientations; it can compute at MULTI_MIN_DISTINCT of them and is through at
+        MULTI_ASKED (the ones beyond the minimum test the fit)."""
         out = []
         for event in events:
             kind = event.data.get("kind")
@@ -125,11 +128,12 @@ class StaticProcedure(Procedure):
                 means = np.array([p.mean for p in self.detector.accepted()[:self._n_captured]])
                 n_before, n = self._n_distinct, distinct_orientations(means)
                 self._n_distinct = n
-                more = max(MULTI_MIN_DISTINCT - n, 0)
-                out.append(pose_event("progress", f"{n} distinct orientation{'s' if n != 1 else ''}"
-                                      + (f", {more} more needed" if more else ""), time,
-                                      progress=min(n / MULTI_MIN_DISTINCT, 1.0)))
-                if n >= MULTI_MIN_DISTINCT > n_before:
+                more, asked = max(MULTI_MIN_DISTINCT - n, 0), max(MULTI_ASKED - n, 0)
+                said = (f", {more} more needed" if more else
+                        f": c computes now; {asked} more asked, {MULTI_ASKED_WHY}" if asked else "")
+                out.append(pose_event("progress", f"{n} distinct orientation{'s' if n != 1 else ''}" + said, time,
+                                      progress=min(n / MULTI_ASKED, 1.0)))
+                if n >= MULTI_ASKED > n_before:
                     out.append(pose_event("complete", f"{n} distinct orientations captured", time, progress=1.0))
             elif kind in ("progress", "complete"):
                 continue   # face counts: not this flow's
@@ -164,7 +168,7 @@ class StaticProcedure(Procedure):
     @property
     def progress(self) -> float:
         if self.any_orientation:
-            return min(self.orientations["n_distinct"] / MULTI_MIN_DISTINCT, 1.0)
+            return min(self.orientations["n_distinct"] / MULTI_ASKED, 1.0)
         return len(self.faces_done) / len(FACES)
 
     @property
@@ -175,9 +179,10 @@ class StaticProcedure(Procedure):
 
     @property
     def complete(self) -> bool:
-        """The guided sequence is through: six faces, then the drift check's three rounds."""
+        """The guided sequence is through: six faces, then the drift check's three rounds; or the orientations
+        asked for (MULTI_ASKED: a few beyond the minimum, so that the fit can be tested)."""
         if self.any_orientation:
-            return self.done
+            return self.orientations["n_distinct"] >= MULTI_ASKED
         return self.detector.complete
 
     @property
@@ -190,7 +195,8 @@ class StaticProcedure(Procedure):
         n = distinct_orientations(means) if len(means) else 0
         octants = {tuple(int(v) for v in np.sign(d) >= 0) for d in directions}
         return {"directions": directions, "n_distinct": n, "needed": MULTI_MIN_DISTINCT,
-                "more": max(MULTI_MIN_DISTINCT - n, 0), "octants": len(octants), "n_poses": len(means),
+                "more": max(MULTI_MIN_DISTINCT - n, 0), "asked": MULTI_ASKED, "more_asked": max(MULTI_ASKED - n, 0),
+                "octants": len(octants), "n_poses": len(means),
                 "distinct_deg": DISTINCT_DEG}
 
     @property
@@ -491,7 +497,7 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     referred_stats, means = referred(rate, bend_fitted)
     # before the result is built: its warning and record go with the noise's
     bend = drift_bend(noise, anchors, middle, measured=bent)
-    base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means)
+    base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means, spent_dof=m + q)
     extra = jac @ theta_cov @ jac.T
     # the drift's curvature allowed on the axes whose shape was not measured (type B): through the same
     # fits, one step of its sd per such axis (central differences; the departure is linear in it)
@@ -528,10 +534,9 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
             f"({bend['allowance']['distribution']}: up to {departure:.2g} m/s^2 off the straight line at a pose, 1 sd)")
     base.quality["drift_referred_to"] = middle
     # the revisits' degrees of freedom went into the rates and curvatures: the lack-of-fit test has that many
-    # fewer (none left with six faces and three of them twice again; the wizard's opposite faces once more
-    # leave some)
-    dof = int(base.quality["dof"]) - m - q
-    base.quality["dof"] = dof
+    # fewer (none left with six faces and three again, twice; the wizard's last round, the opposite faces once
+    # more, leaves some)
+    dof = int(base.quality["dof"])   # build_result took the m + q out of every test
     if q:
         noise.drift["shape"]["fitted"]["tested_between_holds"] = dof > 0
         noise.drift["shape"]["fitted"]["dof_between_holds"] = max(dof, 0)
@@ -560,11 +565,14 @@ def _names(axes: list[int]) -> str:
 
 
 def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], model: str, method: str,
-                 settings: dict, noise: StillNoise, means: list[np.ndarray] | None = None) -> CalibrationResult:
+                 settings: dict, noise: StillNoise, means: list[np.ndarray] | None = None,
+                 spent_dof: int = 0) -> CalibrationResult:
     """Fit ``model`` (exact-face paper / affine, six-face, multi-position) and package the CalibrationResult.
 
     ``rows``: every pose found (``pose_table``); ``poses`` / ``stats`` the ones used, in the same order;
-    ``means`` the pose means to fit when not the poses' own (referred to the middle of the run)."""
+    ``means`` the pose means to fit when not the poses' own (referred to the middle of the run);
+    ``spent_dof`` the degrees of freedom that referring them used (the drift's rates and curvatures): every
+    lack-of-fit test, and the inflation it decides, has that many fewer."""
     g = settings["g"]
     data = PoseData([s.face for s in stats], means if means is not None else [p.mean for p in poses],
                     [len(p.samples) for p in poses],
@@ -574,7 +582,9 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         fit = fit_model(data, model, method if model == "paper" else "vp")
         corr, source = fit.correction, "noise of the pose means (faces assumed exact: a tilted pose biases the fit)"
         names, values, uncertainty, units, cov = fit.names, fit.values, fit.uncertainty, fit.units, fit.covariance
-        chi2, dof, p_value, label, method_used = fit.chi2, fit.dof, fit.p_value, fit.model, fit.method
+        chi2, label, method_used = fit.chi2, fit.model, fit.method
+        dof = fit.dof - spent_dof
+        p_value = float(chi2_dist.sf(chi2, dof)) if dof > 0 else float("nan")
         n_eval, seconds = fit.n_evaluations, fit.seconds
         n_obs = 3 * int(np.sum(data.counts))
         extra = {"model_selection": {model: {"chi2": fit.chi2, "dof": fit.dof, "p_value": fit.p_value,
@@ -597,21 +607,28 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
             birge = float(np.sqrt(chi2 / dof))
             cov, uncertainty = cov * birge**2, uncertainty * birge
             corr = Correction(corr.matrix, corr.bias, corr.covariance * birge**2)
-            source = (f"noise of the pose means x Birge ratio {birge:.3g} (chi^2 {chi2:.1f} for {dof} dof: "
+            source = (f"noise of the pose means x Birge ratio {birge:.3g} (χ² = {chi2:.3g} for {dof} degrees of freedom: "
                       "the poses are not exact faces)")
-            warnings.append(f"the poses disagree with the {label} model beyond their noise (chi2 = "
-                            f"{chi2:.1f} for {dof} dof): table not level, cube not square or a pose "
+            warnings.append(f"the poses disagree with the {label} model beyond their noise (χ² = "
+                            f"{chi2:.3g} for {dof} degrees of freedom): table not level, cube not square or a pose "
                             f"not flat? The uncertainties are scaled by the Birge ratio {birge:.3g}; the six-face "
                             "model (--model six-face) allows for tilted poses.")
         if fit.extra.get("converged") is False:
             warnings.append(f"Nelder-Mead stopped before converging: {fit.extra.get('message')}")
     else:
         if model == "six-face":
-            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var)
+            fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var,
+                               spent_dof=spent_dof)
             method_used = "map"
         else:
-            fit = fit_multiposition(stats, g, wander_var=noise.wander_var)
+            fit = fit_multiposition(stats, g, wander_var=noise.wander_var, spent_dof=spent_dof)
             method_used = "lm"
+            if fit.dof <= 0:
+                # nothing is left to test the fit with: the result must not read as "no warnings"
+                warnings.append(f"the fit could not be tested: {len(stats)} poses fix the 9 parameters exactly "
+                                "(no degree of freedom left for a lack-of-fit test), so a pose that moved or a "
+                                f"model that does not hold would go unseen; hold at least {MULTI_ASKED} "
+                                f"distinct orientations, {MULTI_ASKED_WHY}")
         corr, source, label = fit.correction, fit.uncertainty_source, model
         names, values, uncertainty, cov = fit.names, fit.values, fit.uncertainty, fit.covariance
         units = [_units(n) for n in names]
@@ -623,9 +640,14 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
         if fit.tilts_deg is not None:
             extra["tilts_deg"] = fit.tilts_deg
         arrays = {}
-        warnings += list(fit.extra.get("notes", []))
-        if fit.inflated:
-            warnings.append(f"uncertainty: {source}")
+        notes = list(fit.extra.get("notes", []))
+        warnings += notes
+        if fit.inflated and fit.dof > 0 and fit.p_value < CHI2_ALPHA:
+            # the magnitudes' own test rejected (the tilts' says so in its note): say what was seen, once; the
+            # uncertainty line says what was done about it
+            warnings.append(f"the poses disagree with the model beyond their noise (χ² = {chi2:.3g} for {dof} "
+                            f"degrees of freedom, p = {p_value:.2g}): the uncertainty allows for it (see the "
+                            "uncertainty line)")
     magnitudes = np.linalg.norm(corr.apply(data.means), axis=1) - g
     used_rows = [r for r in rows if r["fate"] == "used"]
     for r, m in zip(used_rows, magnitudes, strict=True):

@@ -353,7 +353,9 @@ class ResultsScreen(AsksBeforeClosing, Screen):
         for key, value in self.result.quality.items():
             if isinstance(value, bool) or value is None:
                 parts.append(f"{key} {value}")
-            elif isinstance(value, (int, float, np.floating, np.integer)):
+            elif isinstance(value, (int, np.integer)):
+                parts.append(f"{key} {int(value)}")   # a count is an integer ("n_samples 1.118e+04" before)
+            elif isinstance(value, (float, np.floating)):
                 # NaN is how a figure that could not be computed is kept (a p-value with no degrees of freedom)
                 parts.append(f"{key} not computed" if np.isnan(value) else f"{key} {value:.4g}")
             elif isinstance(value, str):
@@ -489,7 +491,7 @@ class ResultsScreen(AsksBeforeClosing, Screen):
     @work(thread=True, exclusive=True, group="flash")
     def plan_flash(self) -> None:
         try:
-            plan = plan_flash(self.session, self.profile)
+            plan = plan_flash(self.session, self.profile, force_hint="")   # the TUI has no force for a flash
         except AccelrigError as exc:
             self.app.call_from_thread(self.set_status, f"[red]cannot flash:[/] {exc}")
             return

@@ -18,6 +18,7 @@ from textual.widgets import DataTable, Header, Static
 from accelrig.errors import AccelrigError
 from accelrig.procedures.rotary.campaign import write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
+from accelrig.result import format_value
 from accelrig.tui.screens.dialogs import AsksBeforeClosing, ConfirmScreen, PathScreen, tell
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
@@ -49,8 +50,9 @@ class RotaryWizard(ProcedureWizard):
 def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple[str, ...]]]]:
     """The campaign's tables for people: (title, columns, rows), units and k in the titles."""
     k = report["coverage_factor"]
-    steps = [(str(t["index"]), t["label"], f"{t['sample_rate_hz']['value']:.3f}", axis, s["component"],
-              f"{s['value']:.3f}", f"{s['uncertainty']:.2g}")
+    # a value beside its u (or U) is rounded with it, as on every screen (format_value)
+    steps = [(str(t["index"]), t["label"], f"{t['sample_rate_hz']['value']:.3f}",
+              axis, s["component"], *format_value(s["value"], s["uncertainty"]))
              for t in report["tests"] for axis, s in t["sensitivity"].items()]
     budget, linearity = [], []
     for sensor, axes in report["per_axis"].items():
@@ -60,28 +62,31 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
             def percent(symbol, parts=parts):
                 return f"{100 * parts[symbol]:.3f}" if symbol in parts else "left out"
 
-            # the budget's own combination (Table 2, with the campaign's correlation), not the group result
-            # (Table 3, which adds the spread of the results and has its own table below)
+            # the budget's own combination (Table 2, the spread of the results one of its lines): the same
+            # u_c and U as the axis's group result (Table 3, case 1) below
             b = e["budget"]
-            budget.append((f"{sensor} {axis}", f"{e['mean_sensitivity']:.3f}", percent("u_r"), percent("u_l"),
-                           percent("u_ref"), f"{100 * b['combined_standard_uncertainty']:.3f}",
-                           f"{b['expanded_uncertainty_absolute']:.3f}"))
+            s_text, u_text = format_value(e["mean_sensitivity"], b["expanded_uncertainty_absolute"])
+            budget.append((f"{sensor} {axis}", s_text, percent("u_r"), percent("u_l"),
+                           percent("u_ref"), percent("u_s"), f"{100 * b['combined_standard_uncertainty']:.3f}",
+                           u_text))
             line = e["linearity"]
-            linearity.append((f"{sensor} {axis}", *((f"{line['slope']:.3f}", f"{line['slope_sd']:.2g}",
+            linearity.append((f"{sensor} {axis}", *((*format_value(line["slope"], line["slope_sd"]),
                                                      f"{line['intercept']:.2f}", f"{line['r_squared']:.6f}",
                                                      str(line["n"])) if line else
                                                     ("not evaluated (see the warnings)", "", "", "", ""))))
-    groups = [("1", f"{sensor} axis {axis}", f"{e['mean_sensitivity']:.3f}",
-               f"{100 * e['overall_relative_uncertainty']:.3f}", f"{e['expanded_uncertainty']:.3f}")
+    def group(case: str, name: str, e: dict) -> tuple[str, ...]:
+        s_text, u_text = format_value(e["mean_sensitivity"], e["expanded_uncertainty"])
+        return (case, name, s_text, f"{100 * e['overall_relative_uncertainty']:.3f}", u_text)
+
+    groups = [group("1", f"{sensor} axis {axis}", e)
               for sensor, axes in report["per_axis"].items() for axis, e in axes.items()]
-    groups += [("2", sensor, f"{e['mean_sensitivity']:.3f}", f"{100 * e['overall_relative_uncertainty']:.3f}",
-                f"{e['expanded_uncertainty']:.3f}") for sensor, e in report["per_sensor"].items()]
+    groups += [group("2", sensor, e) for sensor, e in report["per_sensor"].items()]
     return [
         ("Sensitivity per step (counts per m/s², u at k = 1)",
          ("step", "label", "rate Hz", "axis", "component", "S", "u"), steps),
         (f"Budget per axis (Table 2: relative u in %, k = 1, combined with correlation "
-         f"{report['correlation']:g}; U at k = {k:g} in counts per m/s²)",
-         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_c %", f"U (k={k:g})"), budget),
+         f"{report['correlation']:g}, the spread of the results u_s uncorrelated; U at k = {k:g} in counts per m/s²)",
+         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_s %", "u_c %", f"U (k={k:g})"), budget),
         ("Linearity q_o = S q_i + b (S in counts per m/s², b in counts)",
          ("axis", "S", "u(S)", "b", "R²", "n"), linearity),
         (f"Group results (Table 3; u in % at k = 1, U at k = {k:g} in counts per m/s²)",

@@ -49,7 +49,8 @@ class SliderCrankWizard(ProcedureWizard):
             self.profile_warnings = []
             return {}
         profile = load_profile(values["profile"])
-        self.profile_warnings = check_compatible(profile, self.device, profile.units, values["force"])
+        self.profile_warnings = check_compatible(profile, self.device, profile.units, values["force"],
+                                                 force_hint="set force to yes to use it anyway")
         return {"correction": correction_for(profile, self.device)}
 
     def compose_body(self) -> ComposeResult:
@@ -159,9 +160,11 @@ class VerificationScreen(AsksBeforeClosing, Screen):
             flags = [name for name, on_ in (("motor-limited", s["motor_limited"]), ("backlash", s["backlash"]),
                                             ("link rings", s["link_ringing"]), ("unsteady", s["speed_unsteady"]),
                                             ("outside", not s["within_clearance"])) if on_]
-            table.add_row(s["label"], f"{s['frequency_hz']['value']:.3f}", f"{s['amplitude']['value']:.4g}",
-                          f"{s['amplitude']['uncertainty']:.2g}", f"{s['model_amplitude']:.4g}",
-                          f"{s['radius_m']['value'] * 1e3:.4f}", f"{s['radius_m']['uncertainty'] * 1e3:.2g}",
+            # a value beside its u is rounded with it (format_value), as on every screen
+            amplitude, amplitude_u = format_value(s["amplitude"]["value"], s["amplitude"]["uncertainty"])
+            radius, radius_u = format_value(s["radius_m"]["value"] * 1e3, s["radius_m"]["uncertainty"] * 1e3)
+            table.add_row(s["label"], f"{s['frequency_hz']['value']:.3f}", amplitude, amplitude_u,
+                          f"{s['model_amplitude']:.4g}", radius, radius_u,
                           f"{s.get('radius_k', 2.0):.2f}", " ".join(flags))
         self.show_plot()
 

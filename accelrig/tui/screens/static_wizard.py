@@ -24,6 +24,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
+from accelrig.estimation.gravity_fit import MULTI_ASKED_WHY
 from accelrig.procedures.static.poses import LAST_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
@@ -125,6 +126,9 @@ class StaticWizard(ProcedureWizard):
             self.query_one("#sphere", SphereMap).show(orientations)
             state = (f"[green]● still[/]: held {faces['held_seconds']:.1f} of {self.procedure.hold:g} s"
                      if faces["still"] else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
+            if not orientations["more"] and orientations["more_asked"]:
+                state += (f"; {orientations['more_asked']} more orientations asked, {MULTI_ASKED_WHY} "
+                          "(c computes without)")
             self.query_one("#pose-state", Static).update(state)
             return
         self.query_one("#faces", FaceGrid).show(faces)

@@ -41,7 +41,8 @@ def coverage_text(orientations: dict) -> str:
     lines = [f"{'+z up (sensor z axis up)':<{WIDTH + 4}}  -z up"]
     lines += [f"{a}    {b}" for a, b in zip(up, down, strict=True)]
     n, needed, more = orientations["n_distinct"], orientations["needed"], orientations["more"]
-    need = f"{more} more needed" if more else "enough"
+    asked = orientations.get("more_asked", 0)
+    need = f"{more} more needed" if more else f"enough; {asked} more asked" if asked else "enough"
     lines.append(f"distinct orientations {n} of {needed} ({need}; within {orientations['distinct_deg']:g}° counts once)   "
                  f"octants {orientations['octants']} of 8   poses {orientations['n_poses']}")
     return "\n".join(lines)
