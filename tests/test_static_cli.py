@@ -43,7 +43,7 @@ def test_paper_method_and_model_in_one_run_and_text_report(six_face_csv, capsys)
     nm = json.loads(capsys.readouterr().out)
     assert nm["method"] == "paper" and set(nm["parameters"]) >= {"angle_x", "gain_y", "offset_z"}
     assert nm["parameters"]["angle_x"]["unit"] == "rad"
-    assert main(["calibrate", "static", str(path), "--model", "paper"]) == 0
+    assert main(["calibrate", "static", str(path), "--model", "paper", "--method", "paper"]) == 0   # as the JSON
     text = capsys.readouterr().out
     assert "angle_x" in text and "deg" in text and "calibrated = C @ (raw - b)" in text
     # the correction rounded as every face rounds it (was "+1.002937(0.001581)": six digits whatever u)
