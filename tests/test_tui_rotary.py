@@ -5,10 +5,9 @@
 
 from accelrig.sim.rigs.rotary import true_sensitivity  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
-from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import PathScreen, SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import PathScreen  # noqa: E402
 from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # noqa: E402
-from tui_support import async_test, wait_for  # noqa: E402
+from tui_support import async_test, open_wizard, wait_for  # noqa: E402
 
 # realtime: a step is recorded from the moment the operator presses space, as on a real bench
 # (a pace=fast source would have run out before the first key press)
@@ -19,13 +18,7 @@ DEVICE = "sim://rotary?seed=2&range=8&rate=1000&seconds=60"
 async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05, profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k")
-        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
-        menu = app.screen.query_one("#wizards")
-        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("rotary")
-        await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await open_wizard(pilot, "rotary")
         # the simulated bench runs its one setting (5 Hz, 34 degrees): two repeats of 2 s.
         # (fields filled directly: at realtime each Pilot key press waits for an idle process)
         for field, value in (("radius", "0.170"), ("tangential", "x"), ("radial", "y"), ("plan", "5:34"),

@@ -5,11 +5,10 @@ import numpy as np
 
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
-from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
-from accelrig.tui.screens.dialogs import PathScreen, SettingsForm  # noqa: E402
+from accelrig.tui.screens.dialogs import PathScreen  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.wheel_wizard import WheelWizard  # noqa: E402
-from tui_support import async_test, wait_for  # noqa: E402
+from tui_support import async_test, open_wizard, wait_for  # noqa: E402
 
 DEVICE = "sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05"
 
@@ -18,13 +17,7 @@ DEVICE = "sim://wheel?seed=5&pace=fast&seconds=40&noise=0.05"
 async def test_wheel_wizard_to_saved_profile_matches_the_truth(tmp_path):
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05, profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k")
-        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
-        menu = app.screen.query_one("#wizards")
-        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
-        await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await open_wizard(pilot, "wheel")
         # neither radius nor tilt: refused while the form is open, saying one is needed
         await pilot.press("enter")
         assert "needs the radius or the tilt" in str(app.screen.query_one("#setup-status").render())
@@ -76,13 +69,7 @@ async def test_wheel_wizard_result_says_the_link_lost_samples(tmp_path):
     warnings (and so in the profile), as every command line calibration says it."""
     app = AccelrigApp(device=DEVICE + "&drop=0.05&block=4", refresh_interval=0.05, profile_dir=tmp_path)
     async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k")
-        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
-        menu = app.screen.query_one("#wizards")
-        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
-        await pilot.press("enter")
-        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        await open_wizard(pilot, "wheel")
         await pilot.press(*"0.28", "enter", "enter")
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen), timeout=80)
         warnings = str(app.screen.query_one("#results-warnings").render())

@@ -65,3 +65,19 @@ async def choose(pilot, choice: str, timeout=40.0):
     options.highlighted = options.get_option_index(choice)
     await pilot.press("enter")
     await wait_for(pilot, lambda: not isinstance(app.screen, ChoiceScreen), timeout)
+
+
+async def open_wizard(pilot, name: str):
+    """From the start screen: wait for the device, open the calibrate menu, pick wizard ``name`` and wait for its
+    settings form."""
+    from accelrig.tui.screens.calibrate import CalibrateMenu
+    from accelrig.tui.screens.dialogs import SettingsForm
+
+    app = pilot.app
+    await wait_for(pilot, lambda: app.session is not None)
+    await pilot.press("k")
+    await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+    menu = app.screen.query_one("#wizards")
+    menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index(name)
+    await pilot.press("enter")
+    await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
