@@ -159,9 +159,8 @@ class UncertaintyBudget:
         for c in self.contributions:
             lines.append(f"| {c.name} | {c.symbol} | {c.uncertainty * scale:.4g}{suffix} | {c.coefficient:g} |")
         corr = self.correlation
-        corr_text = (f"correlation {float(corr):g} between every pair" if np.ndim(corr) == 0
-                     else "; ".join(self.notes) or "correlation matrix in the report")
-        lines.append(f"| combined ({corr_text}) | u_c | {self.combined * scale:.4g}{suffix} | |")
+        corr_text = f"{float(corr):g} between every pair" if np.ndim(corr) == 0 else "matrix (see report)"
+        lines.append(f"| combined (correlation {corr_text}) | u_c | {self.combined * scale:.4g}{suffix} | |")
         lines.append(f"| expanded, k = {self.k:g} | U | {self.expanded * scale:.4g}{suffix} | |")
         return "\n".join(lines)
 

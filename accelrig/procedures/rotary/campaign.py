@@ -289,21 +289,10 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
                 warnings.append(f"{sensor} axis {axis}: linearity not evaluated ({exc.message}); left out of the budget")
             u_ref = float(np.sqrt(np.mean([o.reference_uncertainty**2 for o in mine])))
             contributions.append(Contribution("reference", "u_ref", u_ref))
-            # The spread of the axis's results is a line of the budget itself (uncorrelated with the
-            # others), so Table 2's U and the group result (Table 3, case 1) are one computation and
-            # print the same number.
+            budget = UncertaintyBudget(contributions, correlation=campaign.correlation, k=k, relative=True,
+                                       value=mean, unit="counts/(m/s^2)")
             sd_rel = float(values.std(ddof=1) / mean) if values.size > 1 else 0.0
-            contributions.append(Contribution("spread of the results", "u_s", sd_rel,
-                                              note="" if values.size > 1 else "one result: no spread"))
-            n_parts = len(contributions)
-            correlation = np.full((n_parts, n_parts), float(campaign.correlation))
-            correlation[-1, :] = correlation[:, -1] = 0.0
-            np.fill_diagonal(correlation, 1.0)
-            budget = UncertaintyBudget(contributions, correlation=correlation, k=k, relative=True,
-                                       value=mean, unit="counts/(m/s^2)",
-                                       notes=[f"correlation {campaign.correlation:g} between every pair but the "
-                                              "spread of the results, which is uncorrelated with the rest"])
-            case1 = float(budget.combined)
+            case1 = float(np.hypot(budget.combined, sd_rel))
             entry.update({
                 "reference_relative_uncertainty": u_ref,
                 "budget": budget.to_dict(),

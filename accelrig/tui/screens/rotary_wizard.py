@@ -62,13 +62,12 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
             def percent(symbol, parts=parts):
                 return f"{100 * parts[symbol]:.3f}" if symbol in parts else "left out"
 
-            # the budget's own combination (Table 2, the spread of the results one of its lines): the same
-            # u_c and U as the axis's group result (Table 3, case 1) below
+            # the budget's own combination (Table 2, with the campaign's correlation), not the group result
+            # (Table 3, which adds the spread of the results and has its own table below)
             b = e["budget"]
             s_text, u_text = format_value(e["mean_sensitivity"], b["expanded_uncertainty_absolute"])
             budget.append((f"{sensor} {axis}", s_text, percent("u_r"), percent("u_l"),
-                           percent("u_ref"), percent("u_s"), f"{100 * b['combined_standard_uncertainty']:.3f}",
-                           u_text))
+                           percent("u_ref"), f"{100 * b['combined_standard_uncertainty']:.3f}", u_text))
             line = e["linearity"]
             linearity.append((f"{sensor} {axis}", *((*format_value(line["slope"], line["slope_sd"]),
                                                      f"{line['intercept']:.2f}", f"{line['r_squared']:.6f}",
@@ -84,9 +83,10 @@ def campaign_tables(report: dict) -> list[tuple[str, tuple[str, ...], list[tuple
     return [
         ("Sensitivity per step (counts per m/s², u at k = 1)",
          ("step", "label", "rate Hz", "axis", "component", "S", "u"), steps),
-        (f"Budget per axis (Table 2: relative u in %, k = 1, combined with correlation "
-         f"{report['correlation']:g}, the spread of the results u_s uncorrelated; U at k = {k:g} in counts per m/s²)",
-         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_s %", "u_c %", f"U (k={k:g})"), budget),
+        (f"Budget per axis (Table 2, one calibration's uncertainty: relative u in %, k = 1, combined with "
+         f"correlation {report['correlation']:g}; U at k = {k:g} in counts per m/s²; the group results below "
+         "add the spread of the axis's results to it, so their case-1 U is larger)",
+         ("axis", "S", "u_r %", "u_l %", "u_ref %", "u_c %", f"U (k={k:g})"), budget),
         ("Linearity q_o = S q_i + b (S in counts per m/s², b in counts)",
          ("axis", "S", "u(S)", "b", "R²", "n"), linearity),
         (f"Group results (Table 3; u in % at k = 1, U at k = {k:g} in counts per m/s²)",
