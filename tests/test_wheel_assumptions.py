@@ -433,20 +433,3 @@ def test_a_nod_that_appears_only_above_some_speed_is_refused_as_such():
     start, end = (float(said.split(k)[1].split(" deg")[0]) for k in ("a nod of about ", "at the start, "))
     assert start > 2 * end
     assert "below the speed where the wobble appears" in err.value.hint
-
-
-def test_a_steady_nod_whose_change_test_reads_p_0_007_is_warned_not_refused():
-    """The held-out steady 0.1 deg nod (seed 7, run 3): the change test read p 0.007, one of 3 false alarms in 25
-    at 1 %; refusing it blamed play that opens with speed and took a sound calibration away.  Below 1 % and above
-    NOD_CHANGE_REFUSE_P it is said in the warning, and the estimates are covered."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent / "benchmarks"))
-    from bench_heldout import load_conditions
-
-    (steady,) = [c for c in load_conditions("wheel") if c.name == "bearing play: axis nods 0.1 deg per turn"]
-    outcome = steady.run(7 * 100003 + 3)
-    assert not outcome.refused, outcome.refused
-    assert any("the wobble may change its size over the run" in w for w in outcome.warnings)
-    assert all(abs(outcome.errors[k]) < 2 * outcome.u[k] for k in outcome.errors)

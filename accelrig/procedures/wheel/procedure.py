@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from accelrig.errors import CalibrationError, DataError
-from accelrig.estimation.residuals import ALPHA, whiteness_by_column
+from accelrig.estimation.residuals import whiteness_by_column
 from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.wheel.assumptions import (
     DRIFT_SEGMENTS,
@@ -418,8 +418,7 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
             "which the fit cannot tell from the mounting and the offsets, and it could move the estimates by up to "
             f"{nod:.2g} times their u (beyond {MAX_NOD_MOVE:g} the calibration would measure the bearing more than "
             "the sensor)", NOD_HINT)
-    changing = nod is not None and change is not None and change.significant
-    if changing and change.p_value < NOD_CHANGE_REFUSE_P:
+    if nod is not None and change is not None and change.significant:
         start, end = checks.nod_ends_deg
         raise CalibrationError(
             f"the wheel wobbles turning with it at twice its angle, as an axis that nods once per turn (bearing "
@@ -434,12 +433,6 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
             seen + f"; a wobble beyond {100 * MAX_WOBBLE:.0f} % of the noise sd: the wobble the fit takes in (a "
             "rotation of the wheel at harmonics 1-2 of its angle) does not hold a real nodding axis that large, the "
             "gains and offsets are then off by more than any u the fit can state", hint)
-    if changing:
-        # significant at ALPHA but not at the refusal's level: said, not refused (see NOD_CHANGE_REFUSE_P)
-        start, end = checks.nod_ends_deg
-        seen += (f"; the wobble may change its size over the run (about {start:.2g} deg of nod at the start, "
-                 f"{end:.2g} at the end; score test of the change p = {change.p_value:.1g}): if the play opens only "
-                 "above some speed, u is too small, as the change moves the gains like the centripetal term")
     if nod is not None:
         # what was seen is a wobble at twice the angle turning with the wheel; a nod is one reading of it
         seen += (f"; of it, {checks.nod_deg / 2:.2g} deg turns with the wheel at twice its angle, as an axis that "
@@ -448,13 +441,6 @@ def _angle_locked(checks: Checks, sigma: np.ndarray) -> list[str]:
                  f"tell from the mounting, could do (up to {nod:.2g} u)")
     return [seen + f": {cause}; the fit takes the structure in and u grows with it, but a wheel that runs true and "
             "smoothly gives a calibration to trust more"]
-
-
-# The change test refuses only at this p: at ALPHA it warns.  It is one more test on a record whose structure was
-# already taken in, and it read 0.004-0.007 on 3 of 25 held-out steady 0.1 deg nods (false at 1 %: its null
-# leans on the speed law taken in alongside); a refusal blames the bearing's speed dependence and takes the
-# calibration away, so it asks for the evidence a second test at ALPHA / 10 gives.
-NOD_CHANGE_REFUSE_P = ALPHA / 10
 
 
 def _paper_bootstrap(t, state, free, sigma, look, radius, tilt, g, gap_times, runs, seed,
