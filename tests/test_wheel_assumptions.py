@@ -117,6 +117,9 @@ def test_few_blocks_widen_the_coverage_factor_to_students_t():
     assert "Student's t, k = 2.87" in result.quality["uncertainty"]
     assert any("only 5 independent blocks" in w and "k = 2.87" in w for w in result.warnings)
     assert np.all(np.abs(z_scores(result)) < result.details["coverage_factor"])
+    # five blocks leave no room for the model's own tests (their p is NaN): said, not read as a pass
+    (untested,) = [w for w in result.warnings if w.startswith("the model could not be tested")]
+    assert "speed law" in untested and "wobble" in untested
 
 
 def test_scattered_lost_samples_only_cost_data():

@@ -750,6 +750,16 @@ def check_residuals(t: np.ndarray, v: np.ndarray, state: WheelState, free: FreeS
     # the wobble at 3x: amplitude of its rotation (a turning rotation A (cos, sin) has coefficients summing to 2 A^2)
     rotations3 = (extra_step[third] if beyond else third_coef)[THIRD_ROTATIONS]
     third_deg = float(np.degrees(np.sqrt(np.sum(rotations3**2) / 2.0)))
+    # A test judged on batch means needs blocks beyond its own regressors (_score_test: fewer than 5 to spare and
+    # its p is NaN, which reads as "not significant"): with the 5-19 blocks FewBlocks accepts, the model may go
+    # untested, and that must be said, not read as a pass
+    untested = [test.name for test in (speed_law, drift, drift_shape, angle, wobble, third_test, nod_change)
+                if isinstance(test, ScoreTest) and not np.isfinite(test.p_value)]
+    if untested:
+        notes.append(f"the model could not be tested ({', '.join(untested)}): the noise leaves only "
+                     f"{blocks_used} independent blocks, too few for those tests; a structure they look for (a speed "
+                     "swing, a drift, a wobble) would go unseen, so a longer record or a settled sensor is needed to "
+                     "trust the model")
     return Checks(white, correlated, block_used, blocks_used, speed_law, drift, cov, source, moved,
                   drift_per_axis, extra_step if taken else None, notes, drift_shape, angle, wobble, causes,
                   wobble_deg, low_noise if correlated else None, drift_move_over_u, second_order, nod_deg,
