@@ -625,8 +625,9 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
             method_used = "lm"
             if fit.dof <= 0:
                 # nothing is left to test the fit with: the result must not read as "no warnings"
-                warnings.append(f"the fit could not be tested: {len(stats)} poses fix the 9 parameters exactly "
-                                "(no degree of freedom left for a lack-of-fit test), so a pose that moved or a "
+                spent = (f" and the drift's {spent_dof} terms" if spent_dof else "")
+                warnings.append(f"the fit could not be tested: {len(stats)} poses fix the 9 parameters{spent} "
+                                "exactly (no degree of freedom left for a lack-of-fit test), so a pose that moved or a "
                                 f"model that does not hold would go unseen; hold at least {MULTI_ASKED} "
                                 f"distinct orientations, {MULTI_ASKED_WHY}")
         corr, source, label = fit.correction, fit.uncertainty_source, model
