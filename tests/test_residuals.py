@@ -77,9 +77,10 @@ def test_few_batch_means_blocks_take_students_t_and_too_few_are_refused():
     e = rng.standard_normal((4000, n)) * np.sqrt(1 - rho**2)
     for t in range(1, n):
         x[:, t] = rho * x[:, t - 1] + e[:, t]
-    sums = x.reshape(4000, blocks, block).sum(axis=2)
-    centred = sums - sums.mean(axis=1, keepdims=True)
-    u = np.sqrt(np.sum(centred**2, axis=1) * blocks / (blocks - 1)) / n    # sandwich_covariance's middle / n^2
+    # u of each run's mean from the production sandwich: its residuals about the mean, in blocks
+    ones = np.ones((n, 1))
+    u = np.array([np.sqrt(sandwich_covariance(np.array([[float(n)]]), block_scores(ones, row - row.mean(), block),
+                                              block).covariance[0, 0]) for row in x])
     z = np.abs(x.mean(axis=1)) / u
     few = FewBlocks(blocks, block, n, 0.01)
     assert few.few and not few.refused and few.dof == blocks - 1
