@@ -1553,7 +1553,8 @@ def judge_clearance(steps: list[StepResult], crank_radius: float, clearance: flo
         radius, dof = s.radius_m, s.radius_dof
         if scale_u > 0:   # a Type B term known exactly: Welch-Satterthwaite scales the dof up
             u = float(np.hypot(radius.uncertainty, scale_u * radius.value))
-            radius, dof = Estimate(radius.value, u, "m"), dof * (u / s.radius_m.uncertainty) ** 4
+            dof = dof * (u / s.radius_m.uncertainty) ** 4 if s.radius_m.uncertainty > 0 else float("inf")
+            radius = Estimate(radius.value, u, "m")
         k = clearance_k(len(judged), dof)
         s.within_clearance = not outside_clearance(radius, crank_radius, clearance, k)
         s.clearance_k = k
@@ -1759,7 +1760,7 @@ def verify_steps(steps: list[StepResult], crank_radius: float, rod_length: float
     if u_scale > 0:
         # a Type B term of the profile's own, known exactly here: Welch-Satterthwaite scales the dof up
         u_total = float(np.hypot(radius.uncertainty, u_scale))
-        radius_dof *= (u_total / radius.uncertainty) ** 4
+        radius_dof = radius_dof * (u_total / radius.uncertainty) ** 4 if radius.uncertainty > 0 else float("inf")
         radius = Estimate(radius.value, u_total, radius.unit)
     radius_k = coverage_factor(radius_dof)
     verdict, reason = verdict_for(radius, crank_radius, clearance, len(used), radius_k)
