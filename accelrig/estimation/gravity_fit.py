@@ -40,6 +40,9 @@ scatter inflates it, one of two ways (``inflation``), and the fit says which
 ``wander_var`` (both fits): an additive per-pose variance known before the fit (the still-noise check's
 slow-noise wander between poses, accelrig.procedures.static.noise); the repeatability solved from the
 scatter replaces it when the scatter asks for more (a floor, like the stated flatness).
+``between`` (both fits): the covariance between different poses' means (noise slower than a hold, which
+neighbouring holds share; the static procedure's model of it, ``noise.SlowNoise``): the weights stay each
+pose's own, and the shared part is added to the covariance through a sandwich (``_between_poses``).
 On real hand-held sessions the excess sits in a few poses (a sensor drifting
 between repeats of one face), which the uniform Birge factor spreads thin; the
 additive term puts it where it is (docs/static-tilt-notes.md).
@@ -360,7 +363,7 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
     source, sigma_r = "noise of the pose means" + ("" if rejected else _wander_note(wander_var)), 0.0
     cov_scale, final_var = 1.0, wander_var
     if rejected and inflation == "repeatability":
-        v = max(_solve_repeatability(lambda var: solve(var)[3], dof) * student_variance_factor(dof), wander_var)
+        v = max(_solve_repeatability(lambda var: solve(var)[3], dof) * _student_variance_factor(dof), wander_var)
         x, resid, jw, chi2 = solve(v)
         final_var = v
         sigma_r = float(np.sqrt(v))
@@ -629,7 +632,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     # The flatness the tilts show: method of moments (the statistic scales with flatness^2, its null mean is
     # tilt_mean), widened by the Student factor of its tilt_dof degrees of freedom so that +-2u stays a
     # 95 % interval although the flatness is estimated from a few tilt combinations.
-    observed = (flat * float(np.sqrt(chi2_t / tilt_mean * student_variance_factor(tilt_dof)))
+    observed = (flat * float(np.sqrt(chi2_t / tilt_mean * _student_variance_factor(tilt_dof)))
                 if tilt_mean > 0 else 0.0)
     tilts_rejected = False
     if flat > 0 and observed > flat and inflation != "none":
@@ -650,7 +653,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     cov_scale, sigma_r, final_var = 1.0, 0.0, wander_var
     source += "" if rejected else _wander_note(wander_var)
     if rejected and inflation == "repeatability":
-        v = max(_solve_repeatability(lambda var: solve(flat, var)[2], dof) * student_variance_factor(dof), wander_var)
+        v = max(_solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof), wander_var)
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
         final_var = v
         sigma_r = float(np.sqrt(v))
@@ -731,7 +734,7 @@ def _tilt_statistic_null(jac: np.ndarray, n_t: int) -> tuple[float, float, float
     return tr, tr2 / tr, tr * tr / tr2
 
 
-def student_variance_factor(dof: float) -> float:
+def _student_variance_factor(dof: float) -> float:
     """(k_t / 2)^2: how much a variance estimated with ``dof`` degrees of freedom is widened so that +-2u
     keeps the normal +-2 sd coverage (95.45 %): k_t the Student t quantile at that coverage."""
     from accelrig.estimation.distributions import normal_cdf, student_t_quantile

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from accelrig.estimation.distributions import chi2 as chi2_dist
-from accelrig.estimation.gravity_fit import PoseStats, axis_aligned_fit, face_tilts, student_variance_factor
+from accelrig.estimation.gravity_fit import PoseStats, _student_variance_factor, axis_aligned_fit, face_tilts
 from accelrig.estimation.residuals import ALPHA, Whiteness, pooled_variogram, pooled_whiteness, whiteness
 from accelrig.geometry import AXES
 from accelrig.result import Correction
@@ -467,7 +467,7 @@ def slow_model_check(noise: StillNoise, chi2: float, dof: int, times: list[np.nd
     from scipy.optimize import brentq
 
     ratio = float(chi2 / dof)
-    factor = ratio * student_variance_factor(dof) if ratio > 1.0 else 1.0
+    factor = ratio * _student_variance_factor(dof) if ratio > 1.0 else 1.0
     record = {"chi2": float(chi2), "dof": int(dof), "ratio": ratio, "p_value": float(chi2_dist.sf(chi2, dof)),
               "variance_factor": factor, "fitted_time_s": float(noise.slow.time[0])}
     noise.drift["slow_noise"]["between_holds"] = record
