@@ -19,6 +19,11 @@ class _Chi2:
         """P(X > x) for a chi-square with ``df`` degrees of freedom (1 for x <= 0, as scipy.stats)."""
         return special.chdtrc(df, np.where(np.asarray(x) < 0, 0.0, x))
 
+    @staticmethod
+    def isf(q, df):
+        """x with P(X > x) = q for a chi-square with ``df`` degrees of freedom."""
+        return special.chdtri(df, q)
+
 
 class _F:
     @staticmethod

@@ -40,6 +40,9 @@ scatter inflates it, one of two ways (``inflation``), and the fit says which
 ``wander_var`` (both fits): an additive per-pose variance known before the fit (the still-noise check's
 slow-noise wander between poses, accelrig.procedures.static.noise); the repeatability solved from the
 scatter replaces it when the scatter asks for more (a floor, like the stated flatness).
+``between`` (both fits): the covariance between different poses' means (noise slower than a hold, which
+neighbouring holds share; the static procedure's model of it, ``noise.SlowNoise``): the weights stay each
+pose's own, and the shared part is added to the covariance through a sandwich (``_between_poses``).
 On real hand-held sessions the excess sits in a few poses (a sensor drifting
 between repeats of one face), which the uniform Birge factor spreads thin; the
 additive term puts it where it is (docs/static-tilt-notes.md).
@@ -200,6 +203,22 @@ def _wander_note(wander_var: float) -> str:
             "poses' halves)") if wander_var > 0 else ""
 
 
+def _between_poses(covariance: np.ndarray, data_jacobian: np.ndarray, sensitivity: np.ndarray,
+                   between: np.ndarray | None) -> np.ndarray:
+    """The fit's covariance with the pose means' covariance between poses added (a sandwich): the fit weighs each
+    pose by its own mean's covariance as if the poses were independent; noise slower than a hold makes the means
+    of nearby poses share part of it (``between``, (3 P, 3 P), the diagonal blocks zero).  The estimate moves
+    by A dr (A = covariance J_d^T, J_d the whitened data rows of the Jacobian) for a change dr = S dm of those
+    rows from a change dm of the pose means (``sensitivity`` S), so the shared part adds A S B S^T A^T.  The
+    weights stay the fit's: the noise's correlation time is known to a factor of about 2, which a GLS fit would
+    turn into weights as uncertain, where the sandwich only needs it for the added term."""
+    if between is None or not np.any(between):
+        return covariance
+    influence = covariance @ data_jacobian.T @ sensitivity
+    added = influence @ between @ influence.T
+    return covariance + 0.5 * (added + added.T)
+
+
 def _check_inflation(inflation: str) -> None:
     if inflation not in INFLATIONS:
         raise CalibrationError(f"unknown inflation {inflation!r}", "use repeatability, birge or none")
@@ -284,13 +303,14 @@ def _multi_covariance_to_correction(cov9: np.ndarray) -> np.ndarray:
 
 def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
                       min_distinct: int = MULTI_MIN_DISTINCT, inflation: str = "repeatability",
-                      wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
+                      wander_var: float = 0.0, spent_dof: int = 0, between: np.ndarray | None = None) -> GravityFit:
     """Tedaldi et al. (imu_tk) multi-position fit: |C (m_p - b)| = g, C upper triangular (9 parameters).
 
     Refuses (CalibrationError) with fewer than ``min_distinct`` orientations more than DISTINCT_DEG apart,
     or when the poses leave a parameter combination undetermined (column-scaled Jacobian's reciprocal
     condition below MULTI_MIN_RCOND).  The correction's covariance has zero rows for C_yx, C_zx, C_zy
-    (fixed to 0 by the gauge).  ``inflation``: see the module docstring.
+    (fixed to 0 by the gauge).  ``inflation``: see the module docstring.  ``between``: the covariance between
+    different poses' means (3 P, 3 P, pose-major, diagonal blocks zero), added through ``_between_poses``.
     """
     start = time.perf_counter()
     _check_inflation(inflation)
@@ -341,10 +361,11 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
     chi2_before = chi2 if wander_var == 0 else solve(0.0)[3]
     birge, rejected = _birge(chi2_before, dof)
     source, sigma_r = "noise of the pose means" + ("" if rejected else _wander_note(wander_var)), 0.0
-    cov_scale = 1.0
+    cov_scale, final_var = 1.0, wander_var
     if rejected and inflation == "repeatability":
         v = max(_solve_repeatability(lambda var: solve(var)[3], dof) * _student_variance_factor(dof), wander_var)
         x, resid, jw, chi2 = solve(v)
+        final_var = v
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
         source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
@@ -352,7 +373,17 @@ def fit_multiposition(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY,
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (χ² = {chi2:.3g} for {dof} degrees of freedom)"
-    cov9 = np.linalg.inv(jw.T @ jw) * cov_scale
+    cov9 = np.linalg.inv(jw.T @ jw)
+    if between is not None:
+        # a magnitude residual moves by u_p^T C dm_p / s_p for a change dm_p of its pose's mean
+        _, _, u = _multi_residual_jacobian(x, means, g)
+        s = sds(x, final_var)
+        sensitivity = np.zeros((len(poses), 3 * len(poses)))
+        for i in range(len(poses)):
+            sensitivity[i, 3 * i:3 * i + 3] = u[i] @ _upper(x) / s[i]
+        cov9 = _between_poses(cov9, jw, sensitivity, between)
+        source += "; the poses' shared slow noise added (sandwich)"
+    cov9 = cov9 * cov_scale
     cov9 = 0.5 * (cov9 + cov9.T)
     correction = Correction(_upper(x), x[6:9], _multi_covariance_to_correction(cov9))
     return GravityFit("multi-position", correction, list(MULTI_NAMES), x.copy(), cov9, chi2, dof, birge,
@@ -534,7 +565,8 @@ def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: f
 
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
-                 inflation: str = "repeatability", wander_var: float = 0.0, spent_dof: int = 0) -> GravityFit:
+                 inflation: str = "repeatability", wander_var: float = 0.0, spent_dof: int = 0,
+                 between: np.ndarray | None = None) -> GravityFit:
     """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
 
     model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
@@ -551,7 +583,9 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  when it rejects, ``inflation`` ("repeatability": an additive per-pose sd, or "birge").
     With flatness 0 (exact faces) the test is the whole chi^2 against 3 P - parameters.
     ``spent_dof``: degrees of freedom the pose means already gave to something fitted out of them (a drift
-    referred to the middle of the run): the magnitudes' test has that many fewer.
+    referred to the middle of the run): the magnitudes' test has that many fewer.  ``between``: the covariance
+    between different poses' means (3 P, 3 P, pose-major, diagonal blocks zero: noise slower than a hold),
+    added through ``_between_poses``.
     """
     start = time.perf_counter()
     _check_inflation(inflation)
@@ -616,11 +650,12 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2_m if wander_var == 0 else solve(flat, 0.0)[2]
     birge, rejected = _birge(chi2_before, dof)
-    cov_scale, sigma_r = 1.0, 0.0
+    cov_scale, sigma_r, final_var = 1.0, 0.0, wander_var
     source += "" if rejected else _wander_note(wander_var)
     if rejected and inflation == "repeatability":
         v = max(_solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof), wander_var)
         x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
+        final_var = v
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
         source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
@@ -628,7 +663,16 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (χ² = {chi2_m:.3g} for {dof} degrees of freedom)"
-    cov = np.linalg.inv(jac.T @ jac)[:m.size, :m.size] * cov_scale
+    cov = np.linalg.inv(jac.T @ jac)
+    if between is not None:
+        # the data rows are the pose means whitened by each pose's own covariance (as the last solve weighed them)
+        whiten = np.zeros((3 * n_pose, 3 * n_pose))
+        for i, pose in enumerate(poses):
+            whiten[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.linalg.inv(
+                np.linalg.cholesky(pose.mean_cov + final_var * np.eye(3)))
+        cov = _between_poses(cov, jac[:3 * n_pose], whiten, between)
+        source += "; the poses' shared slow noise added (sandwich)"
+    cov = cov[:m.size, :m.size] * cov_scale
     p = x[:m.size]
     corr_values, corr_cov = propagate_covariance(m.to_correction, p, cov)
     if flat > 0 and model == "affine":
@@ -806,21 +850,8 @@ def face_tilts(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY) -> list[
     axes' non-orthogonality, typically tenths of a degree) is the angle.
     """
     means = np.array([p.mean for p in poses]).reshape(-1, 3)
-    corrected = means
-    dominant = np.argmax(np.abs(means), axis=1)
-    both_ends = all(np.any((dominant == k) & (means[:, k] > 0)) and np.any((dominant == k) & (means[:, k] < 0))
-                    for k in range(3))
-    if len(poses) >= 6 and both_ends:
-        hi = np.array([means[(dominant == k) & (means[:, k] > 0), k].mean() for k in range(3)])
-        lo = np.array([means[(dominant == k) & (means[:, k] < 0), k].mean() for k in range(3)])
-        x0 = np.concatenate([2 * g / (hi - lo), (hi + lo) / 2])
-
-        def fun(x):
-            return np.linalg.norm((means - x[3:]) * x[:3], axis=1) - g
-
-        sol = least_squares(fun, x0, method="lm" if len(poses) >= 6 else "trf")
-        if sol.success and np.all(sol.x[:3] > 0):
-            corrected = (means - sol.x[3:]) * sol.x[:3]
+    aligned = axis_aligned_fit(means, g)
+    corrected = means if aligned is None else (means - aligned[1]) * aligned[0]
     corrected = corrected @ _common_rotation(corrected).T
     out = []
     for name, v in zip(_names(poses), corrected, strict=True):
@@ -828,6 +859,28 @@ def face_tilts(poses: Sequence[PoseStats], g: float = STANDARD_GRAVITY) -> list[
         angle = float(np.degrees(np.arccos(min(abs(v[k]) / np.linalg.norm(v), 1.0))))
         out.append(FaceTilt(name, ("+" if v[k] < 0 else "-") + AXES[k], angle))
     return out
+
+
+def axis_aligned_fit(means: np.ndarray, g: float = STANDARD_GRAVITY) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per-axis gains D and offsets o with |D (m - o)| = g over the pose means (least squares on the magnitudes:
+    insensitive to the poses' tilts); None without at least 6 poses reaching both ends of every axis."""
+    means = np.asarray(means, dtype=float).reshape(-1, 3)
+    dominant = np.argmax(np.abs(means), axis=1)
+    both_ends = all(np.any((dominant == k) & (means[:, k] > 0)) and np.any((dominant == k) & (means[:, k] < 0))
+                    for k in range(3))
+    if len(means) < 6 or not both_ends:
+        return None
+    hi = np.array([means[(dominant == k) & (means[:, k] > 0), k].mean() for k in range(3)])
+    lo = np.array([means[(dominant == k) & (means[:, k] < 0), k].mean() for k in range(3)])
+    x0 = np.concatenate([2 * g / (hi - lo), (hi + lo) / 2])
+
+    def fun(x):
+        return np.linalg.norm((means - x[3:]) * x[:3], axis=1) - g
+
+    sol = least_squares(fun, x0, method="lm")
+    if not sol.success or not np.all(sol.x[:3] > 0):
+        return None
+    return sol.x[:3], sol.x[3:]
 
 
 def _common_rotation(vectors: np.ndarray) -> np.ndarray:

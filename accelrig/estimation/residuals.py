@@ -409,6 +409,25 @@ def pooled_whiteness(segments: list[np.ndarray]) -> Whiteness:
     return Whiteness(n_total, float(rho[1]), float(tau), window, q, lags_total, p, resolved)
 
 
+def pooled_variogram(segments: list[np.ndarray], lags: np.ndarray) -> np.ndarray:
+    """Semivariogram V(k) = E[(x_t+k - x_t)^2] / 2 of one noise process seen in separate stretches (one axis
+    of a static run's still poses), pooled over every pair k samples apart within a stretch.
+
+    Beside ``pooled_whiteness`` for noise slower than the stretches: differences need no mean removed, so
+    a memory as long as a stretch does not bias V (each stretch's own mean removed biases every sample
+    autocorrelation low by about tau / n, which at tau ~ n is the whole of it), and V keeps rising for a
+    noise without a level (a random walk), where the autocovariance does not exist."""
+    segments = [np.asarray(s, dtype=float).ravel() for s in segments]
+    out = np.empty(len(lags))
+    for j, k in enumerate(np.asarray(lags, dtype=int)):
+        pairs = [s[k:] - s[:-k] for s in segments if s.size > k]
+        count = sum(d.size for d in pairs)
+        if k < 1 or count == 0:
+            raise ValueError(f"no pair of samples {k} apart within a stretch")
+        out[j] = sum(float(d @ d) for d in pairs) / count / 2.0
+    return out
+
+
 # ---------------------------------------------------------------- short records: a parametric middle matrix
 
 AR_MAX_ORDER = 20            # highest autoregressive order tried for the residual spectrum

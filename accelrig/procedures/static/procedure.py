@@ -48,11 +48,14 @@ from accelrig.procedures.contract import Event, Procedure
 from accelrig.procedures.static.fit import MODELS, PoseData, face_reference, fit_model
 from accelrig.procedures.static.noise import (
     SETTLE_HINT,
+    WANDER_HINT,
     StillNoise,
     drift_bend,
     drift_checks,
+    offset_wander,
     pooled_axes,
     slow_memory,
+    slow_model_check,
     still_noise,
 )
 from accelrig.procedures.static.poses import Pose, PoseDetector, full_scale_of, pose_event
@@ -241,21 +244,18 @@ class StaticProcedure(Procedure):
         model = self.model
         # a wander that holds through a pose reads as a tilt: when the noise outlasts the holds, a pose found off
         # its face is refused naming the noise, not the placement
-        slow = slow_memory(pooled_axes([p.samples for _, p in used]), [p.t for _, p in used])
+        axes = pooled_axes([p.samples for _, p in used])
+        slow = slow_memory(axes, [p.t for _, p in used])
         try:
             if model == "auto":
                 model = choose_model(stats, self.detector.g, self.pose_flatness_deg)
         except CalibrationError as exc:
-            if slow is None:
-                raise
-            raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
+            self._refuse_off_face(exc, stats, axes, slow)
         if model != "multi-position":
             try:
                 tilts = check_faces(stats, self.pose_flatness_deg, self.detector.g)
             except CalibrationError as exc:
-                if slow is not None:
-                    raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
-                raise CalibrationError(exc.message, "use --model multi-position or place the face flat") from None
+                self._refuse_off_face(exc, stats, axes, slow, "use --model multi-position or place the face flat")
             self._require_six_faces({t.face for t in tilts})
             for s, tilt in zip(stats, tilts, strict=True):
                 s.face = tilt.face
@@ -265,9 +265,9 @@ class StaticProcedure(Procedure):
         # the noise within the poses: correlation (u of each mean from n / tau), per-axis sd, drift
         faces = [s.face if model != "multi-position" else None for s in stats]
         noise = still_noise([p.samples for p in poses], [p.t for p in poses], faces)
-        scale = noise.mean_covariance_scale()
-        for s in stats:
-            s.cov = s.cov * scale
+        sample_covs = [s.cov for s in stats]
+        for i, s in enumerate(stats):
+            s.cov = sample_covs[i] * noise.pose_covariance_scale(i)
         for (k, pose), pose_noise in zip(used, noise.per_pose, strict=True):
             rows[k - 1]["noise"] = {"sd": np.std(pose.samples, axis=0, ddof=1).tolist(),
                                     "tau_samples": [w.tau if w else None for w in pose_noise],
@@ -275,11 +275,36 @@ class StaticProcedure(Procedure):
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
         result = build_result(poses, stats, rows, model, self.method, settings, noise)
+        # noise slower than a hold: its model checked against the scatter of the holds, before the drift's terms
+        # take the degrees of freedom that show it (``slow_model_check``)
+        if noise.slow is not None:
+            refusal = slow_model_check(noise, result.quality["chi2"], result.quality["dof"], [p.t for p in poses])
+            if refusal is not None:
+                raise CalibrationError(refusal, f"{SETTLE_HINT}, or hold the faces again over a longer run")
+            for i, s in enumerate(stats):
+                s.cov = sample_covs[i] * noise.pose_covariance_scale(i)
+            result = build_result(poses, stats, rows, model, self.method, settings, noise)
         # the faces held again, read on this first fit's calibrated magnitudes (free of the hand's tilt)
         if not drift_checks(noise, [p.samples for p in poses], [p.t for p in poses], faces, result.correction):
             return result
         _drift_rates(noise)
         return _referred_to_middle(poses, stats, rows, model, self.method, settings, noise)
+
+    def _refuse_off_face(self, exc: CalibrationError, stats: list[PoseStats], axes, slow: str | None,
+                         hint: str | None = None) -> None:
+        """Poses read off their faces: refuse naming what the data show.  Noise that outlasts a hold
+        (``slow_memory``) reads as a tilt, and so does an offset that wanders (``offset_wander``: the gravity
+        magnitudes, which no tilt changes, scatter as much); else it is the placement.  The noise's memory is said
+        first: it is measured within the holds, and the magnitudes' test takes each mean's noise from n / tau,
+        which such noise makes too small (its wander would be found wherever the noise is slow)."""
+        if slow is not None:
+            raise CalibrationError(f"{slow}; {exc.message}", SETTLE_HINT) from None
+        wander = offset_wander(stats, self.detector.g, axes)
+        if wander is not None:
+            raise CalibrationError(wander, WANDER_HINT) from None
+        if hint is None:
+            raise exc
+        raise CalibrationError(exc.message, hint) from None
 
     def _require_six_faces(self, present: set[str]) -> None:
         missing = [f for f in FACES if f not in present]
@@ -618,10 +643,11 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
     else:
         if model == "six-face":
             fit = fit_six_face(stats, "paper", settings["pose_flatness_deg"], g, wander_var=noise.wander_var,
-                               spent_dof=spent_dof)
+                               spent_dof=spent_dof, between=noise.between_pose_covariance())
             method_used = "map"
         else:
-            fit = fit_multiposition(stats, g, wander_var=noise.wander_var, spent_dof=spent_dof)
+            fit = fit_multiposition(stats, g, wander_var=noise.wander_var, spent_dof=spent_dof,
+                                    between=noise.between_pose_covariance())
             method_used = "lm"
             if fit.dof <= 0:
                 # nothing is left to test the fit with: the result must not read as "no warnings"
@@ -659,7 +685,9 @@ def build_result(poses: list[Pose], stats: list[PoseStats], rows: list[dict], mo
     u_g = float(settings.get("g_u") or 0.0)
     scaled = {n: 1 if n.startswith(("gain_", "C_", "offset_")) else -1
               for n in names if n.startswith(("gain_", "C_", "offset_", "K_"))}
-    if noise.correlated and model not in MODELS:
+    if noise.slow is not None:
+        source += "; " + noise.slow_model_note()
+    elif noise.correlated and model not in MODELS:
         source += ("; each pose mean's u from the effective sample count n / tau (the noise is correlated in time)"
                    if noise.short_correlated else
                    f"; each pose mean's u widened {np.sqrt(noise.slow_factor):.1f}x for noise slower than a pose")
