@@ -310,6 +310,14 @@ class BleSimDriver(BleDriver):
         info.truth = self.firmware.truth()
         return info
 
+    @property
+    def at_end(self) -> bool:
+        # a scripted rig ends: once its last notification has been read, the recording is complete
+        from accelrig_drivers.serial import sim_stream_read
+
+        client = self.client
+        return client is not None and not self._inbox and sim_stream_read(self, client.shared.get("sent_all", False))
+
     def _link_options(self) -> set[str]:
         from accelrig_drivers.serial import sim_firmware_options
 

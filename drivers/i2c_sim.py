@@ -15,6 +15,8 @@ Options (besides the i2c:// ones: range, rate, profile, poll):
     jitter=S          host wake-up lateness sd, s, in pace=fast (default 0.0005)
     bypass_fifo_rate=HZ  FIFO rate the emulated part really has in filter bypass (to test the check)
     address=A         I2C address (default 0x68)
+    disconnect_after=S   seconds after opening when the cable is unplugged: every transfer then
+                      fails as on hardware (the chip's flashed offsets are gone with its power)
 Example: ``i2c-sim://icm20948?rig=still&rate=2048&pace=fast``.
 """
 
@@ -32,7 +34,8 @@ from accelrig.sim.rigs import RIGS
 from accelrig.sim.sensor import SensorModel
 from accelrig_drivers.i2c import DEFAULT_RATE, I2C_OPTIONS, I2CDriver, import_smbus2
 
-SIM_OPTIONS = {"rig", "seed", "pace", "truth", "noise", "rate_error", "jitter", "bypass_fifo_rate", "address"}
+SIM_OPTIONS = {"rig", "seed", "pace", "truth", "noise", "rate_error", "jitter", "bypass_fifo_rate", "address",
+               "disconnect_after"}
 
 
 class I2CSimDriver(I2CDriver):
@@ -103,7 +106,7 @@ class I2CSimDriver(I2CDriver):
             rate_error=url.get_float("rate_error", 0.004, low=-0.5, high=0.5),
             bypass_fifo_rate=url.get_float("bypass_fifo_rate", low=1.0, high=100000.0, unit="Hz"),
         )
-        bus = EmulatedBus(self.clock)
+        bus = EmulatedBus(self.clock, gone_after=url.get_float("disconnect_after", low=0.0, low_open=True, unit="s"))
         bus.attach(address, self.emulator)
         return bus, smbus2.i2c_msg
 

@@ -171,6 +171,26 @@ def _shared_sim_options(url: DeviceURL) -> set[str]:
     return (set(SENSOR_OPTIONS) - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
 
 
+# after the simulated firmware's last frame, how long a host waits for frames lost on the way
+# (dropped or damaged) before it counts the stream as ended: well inside the 2 s stall limit
+SIM_END_SETTLE = 0.5
+
+
+def sim_stream_read(driver: FirmwareDriver, sent_all: bool) -> bool:
+    """Whether a *-sim driver has read everything its simulated firmware will ever send.
+
+    The bytes of the last frames can still be in the pty or the notification queue when the
+    firmware is done, so the frame sequence numbers decide: the host has seen (or counted as
+    lost) every frame the firmware numbered.  A last frame lost on the way is never seen;
+    then a quiet SIM_END_SETTLE ends the stream.
+    """
+    if not sent_all or driver._pending_data:
+        return False
+    if driver.sequencer.next_seq == driver.firmware.seq:
+        return True
+    return time.monotonic() - driver._last_data > SIM_END_SETTLE
+
+
 def sim_firmware_options(url: DeviceURL, extra_faults: set[str] = frozenset()) -> set[str]:
     """The options of a *-sim:// URL besides the link's (``firmware_from_url`` takes them)."""
     return _shared_sim_options(url) | SIM_FAULT_OPTIONS | set(extra_faults) | {"pace"}
@@ -196,7 +216,7 @@ def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: 
     firmware = SimFirmware(
         device.rig, device.sensor, rate_error=device.clock.rate_error, jitter=device.clock.jitter,
         seed=int(np.random.SeedSequence(device.seed).generate_state(1)[0]),
-        serial_number=f"SIM-{url.target}-{device.seed}", max_samples_per_frame=max_samples_per_frame,
+        serial_number=f"SIM-{device.seed}", max_samples_per_frame=max_samples_per_frame,
         faults=faults,
     )
     return firmware, sim_firmware_options(url, extra_faults)
@@ -233,6 +253,12 @@ class SerialSimDriver(SerialDriver):
 
     def _link_options(self) -> set[str]:
         return super()._link_options() | sim_firmware_options(self.url)
+
+    @property
+    def at_end(self) -> bool:
+        # a scripted rig (static, slider-crank, ...) ends: once its last frame has been read,
+        # the recording is complete, not a stalled device
+        return self.server is not None and sim_stream_read(self, self.server.sent_all)
 
     def _transport_open(self) -> str:
         from accelrig.sim.firmware import PtyFirmware

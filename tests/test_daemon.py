@@ -239,19 +239,21 @@ def test_calibrated_output_and_offsets_flashed_on_every_connect(tmp_path):
     config = {"output": str(out), "devices": [
         {"name": "cal", "url": "sim://still?seed=11&rate=200", "profile": str(example), "output": "calibrated",
          "uncertainty": True},
-        {"name": "chip", "url": "i2c-sim://mpu9250?rig=still&rate=200&seed=3", "profile": str(chip_profile),
-         "flash": True, "output": "calibrated"},
+        # the chip's cable is pulled 2 s after each connect: the chip loses power and with it the
+        # flashed offsets, so the daemon must flash again on reconnecting
+        {"name": "chip", "url": "i2c-sim://mpu9250?rig=still&rate=200&seed=3&disconnect_after=2",
+         "profile": str(chip_profile), "flash": True, "output": "calibrated"},
     ]}
     config_path = tmp_path / "daemon.yaml"
-    for _ in range(2):   # two runs: the chip is connected twice
-        proc = start(config, config_path)
-        try:
-            wait_until(proc, config_path, lambda d: d["cal"]["written"] >= 400 and d["chip"]["written"] >= 200)
-            terminate(proc)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait(timeout=10)
+    proc = start(config, config_path)
+    try:
+        # one connection delivers at most 400 samples at 200 Hz: 500 needs a reconnect
+        wait_until(proc, config_path, lambda d: d["cal"]["written"] >= 400 and d["chip"]["written"] >= 500)
+        terminate(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
     rec = read_segments(out / "cal")
     cal = np.column_stack([rec.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
     assert abs(np.linalg.norm(cal.mean(axis=0)) - STANDARD_GRAVITY) < 0.02
@@ -261,7 +263,7 @@ def test_calibrated_output_and_offsets_flashed_on_every_connect(tmp_path):
     assert rec.meta["profile"]["path"] == str(example)
     connects = [e for e in journal(out / "chip") if e["event"] == "connect"]
     bias = load_profile(chip_profile).correction.bias
-    assert len(connects) == 2
+    assert len(connects) >= 2
     for event in connects:
         assert event["flashed"]["verified"] is True
         np.testing.assert_allclose(event["hardware_bias_removed"], bias, atol=0.0097)   # one register step

@@ -15,7 +15,7 @@ from accelrig.profiles.flash import plan_flash
 from accelrig.result import CalibrationResult, Correction
 
 URL = "serial-sim://still?seed=1&pace=fast"
-SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-still-1", "range_g": 4.0}
+SIM_DEVICE = {"driver": "serial-sim", "chip": "sim-mpu9250", "identity": "SIM-1", "range_g": 4.0}
 
 
 def make_profile(device=None, seed=0):
@@ -63,7 +63,7 @@ def test_profile_for_another_device_is_refused_unless_forced():
         plan = plan_flash(driver, make_profile())
         assert not any("forced" in n for n in plan.notes)
         for key, value, label in [("chip", "icm20948", "chip"), ("range_g", 16, "range"),
-                                  ("identity", "SIM-still-2", "device")]:
+                                  ("identity", "SIM-2", "device")]:
             other = make_profile({**SIM_DEVICE, key: value})
             with pytest.raises(ProfileError, match=label):
                 plan_flash(driver, other)
@@ -131,7 +131,7 @@ def test_cli_yes_and_failed_verification(profile_file, capsys):
 def test_cli_refuses_mismatch_and_devices_without_store(profile_file, capsys):
     code = main(["flash", str(profile_file), "--device", "serial-sim://still?seed=2&pace=fast", "--yes"])
     assert code == ProfileError.exit_code
-    assert "is for device 'SIM-still-1', not 'SIM-still-2'" in capsys.readouterr().err
+    assert "is for device 'SIM-1', not 'SIM-2'" in capsys.readouterr().err
     assert main(["flash", str(profile_file), "--device", "serial-sim://still?seed=2&pace=fast", "--yes", "--force"]) == 0
     assert "forced: " in capsys.readouterr().out
     code = main(["flash", str(profile_file), "--device", "sim://still", "--force", "--dry-run"])

@@ -50,7 +50,7 @@ def flash(capsys):
 def test_flash_a_saved_profile_and_verify(tmp_path, scheme, flash):
     url = f"{scheme}://still?seed=4&pace=fast"
     path, profile = saved_profile(tmp_path, url)
-    assert profile.device["identity"] == "SIM-still-4"
+    assert profile.device["identity"] == "SIM-4"
     r = flash(str(path), "--device", url, "--yes")
     assert r.returncode == 0, r.stderr
     assert "VERIFIED" in r.stdout and "record: matrix row x" in r.stdout
@@ -62,12 +62,12 @@ def test_profile_of_another_device_is_refused_unless_forced(tmp_path, flash):
     path, _ = saved_profile(tmp_path, "serial-sim://still?seed=4&pace=fast")
     r = flash(str(path), "--device", "serial-sim://still?seed=5&pace=fast", "--yes")
     assert r.returncode != 0 and "Traceback" not in r.stderr
-    assert "is for device 'SIM-still-4', not 'SIM-still-5'" in r.stderr
+    assert "is for device 'SIM-4', not 'SIM-5'" in r.stderr
     assert "--force" in r.stderr
     r = flash(str(path), "--device", "serial-sim://still?seed=4&pace=fast&range=8", "--dry-run")
     assert r.returncode != 0 and "is for the +-4 g range but the data were taken at +-8 g" in r.stderr
     r = flash(str(path), "--device", "serial-sim://still?seed=5&pace=fast", "--yes", "--force")
-    assert r.returncode == 0 and "forced: " in r.stdout and "SIM-still-5" in r.stdout
+    assert r.returncode == 0 and "forced: " in r.stdout and "SIM-5" in r.stdout
 
 
 def test_broken_profile_file_is_one_line(tmp_path, flash):

@@ -74,13 +74,16 @@ def test_e_n_is_against_the_weighted_mean_of_the_others_and_t_against_their_spre
     assert group.t_critical == pytest.approx(student_t.ppf(1 - 0.05 / 12, 4))
     assert [r.outlier for r in group.rows] == [False] * 5 + [True]
     assert group.birge_ratio > 1 and "and |t| >" in group.rule
-    # three devices: no t, E_n alone decides, and the rule says so
+    # three devices and no reference: the batch's spread cannot be measured, so nobody is judged (E_n
+    # against the two others flagged all three parts, sound ones for their genuine differences)
     small = judge_group([Entry(f"d{i}", "bias", "x", "m/s²", v, 0.01, i) for i, v in enumerate([0, 0.005, 0.2])],
                         2.0, None)
-    assert all(r.t is None for r in small.rows) and "t not evaluated" in small.rule and "--reference" in small.rule
-    assert all(r.outlier for r in small.rows)   # each disagrees with the mean of the two others
+    assert all(r.t is None for r in small.rows) and not small.judged and "--reference" in small.rule
+    assert not any(r.outlier for r in small.rows) and all(abs(r.e_n) > 1 for r in small.rows)   # shown, not judged
+    # against a named reference, E_n alone decides, and the rule says so
     small = judge_group([Entry(f"d{i}", "bias", "x", "m/s²", v, 0.01, i) for i, v in enumerate([0, 0.005, 0.2])],
                         2.0, "d0")
+    assert small.judged and "against the reference device" in small.rule and "t not evaluated" in small.rule
     assert [r.outlier for r in small.rows] == [False, False, True] and small.rows[0].e_n is None
 
 
@@ -160,6 +163,10 @@ def test_accelrig_report_on_a_directory_writes_one_document_and_lists_what_it_sk
         # two files given by name work the same; --noise has no meaning for a batch
         files = [str(directory / "dev-1.yaml"), str(directory / "dev-2.yaml")]
         assert main(["report", *files, "-o", str(tmp_path / "two.html"), "--no-figures"]) == 0
+        # two devices and no reference: nobody is called an outlier, and both outputs say why
+        assert "outliers not judged: 2 devices are too few" in capsys.readouterr().out
+        page = (tmp_path / "two.html").read_text(encoding="utf-8")
+        assert "OUTLIER" not in page and "not judged" in page and "Not judged (6 of 6" in page
         assert main(["report", *files, "-o", str(tmp_path / "x.html"), "--noise", "n.json"]) != 0
         assert "--noise belongs to one device" in capsys.readouterr().err
     finally:

@@ -226,3 +226,31 @@ def test_pty_firmware_stop_keeps_the_pty_open_while_its_thread_still_writes():
     server._thread.join(2)
     assert server.master == server.slave == -1  # closed by the thread once it ended
     assert server.error is None
+
+
+@pytest.mark.parametrize("url", [
+    "serial-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2",
+    "ble-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2",
+    "ble-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2&reorder=0.3",   # the last frame may be held back
+])
+def test_a_scripted_rig_ends_as_a_complete_recording_not_a_stalled_device(url):
+    # The script's end used to be read as a stall 2 s later (exit 3), and BLE lost its last frames.
+    with driver_for(url) as driver:
+        rec = record(driver)   # until the source ends
+        total = driver.firmware.device.total_samples
+        delivered, late = driver.stats.samples, driver.stats.late_frames
+        frame = driver.config.samples_per_frame
+    assert delivered == total
+    # a frame that overtook the stream's first frame starts the stream; the one it overtook is late
+    assert len(rec) == total - late * frame
+    assert rec.meta["gaps"] == []
+
+
+def test_a_simulated_firmware_device_is_the_same_device_on_every_rig():
+    # The same seed is the same sensor: a profile made on the static rig applies on the still one.
+    identities = set()
+    for url in ("serial-sim://static?pace=fast&seed=16", "serial-sim://still?pace=fast&seed=16",
+                "ble-sim://wheel?pace=fast&seed=16"):
+        with driver_for(url) as driver:
+            identities.add(driver.info.identity)
+    assert identities == {"SIM-16"}

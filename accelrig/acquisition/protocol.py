@@ -333,6 +333,11 @@ class DataSequencer:
         self._device_next = 0                  # the same as the device's 32-bit counter
         self._skipped: dict[int, None] = {}    # recently declared lost (ordered, bounded)
 
+    @property
+    def next_seq(self) -> int | None:
+        """The sequence number expected next (None before the first frame)."""
+        return self._next_seq
+
     def push(self, frame: DataFrame) -> list[tuple[DataFrame, int, int]]:
         stats = self.stats
         if self._next_seq is None:

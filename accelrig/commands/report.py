@@ -79,7 +79,13 @@ def run_batch(args, conditions: dict) -> int:
         print(f"not read: {file}: {why}", file=sys.stderr)
     write_page(lambda: batch_report_html(batch, conditions, figures=not args.no_figures), args.output)
     flagged = batch.outliers
-    print(f"wrote {args.output}: {len(batch.sources)} sources, "
-          + (f"{len(flagged)} outliers: " + ", ".join(f"{j.entry.device} {j.entry.quantity} {j.entry.axis}"
-                                                      for j in flagged) if flagged else "no outlier"))
+    if flagged:
+        verdict = f"{len(flagged)} outliers: " + ", ".join(f"{j.entry.device} {j.entry.quantity} {j.entry.axis}"
+                                                           for j in flagged)
+    elif batch.unjudged:
+        verdict = (f"outliers not judged: {len(batch.sources)} devices are too few to measure the batch's own "
+                   f"spread; name a reference device (--reference) or compare 4 or more")
+    else:
+        verdict = "no outlier"
+    print(f"wrote {args.output}: {len(batch.sources)} sources, {verdict}")
     return 0

@@ -28,8 +28,10 @@ A device is flagged an outlier on an axis when |E_n| > 1 (it disagrees with
 the reference beyond the uncertainties, the ISO/IEC 17043 criterion) and
 |t| > t_crit (it also stands apart from the batch's own spread: devices of one
 type differ genuinely, so E_n alone would flag a good batch whose
-uncertainties are small).  With fewer than 4 devices t is not evaluated and
-|E_n| > 1 alone flags; the document says which rule was applied.
+uncertainties are small).  With fewer than 4 devices t cannot be evaluated:
+against a named reference device |E_n| > 1 alone flags; without one no device
+is judged (E_n against the others would flag three sound parts for their
+genuine differences), and the document says so.
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ class Group:
     birge_ratio: float | None
     t_critical: float | None
     rule: str
+    judged: bool = True   # False: too few devices and no reference to tell an outlier from the parts' spread
 
 
 @dataclass
@@ -101,6 +104,11 @@ class Batch:
     @property
     def outliers(self) -> list[Judged]:
         return [j for g in self.groups for j in g.rows if j.outlier]
+
+    @property
+    def unjudged(self) -> list[Group]:
+        """The groups in which no device was judged (fewer than 4 devices and no reference)."""
+        return [g for g in self.groups if not g.judged]
 
 
 def collect_sources(paths: list[str | os.PathLike]) -> tuple[list[Source], list[tuple[str, str]]]:
@@ -182,13 +190,22 @@ def judge_group(entries: list[Entry], k: float, reference: str | None) -> Group:
 
         t_critical = float(student_t.ppf(1 - FAMILY_ALPHA / (2 * n), n - 2))
         rule = f"|E_n| > {E_N_LIMIT:g} and |t| > {t_critical:.2f}"
+    ref_index = next((i for i, e in enumerate(entries) if e.device == reference), None) if reference else None
+    judged = True
+    if use_t:
+        pass
+    elif n < MIN_FOR_T and ref_index is None:
+        # E_n against the others' weighted mean would flag sound parts for the genuine spread between
+        # parts of one type (their u are far smaller), and a part that is off drags the others' reference
+        judged = False
+        rule = (f"none: with fewer than {MIN_FOR_T} devices the batch's own spread cannot be measured, so a "
+                f"device's E_n against the others cannot tell an outlier from the genuine differences between "
+                f"parts; E_n is shown for information. Name a reference device (--reference) or compare "
+                f"{MIN_FOR_T} or more")
     elif n < MIN_FOR_T:
-        rule = (f"|E_n| > {E_N_LIMIT:g} (t not evaluated: fewer than {MIN_FOR_T} devices"
-                + ("" if reference else "; without a reference device, a device that is off also pulls the others' "
-                   "reference, so they may be flagged with it: name one with --reference") + ")")
+        rule = f"|E_n| > {E_N_LIMIT:g} against the reference device (t not evaluated: fewer than {MIN_FOR_T} devices)"
     else:
         rule = f"|E_n| > {E_N_LIMIT:g} (t not evaluated: no spread among the devices)"
-    ref_index = next((i for i, e in enumerate(entries) if e.device == reference), None) if reference else None
     rows = []
     for i, e in enumerate(entries):
         others = [j for j in range(n) if j != i]
@@ -209,11 +226,11 @@ def judge_group(entries: list[Entry], k: float, reference: str | None) -> Group:
             spread = float(x[others].std(ddof=1)) * math.sqrt(1 + 1 / (n - 1))
             t = float((e.value - x[others].mean()) / spread) if spread > 0 else math.copysign(math.inf, e.value
                                                                                               - x[others].mean())
-        outlier = e_n is not None and abs(e_n) > E_N_LIMIT and (t is None or abs(t) > t_critical)
+        outlier = judged and e_n is not None and abs(e_n) > E_N_LIMIT and (t is None or abs(t) > t_critical)
         rows.append(Judged(e, ref, ref_u, e_n, t, outlier))
     first = entries[0]
     return Group(first.quantity, first.axis, first.unit, rows, float(x.mean()),
-                 float(x.std(ddof=1)) if n > 1 else 0.0, w_mean, w_u, birge, t_critical, rule)
+                 float(x.std(ddof=1)) if n > 1 else 0.0, w_mean, w_u, birge, t_critical, rule, judged)
 
 
 def build_batch(sources: list[Source], reference: str | None = None,
@@ -279,8 +296,9 @@ def group_table(group: Group, k: float) -> str:
         value, u = format_value(e.value, e.u)
         ref = "reference" if j.reference is None and j.e_n is None else (
             f"{format_value(j.reference, j.reference_u)[0]} ± {format_value(j.reference, k * j.reference_u)[1]}")
+        verdict = "OUTLIER" if j.outlier else "ok" if group.judged else "not judged"
         rows.append([e.device, value, u, format_value(e.value, k * e.u)[1], ref, _number(j.e_n, 2),
-                     _number(j.t, 2), "OUTLIER" if j.outlier else "ok"])
+                     _number(j.t, 2), verdict])
     head = ["device", "value", "u (k = 1)", f"U (k = {k:g})", f"compared with (U, k = {k:g})", "E_n", "t", "verdict"]
     return _table(head, rows)
 
@@ -372,7 +390,10 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
         f'<li class="verdict-fail">{escape(j.entry.device)}: {escape(j.entry.quantity)} {escape(j.entry.axis)} = '
         f"{j.entry.value:.6g} (E_n {_number(j.e_n, 2)}, t {_number(j.t, 2)})</li>" for j in outliers) + "</ul>"
                 if outliers else '<p class="verdict-pass">None: every device agrees with the batch by the rule '
-                                 "above.</p>")
+                                 "above.</p>" if not batch.unjudged else "")
+    if batch.unjudged:
+        html.append(f'<p class="note">Not judged ({len(batch.unjudged)} of {len(batch.groups)} quantities and axes): '
+                    f"{escape(batch.unjudged[0].rule)}.</p>")
 
     html.append("<h2>5. Warnings of the calibrations</h2>")
     warned = [(label, w) for src, label in zip(batch.sources, batch.labels, strict=True)

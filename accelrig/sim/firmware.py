@@ -134,6 +134,11 @@ class SimFirmware:
     def true_rate(self) -> float:
         return self.device.clock.true_rate
 
+    @property
+    def finished(self) -> bool:
+        """Every sample the rig's script holds has been taken (a rig without an end never finishes)."""
+        return self.device.exhausted
+
     def truth(self) -> dict:
         return self.device.truth()
 
@@ -219,7 +224,8 @@ class SimFirmware:
                         return []
             n = self.config.samples_per_frame
             bodies = []
-            while d.counter + n <= due:
+            # the script's last frame may be short; after it the device has nothing more to send
+            while d.counter + n <= due and not d.exhausted:
                 block = d.next_block(n, 0.0)
                 seq, self.seq = self.seq, (self.seq + 1) % (1 << 32)
                 if faults.drop and self.rng.random() < faults.drop:
@@ -277,6 +283,8 @@ class PtyFirmware:
         os.set_blocking(self.master, False)
         self.port = os.ttyname(self.slave)
         self.device_time = 0.0
+        # True once the firmware's last sample is on the wire (the rig's script ended)
+        self.sent_all = False
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sim-firmware-pty", daemon=True)
         self._parser = P.FrameParser()
@@ -372,6 +380,8 @@ class PtyFirmware:
                 out = b"".join(fw.wire_bytes(body) for body in fw.produce(self.device_time))
                 if out and not self._write(out):
                     return
+                if fw.finished:
+                    self.sent_all = True
         except BaseException as exc:  # surfaced to tests; the host sees a stalled device
             self.error = exc
         finally:
@@ -474,6 +484,11 @@ class SimBleClient:
                     self._held = body
                 else:
                     self._notify(body)
+            if fw.finished:
+                if self._held is not None:  # the last frame held back has no successor to swap with
+                    self._notify(self._held)
+                    self._held = None
+                self.shared["sent_all"] = True
 
     async def _drop_connection(self, now: float) -> None:
         fw = self.firmware

@@ -28,9 +28,12 @@ BITS_PER_BYTE = 9  # 8 data bits and the ACK
 class EmulatedBus:
     """An I2C bus segment holding emulated devices by 7-bit address."""
 
-    def __init__(self, clock=None, bus_hz: float = 400_000.0):
+    def __init__(self, clock=None, bus_hz: float = 400_000.0, gone_after: float | None = None):
         self.clock = clock
         self.bus_hz = bus_hz
+        # an unplugged cable: every transfer fails, as a real adapter NAKs, once the clock has
+        # run this many seconds from now (None: never)
+        self.gone_at = None if gone_after is None else clock.now() + gone_after
         self.devices: dict[int, object] = {}
         self.closed = False
         self.transfers = 0
@@ -105,7 +108,7 @@ class EmulatedBus:
     def _device(self, address: int):
         self._check_open()
         dev = self.devices.get(address)
-        if dev is None:
+        if dev is None or (self.gone_at is not None and self.clock.now() >= self.gone_at):
             raise OSError(errno.EREMOTEIO, "Remote I/O error")
         return dev
 
