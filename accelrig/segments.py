@@ -987,6 +987,15 @@ def _bound(path, name: str, value, first: float, utc: bool) -> float | None:
         return first + float(value)
     except ValueError:
         pass
+    when = utc_seconds(name, value)
+    if not utc:
+        raise DataError(f"{path}: its times are not UTC, so --{name} takes seconds from the first sample")
+    return when
+
+
+def utc_seconds(name: str, value) -> float:
+    """An ISO-8601 time as people give --start/--stop (2026-11-24T01:00:00Z; without a zone it is UTC) as
+    UTC epoch seconds: the one parser for segments and files alike."""
     from datetime import UTC, datetime
 
     try:
@@ -994,8 +1003,6 @@ def _bound(path, name: str, value, first: float, utc: bool) -> float | None:
     except ValueError:
         raise DataError(f"--{name} {value!r} is neither seconds nor an ISO-8601 time",
                         "give seconds from the first sample, or e.g. 2026-11-24T01:00:00Z") from None
-    if not utc:
-        raise DataError(f"{path}: its times are not UTC, so --{name} takes seconds from the first sample")
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
     return when.timestamp()

@@ -110,6 +110,70 @@ def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsy
         assert "look like g" in err and "--units g" in err and err.count("\n") == 1, (args, err)
 
 
+def _options_of(args):
+    """Every --option the parser of the command ``args`` names defines."""
+    from accelrig.cli import build_parser
+
+    parser = build_parser(args)
+    action = parser._subparsers._group_actions[0]
+    sub = action.choices[args[0]]
+    if args[0] in ("calibrate", "verify", "profile"):
+        sub = sub._subparsers._group_actions[0].choices[args[1]]
+    return {opt for a in sub._actions for opt in a.option_strings}
+
+
+def test_data_in_milli_g_are_refused_with_options_that_exist_and_read_with_units_mg(tmp_path, capsys):
+    """Milli-g read as m/s^2, g or scale-less counts is refused by every consumer; every option its hint names
+    exists on that command (the hint once named a scale option none had), and --units mg reads the file."""
+    import json
+    import re
+
+    import numpy as np
+
+    with driver_for("sim://still?seed=1&pace=fast") as d:
+        rec = record(d, samples=4000)
+    path = tmp_path / "in_mg.csv"
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665e-3:.4f},{b / 9.80665e-3:.4f},{c / 9.80665e-3:.4f}"
+                                                 for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
+    for args in (["noise", str(path)],
+                 ["calibrate", "static", str(path)],
+                 ["calibrate", "wheel", str(path), "--radius", "0.28"],
+                 ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"]):
+        for units in ([], ["--units", "g"], ["--units", "counts"]):
+            code = main(args + units)
+            err = capsys.readouterr().err
+            assert code != 0, args
+            assert "look like milli-g" in err and "--units mg" in err and err.count("\n") == 1, (args, err)
+            named = set(re.findall(r"--[a-z][a-z-]*", err))
+            assert named <= _options_of(args), (args, named - _options_of(args))
+    assert main(["noise", str(path), "--units", "mg", "--json"]) == 0
+    in_mg = json.loads(capsys.readouterr().out)["axes"]
+    si = tmp_path / "si.csv"
+    si.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a:.6f},{b:.6f},{c:.6f}"
+                                             for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
+    assert main(["noise", str(si), "--json"]) == 0
+    in_si = json.loads(capsys.readouterr().out)["axes"]
+    for axis in "xyz":   # mg x 9.80665e-3 is m/s^2: the same densities (to the files' rounding)
+        assert np.isclose(in_mg[axis]["density"]["value"], in_si[axis]["density"]["value"], rtol=1e-3), axis
+
+
+def test_counts_without_a_scale_are_read_with_range_g_on_every_consumer(tmp_path, capsys):
+    """The counts hint names --range-g, and every command that reads a recording has it."""
+    with driver_for("sim://still?seed=1&pace=fast&range=4") as d:
+        rec = record(d, samples=4000)
+    scale = rec.meta["scale"]
+    path = tmp_path / "counts.csv"
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{round(a / scale)},{round(b / scale)},{round(c / scale)}"
+                                               for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
+    assert main(["noise", str(path), "--units", "counts"]) != 0
+    err = capsys.readouterr().err
+    assert "--range-g" in err, err
+    for args in (["noise"], ["calibrate", "static"], ["calibrate", "wheel"], ["verify", "slider-crank"],
+                 ["profile", "apply"]):
+        assert {"--units", "--range-g"} <= _options_of(args), args
+    assert main(["noise", str(path), "--units", "counts", "--range-g", "4"]) == 0, capsys.readouterr().err
+
+
 def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
     """README sends people to `devices -v` for the simulator's options: each one the URL accepts is there."""
     from accelrig_drivers.sim import SENSOR_OPTIONS

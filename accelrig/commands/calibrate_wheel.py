@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.commands import add_time_range, warn_loss
+from accelrig.commands import add_time_range, add_units, load_from_args, warn_loss
 from accelrig.commands.profile_output import add_profile_arguments, check_profile_target, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
@@ -18,7 +18,7 @@ def register(sub, groups) -> None:
     )
     p.add_argument("recording", help="recording (.csv interchange, .npz, or segments) of the coasting wheel")
     add_arguments(p, SETTINGS)
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
+    add_units(p)
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     add_time_range(p, start_note="the wheel's free coast from T (without it the fit finds where the last push "
                    "ended and leaves the rest and the push before it out, with a warning; a rest before T still checks the coast)",
@@ -42,17 +42,16 @@ def register(sub, groups) -> None:
 
 def run_calibrate(args) -> int:
     from accelrig.procedures.wheel.procedure import GRAVITY_SCALED, calibrate_wheel
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
 
     v = values_from_args(SETTINGS, args)
     check_profile_target(args)   # an -o that would be refused is refused before the fit
-    rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
+    rec = load_from_args(args, args.recording)
     # the part before --start is not fitted, but a rest at its beginning still checks the coast (rest.py)
     before = None
     if args.start is not None:
         try:
-            before = load_recording(args.recording, units=args.units, rate=args.rate, stop=args.start)
+            before = load_from_args(args, args.recording, start=None, stop=args.start)
         except DataError:     # nothing before --start
             before = None
     from accelrig.commands.progress import Progress

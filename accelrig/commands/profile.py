@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from accelrig.commands import add_time_range
+from accelrig.commands import add_time_range, add_units, load_from_args
 from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
-from accelrig.recording import Recording, load_recording, save_recording
+from accelrig.recording import Recording, save_recording
 from accelrig.result import Estimate, format_value, to_json
 from accelrig.units import STANDARD_GRAVITY
 
@@ -67,7 +67,7 @@ def register(sub, groups) -> None:
                    help="apply even to data from another device, range or unit, and replace an existing -o file")
     p.add_argument("--uncertainty", action="store_true",
                    help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    add_units(p)
     add_time_range(p)
     _store_args(p)
     p.set_defaults(func=run_apply)
@@ -297,7 +297,7 @@ def run_apply(args) -> int:
     from accelrig.files import writable_target
 
     writable_target(args.output, args.force, inputs=[args.recording])
-    rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
+    rec = load_from_args(args, args.recording)
     if args.profile == "auto":
         identity = rec.meta.get("identity")
         if not identity:

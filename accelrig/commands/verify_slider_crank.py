@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.commands import warn_loss
+from accelrig.commands import add_units, load_from_args, warn_loss
 from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank.settings import CRANK_RADIUS, FILE_SETTINGS, ROD_LENGTH
 from accelrig.settings import add_arguments, values_from_args
@@ -24,7 +24,7 @@ def register(sub, groups) -> None:
     geometry = p.add_mutually_exclusive_group(required=True)
     add_arguments(geometry, [ROD_LENGTH])
     geometry.add_argument("--lambda", dest="lam", type=float, metavar="L", help="crank radius / rod length instead")
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az when the file does not say")
+    add_units(p)
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate for files without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
@@ -32,7 +32,6 @@ def register(sub, groups) -> None:
 
 def run(args) -> int:
     from accelrig.procedures.slider_crank.procedure import verify_slider_crank
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
 
     if args.rod_length is None:
@@ -40,7 +39,7 @@ def run(args) -> int:
             raise DataError(f"--lambda {args.lam} must lie between 0 and 1")
         args.rod_length = CRANK_RADIUS.parse(args.crank_radius) / args.lam
     values = values_from_args(FILE_SETTINGS, args)
-    recordings = [(path, load_recording(path, units=args.units, rate=args.rate)) for path in args.recordings]
+    recordings = [(path, load_from_args(args, path)) for path in args.recordings]
     correction = None
     profile_warnings: list[str] = []
     if values["profile"]:
