@@ -32,8 +32,10 @@ def register(sub, groups) -> None:
         "wheel",
         help="predicted uncertainties (CRB) of a wheel calibration before spinning",
         description="Print the standard uncertainty (k=1) each parameter would reach on a planned wheel "
-        "run (Cramer-Rao bound), for a perfect sensor mounted at --mount-deg and the paper's coast-down "
-        "profile scaled to --speed over --seconds.",
+        "run: the Cramer-Rao bound for a perfect sensor mounted at --mount-deg and the paper's coast-down "
+        "profile scaled to --speed over --seconds, and for the gains the local gravity's u(g) as the "
+        "calibration adds it (--g, --latitude/--height, --g-u, as calibrate wheel takes them; default "
+        "standard gravity, whose u stands for anywhere on Earth).",
     )
     add_arguments(q, PLAN_SETTINGS)
     q.add_argument("--json", action="store_true", help="print the plan as JSON")
@@ -109,15 +111,24 @@ def run_plan(args) -> int:
     v = values_from_args(PLAN_SETTINGS, args)
     if len(v["mount_deg"]) != 3:
         raise DataError(f"--mount-deg {args.mount_deg!r} needs three comma-separated angles in degrees")
-    rows = plan_wheel(v["radius"], v["tilt_deg"], v["noise"], v["rate"], v["seconds"], v["speed"], v["mount_deg"])
+    from accelrig.units import local_gravity
+
+    gravity = local_gravity(v["g"], v["latitude"], v["height"], v["g_u"])
+    rows = plan_wheel(v["radius"], v["tilt_deg"], v["noise"], v["rate"], v["seconds"], v["speed"], v["mount_deg"],
+                      gravity)
     if args.json:
-        print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1",
-                          "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "unit": r.unit}
-                                         for r in rows}}))
+        print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1; gains with u(g) added", **gravity.to_dict(),
+                       "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "crb": r.crb, "unit": r.unit}
+                                      for r in rows}}))
         return 0
-    print(f"wheel plan: r = {v['radius']} m, tilt {v['tilt_deg']} deg, noise {v['noise']} m/s^2, "
-          f"{v['rate']:g} Hz x {v['seconds']:g} s, start {v['speed']} rad/s; best reachable uncertainty (CRB, k=1)")
-    print(f"{'parameter':<22}{'nominal':>14}{'uncertainty':>14}  unit")
+    import textwrap
+
+    print(f"wheel plan: r = {v['radius']} m, tilt {v['tilt_deg']} deg, noise {v['noise']} m/s^2,\n"
+          f"  {v['rate']:g} Hz x {v['seconds']:g} s, start {v['speed']} rad/s")
+    print(textwrap.fill(f"best reachable uncertainty (k=1): the CRB, and for the gains u(g) {gravity.u:.2g} m/s^2 "
+                        f"({gravity.u / gravity.value:.1e} of g) as the calibration adds it; g {gravity.value:.5f} "
+                        f"m/s^2: {gravity.source}", 79, subsequent_indent="  "))
+    print(f"{'parameter':<22}{'nominal':>14}{'uncertainty':>13}{'CRB':>11}  unit")
     for r in rows:
-        print(f"{r.name:<22}{r.value:>14.6g}{r.sd:>14.2g}  {r.unit}")
+        print(f"{r.name:<22}{r.value:>14.6g}{r.sd:>13.2g}{r.crb:>11.2g}  {r.unit}")
     return 0
