@@ -183,3 +183,26 @@ def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
     for option in SENSOR_OPTIONS:
         assert f"        {option}: " in out, option
     driver_for("sim://still?disconnect_after=5&drop=0.1").check_url()   # the listed options are accepted
+
+
+def test_every_help_fits_80_columns_and_says_one_store_default(monkeypatch, capsys):
+    """Every command's and kind's --help at 80 columns: no line wider (a choice setting's words made usage lines
+    86 wide, collect's 81); the profile store's default reads the same wherever --store is offered."""
+    from accelrig.cli import COMMANDS, build_parser
+
+    monkeypatch.setenv("COLUMNS", "80")
+    helps = {}
+    for name in COMMANDS:
+        sub = build_parser([name])._subparsers._group_actions[0].choices[name]
+        parsers = {name: sub}
+        for action in sub._actions:
+            if action.__class__.__name__ == "_SubParsersAction":
+                parsers.update({f"{name} {kind}": p for kind, p in action.choices.items()})
+        helps.update({key: p.format_help() for key, p in parsers.items()})
+    assert len(helps) > 25
+    for key, text in helps.items():
+        wide = [line for line in text.splitlines() if len(line) > 80]
+        assert not wide, (key, wide)
+    stores = {" ".join(text.split("\n  --store DIR")[1].split("\n  -", 1)[0].split()) for text in helps.values()
+              if "\n  --store DIR" in text}
+    assert len(stores) == 1 and "XDG_DATA_HOME" in stores.pop()

@@ -194,6 +194,7 @@ def test_cli_apply_list_show_diff_validate(tmp_path, cli):
     assert r.returncode == 0, r.stderr
     r = cli("profile", "list", "--store", str(store))
     assert "dev-1" in r.stdout and "static_faces" in r.stdout
+    assert max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout   # the file stacks under the table
     r = cli("profile", "show", "dev-1", "--store", str(store))
     assert r.returncode == 0 and "calibrated = C @ (raw - b)" in r.stdout
     out2 = tmp_path / "cal2.csv"

@@ -30,7 +30,7 @@ def register(sub, groups) -> None:
 
     q = groups["plan"].add_parser(
         "wheel",
-        help="predicted uncertainties (CRB) of a wheel calibration before spinning",
+        help="predicted uncertainties (CRB, and u(g) on the gains) of a wheel calibration before spinning",
         description="Print the standard uncertainty (k=1) each parameter would reach on a planned wheel "
         "run: the Cramer-Rao bound for a perfect sensor mounted at --mount-deg and the paper's coast-down "
         "profile scaled to --speed over --seconds, and for the gains the local gravity's u(g) as the "

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from accelrig.commands import add_time_range, add_units, load_from_args
+from accelrig.commands.profile_output import STORE_DEFAULT
 from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
@@ -80,8 +81,7 @@ def register(sub, groups) -> None:
 
 
 def _store_args(p, choose: bool = True) -> None:
-    p.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
-                   "$XDG_DATA_HOME/accelrig/profiles)")
+    p.add_argument("--store", metavar="DIR", help=f"profile store (default: {STORE_DEFAULT})")
     if choose:
         p.add_argument("--date", help="choose the stored profile closest to this date (ISO, e.g. 2026-11-01)")
         p.add_argument("--max-age-days", type=float, default=DEFAULT_MAX_AGE_DAYS,
@@ -123,20 +123,19 @@ def run_list(args) -> int:
     if not entries:
         say(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
         return 0
-    rows = [("device", "created", "procedure", "method", "residual rms", "file")]
+    from accelrig.tables import fitted_lines
+
+    titles = ("device", "created", "procedure", "method", "residual rms", "file")
+    rows = []
     for e in entries:
         rms = e.profile.data["quality"]["residual_rms"]
-        rows.append((e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
-                     "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root))))
-    _print_table(rows)
+        rows.append([printable(c) for c in (   # escaped first, so the columns line up
+            e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
+            "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root)))])
+    # 80 columns: the file (under the store) stacks under the table when it does not fit beside the rest
+    for line in fitted_lines(titles, rows, (0, 1, 2, 3, 4, 5)):
+        say(line)
     return 0
-
-
-def _print_table(rows) -> None:
-    rows = [[printable(c) for c in r] for r in rows]   # escaped first, so the columns line up
-    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
-    for r in rows:
-        say("  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
 
 
 def _fmt(value, unc=None, digits: int = 6) -> str:

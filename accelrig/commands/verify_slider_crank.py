@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from accelrig.commands import add_units, load_from_args, warn_loss
 from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank.settings import CRANK_RADIUS, FILE_SETTINGS, ROD_LENGTH
@@ -19,11 +21,14 @@ def register(sub, groups) -> None:
         epilog="Exit status: 0 when the calibration holds under motion, 1 when it does not hold or the verdict is "
         "inconclusive, 2-6 when the input or the analysis fails (one line on stderr).",
     )
-    p.add_argument("recordings", nargs="+", metavar="STEP.csv", help="recordings (.csv or .npz), in step order")
+    p.add_argument("recordings", nargs="+", metavar="STEP.csv",
+                   help="recordings (.csv, .npz, or segments: a .parquet file or a directory), in step order")
     add_arguments(p, [s for s in FILE_SETTINGS if s is not ROD_LENGTH])
     geometry = p.add_mutually_exclusive_group(required=True)
-    add_arguments(geometry, [ROD_LENGTH])
-    geometry.add_argument("--lambda", dest="lam", type=float, metavar="L", help="crank radius / rod length instead")
+    # one of the two is required (the group says so); the setting's own "required" would read as both
+    add_arguments(geometry, [replace(ROD_LENGTH, default=None)])
+    geometry.add_argument("--lambda", dest="lam", type=float, metavar="L",
+                          help="crank radius / rod length, instead of --rod-length")
     add_units(p)
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate for files without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
