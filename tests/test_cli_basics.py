@@ -93,17 +93,27 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch, capsys, module
     assert f"pip install 'accelrig[{extra}]'" in err
 
 
-def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsys):
-    """A file in g without a units note is read as m/s^2: noise, verify and both calibrations refuse it."""
+def still_csv(path, per_unit: float, digits: int = 6):
+    """A still recording written as a plain CSV (no units note) in a unit of ``per_unit`` m/s^2; returns it."""
     with driver_for("sim://still?seed=1&pace=fast") as d:
         rec = record(d, samples=4000)
-    path = tmp_path / "in_g.csv"
-    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665:.6f},{b / 9.80665:.6f},{c / 9.80665:.6f}"
-                                                 for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
-    for args in (["noise", str(path)],
-                 ["calibrate", "static", str(path)],
-                 ["calibrate", "wheel", str(path), "--radius", "0.28"],
-                 ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"]):
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f}," + ",".join(f"{v / per_unit:.{digits}f}" for v in acc)
+                                               for t, acc in zip(rec.t, rec.acc, strict=True)) + "\n")
+    return rec
+
+
+def consumers(path):
+    """Every command that reads a recording, with what it needs besides."""
+    return (["noise", str(path)],
+            ["calibrate", "static", str(path)],
+            ["calibrate", "wheel", str(path), "--radius", "0.28"],
+            ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"])
+
+
+def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsys):
+    """A file in g without a units note is read as m/s^2: noise, verify and both calibrations refuse it."""
+    still_csv(tmp_path / "in_g.csv", 9.80665)
+    for args in consumers(tmp_path / "in_g.csv"):
         code = main(args)
         err = capsys.readouterr().err
         assert code != 0, args
@@ -130,15 +140,9 @@ def test_data_in_milli_g_are_refused_with_options_that_exist_and_read_with_units
 
     import numpy as np
 
-    with driver_for("sim://still?seed=1&pace=fast") as d:
-        rec = record(d, samples=4000)
     path = tmp_path / "in_mg.csv"
-    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665e-3:.4f},{b / 9.80665e-3:.4f},{c / 9.80665e-3:.4f}"
-                                                 for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
-    for args in (["noise", str(path)],
-                 ["calibrate", "static", str(path)],
-                 ["calibrate", "wheel", str(path), "--radius", "0.28"],
-                 ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"]):
+    still_csv(path, 9.80665e-3, digits=4)
+    for args in consumers(path):
         for units in ([], ["--units", "g"], ["--units", "counts"]):
             code = main(args + units)
             err = capsys.readouterr().err
@@ -148,10 +152,8 @@ def test_data_in_milli_g_are_refused_with_options_that_exist_and_read_with_units
             assert named <= _options_of(args), (args, named - _options_of(args))
     assert main(["noise", str(path), "--units", "mg", "--json"]) == 0
     in_mg = json.loads(capsys.readouterr().out)["axes"]
-    si = tmp_path / "si.csv"
-    si.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a:.6f},{b:.6f},{c:.6f}"
-                                             for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
-    assert main(["noise", str(si), "--json"]) == 0
+    still_csv(tmp_path / "si.csv", 1.0)
+    assert main(["noise", str(tmp_path / "si.csv"), "--json"]) == 0
     in_si = json.loads(capsys.readouterr().out)["axes"]
     for axis in "xyz":   # mg x 9.80665e-3 is m/s^2: the same densities (to the files' rounding)
         assert np.isclose(in_mg[axis]["density"]["value"], in_si[axis]["density"]["value"], rtol=1e-3), axis
