@@ -160,49 +160,61 @@ def run_show(args) -> int:
         return 0
     d = profile.data
     dev, cal, prov = d["device"], d["calibration"], d["provenance"]
-    say(f"profile      {profile.path}")
-    say(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
+    _say_wrapped(f"profile      {profile.path}")
+    _say_wrapped(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
           + (f"  WHO_AM_I 0x{dev['who_am_i']:02X}" if dev["who_am_i"] is not None else ""))
     rng = f"+-{dev['range_g']:g} g" if dev["range_g"] is not None else "range ?"
     rate = f"{dev['rate']:g} Hz" if dev["rate"] is not None else "rate ?"
-    say(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
-    say(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
-    say(f"created      {prov['created']} by accelrig {prov['software_version']}"
+    _say_wrapped(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
+    _say_wrapped(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
+    _say_wrapped(f"created      {prov['created']} by accelrig {prov['software_version']}"
           + (f" from {prov['recording_samples']} samples" if prov["recording_samples"] else ""))
     corr = cal["correction"]
-    say("correction   calibrated = C @ (raw - b), uncertainties k = 1")
+    _say_wrapped("correction   calibrated = C @ (raw - b), uncertainties k = 1")
     for i in range(3):
-        say(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
-    say(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
+        _say_wrapped(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
+    _say_wrapped(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
     if cal["parameters"]:
-        say("parameters")
+        _say_wrapped("parameters")
         width = max(len(n) for n in cal["parameters"])
         for name, est in cal["parameters"].items():
             # angles in degrees, as the calibrate command, the TUI and the certificate show them
             value, u, unit = Estimate(est["value"], est["uncertainty"], est["unit"]).for_display()
-            say(f"  {name.ljust(width)}  {_fmt(value, u)} {unit}")
+            _say_wrapped(f"  {name.ljust(width)}  {_fmt(value, u)} {unit}")
     q = d["quality"]
     for key, value in q.items():
         if value is None:
             continue
         # a count is an integer (YAML may hold it as 11000.0: it read "1.1e+04")
         count = key.startswith("n_") or key == "dof"
+        numbers = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
         shown = (f"{value:.0f}" if count and isinstance(value, float) and value.is_integer()
-                 else f"{value:.4g}" if isinstance(value, float) else _short(value))
+                 else f"{value:.4g}" if isinstance(value, float)
+                 else "[" + ", ".join(f"{v:.4g}" for v in value) + "]" if numbers
+                 else value if isinstance(value, str)
+                 else _short(value, 80 - len(f"quality      {key} ")))
         unit = " m/s^2" if key == "residual_rms" else ""
-        say(f"quality      {key} {shown}{unit}")
+        _say_wrapped(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
         n = d["noise"]
-        say(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
+        _say_wrapped(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
         for axis, f in n["axes"].items():
             dens = f["density"]
             ug = 1e6 / STANDARD_GRAVITY
             bi = f["bias_instability"]
-            say(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
+            _say_wrapped(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
                   + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
     for w in d["warnings"]:
-        say(f"warning      {w}")
+        _say_wrapped(f"warning      {w}")
     return 0
+
+
+def _say_wrapped(text: str) -> None:
+    """A labelled line of ``profile show`` wrapped at 80 columns under its value (a sentence is read whole)."""
+    import textwrap
+
+    for line in textwrap.wrap(text, 80, subsequent_indent=" " * 13, break_long_words=False, break_on_hyphens=False):
+        say(line)
 
 
 def run_validate(args) -> int:
@@ -276,9 +288,10 @@ def diff_profiles(a: Profile, b: Profile) -> list[str]:
     return lines
 
 
-def _short(value) -> str:
+def _short(value, width: int = 80) -> str:
+    """A structure as JSON on one line of at most ``width`` characters (``--json`` shows it whole)."""
     text = json.dumps(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def run_diff(args) -> int:
