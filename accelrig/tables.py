@@ -39,13 +39,14 @@ def fitted_lines(titles: Sequence[str], rows: Sequence[Sequence[str]], priority:
     under it, a blank line before each, each led by the first column of ``priority`` (the row's name)."""
     key, left = priority[0], list(priority[1:])
     lines: list[str] = []
-    while left:
+    while left or not lines:
         part = [key, *left]   # in order of importance
+        # each column costs its width + 2 (padding 1): n columns joined by two spaces take 2 less
         shown = columns_that_fit([titles[i] for i in part], [[row[i] for i in part] for row in rows], width + 2,
                                  range(len(part)))
         chosen = sorted(part[j] for j in shown)   # in the table's order
         left = [i for i in left if i not in chosen]
-        widths = {i: max(len(str(titles[i])), *(len(str(row[i])) for row in rows)) for i in chosen}
+        widths = {i: max([len(str(titles[i]))] + [len(str(row[i])) for row in rows]) for i in chosen}
         if lines:
             lines.append("")
         lines += ["  ".join(str(cells[i]).ljust(widths[i]) for i in chosen).rstrip() for cells in [titles, *rows]]

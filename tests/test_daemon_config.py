@@ -351,6 +351,20 @@ def test_check_refuses_a_profile_made_for_another_chip_than_the_url_names(tmp_pa
     check_config(config("serial:///dev/ttyUSB0", tmp_path / "chip.yaml"))
 
 
+def test_fitted_lines_keep_every_cell_and_the_width():
+    """The one column rule: a table that fits stays one table; one that does not is stacked, each part led by
+    the name, every cell printed once, no line wider than asked unless a cell alone is; a lone column prints."""
+    from accelrig.tables import fitted_lines
+
+    assert fitted_lines(["a", "b"], [["x", "y"]], [0, 1]) == ["a  b", "x  y"]
+    assert fitted_lines(["name"], [["n"]], [0]) == ["name", "n"]
+    titles, row = ["name", "c1", "c2", "c3"], ["n", "x" * 30, "y" * 30, "z" * 30]
+    lines = fitted_lines(titles, [row], [0, 3, 1, 2], width=50)
+    assert lines == ["name  c3", "n     " + "z" * 30, "", "name  c1", "n     " + "x" * 30, "",   # in order of rank
+                     "name  c2", "n     " + "y" * 30]
+    assert max(map(len, lines)) <= 50 and all(row[i] in " ".join(lines) for i in range(4))
+
+
 def test_can_flash_is_one_test_for_the_daemon_check_the_tui_and_wrapped_drivers():
     """Driver.can_flash: the driver writes a calibration, and an open device does not say it cannot.  The daemon's
     UtcDriver forwards it (a class comparison took any wrapper for a flashing driver); the TUI asks the same."""
