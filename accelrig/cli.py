@@ -24,8 +24,8 @@ from accelrig.errors import AccelrigError, printable
 # machinery inside ``run()``.
 COMMANDS = {
     "calibrate": ("compute a calibration from a recording",
-                  ("accelrig.commands.calibrate_rotary", "accelrig.commands.calibrate_wheel",
-                   "accelrig.commands.calibrate_static")),
+                  ("accelrig.commands.calibrate_static", "accelrig.commands.calibrate_wheel",
+                   "accelrig.commands.calibrate_rotary")),
     "verify": ("verify a calibration under motion", ("accelrig.commands.verify_slider_crank",)),
     "plan": ("predict achievable uncertainties before taking data", ("accelrig.commands.calibrate_wheel",)),
     "profile": ("device profiles: list, show, validate, diff, apply, add", ("accelrig.commands.profile",)),

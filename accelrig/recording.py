@@ -32,7 +32,7 @@ from accelrig import __version__
 from accelrig.errors import DataError
 from accelrig.files import META_PREFIX, atomic_write, text_lines
 from accelrig.result import to_json
-from accelrig.segments import SEGMENT_SUFFIXES, read_arrays, resolve_range
+from accelrig.segments import SEGMENT_SUFFIXES, read_arrays, resolve_range, utc_seconds
 from accelrig.settings import Setting
 from accelrig.spec import (
     Array,
@@ -104,8 +104,8 @@ class Recording:
     def to_si(self, check_units: bool = True) -> Recording:
         """The same recording with acc in m/s^2: raw = counts x nominal scale (meta['scale']).
 
-        Unit g is standard g (9.80665 m/s^2) by definition, as the nominal
-        scale is; a local g is only the size of the reference, never a unit.
+        Units g and mg are standard g (9.80665 m/s^2) by definition, as the
+        nominal scale is; a local g is only the size of the reference, never a unit.
         With ``check_units`` (the default), data whose size says the declared
         units are wrong are refused, naming the --units flag to use.
         """
@@ -194,7 +194,7 @@ LOWEST_RATE = 1.0            # Hz: no MEMS accelerometer samples slower; t advan
 _TEXT = Nullable(OneOf((String(), Number()), expected="a string"))
 _RATE = Nullable(Number(exclusive_minimum=0.0))
 META = Object({
-    "units": optional(String(enum=("m/s^2", "m/s2", "g", "counts"))),
+    "units": optional(String(enum=("m/s^2", "m/s2", "g", "mg", "counts"))),
     "identity": optional(_TEXT), "device": optional(_TEXT), "driver": optional(_TEXT), "chip": optional(_TEXT),
     "source": optional(_TEXT), "start_time": optional(_TEXT), "software_version": optional(_TEXT),
     "who_am_i": optional(Nullable(Integer(minimum=0, maximum=255))),
@@ -455,8 +455,8 @@ def load_recording(path: str | os.PathLike, units: str | None = None, rate: floa
     """Load a CSV or native recording, or segments (a directory of them, a .parquet or .seg file),
     chosen by the file suffix.
 
-    ``start``/``stop`` keep a time range: seconds from the first sample, or (segments) an
-    ISO-8601 UTC time such as 2026-11-24T01:00:00Z.
+    ``start``/``stop`` keep a time range: seconds from the first sample, or an ISO-8601 UTC time
+    such as 2026-11-24T01:00:00Z (segments, and files whose metadata give their UTC time origin).
     """
     path = Path(path)
     if path.is_dir() or path.suffix.lower() in SEGMENT_SUFFIXES:
@@ -485,20 +485,43 @@ def read_segments(path: str | os.PathLike, start: float | None = None, stop: flo
 
 
 def time_range(rec: Recording, start: float | str | None, stop: float | str | None) -> Recording:
-    """The samples from ``start`` to before ``stop``, seconds from the first sample."""
+    """The samples from ``start`` to before ``stop``: seconds from the first sample, or an ISO-8601 UTC time
+    when the recording carries absolute time (time_base "utc" and time_origin, the UTC epoch seconds of
+    t = 0, as ``record`` and the daemon write them)."""
+    t0 = rec.t[0] if len(rec) else 0.0
     bounds = []
     for name, value in (("start", start), ("stop", stop)):
+        if value is None:
+            bounds.append(None)
+            continue
         try:
-            bounds.append(None if value is None else float(value))
+            bounds.append(t0 + float(value))
+            continue
         except ValueError:
-            raise DataError(f"--{name} {value!r}: a time in seconds from the first sample was expected "
-                            "(UTC times apply to segments only)") from None
-    t0 = rec.t[0] if len(rec) else 0.0
-    lo = 0 if bounds[0] is None else int(np.searchsorted(rec.t, t0 + bounds[0], "left"))
-    hi = len(rec) if bounds[1] is None else int(np.searchsorted(rec.t, t0 + bounds[1], "left"))
+            pass
+        when = utc_seconds(name, value)
+        if not _has_utc(rec):
+            raise DataError(f"--{name} {value}: {rec.meta.get('source', 'the recording')} carries no absolute time "
+                            "(its metadata give no UTC time origin), so a UTC time cannot be placed in it",
+                            f"give --{name} in seconds from the first sample")
+        bounds.append(when - float(rec.meta["time_origin"]))
+    lo = 0 if bounds[0] is None else int(np.searchsorted(rec.t, bounds[0], "left"))
+    hi = len(rec) if bounds[1] is None else int(np.searchsorted(rec.t, bounds[1], "left"))
     if hi <= lo:
-        raise DataError(f"no samples between {start} and {stop} s (the recording spans {rec.duration:.3f} s)")
+        raise DataError(f"no samples from {'the first sample' if start is None else start} to before "
+                        f"{'the end' if stop is None else stop} (the recording spans {rec.duration:.3f} s"
+                        + (f" from {_utc_text(rec.meta['time_origin'] + t0)}" if _has_utc(rec) else "") + ")")
     return rec.slice(lo, hi)
+
+
+def _has_utc(rec: Recording) -> bool:
+    return rec.meta.get("time_base") == "utc" and isinstance(rec.meta.get("time_origin"), int | float)
+
+
+def _utc_text(epoch: float) -> str:
+    from datetime import UTC, datetime
+
+    return datetime.fromtimestamp(float(epoch), UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def save_recording(rec: Recording, path: str | os.PathLike, overwrite: bool = True, inputs=()) -> None:
@@ -513,8 +536,10 @@ def save_recording(rec: Recording, path: str | os.PathLike, overwrite: bool = Tr
 def guess_units(acc: np.ndarray) -> str:
     """Guess the units of raw accelerometer data from the size of gravity.
 
-    A sensor that is mostly still reads |a| about 9.8 in m/s^2, about 1 in g and
-    hundreds to tens of thousands in counts.  Used to catch a wrong --units.
+    A sensor that is mostly still reads |a| about 9.8 in m/s^2, about 1 in g, about 1000 in
+    milli-g (mg) and hundreds to tens of thousands in counts.  Used to catch a wrong --units.
+    "mg" is also the size of counts of a part with about 1000 counts per g (a +-32 g range,
+    some 12-bit parts): a file declared as counts with its scale is never refused for it.
     """
     norms = np.linalg.norm(np.asarray(acc, dtype=float), axis=1)
     m = float(np.median(norms)) if norms.size else 0.0
@@ -522,6 +547,8 @@ def guess_units(acc: np.ndarray) -> str:
         return "g"
     if 4.0 < m < 25.0:
         return "m/s^2"
+    if 500.0 < m < 2000.0:
+        return "mg"
     if m > 100.0:
         return "counts"
     return "unknown"
@@ -530,15 +557,26 @@ def guess_units(acc: np.ndarray) -> str:
 def check_declared_units(rec: Recording) -> None:
     """Refuse data whose size says the declared units are wrong, naming the flag to use.
 
-    Catches the common slips (a file in g read as m/s^2, counts read as g);
-    data whose size fits no unit (strong motion) pass: the procedures' own
+    Catches the common slips (a file in g read as m/s^2, counts read as g, milli-g read as
+    anything else); data whose size fits no unit (strong motion) pass: the procedures' own
     checks judge them.
     """
     guess = guess_units(rec.acc)
     if guess in ("unknown", rec.units):
         return
-    flag = {"m/s^2": "--units m/s2", "g": "--units g", "counts": "--units counts"}[guess]
     size = float(np.median(np.linalg.norm(rec.acc, axis=1)))
+    if rec.units == "counts" and guess == "mg":
+        if count_scale(rec.meta) is not None:
+            return   # counts of a part with about 1000 counts per g, and the file gives their scale
+        raise DataError(f"the data were declared as counts, without a counts-to-m/s^2 scale, and look like "
+                        f"milli-g (median |a| about {size:.3g})",
+                        "use --units mg if they are milli-g; counts need the sensor's range (--range-g G)")
+    if guess == "mg":
+        raise DataError(f"the data were declared as {rec.units} but look like milli-g (median |a| about {size:.3g})",
+                        "use --units mg; if they are counts of a part with about 1000 counts per g, "
+                        "--units counts with the sensor's range (--range-g G)")
+    flag = {"m/s^2": "--units m/s2", "g": "--units g", "counts": "--units counts"}[guess]
+    if guess == "counts" and count_scale(rec.meta) is None:
+        flag += " with the sensor's range (--range-g G)"
     raise DataError(f"the data were declared as {rec.units} but look like {guess} (median |a| about {size:.3g})",
                     f"use {flag}")
-

@@ -848,7 +848,10 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
     Returns ``(t, acc, units, channels, meta)``: ``t`` seconds from the first sample returned (its
     stored time is ``meta['time_origin']``, also as ``time_origin_ns``); ``acc`` float64 in
     ``units`` ("m/s^2": counts x scale, or "counts"); gap records as ``meta['gaps']`` (index in the
-    returned samples, missing, cause, seconds).  Memory: the returned arrays plus one row group.
+    returned samples, missing, cause, seconds).  The metadata are the first segment's, except where the
+    segments read differ in their calibration: then ``meta['spans']`` says which samples are raw counts
+    and which calibrated, with which profile (``_describe_spans``).  Memory: the returned arrays plus one
+    row group.
     """
     parts = [_part(p) for p in segment_files(path, stem)]
     lo_ns = None if start is None else int(to_ns(np.asarray([start]))[0])
@@ -919,7 +922,50 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
     meta.update(scale=scale, units=units, gaps=gaps, time_origin=float(ns_to_seconds([origin_ns])[0]),
                 time_origin_ns=origin_ns, segments=list(dict.fromkeys(p.path.name for p, _, _, _ in plan)),
                 source=str(path))
+    _describe_spans(meta, used, starts, total)
     return t, acc, units, channels, meta
+
+
+# What a daemon's segment says about its calibration: the profile it used ("profile"), why it recorded raw
+# counts only ("recording_raw"), what its calibrated channels are ("calibrated_channels").  They hold for that
+# segment; a read over segments whose calibration differs describes each stretch instead (``spans``).
+CALIBRATION_KEYS = ("profile", "recording_raw", "calibrated_channels")
+CALIBRATED = ("cal_x", "cal_y", "cal_z")
+
+
+def _describe_spans(meta: dict, used: list, starts: dict, total: int) -> None:
+    """When the segments read differ in their calibration (a daemon that recorded raw counts until its profile
+    came, or changed profile on a reload), the first segment's profile, recording_raw and calibrated_channels
+    would describe only its own stretch: they are replaced by ``meta['spans']``, one per stretch (samples
+    [first, stop) of what was read, its segments, whether cal_x, cal_y, cal_z hold calibrated values there,
+    the profile, why it is raw), and ``recording_raw`` names the raw stretches."""
+    spans: list[dict] = []
+    for part in used:
+        stored = _current_meta(part.info["meta"])
+        state = {"calibrated": all(name in part.info["channels"] for name in CALIBRATED),
+                 "profile": stored.get("profile"), "recording_raw": stored.get("recording_raw")}
+        first = starts[part.path]
+        if spans and all(spans[-1][key] == value for key, value in state.items()):
+            spans[-1]["segments"][1] = part.path.name
+            continue
+        if spans:
+            spans[-1]["stop"] = first
+        spans.append({"first": first, "stop": total, "segments": [part.path.name, part.path.name], **state})
+    if len(spans) < 2:
+        return
+    described = next((_current_meta(p.info["meta"]).get("calibrated_channels") for p in used
+                      if _current_meta(p.info["meta"]).get("calibrated_channels")), None)
+    for key in CALIBRATION_KEYS:
+        meta.pop(key, None)
+    meta["spans"] = spans
+    raw = [s for s in spans if not s["calibrated"]]
+    if raw:
+        meta["recording_raw"] = "; ".join(
+            f"samples {s['first']}-{s['stop'] - 1} of {total} ({s['segments'][0]} to {s['segments'][1]}) hold raw "
+            f"counts only" + (f": {s['recording_raw']}" if s["recording_raw"] else "") for s in raw)
+    if described:
+        meta["calibrated_channels"] = {**described, "where": "the spans with calibrated true (NaN elsewhere); "
+                                       "each span names its profile"}
 
 
 def _check_one_device_state(path, used: list[_Part]) -> None:
@@ -987,6 +1033,15 @@ def _bound(path, name: str, value, first: float, utc: bool) -> float | None:
         return first + float(value)
     except ValueError:
         pass
+    when = utc_seconds(name, value)
+    if not utc:
+        raise DataError(f"{path}: its times are not UTC, so --{name} takes seconds from the first sample")
+    return when
+
+
+def utc_seconds(name: str, value) -> float:
+    """An ISO-8601 time as people give --start/--stop (2026-11-24T01:00:00Z; without a zone it is UTC) as
+    UTC epoch seconds: the one parser for segments and files alike."""
     from datetime import UTC, datetime
 
     try:
@@ -994,8 +1049,6 @@ def _bound(path, name: str, value, first: float, utc: bool) -> float | None:
     except ValueError:
         raise DataError(f"--{name} {value!r} is neither seconds nor an ISO-8601 time",
                         "give seconds from the first sample, or e.g. 2026-11-24T01:00:00Z") from None
-    if not utc:
-        raise DataError(f"{path}: its times are not UTC, so --{name} takes seconds from the first sample")
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
     return when.timestamp()

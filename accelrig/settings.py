@@ -181,7 +181,9 @@ def add_arguments(parser: argparse.ArgumentParser, settings: tuple[Setting, ...]
             parser.add_argument(s.flag, dest=s.name, action="store_true", default=None,
                                 help=s.describe().replace("%", "%%"))
             continue
-        metavar = {"float": "X", "int": "N", "floats": "X,Y,..", "path": "PATH", "text": "TEXT"}.get(s.kind)
+        # a choice's words are listed in its help (describe): the usage line names it, so it fits 80 columns
+        metavar = {"float": "X", "int": "N", "floats": "X,Y,..", "path": "PATH", "text": "TEXT",
+                   "choice": s.name.upper()}.get(s.kind)
         parser.add_argument(s.flag, dest=s.name, default=None, metavar=metavar,
                             choices=s.choices or None, help=s.describe().replace("%", "%%"))
 

@@ -135,6 +135,9 @@ _UNIT_ALIASES = {
     "mps2": "m/s^2",
     "si": "m/s^2",
     "g": "g",
+    "mg": "mg",
+    "milli-g": "mg",
+    "millig": "mg",
     "counts": "counts",
     "count": "counts",
     "lsb": "counts",
@@ -149,14 +152,15 @@ def normalise_unit(unit: str) -> str:
     except KeyError:
         raise DataError(
             f"unknown acceleration unit {unit!r}",
-            "use one of: m/s2, g, counts",
+            "use one of: m/s2, g, mg (milli-g), counts",
         ) from None
 
 
 def to_si(values: np.ndarray, unit: str, scale: float | None = None, g: float = STANDARD_GRAVITY) -> np.ndarray:
     """Convert accelerations in ``unit`` to m/s^2.
 
-    ``scale`` (m/s^2 per count) is needed only for counts.
+    ``scale`` (m/s^2 per count) is needed only for counts.  g and mg (milli-g) are units of standard
+    gravity, as a datasheet's are; a local g is only the size of the reference, never a unit.
     """
     unit = normalise_unit(unit)
     values = np.asarray(values, dtype=float)
@@ -164,10 +168,12 @@ def to_si(values: np.ndarray, unit: str, scale: float | None = None, g: float = 
         return values
     if unit == "g":
         return values * g
+    if unit == "mg":
+        return values * (g / 1000.0)
     if scale is None or not np.isfinite(scale) or scale <= 0:
         raise DataError(
             "data are in counts but the counts-to-m/s^2 scale is unknown",
-            "give the sensor range (--range-g) or the scale, or convert the file to m/s^2",
+            "give the sensor's range (--range-g G), or convert the file to m/s^2",
         )
     return values * scale
 

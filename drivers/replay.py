@@ -2,11 +2,12 @@
 
 Options:
     pace=realtime|fast   at the recorded rate (default) or as fast as possible
-    units=m/s2|g|counts  units of the file when it does not say (default m/s^2)
+    units=m/s2|g|mg|counts  units of the file when it does not say (default m/s^2)
     rate=HZ              sample rate for a file without a t column
     block=N              samples per block (default 256)
     loop=1               start again at the end (an endless device)
-    start=T, stop=T      play only that stretch: seconds from the first sample, or (segments) ISO-8601 UTC
+    start=T, stop=T      play only that stretch: seconds from the first sample, or an ISO-8601 UTC
+                         time (recordings that carry UTC time)
 
 Samples become int16 counts again at the scale the file records, or at the
 finest standard range (2, 4, 8, 16 g) that holds the data.

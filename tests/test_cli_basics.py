@@ -93,21 +93,87 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch, capsys, module
     assert f"pip install 'accelrig[{extra}]'" in err
 
 
-def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsys):
-    """A file in g without a units note is read as m/s^2: noise, verify and both calibrations refuse it."""
+def still_csv(path, per_unit: float, digits: int = 6):
+    """A still recording written as a plain CSV (no units note) in a unit of ``per_unit`` m/s^2; returns it."""
     with driver_for("sim://still?seed=1&pace=fast") as d:
         rec = record(d, samples=4000)
-    path = tmp_path / "in_g.csv"
-    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{a / 9.80665:.6f},{b / 9.80665:.6f},{c / 9.80665:.6f}"
-                                                 for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
-    for args in (["noise", str(path)],
-                 ["calibrate", "static", str(path)],
-                 ["calibrate", "wheel", str(path), "--radius", "0.28"],
-                 ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"]):
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f}," + ",".join(f"{v / per_unit:.{digits}f}" for v in acc)
+                                               for t, acc in zip(rec.t, rec.acc, strict=True)) + "\n")
+    return rec
+
+
+def consumers(path):
+    """Every command that reads a recording, with what it needs besides."""
+    return (["noise", str(path)],
+            ["calibrate", "static", str(path)],
+            ["calibrate", "wheel", str(path), "--radius", "0.28"],
+            ["verify", "slider-crank", str(path), "--crank-radius", "0.006", "--rod-length", "0.035"])
+
+
+def test_data_in_g_declared_as_m_s2_is_refused_by_every_consumer(tmp_path, capsys):
+    """A file in g without a units note is read as m/s^2: noise, verify and both calibrations refuse it."""
+    still_csv(tmp_path / "in_g.csv", 9.80665)
+    for args in consumers(tmp_path / "in_g.csv"):
         code = main(args)
         err = capsys.readouterr().err
         assert code != 0, args
         assert "look like g" in err and "--units g" in err and err.count("\n") == 1, (args, err)
+
+
+def _options_of(args):
+    """Every --option the parser of the command ``args`` names defines."""
+    from accelrig.cli import build_parser
+
+    parser = build_parser(args)
+    action = parser._subparsers._group_actions[0]
+    sub = action.choices[args[0]]
+    if args[0] in ("calibrate", "verify", "profile"):
+        sub = sub._subparsers._group_actions[0].choices[args[1]]
+    return {opt for a in sub._actions for opt in a.option_strings}
+
+
+def test_data_in_milli_g_are_refused_with_options_that_exist_and_read_with_units_mg(tmp_path, capsys):
+    """Milli-g read as m/s^2, g or scale-less counts is refused by every consumer; every option its hint names
+    exists on that command (the hint once named a scale option none had), and --units mg reads the file."""
+    import json
+    import re
+
+    import numpy as np
+
+    path = tmp_path / "in_mg.csv"
+    still_csv(path, 9.80665e-3, digits=4)
+    for args in consumers(path):
+        for units in ([], ["--units", "g"], ["--units", "counts"]):
+            code = main(args + units)
+            err = capsys.readouterr().err
+            assert code != 0, args
+            assert "look like milli-g" in err and "--units mg" in err and err.count("\n") == 1, (args, err)
+            named = set(re.findall(r"--[a-z][a-z-]*", err))
+            assert named <= _options_of(args), (args, named - _options_of(args))
+    assert main(["noise", str(path), "--units", "mg", "--json"]) == 0
+    in_mg = json.loads(capsys.readouterr().out)["axes"]
+    still_csv(tmp_path / "si.csv", 1.0)
+    assert main(["noise", str(tmp_path / "si.csv"), "--json"]) == 0
+    in_si = json.loads(capsys.readouterr().out)["axes"]
+    for axis in "xyz":   # mg x 9.80665e-3 is m/s^2: the same densities (to the files' rounding)
+        assert np.isclose(in_mg[axis]["density"]["value"], in_si[axis]["density"]["value"], rtol=1e-3), axis
+
+
+def test_counts_without_a_scale_are_read_with_range_g_on_every_consumer(tmp_path, capsys):
+    """The counts hint names --range-g, and every command that reads a recording has it."""
+    with driver_for("sim://still?seed=1&pace=fast&range=4") as d:
+        rec = record(d, samples=4000)
+    scale = rec.meta["scale"]
+    path = tmp_path / "counts.csv"
+    path.write_text("t,ax,ay,az\n" + "\n".join(f"{t:.6f},{round(a / scale)},{round(b / scale)},{round(c / scale)}"
+                                               for t, (a, b, c) in zip(rec.t, rec.acc, strict=True)) + "\n")
+    assert main(["noise", str(path), "--units", "counts"]) != 0
+    err = capsys.readouterr().err
+    assert "--range-g" in err, err
+    for args in (["noise"], ["calibrate", "static"], ["calibrate", "wheel"], ["verify", "slider-crank"],
+                 ["profile", "apply"]):
+        assert {"--units", "--range-g"} <= _options_of(args), args
+    assert main(["noise", str(path), "--units", "counts", "--range-g", "4"]) == 0, capsys.readouterr().err
 
 
 def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
@@ -119,3 +185,26 @@ def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
     for option in SENSOR_OPTIONS:
         assert f"        {option}: " in out, option
     driver_for("sim://still?disconnect_after=5&drop=0.1").check_url()   # the listed options are accepted
+
+
+def test_every_help_fits_80_columns_and_says_one_store_default(monkeypatch, capsys):
+    """Every command's and kind's --help at 80 columns: no line wider (a choice setting's words made usage lines
+    86 wide, collect's 81); the profile store's default reads the same wherever --store is offered."""
+    from accelrig.cli import COMMANDS, build_parser
+
+    monkeypatch.setenv("COLUMNS", "80")
+    helps = {}
+    for name in COMMANDS:
+        sub = build_parser([name])._subparsers._group_actions[0].choices[name]
+        parsers = {name: sub}
+        for action in sub._actions:
+            if action.__class__.__name__ == "_SubParsersAction":
+                parsers.update({f"{name} {kind}": p for kind, p in action.choices.items()})
+        helps.update({key: p.format_help() for key, p in parsers.items()})
+    assert len(helps) > 25
+    for key, text in helps.items():
+        wide = [line for line in text.splitlines() if len(line) > 80]
+        assert not wide, (key, wide)
+    stores = {" ".join(text.split("\n  --store DIR")[1].split("\n  -", 1)[0].split()) for text in helps.values()
+              if "\n  --store DIR" in text}
+    assert len(stores) == 1 and "XDG_DATA_HOME" in stores.pop()

@@ -157,6 +157,38 @@ def test_status_socket_is_owner_only_and_answers_json(tmp_path):
         query(path)
 
 
+def test_daemon_status_table_fits_80_columns_and_keeps_every_column():
+    """`accelrig daemon status` at 80 columns: no line wider (it was about 150), and every device's every
+    cell is still printed, the columns that do not fit stacked under the first table, each led by the device."""
+    from accelrig.daemon.status import COLUMNS, device_row
+
+    devices = [{"name": name, "state": "recording raw", "delivered_rate": 2048.0, "delivered": 123456789,
+                "written": 123456700, "dropped": 89, "missing": 4321, "gaps": 17, "connects": 3,
+                "bytes_written": 2.5e9, "profile": f"/home/operator/.local/share/accelrig/profiles/{name}.yaml",
+                "error": "recording raw: no profile for 'sim-random-11' in the store: calibrate the device and "
+                         "file its profile (accelrig profile add PROFILE), then reload the daemon"}
+               for name in ("roof-north-accelerometer", "b")]
+    status = {"daemon": {"pid": 4242, "uptime": 86400.0, "config": "/etc/accelrig/a-long-daemon-config-name.yaml",
+                         "output": "/srv/accelrig/recordings/site-with-a-long-name"}, "devices": devices}
+    table = format_table(status)
+    assert max(len(line) for line in table.splitlines()) <= 80, table
+    parts = [part.splitlines() for part in table.split("\n\n")]
+    titles = [title for _, title in COLUMNS]
+    seen = set()
+    for part in parts:
+        header = next(line for line in part if line.startswith("device"))
+        seen |= {title for title in titles if f"  {title}" in f"  {header}"}
+    assert seen == set(titles), seen
+    for d in devices:
+        row = device_row(d)
+        lines = [line for line in table.splitlines() if line.startswith(d["name"] + " ")]
+        assert len(lines) == len(parts), lines   # each part leads with the device
+        assert all(row[key] in " ".join(lines).split() for key, _ in COLUMNS
+                   if key not in ("name", "state", "profile")), lines
+        assert f"{d['name']}.yaml" in " ".join(lines).split() and d["profile"] in table.split()   # its path under
+    assert "roof-north-accelerometer: recording raw: no profile for 'sim-random-11'" in table
+
+
 def test_notify_sends_datagrams_to_notify_socket_and_reads_the_watchdog(tmp_path, monkeypatch):
     assert notify("READY=1") is False or "NOTIFY_SOCKET" in os.environ
     path = tmp_path / "notify"
@@ -317,6 +349,43 @@ def test_check_refuses_a_profile_made_for_another_chip_than_the_url_names(tmp_pa
     check_config(config("sim://still?seed=11", example))
     check_config(config("i2c-sim://mpu9250?rig=still", tmp_path / "chip.yaml"))
     check_config(config("serial:///dev/ttyUSB0", tmp_path / "chip.yaml"))
+
+
+def test_fitted_lines_keep_every_cell_and_the_width():
+    """The one column rule: a table that fits stays one table; one that does not is stacked, each part led by
+    the name, every cell printed once, no line wider than asked unless a cell alone is; a lone column prints."""
+    from accelrig.tables import fitted_lines
+
+    assert fitted_lines(["a", "b"], [["x", "y"]], [0, 1]) == ["a  b", "x  y"]
+    assert fitted_lines(["name"], [["n"]], [0]) == ["name", "n"]
+    titles, row = ["name", "c1", "c2", "c3"], ["n", "x" * 30, "y" * 30, "z" * 30]
+    lines = fitted_lines(titles, [row], [0, 3, 1, 2], width=50)
+    assert lines == ["name  c3", "n     " + "z" * 30, "", "name  c1", "n     " + "x" * 30, "",   # in order of rank
+                     "name  c2", "n     " + "y" * 30]
+    assert max(map(len, lines)) <= 50 and all(row[i] in " ".join(lines) for i in range(4))
+
+
+def test_can_flash_is_one_test_for_the_daemon_check_the_tui_and_wrapped_drivers():
+    """Driver.can_flash: the driver writes a calibration, and an open device does not say it cannot.  The daemon's
+    UtcDriver forwards it (a class comparison took any wrapper for a flashing driver); the TUI asks the same."""
+    from accelrig.acquisition.driver import driver_for
+    from accelrig.daemon.device import UtcDriver
+    from accelrig.tui.screens.results import can_flash
+
+    class Connected:   # what the TUI holds: a session with a driver and its info
+        def __init__(self, driver):
+            self.driver, self.info = driver, driver.info
+
+    for url, expected in (("sim://still", False), ("i2c-sim://mpu9250?rig=still", True),
+                          ("serial-sim://still?pace=fast", True)):
+        driver = driver_for(url)
+        assert driver.can_flash is expected and UtcDriver(driver).can_flash is expected, url
+        with driver:
+            assert driver.can_flash is expected and can_flash(Connected(driver)) is expected, url
+            if url.startswith("serial"):   # firmware that says it keeps no calibration record
+                driver.info.calibration_store = False
+                assert not driver.can_flash and not UtcDriver(driver).can_flash
+                assert not can_flash(Connected(driver))
 
 
 def test_flash_on_a_device_that_cannot_hold_offsets_is_refused_at_check_and_start(tmp_path):

@@ -403,3 +403,20 @@ def test_a_device_recording_raw_for_want_of_its_profile_says_so_to_the_fleet(bro
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=15)
+
+
+def test_fleet_table_fits_80_columns_and_keeps_every_column():
+    """`accelrig fleet` at 80 columns (with the recalibration column): no line wider, every cell printed."""
+    from accelrig.daemon.fleet import cells, columns, format_table
+
+    row = {"site": "north-building", "device": "roof-accelerometer-3", "host": "raspberrypi-north-07",
+           "state": "recording raw", "last_seen": "2026-11-25T03:00:00Z", "seconds_since_seen": 75.0,
+           "rate": 2048.0, "nominal_rate": 2048.0, "gaps": 12, "missing": 40, "spooled": 1234,
+           "spool_dropped_samples": 0, "profile": "static/map", "profile_created": "2026-10-01T00:00:00Z",
+           "profile_age_seconds": 55 * 86400.0, "recalibration": "due",
+           "error": "recording raw: no profile for 'sim-random-11' in the store: file it, then reload the daemon"}
+    table = format_table([row], recalibrate_days=30)
+    assert max(len(line) for line in table.splitlines()) <= 80, table
+    words = table.split()
+    assert all(all(word in words for word in cell.split()) for cell in cells(row, 30)), table
+    assert all(any(title in line for line in table.splitlines()) for title in columns(30)), table

@@ -35,3 +35,16 @@ def test_a_port_taken_before_mosquitto_binds_it_gives_the_broker_another_and_a_r
             assert broker.port == first and broker.proc.poll() is None
         finally:
             broker.stop()
+
+
+def test_the_fleet_benchmark_takes_its_port_from_the_one_free_port():
+    """bench_fleet.py had its own copy of the old free_port (any ephemeral port, which an outgoing connection
+    may be given meanwhile): it uses mqtt_support's."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent / "benchmarks" / "bench_fleet.py"
+    spec = importlib.util.spec_from_file_location("bench_fleet_under_test", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.free_port is mqtt_support.free_port

@@ -194,6 +194,7 @@ def test_cli_apply_list_show_diff_validate(tmp_path, cli):
     assert r.returncode == 0, r.stderr
     r = cli("profile", "list", "--store", str(store))
     assert "dev-1" in r.stdout and "static_faces" in r.stdout
+    assert max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout   # the file stacks under the table
     r = cli("profile", "show", "dev-1", "--store", str(store))
     assert r.returncode == 0 and "calibrated = C @ (raw - b)" in r.stdout
     out2 = tmp_path / "cal2.csv"
@@ -265,6 +266,23 @@ def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
     stored = load_profile(example).data["calibration"]["parameters"]["angle_x"]
     value, u = format_value(np.degrees(stored["value"]), np.degrees(stored["uncertainty"]))   # rounded with u
     assert angle.endswith(" deg") and f"{value} +- {u}" in angle
+
+
+def test_profile_show_fits_80_columns_and_reads_every_sentence_whole(cli):
+    """What u holds and the warnings are sentences: shown whole, wrapped under their label (they were cut at
+    80 characters with '...'); numbers in lists at 4 digits; every line within 80 columns."""
+    from pathlib import Path
+
+    for name in ("example-static_faces-vp.yaml", "example-wheel-joint.yaml"):
+        example = Path(__file__).resolve().parent.parent / "profiles" / name
+        r = cli("profile", "show", str(example))
+        assert r.returncode == 0, r.stderr
+        assert max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout
+        data = load_profile(example).data
+        shown = " ".join(r.stdout.split())
+        said = data["quality"].get("uncertainty_source") or data["quality"]["uncertainty"]   # the wheel says "uncertainty"
+        for sentence in [said, *data["warnings"]]:
+            assert " ".join(sentence.split()) in shown, sentence
 
 
 def test_apply_from_the_store_picks_the_newest_profile_that_applies_and_says_why(tmp_path, cli):

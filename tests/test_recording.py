@@ -82,6 +82,29 @@ def test_failed_write_leaves_no_partial_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_start_and_stop_take_a_utc_time_in_a_file_that_carries_one(tmp_path, suffix):
+    """README: every command's --start/--stop takes seconds or a UTC time.  A file written with its UTC time
+    origin (record, the daemon) places a UTC time; one without refuses it, saying to give seconds."""
+    origin = 1_795_577_290.25   # 2026-11-25T03:28:10.25Z
+    rec = sample_recording(400)
+    rec.meta.update(time_base="utc", time_origin=origin)
+    path = tmp_path / f"utc{suffix}"
+    save_recording(rec, path)
+    part = load_recording(path, start="2026-11-25T03:28:11Z", stop="2026-11-25T03:28:12.5Z")
+    keep = (origin + rec.t >= origin + 0.75 - 1e-9) & (origin + rec.t < origin + 2.25 - 1e-9)
+    np.testing.assert_allclose(part.acc, rec.acc[keep], rtol=1e-9)
+    np.testing.assert_allclose(load_recording(path, start="0.75", stop="2.25").acc, part.acc)
+    # an ISO time without a zone is UTC; the message of an empty range says when the file lies
+    assert len(load_recording(path, start="2026-11-25T03:28:11")) == len(rec) - 75
+    with pytest.raises(DataError, match=r"spans 3\.990 s from 2026-11-25T03:28:10\.250Z"):
+        load_recording(path, start="2026-11-25T04:00:00Z")
+    plain = sample_recording(400)
+    save_recording(plain, tmp_path / f"plain{suffix}")
+    with pytest.raises(DataError, match="carries no absolute time.*seconds from the first sample"):
+        load_recording(tmp_path / f"plain{suffix}", start="2026-11-25T03:28:11Z")
+
+
 def test_guess_units():
     still = np.tile([0.1, 0.2, 9.8], (10, 1))
     assert guess_units(still) == "m/s^2"

@@ -471,6 +471,39 @@ def test_segments_of_earlier_daemons_name_their_device_as_recordings_do(tmp_path
     check_meta(meta, "read back")   # the recording's own metadata types hold
 
 
+def test_a_read_over_raw_and_calibrated_segments_says_which_samples_are_which(tmp_path):
+    """A daemon recorded raw counts until its profile came, then calibrated channels, then (a reload) with
+    another profile: the metadata of the read describe every stretch, not the first segment's alone."""
+    cal = ("cal_x", "cal_y", "cal_z")
+    first = {"path": "/p/a.yaml", "identity": "x", "created": "2026-11-01T00:00:00Z", "procedure": "static",
+             "method": "map"}
+    second = dict(first, path="/p/b.yaml", created="2026-11-20T00:00:00Z")
+    described = {"cal_x, cal_y, cal_z": "calibrated acceleration, m/s^2"}
+    for blocks, meta, channels in (
+            (range(2), {"identity": "x", "profile": None, "recording_raw": "no profile for 'x' in the store"}, ()),
+            (range(2, 4), {"identity": "x", "profile": first, "calibrated_channels": described}, cal),
+            (range(4, 5), {"identity": "x", "profile": first, "calibrated_channels": described}, cal),
+            (range(5, 6), {"identity": "x", "profile": second, "calibrated_channels": described}, cal)):
+        with SegmentWriter(tmp_path, stem="dev", meta=meta, scale=0.001, channels=channels) as w:
+            for i in blocks:
+                n, t0 = 64, T0 + 64 * i / RATE
+                w.write(t0 + np.arange(n) / RATE, np.full((n, 3), i, dtype=np.int16),
+                        {name: np.full(n, 0.5) for name in channels} if channels else None)
+    _, _, _, channels, meta = read_arrays(tmp_path, units="counts")
+    spans = meta["spans"]
+    assert [(s["first"], s["stop"], s["calibrated"], s["profile"]) for s in spans] == [
+        (0, 128, False, None), (128, 320, True, first), (320, 384, True, second)]
+    assert spans[0]["recording_raw"] == "no profile for 'x' in the store" and spans[1]["segments"][0] != \
+        spans[1]["segments"][1]   # two segments, one stretch
+    assert "profile" not in meta   # no one profile describes the read
+    assert meta["recording_raw"].startswith("samples 0-127 of 384 (dev.000000.") and "no profile for 'x'" in \
+        meta["recording_raw"]
+    assert np.isnan(channels["cal_x"][:128]).all() and not np.isnan(channels["cal_x"][128:]).any()
+    t = T0 + np.arange(384) / RATE
+    one = read_arrays(tmp_path, start=float(t[130]), stop=float(t[300]))[4]   # one state: the segment's own
+    assert "spans" not in one and one["profile"] == first and "recording_raw" not in one
+
+
 def test_a_directory_whose_channels_or_flashed_offsets_change_reads_as_one_or_by_stretch(tmp_path):
     """A daemon that recorded raw counts until its profile came, then calibrated (and flashed): a channel
     the raw stretch lacks is NaN there; a change of flashed offsets is refused over both stretches, since

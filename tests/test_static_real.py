@@ -51,6 +51,18 @@ def test_imucal_session_default_model_holds_every_pose_on_g(imucal_result):
         assert abs(np.linalg.norm(r.correction.apply(acc).mean(axis=0)) - IMUCAL_G) < 0.005
 
 
+def test_the_notes_quote_todays_imucal_numbers(imucal_result):
+    """docs/static-tilt-notes.md quoted chi^2 figures of older code as if current: its table of today's numbers
+    must be what the code gives (b, u(b) and the lack of fit of the default six-face fit)."""
+    notes = (Path(__file__).parents[1] / "docs" / "static-tilt-notes.md").read_text()
+    row = next(line for line in notes.splitlines() if line.startswith("| imucal, g 9.81 | six-face (default"))
+    _, _, _, b, u, fit, _, _ = row.split("|")
+    r = imucal_result
+    assert [float(v) for v in b.split(",")] == pytest.approx(r.correction.bias, abs=6e-6)
+    assert [float(v) for v in u.split(",")] == pytest.approx(r.correction.bias_uncertainty, abs=6e-5)
+    assert fit.strip() == f"χ² {r.quality['chi2']:.3g} for {r.quality['dof']} dof, p {r.quality['p_value']:.3g}"
+
+
 def test_imucal_offsets_agree_with_imucal_once_both_stand_for_the_same_time(imucal_result):
     r = imucal_result
     b, u = r.correction.bias, r.correction.bias_uncertainty

@@ -198,11 +198,30 @@ def test_gaps_cost_data_only_because_the_timestamps_are_used():
 
 def test_plan_reports_the_crb_of_the_planned_run():
     rows = {r.name: r for r in plan_wheel(0.28, 45.0, 0.08, 200.0, 90.0, 9.0)}
-    assert 1e-4 < rows["gain_x"].sd < 1e-3 and 1e-3 < rows["offset_z"].sd < 1e-2
+    assert 1e-4 < rows["gain_x"].crb < 1e-3 and 1e-3 < rows["offset_z"].crb < 1e-2
     halved = {r.name: r for r in plan_wheel(0.28, 45.0, 0.04, 200.0, 90.0, 9.0)}
-    assert np.isclose(halved["gain_z"].sd, rows["gain_z"].sd / 2)  # the bound scales with the noise
+    assert np.isclose(halved["gain_z"].crb, rows["gain_z"].crb / 2)  # the bound scales with the noise
     with pytest.raises(CalibrationError, match="turns"):
         plan_wheel(0.28, 45.0, 0.08, 200.0, 10.0, 1.0)
+
+
+def test_plan_gains_carry_the_u_of_g_the_calibration_will_use(capsys):
+    """plan wheel takes the calibration's gravity settings: the gains' planned u is the CRB with u(g)/g added
+    as with_local_gravity adds it; the parameters that do not scale with g keep the CRB alone."""
+    for extra, g_u in (([], None), (["--latitude", "48.1", "--height", "520"], 1e-3), (["--g", "9.81", "--g-u", "2e-4"], 2e-4)):
+        assert main(["plan", "wheel", "--radius", "0.28", "--json", *extra]) == 0
+        plan = json.loads(capsys.readouterr().out)
+        if g_u is not None:
+            assert plan["g_u"] == g_u
+        relative = plan["g_u"] / plan["g"]
+        for name, p in plan["parameters"].items():
+            added = relative * abs(p["value"]) if name.startswith("gain_") else 0.0
+            assert np.isclose(p["uncertainty"], np.hypot(p["crb"], added), rtol=1e-12), (extra, name)
+        if not extra:   # standard gravity's u (anywhere on Earth) dominates the gains
+            assert plan["parameters"]["gain_x"]["uncertainty"] > 5 * plan["parameters"]["gain_x"]["crb"]
+    assert main(["plan", "wheel", "--radius", "0.28"]) == 0
+    text = capsys.readouterr().out
+    assert "u(g) 0.015" in text and max(len(line) for line in text.splitlines()) <= 80
 
 
 def test_cli_calibrate_wheel_json(tmp_path, capsys):

@@ -123,6 +123,15 @@ class Driver(abc.ABC):
     def at_end(self) -> bool:
         return False
 
+    @property
+    def can_flash(self) -> bool:
+        """Whether the device can store a calibration: its driver writes one (overrides ``plan_flash``) and
+        the device, once open, does not say it cannot (``info.calibration_store`` False).  Before ``open`` only
+        the driver is known (the daemon's configuration check); the one test of both, for every caller."""
+        if type(self).plan_flash is Driver.plan_flash:
+            return False
+        return self.info is None or self.info.calibration_store is not False
+
     def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
         """Work out what storing ``correction`` on the device would write.
 

@@ -7,7 +7,7 @@ the numerical machinery is imported only when the command runs, so --help stays 
 
 from __future__ import annotations
 
-from accelrig.commands import add_time_range, warn_loss
+from accelrig.commands import add_time_range, add_units, load_from_args, warn_loss
 from accelrig.commands.profile_output import add_profile_arguments, check_profile_target, write_profile
 from accelrig.procedures.static.settings import SETTINGS
 from accelrig.settings import add_arguments, values_from_args
@@ -28,9 +28,7 @@ def register(sub, groups) -> None:
     )
     p.add_argument("recording", help="recording (.csv interchange, .npz, or segments: a .parquet file or a directory)")
     add_arguments(p, SETTINGS)
-    p.add_argument("--units", choices=("m/s2", "g", "counts"),
-                   help="units of ax, ay, az (default: what the file declares, else m/s2)")
-    p.add_argument("--range-g", type=float, help="sensor range +-g, for counts without a scale in the file")
+    add_units(p)
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
     add_time_range(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
@@ -40,19 +38,11 @@ def register(sub, groups) -> None:
 
 def run(args) -> int:
     from accelrig.procedures.static.procedure import calibrate_static
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
-    from accelrig.units import scale_for_range
 
     values = values_from_args(SETTINGS, args)
     check_profile_target(args)   # an -o that would be refused is refused before the fit
-    rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
-    if args.range_g is not None:
-        from accelrig.settings import Setting
-
-        Setting("range_g", "sensor range", unit="g", low=0.0, low_open=True, high=64.0).parse(args.range_g)
-        rec.meta["range_g"] = args.range_g
-        rec.meta["scale"] = scale_for_range(args.range_g)
+    rec = load_from_args(args, args.recording)
     from accelrig.commands.progress import Progress
 
     with Progress(f"calibrating from {args.recording}"):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from accelrig.commands import add_time_range, warn_loss
+from accelrig.commands import add_time_range, add_units, load_from_args, warn_loss
 from accelrig.commands.profile_output import add_profile_arguments, check_profile_target, write_profile
 from accelrig.errors import DataError
 from accelrig.procedures.wheel.settings import PLAN_SETTINGS, SETTINGS
@@ -18,7 +18,7 @@ def register(sub, groups) -> None:
     )
     p.add_argument("recording", help="recording (.csv interchange, .npz, or segments) of the coasting wheel")
     add_arguments(p, SETTINGS)
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az if the file does not say")
+    add_units(p)
     p.add_argument("--rate", type=float, help="sample rate, Hz, for a file without a t column")
     add_time_range(p, start_note="the wheel's free coast from T (without it the fit finds where the last push "
                    "ended and leaves the rest and the push before it out, with a warning; a rest before T still checks the coast)",
@@ -30,10 +30,12 @@ def register(sub, groups) -> None:
 
     q = groups["plan"].add_parser(
         "wheel",
-        help="predicted uncertainties (CRB) of a wheel calibration before spinning",
+        help="predicted uncertainties (CRB, and u(g) on the gains) of a wheel calibration before spinning",
         description="Print the standard uncertainty (k=1) each parameter would reach on a planned wheel "
-        "run (Cramer-Rao bound), for a perfect sensor mounted at --mount-deg and the paper's coast-down "
-        "profile scaled to --speed over --seconds.",
+        "run: the Cramer-Rao bound for a perfect sensor mounted at --mount-deg and the paper's coast-down "
+        "profile scaled to --speed over --seconds, and for the gains the local gravity's u(g) as the "
+        "calibration adds it (--g, --latitude/--height, --g-u, as calibrate wheel takes them; default "
+        "standard gravity, whose u stands for anywhere on Earth).",
     )
     add_arguments(q, PLAN_SETTINGS)
     q.add_argument("--json", action="store_true", help="print the plan as JSON")
@@ -42,17 +44,16 @@ def register(sub, groups) -> None:
 
 def run_calibrate(args) -> int:
     from accelrig.procedures.wheel.procedure import GRAVITY_SCALED, calibrate_wheel
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
 
     v = values_from_args(SETTINGS, args)
     check_profile_target(args)   # an -o that would be refused is refused before the fit
-    rec = load_recording(args.recording, units=args.units, rate=args.rate, start=args.start, stop=args.stop)
+    rec = load_from_args(args, args.recording)
     # the part before --start is not fitted, but a rest at its beginning still checks the coast (rest.py)
     before = None
     if args.start is not None:
         try:
-            before = load_recording(args.recording, units=args.units, rate=args.rate, stop=args.start)
+            before = load_from_args(args, args.recording, start=None, stop=args.start)
         except DataError:     # nothing before --start
             before = None
     from accelrig.commands.progress import Progress
@@ -110,15 +111,24 @@ def run_plan(args) -> int:
     v = values_from_args(PLAN_SETTINGS, args)
     if len(v["mount_deg"]) != 3:
         raise DataError(f"--mount-deg {args.mount_deg!r} needs three comma-separated angles in degrees")
-    rows = plan_wheel(v["radius"], v["tilt_deg"], v["noise"], v["rate"], v["seconds"], v["speed"], v["mount_deg"])
+    from accelrig.units import local_gravity
+
+    gravity = local_gravity(v["g"], v["latitude"], v["height"], v["g_u"])
+    rows = plan_wheel(v["radius"], v["tilt_deg"], v["noise"], v["rate"], v["seconds"], v["speed"], v["mount_deg"],
+                      gravity)
     if args.json:
-        print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1",
-                          "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "unit": r.unit}
-                                         for r in rows}}))
+        print(to_json({"procedure": "wheel", "bound": "Cramer-Rao, k=1; gains with u(g) added", **gravity.to_dict(),
+                       "parameters": {r.name: {"value": r.value, "uncertainty": r.sd, "crb": r.crb, "unit": r.unit}
+                                      for r in rows}}))
         return 0
-    print(f"wheel plan: r = {v['radius']} m, tilt {v['tilt_deg']} deg, noise {v['noise']} m/s^2, "
-          f"{v['rate']:g} Hz x {v['seconds']:g} s, start {v['speed']} rad/s; best reachable uncertainty (CRB, k=1)")
-    print(f"{'parameter':<22}{'nominal':>14}{'uncertainty':>14}  unit")
+    import textwrap
+
+    print(f"wheel plan: r = {v['radius']} m, tilt {v['tilt_deg']} deg, noise {v['noise']} m/s^2,\n"
+          f"  {v['rate']:g} Hz x {v['seconds']:g} s, start {v['speed']} rad/s")
+    print(textwrap.fill(f"best reachable uncertainty (k=1): the CRB, and for the gains u(g) {gravity.u:.2g} m/s^2 "
+                        f"({gravity.u / gravity.value:.1e} of g) as the calibration adds it; g {gravity.value:.5f} "
+                        f"m/s^2: {gravity.source}", 79, subsequent_indent="  "))
+    print(f"{'parameter':<22}{'nominal':>14}{'uncertainty':>13}{'CRB':>11}  unit")
     for r in rows:
-        print(f"{r.name:<22}{r.value:>14.6g}{r.sd:>14.2g}  {r.unit}")
+        print(f"{r.name:<22}{r.value:>14.6g}{r.sd:>13.2g}{r.crb:>11.2g}  {r.unit}")
     return 0

@@ -14,9 +14,9 @@ def add_broker_arguments(p, required: bool = True, broker_help: str = "") -> Non
     p.add_argument("--prefix", default="accelrig", help="first part of the topics (default accelrig)")
     p.add_argument("--username", help="user name at the broker")
     secret = p.add_mutually_exclusive_group()
-    secret.add_argument("--password-file", help="file whose first line is the password")
+    secret.add_argument("--password-file", metavar="FILE", help="file whose first line is the password")
     secret.add_argument("--password-env", metavar="VARIABLE", help="environment variable holding the password")
-    p.add_argument("--ca-file", help="with mqtts://: the CA certificate(s) of the broker (PEM)")
+    p.add_argument("--ca-file", metavar="FILE", help="with mqtts://: the CA certificate(s) of the broker (PEM)")
 
 
 def broker_options(args) -> dict:

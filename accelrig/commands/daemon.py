@@ -18,7 +18,7 @@ def register(sub, groups) -> None:
         epilog="Minimal configuration: 'output: DIR' and 'devices: [{url: sim://still?seed=1, name: bench-a}]'. "
         "The JSON Schema is profiles/daemon-config-v1.json.",
     )
-    p.add_argument("--config", help="the daemon's YAML configuration (run the daemon)")
+    p.add_argument("--config", metavar="FILE", help="the daemon's YAML configuration (run the daemon)")
     p.set_defaults(func=run)
     kinds = p.add_subparsers(dest="daemon_command", metavar="ACTION")
     check = kinds.add_parser("check", help="validate a configuration without starting anything",
@@ -33,8 +33,9 @@ def register(sub, groups) -> None:
                               "every configured device (state starting until it connects), and under the "
                               "table what is wrong with each (e.g. why it is recording raw).")
     where = status.add_mutually_exclusive_group(required=True)
-    where.add_argument("--config", dest="status_config", help="the running daemon's configuration (finds its socket)")
-    where.add_argument("--socket", help="the daemon's status socket")
+    where.add_argument("--config", dest="status_config", metavar="FILE",
+                       help="the running daemon's configuration (finds its socket)")
+    where.add_argument("--socket", metavar="PATH", help="the daemon's status socket")
     status.add_argument("--json", action="store_true", help="print the daemon's JSON answer")
     status.set_defaults(func=run_status)
     schema = kinds.add_parser("schema", help="print the configuration's JSON Schema",

@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from accelrig.commands import add_time_range
+from accelrig.commands import add_time_range, add_units, load_from_args
 from accelrig.geometry import AXES
 from accelrig.result import format_value
 from accelrig.units import STANDARD_GRAVITY
@@ -31,7 +31,7 @@ def register(sub, groups) -> None:
     p.add_argument("--profile", metavar="P.yaml", help="store the figures in this profile (rewritten atomically)")
     p.add_argument("--force", action="store_true",
                    help="store into a profile of another device or range, or one that holds noise figures")
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    add_units(p)
     add_time_range(p)
     p.set_defaults(func=run)
 
@@ -40,10 +40,9 @@ def run(args) -> int:
     from accelrig.estimation.allan import noise_figures
     from accelrig.profiles.apply import check_compatible
     from accelrig.profiles.io import load_profile, save_profile, utc_now
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
 
-    rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
+    rec = load_from_args(args, args.recording)
     profile = None
     if args.profile:
         profile = load_profile(args.profile)   # refuse a bad profile before computing anything

@@ -16,12 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from accelrig.commands import add_time_range
+from accelrig.commands import add_time_range, add_units, load_from_args
+from accelrig.commands.profile_output import STORE_DEFAULT
 from accelrig.errors import AccelrigError, ProfileError, printable
 from accelrig.profiles.apply import apply_profile
 from accelrig.profiles.io import Profile, load_profile
 from accelrig.profiles.store import DEFAULT_MAX_AGE_DAYS, ProfileStore
-from accelrig.recording import Recording, load_recording, save_recording
+from accelrig.recording import Recording, save_recording
 from accelrig.result import Estimate, format_value, to_json
 from accelrig.units import STANDARD_GRAVITY
 
@@ -67,7 +68,7 @@ def register(sub, groups) -> None:
                    help="apply even to data from another device, range or unit, and replace an existing -o file")
     p.add_argument("--uncertainty", action="store_true",
                    help="add channels u_ax, u_ay, u_az: standard uncertainty of each calibrated sample")
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of the recording if it does not say")
+    add_units(p)
     add_time_range(p)
     _store_args(p)
     p.set_defaults(func=run_apply)
@@ -80,8 +81,7 @@ def register(sub, groups) -> None:
 
 
 def _store_args(p, choose: bool = True) -> None:
-    p.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
-                   "$XDG_DATA_HOME/accelrig/profiles)")
+    p.add_argument("--store", metavar="DIR", help=f"profile store (default: {STORE_DEFAULT})")
     if choose:
         p.add_argument("--date", help="choose the stored profile closest to this date (ISO, e.g. 2026-11-01)")
         p.add_argument("--max-age-days", type=float, default=DEFAULT_MAX_AGE_DAYS,
@@ -123,20 +123,19 @@ def run_list(args) -> int:
     if not entries:
         say(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
         return 0
-    rows = [("device", "created", "procedure", "method", "residual rms", "file")]
+    from accelrig.tables import fitted_lines
+
+    titles = ("device", "created", "procedure", "method", "residual rms", "file")
+    rows = []
     for e in entries:
         rms = e.profile.data["quality"]["residual_rms"]
-        rows.append((e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
-                     "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root))))
-    _print_table(rows)
+        rows.append([printable(c) for c in (   # escaped first, so the columns line up
+            e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
+            "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root)))])
+    # 80 columns: the file (under the store) stacks under the table when it does not fit beside the rest
+    for line in fitted_lines(titles, rows, (0, 1, 2, 3, 4, 5)):
+        say(line)
     return 0
-
-
-def _print_table(rows) -> None:
-    rows = [[printable(c) for c in r] for r in rows]   # escaped first, so the columns line up
-    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
-    for r in rows:
-        say("  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
 
 
 def _fmt(value, unc=None, digits: int = 6) -> str:
@@ -161,49 +160,61 @@ def run_show(args) -> int:
         return 0
     d = profile.data
     dev, cal, prov = d["device"], d["calibration"], d["provenance"]
-    say(f"profile      {profile.path}")
-    say(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
+    _say_wrapped(f"profile      {profile.path}")
+    _say_wrapped(f"device       {dev['identity'] or '(unknown)'}  chip {dev['chip'] or '?'}  driver {dev['driver'] or '?'}"
           + (f"  WHO_AM_I 0x{dev['who_am_i']:02X}" if dev["who_am_i"] is not None else ""))
     rng = f"+-{dev['range_g']:g} g" if dev["range_g"] is not None else "range ?"
     rate = f"{dev['rate']:g} Hz" if dev["rate"] is not None else "rate ?"
-    say(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
-    say(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
-    say(f"created      {prov['created']} by accelrig {prov['software_version']}"
+    _say_wrapped(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
+    _say_wrapped(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
+    _say_wrapped(f"created      {prov['created']} by accelrig {prov['software_version']}"
           + (f" from {prov['recording_samples']} samples" if prov["recording_samples"] else ""))
     corr = cal["correction"]
-    say("correction   calibrated = C @ (raw - b), uncertainties k = 1")
+    _say_wrapped("correction   calibrated = C @ (raw - b), uncertainties k = 1")
     for i in range(3):
-        say(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
-    say(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
+        _say_wrapped(f"  C[{i}]       {_fmt(corr['matrix'][i], corr['matrix_uncertainty'][i])}")
+    _say_wrapped(f"  b (m/s^2)  {_fmt(corr['bias'], corr['bias_uncertainty'])}")
     if cal["parameters"]:
-        say("parameters")
+        _say_wrapped("parameters")
         width = max(len(n) for n in cal["parameters"])
         for name, est in cal["parameters"].items():
             # angles in degrees, as the calibrate command, the TUI and the certificate show them
             value, u, unit = Estimate(est["value"], est["uncertainty"], est["unit"]).for_display()
-            say(f"  {name.ljust(width)}  {_fmt(value, u)} {unit}")
+            _say_wrapped(f"  {name.ljust(width)}  {_fmt(value, u)} {unit}")
     q = d["quality"]
     for key, value in q.items():
         if value is None:
             continue
         # a count is an integer (YAML may hold it as 11000.0: it read "1.1e+04")
         count = key.startswith("n_") or key == "dof"
+        numbers = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
         shown = (f"{value:.0f}" if count and isinstance(value, float) and value.is_integer()
-                 else f"{value:.4g}" if isinstance(value, float) else _short(value))
+                 else f"{value:.4g}" if isinstance(value, float)
+                 else "[" + ", ".join(f"{v:.4g}" for v in value) + "]" if numbers
+                 else value if isinstance(value, str)
+                 else _short(value, 80 - len(f"quality      {key} ")))
         unit = " m/s^2" if key == "residual_rms" else ""
-        say(f"quality      {key} {shown}{unit}")
+        _say_wrapped(f"quality      {key} {shown}{unit}")
     if d["noise"] is not None:
         n = d["noise"]
-        say(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
+        _say_wrapped(f"noise        {n['duration']:.0f} s still at {n['rate']:.1f} Hz, {n['date']}")
         for axis, f in n["axes"].items():
             dens = f["density"]
             ug = 1e6 / STANDARD_GRAVITY
             bi = f["bias_instability"]
-            say(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
+            _say_wrapped(f"  {axis}: {_fmt(dens['value'] * ug, dens['uncertainty'] * ug)} ug/sqrt(Hz)"
                   + (f", bias instability {bi['value'] * ug:.1f} ug at {f['bias_instability_tau']:.3g} s" if bi else ""))
     for w in d["warnings"]:
-        say(f"warning      {w}")
+        _say_wrapped(f"warning      {w}")
     return 0
+
+
+def _say_wrapped(text: str) -> None:
+    """A labelled line of ``profile show`` wrapped at 80 columns under its value (a sentence is read whole)."""
+    import textwrap
+
+    for line in textwrap.wrap(text, 80, subsequent_indent=" " * 13, break_long_words=False, break_on_hyphens=False):
+        say(line)
 
 
 def run_validate(args) -> int:
@@ -277,9 +288,10 @@ def diff_profiles(a: Profile, b: Profile) -> list[str]:
     return lines
 
 
-def _short(value) -> str:
+def _short(value, width: int = 80) -> str:
+    """A structure as JSON on one line of at most ``width`` characters (``--json`` shows it whole)."""
     text = json.dumps(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def run_diff(args) -> int:
@@ -297,7 +309,7 @@ def run_apply(args) -> int:
     from accelrig.files import writable_target
 
     writable_target(args.output, args.force, inputs=[args.recording])
-    rec = load_recording(args.recording, units=args.units, start=args.start, stop=args.stop)
+    rec = load_from_args(args, args.recording)
     if args.profile == "auto":
         identity = rec.meta.get("identity")
         if not identity:

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import sys
 
+# where the profile store is when --store is not given (accelrig.profiles.store.default_store_dir)
+STORE_DEFAULT = "$ACCELRIG_HOME/profiles, else $XDG_DATA_HOME/accelrig/profiles, else ~/.local/share/accelrig/profiles"
+
 
 def add_profile_arguments(parser, what: str = "the device profile (YAML)") -> None:
     parser.add_argument("-o", "--output", metavar="FILE", help=f"write {what} to FILE instead of the profile store")
-    parser.add_argument("--store", metavar="DIR", help="profile store (default: $ACCELRIG_HOME/profiles or "
-                        "~/.local/share/accelrig/profiles)")
+    parser.add_argument("--store", metavar="DIR", help=f"profile store (default: {STORE_DEFAULT})")
     parser.add_argument("--no-store", action="store_true", help="write no profile")
     parser.add_argument("--force", action="store_true", help="replace the -o file if it exists")
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from accelrig.commands import warn_loss
+from dataclasses import replace
+
+from accelrig.commands import add_units, load_from_args, warn_loss
 from accelrig.errors import DataError, ProfileError
 from accelrig.procedures.slider_crank.settings import CRANK_RADIUS, FILE_SETTINGS, ROD_LENGTH
 from accelrig.settings import add_arguments, values_from_args
@@ -19,12 +21,15 @@ def register(sub, groups) -> None:
         epilog="Exit status: 0 when the calibration holds under motion, 1 when it does not hold or the verdict is "
         "inconclusive, 2-6 when the input or the analysis fails (one line on stderr).",
     )
-    p.add_argument("recordings", nargs="+", metavar="STEP.csv", help="recordings (.csv or .npz), in step order")
+    p.add_argument("recordings", nargs="+", metavar="STEP.csv",
+                   help="recordings (.csv, .npz, or segments: a .parquet file or a directory), in step order")
     add_arguments(p, [s for s in FILE_SETTINGS if s is not ROD_LENGTH])
     geometry = p.add_mutually_exclusive_group(required=True)
-    add_arguments(geometry, [ROD_LENGTH])
-    geometry.add_argument("--lambda", dest="lam", type=float, metavar="L", help="crank radius / rod length instead")
-    p.add_argument("--units", choices=("m/s2", "g", "counts"), help="units of ax, ay, az when the file does not say")
+    # one of the two is required (the group says so); the setting's own "required" would read as both
+    add_arguments(geometry, [replace(ROD_LENGTH, default=None)])
+    geometry.add_argument("--lambda", dest="lam", type=float, metavar="L",
+                          help="crank radius / rod length, instead of --rod-length")
+    add_units(p)
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate for files without a t column")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
@@ -32,7 +37,6 @@ def register(sub, groups) -> None:
 
 def run(args) -> int:
     from accelrig.procedures.slider_crank.procedure import verify_slider_crank
-    from accelrig.recording import load_recording
     from accelrig.result import to_json
 
     if args.rod_length is None:
@@ -40,7 +44,7 @@ def run(args) -> int:
             raise DataError(f"--lambda {args.lam} must lie between 0 and 1")
         args.rod_length = CRANK_RADIUS.parse(args.crank_radius) / args.lam
     values = values_from_args(FILE_SETTINGS, args)
-    recordings = [(path, load_recording(path, units=args.units, rate=args.rate)) for path in args.recordings]
+    recordings = [(path, load_from_args(args, path)) for path in args.recordings]
     correction = None
     profile_warnings: list[str] = []
     if values["profile"]:

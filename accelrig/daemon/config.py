@@ -361,7 +361,7 @@ def check_urls(config: DaemonConfig) -> None:
     """Every device's URL: a scheme some driver handles and only options that driver knows (a typo would
     otherwise be retried for ever as a device that does not answer), and ``flash`` only where the device
     can hold offsets (else every connect would fail and nothing be recorded).  ConfigError naming the device."""
-    from accelrig.acquisition.driver import Driver, driver_for
+    from accelrig.acquisition.driver import driver_for
 
     for device in config.devices:
         try:
@@ -369,7 +369,7 @@ def check_urls(config: DaemonConfig) -> None:
             driver.check_url()
         except AccelrigError as exc:
             raise ConfigError(f"{device.field('url')}: {exc} (device {device.name!r})") from None
-        if device.flash and type(driver).plan_flash is Driver.plan_flash:
+        if device.flash and not driver.can_flash:
             raise ConfigError(f"{device.field('flash')}: a {driver.scheme}:// device cannot hold offsets "
                               f"(device {device.name!r})",
                               "set flash to no: with output calibrated the host applies the whole profile")

@@ -111,6 +111,10 @@ class UtcDriver(Driver):
         if hasattr(self, "inner"):
             self.inner.info = value
 
+    @property
+    def can_flash(self) -> bool:
+        return self.inner.can_flash
+
     def plan_flash(self, correction, profile_id):
         return self.inner.plan_flash(correction, profile_id)
 

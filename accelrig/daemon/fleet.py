@@ -9,11 +9,13 @@ at once, so one short look at the broker is the whole table.
 from __future__ import annotations
 
 import json
+import textwrap
 import threading
 import time
 from datetime import UTC, datetime
 
 from accelrig.daemon import wire
+from accelrig.tables import TERMINAL_WIDTH, fitted_lines
 
 
 class FleetWatcher:
@@ -163,6 +165,20 @@ def columns(recalibrate_days: float | None = None) -> list[str]:
     return head
 
 
+# what a narrow table keeps first, most important first (titles of columns(); the recalibration column, when
+# asked for, after gaps): whether each device records and when it was last heard of
+PRIORITY = ("site/device", "state", "last seen", "rate Hz", "gaps", "RECAL", "profile age", "profile", "spooled",
+            "host")
+
+
+def priority(recalibrate_days: float | None = None) -> list[int]:
+    """Indices of columns(), most important first (``accelrig fleet`` and the TUI's fleet screen)."""
+    titles = columns(recalibrate_days)
+    recal = titles[-1] if recalibrate_days is not None else None
+    return [titles.index(recal if title == "RECAL" else title) for title in PRIORITY
+            if title != "RECAL" or recal is not None]
+
+
 def cells(r: dict, recalibrate_days: float | None = None) -> list[str]:
     """One row of ``rows()`` as the table's texts, in the order of ``columns()``."""
     line = [f"{r['site']}/{r['device']}", r["host"] or "-", r["state"] or "-",
@@ -178,13 +194,16 @@ def cells(r: dict, recalibrate_days: float | None = None) -> list[str]:
 NO_DEVICES = "no devices have published under this prefix and site"
 
 
-def format_table(table: list[dict], recalibrate_days: float | None = None) -> str:
+def format_table(table: list[dict], recalibrate_days: float | None = None, width: int = TERMINAL_WIDTH) -> str:
+    """What ``accelrig fleet`` prints, in lines of at most ``width`` characters: every column (those that do
+    not fit stacked under the first table, each part led by the device), then what is wrong."""
     if not table:
         return NO_DEVICES
-    lines = [columns(recalibrate_days), *(cells(r, recalibrate_days) for r in table)]
-    widths = [max(len(str(line[i])) for line in lines) for i in range(len(lines[0]))]
-    return "\n".join(["  ".join(str(v).ljust(w) for v, w in zip(line, widths, strict=True)).rstrip()
-                      for line in lines] + notes(table))
+    lines = fitted_lines(columns(recalibrate_days), [cells(r, recalibrate_days) for r in table],
+                         priority(recalibrate_days), width)
+    for note in notes(table):
+        lines += textwrap.wrap(note, width, subsequent_indent="  ", break_long_words=False, break_on_hyphens=False)
+    return "\n".join(lines)
 
 
 def notes(table: list[dict]) -> list[str]:

@@ -11,11 +11,13 @@ import json
 import os
 import socket
 import stat
+import textwrap
 import threading
 from collections.abc import Callable
 from pathlib import Path
 
 from accelrig.errors import AccelrigError
+from accelrig.tables import TERMINAL_WIDTH, fitted_lines
 
 
 class StatusError(AccelrigError):
@@ -135,6 +137,10 @@ COLUMNS = (
     ("dropped", "dropped"), ("missing", "missing"), ("gaps", "gaps"), ("connects", "connects"),
     ("size", "written MB"), ("profile", "profile"),
 )
+# what a narrow table keeps first, most important first: whether each device records, its losses, the profile;
+# delivered is written + dropped (the CLI stacks the rest under the table, the TUI names what it left out)
+PRIORITY = ("name", "state", "rate", "gaps", "missing", "dropped", "profile", "size", "written", "connects",
+            "delivered")
 
 
 def device_row(d: dict) -> dict[str, str]:
@@ -154,15 +160,33 @@ def device_row(d: dict) -> dict[str, str]:
     }
 
 
-def format_table(status: dict) -> str:
+def format_table(status: dict, width: int = TERMINAL_WIDTH) -> str:
+    """What ``accelrig daemon status`` prints, in lines of at most ``width`` characters: every column (those
+    that do not fit stacked under the first table, each part led by the device), then what is wrong."""
     daemon = status["daemon"]
-    rows = [dict((key, title) for key, title in COLUMNS)] + [device_row(d) for d in status["devices"]]
-    widths = {key: max(len(r[key]) for r in rows) for key, _ in COLUMNS}
-    lines = [f"accelrig daemon pid {daemon['pid']}, up {daemon['uptime']:.0f} s, config {daemon['config']}, "
-             f"output {daemon['output']}"]
-    lines += ["  ".join(r[key].ljust(widths[key]) for key, _ in COLUMNS).rstrip() for r in rows]
-    lines += [f"{d['name']}: {d['error']}" for d in status["devices"] if d.get("error")]
-    lines += [f"{d['name']}: mqtt: {mqtt_summary(d['mqtt'])}" for d in status["devices"] if d.get("mqtt")]
+    keys = [key for key, _ in COLUMNS]
+    rows, paths = [], []
+    for d in status["devices"]:
+        row = device_row(d)
+        if "/" in row["profile"]:   # a profile file: its name in the table, its path under it
+            paths.append(f"{d['name']}: profile {row['profile']}")
+            row["profile"] = Path(row["profile"]).name
+        rows.append([row[key] for key in keys])
+
+    def wrapped(text: str) -> list[str]:   # a long path or message breaks at spaces, never mid-word
+        return textwrap.wrap(text, width, subsequent_indent="  ", break_long_words=False, break_on_hyphens=False)
+
+    lines = wrapped(f"accelrig daemon pid {daemon['pid']}, up {daemon['uptime']:.0f} s, config {daemon['config']}, "
+                    f"output {daemon['output']}")
+    lines += fitted_lines([title for _, title in COLUMNS], rows, [keys.index(key) for key in PRIORITY], width)
+    for path in paths:
+        lines += wrapped(path)
+    for d in status["devices"]:
+        if d.get("error"):
+            lines += wrapped(f"{d['name']}: {d['error']}")
+    for d in status["devices"]:
+        if d.get("mqtt"):
+            lines += wrapped(f"{d['name']}: mqtt: {mqtt_summary(d['mqtt'])}")
     return "\n".join(lines)
 
 

@@ -17,15 +17,17 @@ from accelrig.procedures.wheel.model import (
     phase,
     rotation_from_euler,
 )
-from accelrig.units import STANDARD_GRAVITY
+from accelrig.procedures.wheel.procedure import GRAVITY_SCALED
+from accelrig.units import LocalGravity, local_gravity
 
 
 @dataclass
 class PlanRow:
     name: str
     value: float
-    sd: float
+    sd: float      # what the calibration would state: the CRB with u(g) where the parameter scales with g
     unit: str
+    crb: float     # the Cramer-Rao bound alone (the noise's share)
 
 
 def plan_state(radius: float, tilt_deg: float, speed: float, seconds: float,
@@ -40,8 +42,11 @@ def plan_state(radius: float, tilt_deg: float, speed: float, seconds: float,
 
 
 def plan_wheel(radius: float, tilt_deg: float, noise: float, rate: float, seconds: float, speed: float,
-               mount_deg=(30.0, 20.0, 25.0), g: float = STANDARD_GRAVITY) -> list[PlanRow]:
-    """The uncertainty each parameter would reach (CRB, k = 1) on a planned run, radius given."""
+               mount_deg=(30.0, 20.0, 25.0), gravity: LocalGravity | None = None) -> list[PlanRow]:
+    """The uncertainty each parameter would reach (k = 1) on a planned run, radius given: the CRB, and for
+    the gains the local gravity's u(g) as the calibration adds it (``gravity``: the same settings as the
+    calibration's, default standard gravity with its u for anywhere on Earth)."""
+    gravity = local_gravity() if gravity is None else gravity
     for label, value in (("radius", radius), ("noise", noise), ("rate", rate), ("seconds", seconds), ("speed", speed)):
         if not value > 0:
             raise DataError(f"--{label} {value} must be positive")
@@ -56,7 +61,7 @@ def plan_wheel(radius: float, tilt_deg: float, noise: float, rate: float, second
         )
     t = np.arange(int(round(seconds * rate))) / rate
     free = FreeSet(radius_free=False, tilt_free=True)
-    cov = wheel_crb(t, state, free, noise, g)
+    cov = wheel_crb(t, state, free, noise, gravity.value)
     sd = np.sqrt(np.diag(cov))
     values = reported_values(state, free)
     rows = []
@@ -65,6 +70,10 @@ def plan_wheel(radius: float, tilt_deg: float, noise: float, rate: float, second
              "tilt": "deg", "gain_x": "1", "gain_y": "1", "gain_z": "1"}
     for name, value, s in zip(reported_names(free), values, sd, strict=True):
         factor = np.rad2deg(1.0) if name in deg else 1.0
-        rows.append(PlanRow(name + ("_deg" if name in deg else ""), value * factor, s * factor,
-                            units.get(name, "deg" if name in deg else "m/s^2")))
+        # u(g) as the calibration adds it (CalibrationResult.with_local_gravity, the same GRAVITY_SCALED rule);
+        # the radius, given in a plan, is not estimated
+        power = GRAVITY_SCALED.get(name.rsplit("_", 1)[0] if name.startswith("gain_") else name, 0)
+        u = float(np.hypot(s, abs(value * power) * gravity.u / gravity.value))
+        rows.append(PlanRow(name + ("_deg" if name in deg else ""), value * factor, u * factor,
+                            units.get(name, "deg" if name in deg else "m/s^2"), s * factor))
     return rows

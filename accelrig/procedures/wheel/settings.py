@@ -44,4 +44,5 @@ PLAN_SETTINGS = (
     Setting("speed", "initial angular velocity", unit="rad/s", default=9.0, low=0.0, low_open=True),
     Setting("mount_deg", "mounting Euler angles theta,phi,psi (tilted, as the paper advises)", unit="deg",
             kind="floats", default=(30.0, 20.0, 25.0)),
+    *GRAVITY_SETTINGS,   # the calibration's u(g) is in the gains' planned u
 )

@@ -11,15 +11,10 @@ from textual.binding import Binding
 from textual.screen import Screen
 from textual.widgets import Header, Static
 
-from accelrig.daemon.status import COLUMNS, device_row, query
+from accelrig.daemon.status import COLUMNS, PRIORITY, device_row, query
 from accelrig.errors import AccelrigError
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.table import FittedTable
-
-# what a narrow terminal keeps, most important first: whether each device records, its losses, the profile;
-# delivered is written + dropped, and the counts of samples and connects are in `accelrig daemon status`
-PRIORITY = ("name", "state", "rate", "gaps", "missing", "dropped", "profile", "size", "written", "connects",
-            "delivered")
 
 
 class DaemonScreen(Screen):

@@ -21,11 +21,6 @@ from accelrig.errors import AccelrigError
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.table import FittedTable
 
-# what a narrow terminal keeps, most important first (titles of daemon.fleet.columns; the recalibration
-# column, when asked for, after gaps): whether each device records and when it was last heard of
-PRIORITY = ("site/device", "state", "last seen", "rate Hz", "gaps", "RECAL", "profile age", "profile", "spooled",
-            "host")
-
 
 @dataclass
 class FleetOptions:
@@ -67,12 +62,9 @@ class FleetScreen(Screen):
                 "blocks a daemon keeps on disk until the broker takes them.  This screen only reads.")
 
     def priority(self) -> list[int]:
-        from accelrig.daemon.fleet import columns
+        from accelrig.daemon.fleet import priority
 
-        titles = columns(self.options.recalibrate_days)
-        recal = titles[-1] if self.options.recalibrate_days is not None else None
-        return [titles.index(recal if title == "RECAL" else title) for title in PRIORITY
-                if title != "RECAL" or recal is not None]
+        return priority(self.options.recalibrate_days)
 
     def on_mount(self) -> None:
         self.sub_title = "fleet (read-only)"

@@ -18,7 +18,6 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Header, Static
 
-from accelrig.acquisition.driver import Driver
 from accelrig.acquisition.flash import FlashPlan
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
@@ -211,12 +210,10 @@ def cell_text(value) -> str:
 
 
 def can_flash(session: Session | None) -> bool:
-    """The device can store a calibration: its driver writes one, and the device does not say it cannot."""
+    """A device is connected and can store a calibration (Driver.can_flash)."""
     if session is None or session.info is None or session.driver is None:
         return False
-    if type(session.driver).plan_flash is Driver.plan_flash:
-        return False
-    return session.info.calibration_store is not False
+    return session.driver.can_flash
 
 
 def correction_rows(result: CalibrationResult) -> list[tuple[str, ...]]:

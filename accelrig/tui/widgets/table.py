@@ -12,25 +12,7 @@ from collections.abc import Sequence
 
 from textual.widgets import DataTable
 
-CELL_PADDING = 1   # DataTable's default: one space either side of every cell
-
-
-def columns_that_fit(titles: Sequence[str], rows: Sequence[Sequence[str]], width: int,
-                     priority: Sequence[int], keep: int = 2) -> list[int]:
-    """Indices of the columns to show, in the table's order: all when they fit in ``width`` cells, else
-    the most important (``priority``: indices, most important first) that fit whole; the first ``keep``
-    of ``priority`` are always shown (the table scrolls sideways when even they are too wide)."""
-    def cells(i: int) -> int:
-        return max([len(str(titles[i]))] + [len(str(row[i])) for row in rows]) + 2 * CELL_PADDING
-
-    if sum(cells(i) for i in range(len(titles))) <= width:
-        return list(range(len(titles)))
-    chosen, used = set(), 0
-    for rank, i in enumerate(priority):
-        if rank < keep or used + cells(i) <= width:
-            chosen.add(i)
-            used += cells(i)
-    return sorted(chosen)
+from accelrig.tables import columns_that_fit  # the one rule, shared with the CLI's tables
 
 
 class FittedTable(DataTable):
