@@ -46,6 +46,7 @@ class Source:
     provenance: dict = field(default_factory=dict)
     noise: dict | None = None
     path: str | None = None
+    recording_path: str | None = None   # the calibrated recording, when given (report --recording)
 
     @property
     def procedure(self) -> str:
@@ -80,7 +81,8 @@ def from_result(result: CalibrationResult, recording: Recording | None = None, d
     dev.update({k: v for k, v in (device or {}).items() if v is not None})
     provenance = {"software_version": __version__}
     if recording is not None:
-        provenance.update({"recording_hash": recording.content_hash(), "recording_source": meta.get("source"),
+        provenance.update({"recording_hash": recording.content_hash(),
+                           "recording_source": meta.get("file") or meta.get("source"),
                            "recording_samples": len(recording), "recording_start": meta.get("start_time"),
                            "temperature_c": meta.get("temperature_c")})
     return Source(kind, plain, dev, to_plain(provenance), noise)
