@@ -65,7 +65,7 @@ def run(args) -> int:
         print(to_json(result.to_calibration_result().to_json_dict()))
         return 0
     fs = result.sample_rate
-    print(f"sample rate  {fs.value:.4f} +- {fs.uncertainty:.2g} Hz  (nominal {result.nominal_rate:g} Hz, "
+    print(f"sample rate  {' +- '.join(format_value(fs.value, fs.uncertainty))} Hz  (nominal {result.nominal_rate:g} Hz, "
           f"by {result.rate_method})")
     print(f"excitation   {result.frequency.value:.5f} Hz, theta0 {np.degrees(result.theta0.value):.3f} deg "
           f"({2 * np.degrees(result.theta0.value):.2f} deg peak to peak)")

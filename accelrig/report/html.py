@@ -28,7 +28,7 @@ CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("locati
                     ("certificate_number", "Certificate number"))
 # facts of the run, not of the item: wall-clock time and solver iterations change from run to run
 NO_BREAK_K = "(k\u00a0=\u00a0"   # "U (k = 2)" in a narrow column stays on one line
-RUN_FACTS = ("fit_seconds", "time_s", "n_evaluations", "iterations")
+RUN_FACTS = ("fit_seconds", "time_s", "n_evaluations", "iterations", "rate_fit_iterations")
 
 CSS = """
 body{font-family:'DejaVu Sans',Helvetica,Arial,sans-serif;font-size:10pt;color:#111;max-width:190mm;margin:8mm auto}
@@ -127,7 +127,8 @@ def u_text(u: float) -> str:
     return format_value(u, u)[1]
 
 
-def _budget_html(budget: dict, title: str) -> str:
+def _budget_html(budget: dict, title: str, symbol: str = "S") -> str:
+    """One budget; ``symbol`` names the quantity its absolute u_c and U belong to (S, a_ref)."""
     # a relative budget in %, as the campaign's Markdown report (UncertaintyBudget.markdown) prints it
     scale, unit = (100.0, "relative, %") if budget.get("relative") else (1.0, display_unit(budget.get("unit", "")))
     rows = [[c["name"], c["symbol"], u_text(scale * c["uncertainty"]), f"{c['coefficient']:.3g}", c.get("note", "")]
@@ -141,7 +142,7 @@ def _budget_html(budget: dict, title: str) -> str:
         # S, u_c and U as the results print them: S to the place of u_c's two digits, U by the same rule
         unit_abs = display_unit(budget.get("unit", ""))
         value_text, u_c_text = format_value(budget["value"], budget["combined_standard_uncertainty_absolute"])
-        extra = (f'<p class="note">S = {html_text(value_text)} {html_text(unit_abs)}: u_c = {html_text(u_c_text)}, '
+        extra = (f'<p class="note">{html_text(symbol)} = {html_text(value_text)} {html_text(unit_abs)}: u_c = {html_text(u_c_text)}, '
                  f'U = {html_text(u_text(budget["expanded_uncertainty_absolute"]))} {html_text(unit_abs)}; '
                  f'correlation between contributions: {html_text(_plain(budget["correlation"]))}</p>')
     return (f"<h3>{html_text(title)} ({html_text(unit)})</h3>"
@@ -156,7 +157,7 @@ def budgets_html(src: Source) -> str:
             parts.append(_budget_html(e["budget"], f"{sensor} axis {axis}"))
     for component, ref in (d.get("reference") or {}).items():
         if isinstance(ref, dict) and isinstance(ref.get("budget"), dict) and "contributions" in ref["budget"]:
-            parts.append(_budget_html(ref["budget"], f"reference acceleration, {component}"))
+            parts.append(_budget_html(ref["budget"], f"reference acceleration, {component}", "a_ref"))
     return "".join(parts)
 
 
@@ -257,7 +258,10 @@ def measurement_reference(src: Source) -> str:
     if src.procedure == "rotary":
         parts.append("the bench's encoder angle (the reference acceleration and its u, u_ref in the budget)")
     if src.procedure == "slider-crank":
-        parts.append("the crank radius measured with a caliper, and the stated clearance")
+        radius, clearance = settings.get("crank_radius_m"), settings.get("clearance_m")
+        stated = (f" ({1e3 * radius:.3f} mm, clearance ± {1e3 * clearance:.3f} mm)"
+                  if radius is not None and clearance is not None else "")
+        parts.append(f"the crank radius measured with a caliper and the stated clearance{stated}")
     return "; ".join(parts) or "—"
 
 
@@ -301,7 +305,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
         """Sections numbered as shown: one a certificate leaves out (no budget, no figures) leaves no gap."""
         return f"<h2>{next(sections)}. {title}</h2>"
 
-    html.append(heading("Item calibrated"))
+    verifies = r["procedure"] == "slider-crank"
+    html.append(heading("Item verified" if verifies else "Item calibrated"))
     if src.is_campaign:
         html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", src.details.get("source")),
                          ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
@@ -325,7 +330,7 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     if prov.get("temperature_c") is not None:
         cond_rows.append(("Sensor temperature", f"{prov['temperature_c']:g} °C"))
     records = src.details.get("records") or []   # a live campaign: one recording per test
-    cond_rows.append(("Date of calibration", _when(prov.get("recording_start") or prov.get("created")
+    cond_rows.append((f"Date of {'verification' if verifies else 'calibration'}", _when(prov.get("recording_start") or prov.get("created")
                                                    or (records[0].get("captured") if records else None))
                       or "not stated in the source"))
     html.append(_kv(cond_rows))
@@ -346,7 +351,9 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
 
     html.append(heading("Results"))
     html.append(f'<p class="note">{html_text(coverage_statement(k, src.details.get("coverage_dof")))}</p>')
-    head = ["quantity", "value", "u (k = 1)", f"U (k = {k:g})", "unit"]
+    # k as the coverage statement gives it: a Student's t to two decimals, a chosen k as given
+    k_text = f"{k:.2f}" if src.details.get("coverage_dof") is not None else f"{k:g}"
+    head = ["quantity", "value", "u (k = 1)", f"U (k = {k_text})", "unit"]
     if r.get("correction"):
         html.append("<h3>Correction: calibrated = C · (raw − b), raw = counts × nominal scale</h3>")
         html.append(_table(head, correction_rows(r["correction"], k)))
@@ -365,7 +372,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     if budgets:
         html.append(heading("Uncertainty budget") + budgets)
     html.append(heading("Checks and verdicts"))
-    html.append(verdicts_html(src))
+    html.append(verdicts_html(src) or '<p class="note">The method records no check beyond its uncertainty budget '
+                "and the warnings below.</p>")
 
     html.append(heading("Warnings"))
     warnings = r.get("warnings") or []
