@@ -18,7 +18,7 @@ from html import escape
 
 from accelrig import __version__
 from accelrig.report.checks import check_lines, gravity_text
-from accelrig.report.source import METHOD_REFERENCES, Source
+from accelrig.report.source import ESTIMATOR_WORDS, METHOD_REFERENCES, Source
 from accelrig.report.wording import as_finding, display_unit, html_text
 from accelrig.result import Estimate, format_value
 
@@ -297,7 +297,7 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     html.append(f"<h1>{escape(title)}</h1>")
     number = conditions.get("certificate_number")
     html.append(f'<p class="note">{("No. " + html_text(number) + " · ") if number else ""}issued '
-                f"{html_text(issued.strftime('%Y-%m-%d %H:%M UTC'))} by accelrig {html_text(__version__)}</p>")
+                f"{html_text(issued.strftime('%Y-%m-%d %H:%M UTC'))} · written with accelrig {html_text(__version__)}</p>")
 
     sections = iter(range(1, 100))
 
@@ -320,7 +320,9 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
             if value is not None]))
 
     html.append(heading("Method"))
-    html.append(_kv([("Procedure", r["procedure"]), ("Estimator", r["method"]), ("Model", r["model"]),
+    words = ESTIMATOR_WORDS.get((r["procedure"], r["method"]))
+    html.append(_kv([("Procedure", r["procedure"]),
+                     ("Estimator", f"{r['method']} ({words})" if words else r["method"]), ("Model", r["model"]),
                      ("Reference document", METHOD_REFERENCES.get(r["procedure"], "—"))]))
     html.append('<p class="note">The settings the calibration used are listed in the appendix.</p>')
 

@@ -33,6 +33,16 @@ METHOD_REFERENCES = {
               "2025 (paper 001)",
 }
 
+# What a result's method code means, for a reader who does not know the program's names
+ESTIMATOR_WORDS = {
+    ("static", "map"): "maximum a posteriori fit: each pose's tilt from its face a nuisance with the flatness prior",
+    ("static", "lm"): "Levenberg-Marquardt least squares of |C (raw − b)| = g over the orientations",
+    ("static", "vp"): "variable projection with Levenberg-Marquardt (exact faces)",
+    ("static", "paper"): "the paper's Nelder-Mead search over the angles (exact faces)",
+    ("wheel", "joint"): "joint maximum-likelihood fit of the whole coast",
+    ("wheel", "paper"): "the paper's four steps",
+}
+
 RESULT_KEYS = ("procedure", "method", "model", "parameters")
 
 
