@@ -315,7 +315,7 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
             f"<style>{CSS}{BATCH_CSS}</style></head><body><h1>Calibration batch report</h1>"]
     number = conditions.get("certificate_number")
     html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
-                f"{issued.strftime('%Y-%m-%d %H:%M UTC')} by accelrig {escape(__version__)} · "
+                f"{issued.strftime('%Y-%m-%d %H:%M UTC')} · written with accelrig {escape(__version__)} · "
                 f"{len(batch.sources)} sources</p>")
     cond = [(label, conditions.get(key)) for key, label in
             (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
