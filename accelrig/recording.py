@@ -349,7 +349,7 @@ def write_csv(rec: Recording, path: str | os.PathLike | None = None, stream=None
               inputs=()) -> None:
     """Write an interchange CSV to ``path`` (atomically; see files.atomic_write for ``overwrite`` and
     ``inputs``) or to an open text ``stream``."""
-    meta = dict(rec.meta)
+    meta = {k: v for k, v in rec.meta.items() if k != "file"}   # where it was read from is not its content
     meta["units"] = rec.units
     names = ["t", *ACC_COLUMNS, *rec.channels]
     columns = [rec.t, rec.acc[:, 0], rec.acc[:, 1], rec.acc[:, 2], *rec.channels.values()]
@@ -375,7 +375,7 @@ def save_native(rec: Recording, path: str | os.PathLike, overwrite: bool = True,
     arrays = {"t": rec.t, "acc": rec.acc}
     for name, values in rec.channels.items():
         arrays["ch_" + name] = values
-    meta = dict(rec.meta)
+    meta = {k: v for k, v in rec.meta.items() if k != "file"}   # where it was read from is not its content
     meta["units"] = rec.units
     arrays["meta_json"] = np.array(to_json(meta, indent=None, sort_keys=True))
     atomic_write(path, lambda fh: np.savez(fh, **arrays), text=False, overwrite=overwrite, inputs=inputs)
@@ -458,7 +458,14 @@ def load_recording(path: str | os.PathLike, units: str | None = None, rate: floa
     ``start``/``stop`` keep a time range: seconds from the first sample, or an ISO-8601 UTC time
     such as 2026-11-24T01:00:00Z (segments, and files whose metadata give their UTC time origin).
     """
-    path = Path(path)
+    rec = _load(Path(path), units, rate, start, stop)
+    # where it was read from, whatever its header declares as its "source" (a description such as "imucal
+    # sensor 3"): a profile keeps this, so that a certificate can find the file again (report.recompute)
+    rec.meta["file"] = str(path)
+    return rec
+
+
+def _load(path: Path, units, rate, start, stop) -> Recording:
     if path.is_dir() or path.suffix.lower() in SEGMENT_SUFFIXES:
         return read_segments(path, *resolve_range(path, start, stop), units="counts" if units == "counts" else None)
     if start is not None or stop is not None:

@@ -97,10 +97,12 @@ def certificate_text(page: str) -> str:
     """What a certificate or batch report says, for comparing two renderings: its words without the markup,
     the figures (drawings of the same arrays; their section is cut), times of day, the software version and
     the fits' wall-clock seconds (which differ between two runs of the same code)."""
-    page = re.sub(r"<h2>\d+\. Figures</h2>.*(?=<p class=\"note\">[^<]*</p></body>)", "", page, flags=re.S)
+    page = re.sub(r"<h2>\d+\. Figures</h2>.*?(?=<h2>Appendix|<p class=\"note\">[^<]*</p></body>)", "", page,
+                  flags=re.S)
     page = re.sub(r"<(style|svg)\b.*?</\1>", " ", page, flags=re.S)
     text = html.unescape(re.sub(r"<[^>]+>", " ", page))
     text = re.sub(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:?\d\d)?", "TIME", text)
+    text = re.sub(r"\d{4}-\d\d-\d\d\s+\d\d:\d\d\s+UTC", "TIME", text)   # as the certificate prints a time
     text = re.sub(r"accelrig \d+\.\d+\S*", "accelrig VERSION", text)
     text = re.sub(r"\b(fit_seconds|time_s)\s+[-+0-9.e]+", r"\1 SECONDS", text)
     return " ".join(text.split())

@@ -27,7 +27,7 @@ def test_budget_expanded_and_absolute():
     assert b.expanded == pytest.approx(0.008)
     d = b.to_dict()
     assert d["expanded_uncertainty_absolute"] == pytest.approx(423.0 * 0.008)
-    assert "| expanded, k = 2 | U | 0.8 % |" in b.markdown()
+    assert "| expanded, k = 2 | U | 0.80 % |" in b.markdown()   # two significant digits (format_value)
 
 
 def test_correlation_matrix_must_be_possible():

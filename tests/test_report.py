@@ -3,6 +3,7 @@ sources read from disk, errors in one line.  The browser checks are in test_repo
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -173,8 +174,15 @@ def test_campaign_certificate_has_budgets_groups_en_and_figures(campaign_run):
     assert "Uncertainty budget" in text and "repeatability" in text and "E_n" in text and "ANOVA" in text
     for sensor, axes in result.details["per_axis"].items():
         for axis, e in axes.items():
-            assert f"{sensor} axis {axis}" in text
-            assert f"{e['expanded_uncertainty']:.3f}" in text
+            # the group table and the budget print S, u and U by the one rule (format_value), as the parameter
+            # table does: one quantity reads the same everywhere (they were printed .3f and .3g)
+            s, u = format_value(e["mean_sensitivity"], e["overall_uncertainty"])
+            expanded = format_value(e["mean_sensitivity"], e["expanded_uncertainty"])[1]
+            assert re.search(rf"{sensor} axis {axis}\s+{re.escape(s)}\s+{re.escape(u)}\s+{re.escape(expanded)}\s", text)
+            b = e["budget"]
+            s_b, u_c = format_value(b["value"], b["combined_standard_uncertainty_absolute"])
+            assert (f"S = {s_b} counts/(m/s²): u_c = {u_c}, "
+                    f"U = {format_value(b['value'], b['expanded_uncertainty_absolute'])[1]} counts/(m/s²)") in text
     for t in result.details["tests"]:   # every test's sensitivity with its U
         for e in t["sensitivity"].values():
             value_text, u_text = format_value(e["value"], e["uncertainty"])
@@ -397,3 +405,90 @@ def test_the_example_certificates_are_what_the_code_renders_now(static_run, whee
         stored, rendered = certificate_text((EXAMPLES / name).read_text(encoding="utf-8")), certificate_text(page)
         assert stored == rendered, (f"docs/examples/{name} is not what the code renders now (run python "
                                     f"docs/examples/make_certificates.py):\n{first_difference(stored, rendered)}")
+
+
+def test_a_profile_of_a_recording_that_declares_its_source_finds_the_file(static_run, tmp_path, monkeypatch, capsys):
+    """A recording whose header declares a "source" text (as the real imucal file does) left that text in the
+    profile, not the path, and the certificate could not find the recording.  The profile now keeps the file it
+    was read from; a profile that names only a text says what it needs, and --recording gives the file (checked
+    by its sha256; another file is refused and nothing is written)."""
+    import yaml
+
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    rec = static_run[1]
+    rec.meta = {**rec.meta, "source": "example_data/six faces by hand (MIT)"}
+    write_csv(rec, tmp_path / "six.csv")
+    monkeypatch.chdir(tmp_path)
+    rec = load_recording("six.csv")
+    save_profile(profile_from_result(calibrate_static(rec), rec), tmp_path / "p.yaml")
+    assert yaml.safe_load((tmp_path / "p.yaml").read_text())["provenance"]["recording_source"] == "six.csv"
+    figures, missing = figures_for(load_source("p.yaml"))
+    assert missing == [] and len(figures) == 1
+
+    # a profile written before: it names the declared text
+    data = yaml.safe_load((tmp_path / "p.yaml").read_text())
+    data["provenance"]["recording_source"] = "example_data/six faces by hand (MIT)"
+    (tmp_path / "old.yaml").write_text(yaml.safe_dump(data))
+    figures, missing = figures_for(load_source("old.yaml"))
+    assert figures == [] and "was not at hand" in missing[0] and data["provenance"]["recording_hash"] in missing[0]
+    assert main(["report", "old.yaml", "-o", "a.html"]) == 0
+    assert "--recording FILE" in capsys.readouterr().err   # the way out, on stderr, not on the certificate
+    assert "--recording" not in (tmp_path / "a.html").read_text()
+    assert main(["report", "old.yaml", "--recording", "six.csv", "-o", "b.html"]) == 0
+    assert "Figure not shown" not in (tmp_path / "b.html").read_text()
+    text = (tmp_path / "six.csv").read_text().splitlines()
+    text[-1] = ",".join(text[-1].split(",")[:-1] + ["9.0"])
+    (tmp_path / "other.csv").write_text("\n".join(text) + "\n")
+    capsys.readouterr()
+    assert main(["report", "old.yaml", "--recording", "other.csv", "-o", "c.html"]) != 0
+    assert "not the recording this profile was calibrated from" in capsys.readouterr().err
+    assert not (tmp_path / "c.html").exists()
+
+
+def test_a_certificate_states_findings_and_keeps_internals_in_its_appendix(static_run):
+    """A customer's certificate: no option of the program and no advice to the operator (the standard gravity's
+    source told them to pass --g, --latitude, --height), no run facts (fit_seconds, n_evaluations), and the
+    settings in the appendix, after the results."""
+    from accelrig.report.wording import as_finding
+
+    result, rec = static_run
+    result = copy.deepcopy(result)
+    result.warnings.append("the poses disagree with the model beyond their noise: the uncertainty allows for it; "
+                           "let the sensor settle at a steady temperature and calibrate again")
+    text = text_of(certificate_html(from_result(result, rec, device=DEVICE), figures=False))
+    assert not re.search(r"(?<![\w-])--[a-z]", text), re.search(r".{80}(?<![\w-])--[a-z].{40}", text)
+    for internal in ("fit_seconds", "n_evaluations"):
+        assert internal not in text
+    assert "the poses disagree with the model beyond their noise: the uncertainty allows for it." in text
+    assert "calibrate again" not in text
+    assert text.index("Appendix") > text.index("Warnings") and text.index("still_threshold") > text.index("Appendix")
+    assert "standard gravity, standing for anywhere on Earth" in text   # the finding stays
+
+    # the wording rule on its own: findings kept, advice and options' asides dropped
+    assert as_finding("gain_x is poorly determined (u = 0.01): the mounting hides it; mount the sensor tilted") == (
+        "gain_x is poorly determined (u = 0.01): the mounting hides it")
+    assert as_finding("the six-face model (--model six-face) allows for tilted poses.") == (
+        "the six-face model allows for tilted poses.")
+    assert as_finding("u(g) is small: the gains' u rests on it; unless g was surveyed, state u(g) itself (--g-u)") == (
+        "u(g) is small: the gains' u rests on it")
+    assert as_finding("Nelder-Mead stopped before converging: too many evaluations") == (
+        "Nelder-Mead stopped before converging: too many evaluations")
+
+
+def test_the_campaign_markdown_prints_s_and_u_by_the_one_rule(campaign_run):
+    """calibrate rotary --campaign's Markdown printed S and U with .3f, the certificate by format_value."""
+    from accelrig.procedures.rotary.campaign import report_markdown
+
+    result, _ = campaign_run
+    text = report_markdown(result)
+    for sensor, axes in result.details["per_axis"].items():
+        for axis, e in axes.items():
+            s = format_value(e["mean_sensitivity"], e["overall_uncertainty"])[0]
+            expanded = format_value(e["mean_sensitivity"], e["expanded_uncertainty"])[1]
+            assert re.search(rf"\| 1 \| {sensor} axis {axis} \| {re.escape(s)} \| [0-9.]+ \| {re.escape(expanded)} \|",
+                             text)
+            assert f"### {sensor} axis {axis}: S = {s} counts per m/s^2" in text

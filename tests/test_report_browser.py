@@ -83,3 +83,22 @@ def test_pdf_prints_and_pdftoppm_counts_its_pages(tmp_path):
     assert 2 <= len(pages) <= 4, len(pages)
     # each page is a page of the certificate, not a blank sheet
     assert all(p.stat().st_size > 1000 for p in pages)
+
+
+def test_pdf_breaks_no_value_unit_or_part_name_at_its_hyphen(tmp_path):
+    """The browser may break a line after any hyphen: "ICM-" at a line's end and "20948" on the next, or
+    "-" and "0.15".  Each token with a hyphen in it is kept whole (report.wording.html_text): in the printed
+    PDF no line ends in a hyphen.  A warning of many part names and negative numbers fills several lines, so
+    a break inside one of them was all but certain before."""
+    if shutil.which("pdftotext") is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    result, rec = static_result()
+    result.warnings.append("the offsets of " + ", ".join(f"ICM-20948 unit {i} moved by -0.{i}5 m/s^2"
+                                                           for i in range(1, 30)))
+    pdf = tmp_path / "static.pdf"
+    write_certificate(from_result(result, rec, device={**DEVICE, "chip": "ICM-20948"}), pdf, figures=False)
+    text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True, check=True,
+                          timeout=120).stdout
+    assert "ICM-20948 unit 29" in text   # the warning is there, whole
+    broken = [line for line in text.splitlines() if re.search(r"\S-$", line.rstrip())]
+    assert broken == [], broken

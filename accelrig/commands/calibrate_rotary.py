@@ -49,7 +49,7 @@ def run(args) -> int:
 
     from accelrig.commands import warn_loss
     from accelrig.procedures.rotary.bench import RotarySetup, analyse_test, load_test_inputs
-    from accelrig.result import to_json
+    from accelrig.result import format_value, to_json
 
     v = values_from_args(TEST_SETTINGS, args)
     setup = RotarySetup(radius=v["radius"], radius_uncertainty=v["radius_uncertainty"], ref_radius=v["ref_radius"])
@@ -65,12 +65,13 @@ def run(args) -> int:
         print(to_json(result.to_calibration_result().to_json_dict()))
         return 0
     fs = result.sample_rate
-    print(f"sample rate  {fs.value:.4f} +- {fs.uncertainty:.2g} Hz  (nominal {result.nominal_rate:g} Hz, "
+    print(f"sample rate  {' +- '.join(format_value(fs.value, fs.uncertainty))} Hz  (nominal {result.nominal_rate:g} Hz, "
           f"by {result.rate_method})")
     print(f"excitation   {result.frequency.value:.5f} Hz, theta0 {np.degrees(result.theta0.value):.3f} deg "
           f"({2 * np.degrees(result.theta0.value):.2f} deg peak to peak)")
     for axis, s in result.sensitivity.items():
-        print(f"S_{axis}          {s.value:.3f} +- {s.uncertainty:.3f} counts per m/s^2  ({s.component}, "
+        s_text, u_text = format_value(s.value, s.uncertainty)
+        print(f"S_{axis}          {s_text} +- {u_text} counts per m/s^2  ({s.component}, "
               f"reference {s.reference_amplitude:.3f} m/s^2)")
     dc = result.dc_sensitivity
     print(f"S_{dc.axis} from DC  {dc.value:.3f} counts per m/s^2  (reported, not used: offset and tilt enter it)")

@@ -21,6 +21,7 @@ import numpy as np
 
 from accelrig.errors import CalibrationError
 from accelrig.estimation.distributions import normal_cdf, student_t_quantile
+from accelrig.result import format_value
 
 # The coverage probability of k = 2 for a normal distribution (95.45 %): the Student-t factor at this level
 # tends to 2 as the degrees of freedom grow (GUM G.3-G.4, Table G.2), so an estimate resting on much data keeps
@@ -155,13 +156,17 @@ class UncertaintyBudget:
     def markdown(self, percent: bool = True) -> str:
         """The budget as a Markdown table (relative values in % when ``percent``)."""
         scale, suffix = (100.0, " %") if (percent and self.relative) else (1.0, "")
+
+        def u(value: float) -> str:   # an uncertainty by the one rule: two significant digits
+            return format_value(value * scale, value * scale)[1] + suffix
+
         lines = ["| contribution | symbol | standard uncertainty | coefficient |", "|---|---|---|---|"]
         for c in self.contributions:
-            lines.append(f"| {c.name} | {c.symbol} | {c.uncertainty * scale:.4g}{suffix} | {c.coefficient:g} |")
+            lines.append(f"| {c.name} | {c.symbol} | {u(c.uncertainty)} | {c.coefficient:g} |")
         corr = self.correlation
         corr_text = f"{float(corr):g} between every pair" if np.ndim(corr) == 0 else "matrix (see report)"
-        lines.append(f"| combined (correlation {corr_text}) | u_c | {self.combined * scale:.4g}{suffix} | |")
-        lines.append(f"| expanded, k = {self.k:g} | U | {self.expanded * scale:.4g}{suffix} | |")
+        lines.append(f"| combined (correlation {corr_text}) | u_c | {u(self.combined)} | |")
+        lines.append(f"| expanded, k = {self.k:g} | U | {u(self.expanded)} | |")
         return "\n".join(lines)
 
 

@@ -188,7 +188,8 @@ def profile_from_result(
             "created": created or utc_now(),
             "software_version": __version__,
             "recording_hash": recording.content_hash() if recording is not None else None,
-            "recording_source": to_plain(meta.get("source")),
+            # the file it was read from (a header's own "source" is a description, not a path), else that
+            "recording_source": to_plain(meta.get("file") or meta.get("source")),
             "recording_samples": len(recording) if recording is not None else None,
             "recording_start": _normal_datetime(meta.get("start_time")),
             "temperature_c": to_plain(meta.get("temperature_c")),

@@ -278,8 +278,9 @@ def load_batch(paths: list[str | os.PathLike], reference: str | None = None) -> 
 # ------------------------------------------------------------------ the document
 
 
-# long hashes and paths wrap inside their cells rather than push the table off the page
-BATCH_CSS = ".wrap td{word-break:break-all;font-size:8pt}"
+# long hashes and paths (columns 5 and 6 of the devices' table) wrap inside their cells rather than push the
+# table off the page; names, chips and dates do not break
+BATCH_CSS = ".wrap td{font-size:8pt}.wrap td:nth-child(n+5){word-break:break-all}"
 QUANTITY_TITLES = {"sensitivity": "Sensitivity", "bias": "Bias b"}
 
 
@@ -322,7 +323,8 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     from html import escape
 
     from accelrig import __version__
-    from accelrig.report.html import CSS, _kv, _table, coverage_statement
+    from accelrig.report.html import CSS, _kv, _sentence, _table, _when, coverage_statement, format_value
+    from accelrig.report.wording import as_finding, html_text
 
     conditions = {key: v for key, v in (conditions or {}).items() if v not in (None, "")}
     issued = issued or datetime.now(UTC)
@@ -331,7 +333,7 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
             f"<style>{CSS}{BATCH_CSS}</style></head><body><h1>Calibration batch report</h1>"]
     number = conditions.get("certificate_number")
     html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
-                f"{issued.strftime('%Y-%m-%d %H:%M UTC')} by accelrig {escape(__version__)} · "
+                f"{issued.strftime('%Y-%m-%d %H:%M UTC')} · written with accelrig {escape(__version__)} · "
                 f"{len(batch.sources)} sources</p>")
     cond = [(label, conditions.get(key)) for key, label in
             (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
@@ -344,7 +346,7 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     for src, label in zip(batch.sources, batch.labels, strict=True):
         prov = src.provenance
         rows.append([label, str(src.device.get("chip") or "—"), f"{src.procedure} ({src.result.get('method')})",
-                     str(prov.get("recording_start") or prov.get("created") or "—"),
+                     str(_when(prov.get("recording_start") or prov.get("created")) or "—"),
                      str(prov.get("recording_hash") or "—"), str(src.path or "—")])
     html.append('<div class="wrap">' + _table(["device", "chip", "procedure (method)", "date", "recording hash",
                                                   "source"], rows, numeric_from=99) + "</div>")
@@ -387,8 +389,9 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     html.append("<h2>4. Outliers</h2>")
     outliers = batch.outliers
     html.append("<ul>" + "".join(
-        f'<li class="verdict-fail">{escape(j.entry.device)}: {escape(j.entry.quantity)} {escape(j.entry.axis)} = '
-        f"{j.entry.value:.6g} (E_n {_number(j.e_n, 2)}, t {_number(j.t, 2)})</li>" for j in outliers) + "</ul>"
+        f'<li class="verdict-fail">{html_text(j.entry.device)}: {escape(j.entry.quantity)} {escape(j.entry.axis)} = '
+        f"{html_text(format_value(j.entry.value, j.entry.u)[0])} (E_n {_number(j.e_n, 2)}, t {_number(j.t, 2)})</li>"
+        for j in outliers) + "</ul>"
                 if outliers else '<p class="verdict-pass">None: every device agrees with the batch by the rule '
                                  "above.</p>" if not batch.unjudged else "")
     if batch.unjudged:
@@ -398,7 +401,8 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     html.append("<h2>5. Warnings of the calibrations</h2>")
     warned = [(label, w) for src, label in zip(batch.sources, batch.labels, strict=True)
               for w in src.result.get("warnings") or []]
-    html.append("<ul>" + "".join(f'<li class="warn">{escape(label)}: {escape(w)}</li>' for label, w in warned)
+    html.append("<ul>" + "".join(f'<li class="warn">{html_text(label)}: {html_text(_sentence(as_finding(w)))}</li>'
+                                 for label, w in warned)
                 + "</ul>" if warned else "<p>None.</p>")
 
     if figures is not None:

@@ -46,6 +46,12 @@ def _flexing_link_sentence(link: dict) -> str:
     return (f"checked over {link['steps']} steady steps: {seen} (p = {link['p_value']:.1g}, see the warnings)")
 
 
+def gravity_text(settings: dict) -> str:
+    """The local gravity a result used, as every face prints it: g to 0.01 mm/s² (a value given, not
+    estimated, so it keeps its digits) with its standard uncertainty."""
+    return f"g = {settings['g']:.5f} ± {settings['g_u']:.2g} m/s²"
+
+
 def check_lines(result: dict) -> list[tuple[str, str]]:
     """(what, sentence) for each check the result reports, in reading order; nothing for figures it lacks."""
     q = result.get("quality") or {}
@@ -87,8 +93,7 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
         lines.append(("residuals", f"rms {q['residual_rms']:.3g} m/s² against a noise sd of {_per_axis(sd)} m/s² "
                                    "(a model that holds leaves about the noise)"))
     if settings.get("g_u") is not None and settings.get("g") is not None:
-        lines.append(("gravity", f"g = {settings['g']:.5f} ± {settings['g_u']:.2g} m/s² "
-                                 f"({settings.get('g_source') or 'as given'})"))
+        lines.append(("gravity", f"{gravity_text(settings)} ({settings.get('g_source') or 'as given'})"))
     missing = q.get("samples_missing")
     if missing:
         lines.append(("samples", f"{missing} samples missing from the record (see the warnings for what was done)"))

@@ -488,7 +488,8 @@ def figures_for(src: Source) -> tuple[list[Figure], list[str]]:
         try:
             figures.append(make(src))
         except LookupError as exc:
-            missing.append(str(exc))
+            if not why_not:   # else it only restates that the recording's arrays are missing
+                missing.append(str(exc))
     if src.procedure == "rotary":
         try:
             figures += rotary_figures(src)

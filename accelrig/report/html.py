@@ -1,10 +1,13 @@
 """The certificate as one self-contained HTML page (inline CSS and SVG, nothing fetched).
 
 Laid out as an ISO/IEC 17025 calibration certificate: the item, the method
-and its reference, the conditions, traceability (software, recording hash),
-the results with standard (k = 1) and expanded (k, coverage stated)
-uncertainties, the budget where the method has one, quality figures and
-verdicts, and every warning in full.
+and its reference, the conditions, traceability (the measurement reference,
+software, recording hash), the results with standard (k = 1) and expanded
+(k, coverage stated) uncertainties, the budget where the method has one, the
+checks and verdicts, every warning worded as a finding, and an appendix with
+the settings and fit figures as recorded.  Text meant for the operator at
+the rig (options to pass, what to do next) is left out (report.wording), and
+no value, unit or part name breaks across lines.
 """
 
 from __future__ import annotations
@@ -14,14 +17,18 @@ from datetime import UTC, datetime
 from html import escape
 
 from accelrig import __version__
-from accelrig.report.checks import check_lines
-from accelrig.report.source import METHOD_REFERENCES, Source
+from accelrig.report.checks import check_lines, gravity_text
+from accelrig.report.source import ESTIMATOR_WORDS, METHOD_REFERENCES, Source
+from accelrig.report.wording import as_finding, display_unit, html_text
 from accelrig.result import Estimate, format_value
 
 DEFAULT_K = 2.0
 CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
                     ("temperature", "Ambient temperature"), ("humidity", "Relative humidity"),
                     ("certificate_number", "Certificate number"))
+# facts of the run, not of the item: wall-clock time and solver iterations change from run to run
+NO_BREAK_K = "(k\u00a0=\u00a0"   # "U (k = 2)" in a narrow column stays on one line
+RUN_FACTS = ("fit_seconds", "time_s", "n_evaluations", "iterations", "rate_fit_iterations")
 
 CSS = """
 body{font-family:'DejaVu Sans',Helvetica,Arial,sans-serif;font-size:10pt;color:#111;max-width:190mm;margin:8mm auto}
@@ -29,9 +36,10 @@ h1{font-size:16pt;margin:0 0 2mm}h2{font-size:12pt;border-bottom:1px solid #888;
 break-after:avoid}h3{font-size:10.5pt;margin:4mm 0 1mm}
 table{border-collapse:collapse;margin:1mm 0 3mm;break-inside:avoid}td,th{border:1px solid #bbb;padding:1px 5px;
 text-align:left;vertical-align:top}th{background:#eee}td.n{text-align:right;font-variant-numeric:tabular-nums;
-white-space:nowrap}.kv th{width:48mm}.warn{color:#8a3b00}.verdict-fail{color:#a00;font-weight:bold}
+white-space:nowrap}.kv th{width:48mm;white-space:nowrap}.kv td{overflow-wrap:anywhere}.warn{color:#8a3b00}.verdict-fail{color:#a00;font-weight:bold}
 .verdict-pass{color:#060;font-weight:bold}.verdict-open{color:#8a3b00;font-weight:bold}figure{margin:2mm 0;break-inside:avoid}figure svg{max-width:100%;height:auto}
 figcaption{font-size:9pt;color:#333}.note{font-size:9pt;color:#333}
+body{hyphens:manual}.nb{white-space:nowrap}
 @page{size:A4;margin:12mm}
 """
 
@@ -49,14 +57,14 @@ def _plain(value) -> str:
 
 
 def _kv(rows: list[tuple[str, object]]) -> str:
-    body = "".join(f"<tr><th>{escape(k)}</th><td>{escape(_plain(v))}</td></tr>" for k, v in rows)
+    body = "".join(f"<tr><th>{html_text(k)}</th><td>{html_text(_plain(v))}</td></tr>" for k, v in rows)
     return f'<table class="kv">{body}</table>'
 
 
 def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1) -> str:
-    h = "".join(f"<th>{escape(c)}</th>" for c in head)
+    h = "".join(f"<th>{html_text(c.replace('(k = ', NO_BREAK_K))}</th>" for c in head)
     body = "".join("<tr>" + "".join(
-        f'<td{" class=n" if i >= numeric_from else ""}>{escape(c)}</td>' for i, c in enumerate(r)) + "</tr>"
+        f'<td{" class=n" if i >= numeric_from else ""}>{html_text(c)}</td>' for i, c in enumerate(r)) + "</tr>"
         for r in rows)
     return f"<table><tr>{h}</tr>{body}</table>"
 
@@ -67,7 +75,7 @@ def scalar_estimates(estimates: dict[str, Estimate]) -> list[tuple[str, float, f
     rows = []
     for name, estimate in estimates.items():
         values, uncs, unit = estimate.for_display()
-        unit = unit.replace("^2", "²").replace("^3", "³").replace("^4", "⁴")
+        unit = display_unit(unit)
         if isinstance(values, list):
             labels = [f"{name}[{a}]" for a in ("x", "y", "z")] if len(values) == 3 else [
                 f"{name}[{i}]" for i in range(len(values))]
@@ -114,20 +122,30 @@ def coverage_statement(k: float, dof: float | None = None) -> str:
             "uncertainty u (k = 1) was evaluated following the GUM (JCGM 100:2008).")
 
 
-def _budget_html(budget: dict, title: str) -> str:
-    unit = "relative" if budget.get("relative") else budget.get("unit", "")
-    rows = [[c["name"], c["symbol"], f"{c['uncertainty']:.3g}", f"{c['coefficient']:.3g}", c.get("note", "")]
+def u_text(u: float) -> str:
+    """An uncertainty printed on its own, by the one rule (format_value: two significant digits)."""
+    return format_value(u, u)[1]
+
+
+def _budget_html(budget: dict, title: str, symbol: str = "S") -> str:
+    """One budget; ``symbol`` names the quantity its absolute u_c and U belong to (S, a_ref)."""
+    # a relative budget in %, as the campaign's Markdown report (UncertaintyBudget.markdown) prints it
+    scale, unit = (100.0, "relative, %") if budget.get("relative") else (1.0, display_unit(budget.get("unit", "")))
+    rows = [[c["name"], c["symbol"], u_text(scale * c["uncertainty"]), f"{c['coefficient']:.3g}", c.get("note", "")]
             for c in budget["contributions"]]
-    rows.append(["combined standard uncertainty", "u_c", f"{budget['combined_standard_uncertainty']:.3g}", "", ""])
+    rows.append(["combined standard uncertainty", "u_c", u_text(scale * budget["combined_standard_uncertainty"]),
+                 "", ""])
     rows.append([f"expanded uncertainty (k = {budget['coverage_factor']:g})", "U",
-                 f"{budget['expanded_uncertainty']:.3g}", "", ""])
+                 u_text(scale * budget["expanded_uncertainty"]), "", ""])
     extra = ""
     if "expanded_uncertainty_absolute" in budget:
-        extra = (f'<p class="note">S = {budget["value"]:.4g} {escape(budget.get("unit", ""))}: u_c = '
-                 f'{budget["combined_standard_uncertainty_absolute"]:.3g}, U = '
-                 f'{budget["expanded_uncertainty_absolute"]:.3g} {escape(budget.get("unit", ""))}; correlation '
-                 f'between contributions: {escape(_plain(budget["correlation"]))}</p>')
-    return (f"<h3>{escape(title)} ({escape(unit)})</h3>"
+        # S, u_c and U as the results print them: S to the place of u_c's two digits, U by the same rule
+        unit_abs = display_unit(budget.get("unit", ""))
+        value_text, u_c_text = format_value(budget["value"], budget["combined_standard_uncertainty_absolute"])
+        extra = (f'<p class="note">{html_text(symbol)} = {html_text(value_text)} {html_text(unit_abs)}: u_c = {html_text(u_c_text)}, '
+                 f'U = {html_text(u_text(budget["expanded_uncertainty_absolute"]))} {html_text(unit_abs)}; '
+                 f'correlation between contributions: {html_text(_plain(budget["correlation"]))}</p>')
+    return (f"<h3>{html_text(title)} ({html_text(unit)})</h3>"
             + _table(["source", "symbol", "u", "sensitivity coefficient", "note"], rows, numeric_from=2) + extra)
 
 
@@ -139,7 +157,7 @@ def budgets_html(src: Source) -> str:
             parts.append(_budget_html(e["budget"], f"{sensor} axis {axis}"))
     for component, ref in (d.get("reference") or {}).items():
         if isinstance(ref, dict) and isinstance(ref.get("budget"), dict) and "contributions" in ref["budget"]:
-            parts.append(_budget_html(ref["budget"], f"reference acceleration, {component}"))
+            parts.append(_budget_html(ref["budget"], f"reference acceleration, {component}", "a_ref"))
     return "".join(parts)
 
 
@@ -150,9 +168,10 @@ def verdicts_html(src: Source) -> str:
         # the verdicts of procedures/slider_crank/analysis.verdict_for: holds, does not hold, inconclusive
         style = {"holds": "pass", "does not hold": "fail"}.get(str(d["verdict"]), "open")
         parts.append(f'<p>Slider-crank verification: <span class="verdict-{style}">'
-                     f'{escape(str(d["verdict"]))}</span> — {escape(str(d.get("verdict_reason", "")))}</p>')
-    # what the checks found, in the words of the results screen and the text reports
-    parts += [f"<p>{escape(what[0].upper() + what[1:])}: {escape(sentence)}.</p>" for what, sentence in check_lines(src.result)]
+                     f'{html_text(str(d["verdict"]))}</span> — {html_text(as_finding(d.get("verdict_reason", "")))}</p>')
+    # what the checks found, in the words of the results screen and the text reports, without the advice
+    parts += [f"<p>{html_text(what[0].upper() + what[1:])}: {html_text(_sentence(as_finding(sentence)))}</p>"
+              for what, sentence in check_lines(src.result)]
     en = d.get("normalized_error") or []
     if en:
         rows = [[" / ".join(e["sensors"]), f"{e['E_n']:.3f}", "yes" if e["consistent"] else "NO"] for e in en]
@@ -174,34 +193,94 @@ def verdicts_html(src: Source) -> str:
     return "".join(parts)
 
 
+def _sentence(text: str) -> str:
+    """``text`` ending in a full stop (not capitalised: it may start with a symbol, u(g) or gain_x)."""
+    text = str(text).strip()
+    return text if not text or text.endswith((".", "?", "!")) else text + "."
+
+
+def _group_row(case: str, group: str, e: dict) -> list[str]:
+    value_text, u_text_ = format_value(e["mean_sensitivity"], e["overall_uncertainty"])
+    return [case, group, value_text, u_text_, format_value(e["mean_sensitivity"], e["expanded_uncertainty"])[1]]
+
+
 def groups_html(src: Source, k: float) -> str:
     d = src.details
     if "per_sensor" not in d:
         return ""
-    rows = []
-    for sensor, axes in d["per_axis"].items():
-        for axis, e in axes.items():
-            rows.append(["1", f"{sensor} axis {axis}", f"{e['mean_sensitivity']:.3f}",
-                         f"{e['overall_uncertainty']:.3f}", f"{e['expanded_uncertainty']:.3f}"])
-    for sensor, e in d["per_sensor"].items():
-        rows.append(["2", sensor, f"{e['mean_sensitivity']:.3f}", f"{e['overall_uncertainty']:.3f}",
-                     f"{e['expanded_uncertainty']:.3f}"])
+    rows = [_group_row("1", f"{sensor} axis {axis}", e) for sensor, axes in d["per_axis"].items()
+            for axis, e in axes.items()]
+    rows += [_group_row("2", sensor, e) for sensor, e in d["per_sensor"].items()]
     b = d["batch"]
-    rows.append(["3", f"batch ({len(b['sensors'])} sensors)", f"{b['mean_sensitivity']:.3f}",
-                 f"{b['overall_uncertainty']:.3f}", f"{b['expanded_uncertainty']:.3f}"])
+    rows.append(_group_row("3", f"batch ({len(b['sensors'])} sensors)", b))
     tests = []
     for t in d.get("tests", []):
         rate = t["sample_rate_hz"]
         for axis, e in t["sensitivity"].items():
-            value_text, u_text = format_value(e["value"], e["uncertainty"])
+            value_text, u_text_ = format_value(e["value"], e["uncertainty"])
             rate_text, rate_u = format_value(rate["value"], rate["uncertainty"])
-            tests.append([str(t["index"]), t["sensor"], t["label"], f"{rate_text} ± {rate_u}", axis,
-                          e["component"], value_text, u_text, format_value(e["value"], k * e["uncertainty"])[1]])
+            tests.append([str(t["index"]), t["sensor"], t["label"], f"{rate_text}\u00a0±\u00a0{rate_u}", axis,
+                          e["component"], value_text, u_text_, format_value(e["value"], k * e["uncertainty"])[1]])
     per_test = ("<h3>Sensitivity per test, counts per m/s²</h3>"
                 + _table(["test", "sensor", "label", "sample rate (Hz)", "axis", "reference", "S", "u (k = 1)",
                           f"U (k = {k:g})"], tests, numeric_from=6)) if tests else ""
     return per_test + ("<h3>Group results (paper 001, Table 3), counts per m/s²</h3>"
             + _table(["case", "group", "S", "u (k = 1)", f"U (k = {k:g})"], rows, numeric_from=2))
+
+
+def _when(stamp) -> str | None:
+    """An ISO 8601 time as a person reads it (2026-01-15 08:00 UTC); anything else as it is."""
+    if not stamp:
+        return None
+    try:
+        when = datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return str(stamp)
+    if when.tzinfo is None:
+        return when.strftime("%Y-%m-%d %H:%M")
+    return when.astimezone(UTC).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def measurement_reference(src: Source) -> str:
+    """What the results are traced to: the local gravity for the gravity methods (its value, u and where it
+    came from), the bench's encoder for the rotary method, the caliper for the slider-crank."""
+    settings = src.result.get("settings") or {}
+    rig = src.provenance.get("rig") or settings.get("rig") or {}
+    parts = []
+    if src.procedure in ("static", "wheel") and settings.get("g") is not None:
+        if settings.get("g_u") is not None:
+            parts.append(f"local gravity {gravity_text(settings)} (standard uncertainty): "
+                         f"{as_finding(settings.get('g_source') or 'as given')}")
+        else:   # a result of a version that kept no u(g)
+            parts.append(f"local gravity g = {settings['g']:g} m/s², as given (no uncertainty recorded with it)")
+    if src.procedure == "wheel" and isinstance(rig, dict) and rig.get("radius"):
+        parts.append(f"wheel radius {rig['radius']:g} m ({'measured, as given' if rig.get('radius_given') else 'fitted'})")
+    if src.procedure == "rotary":
+        parts.append("the bench's encoder angle (the reference acceleration and its u, u_ref in the budget)")
+    if src.procedure == "slider-crank":
+        radius, clearance = settings.get("crank_radius_m"), settings.get("clearance_m")
+        stated = (f" ({1e3 * radius:.3f} mm, clearance ± {1e3 * clearance:.3f} mm)"
+                  if radius is not None and clearance is not None else "")
+        parts.append(f"the crank radius measured with a caliper and the stated clearance{stated}")
+    return "; ".join(parts) or "—"
+
+
+def appendix_rows(src: Source) -> tuple[list, list]:
+    """The settings and the fit's figures as the calibration recorded them, for the record: lists of up to
+    12 items, no run facts (RUN_FACTS), nothing the certificate already says in sentences."""
+    def shown(key, value):
+        return key not in RUN_FACTS and value not in (None, "", [], {}) and (
+            not isinstance(value, (list, dict)) or len(str(value)) < 400)
+
+    def worded(value):
+        return as_finding(value) if isinstance(value, str) else value
+
+    settings = [(key, worded(v)) for key, v in (src.result.get("settings") or {}).items()
+                if shown(key, v) and key not in ("g", "g_u", "g_source")]
+    said = ("uncertainty_source", "uncertainty")   # in the checks' sentences
+    quality = [(key, worded(v)) for key, v in (src.result.get("quality") or {}).items()
+               if shown(key, v) and key not in said]
+    return settings, quality
 
 
 def render_html(src: Source, conditions: dict | None = None, figures: list | None = None,
@@ -217,8 +296,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
             f"<style>{CSS}</style></head><body>"]
     html.append(f"<h1>{escape(title)}</h1>")
     number = conditions.get("certificate_number")
-    html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
-                f"{issued.strftime('%Y-%m-%d %H:%M UTC')} by accelrig {escape(__version__)}</p>")
+    html.append(f'<p class="note">{("No. " + html_text(number) + " · ") if number else ""}issued '
+                f"{html_text(issued.strftime('%Y-%m-%d %H:%M UTC'))} · written with accelrig {html_text(__version__)}</p>")
 
     sections = iter(range(1, 100))
 
@@ -226,81 +305,99 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
         """Sections numbered as shown: one a certificate leaves out (no budget, no figures) leaves no gap."""
         return f"<h2>{next(sections)}. {title}</h2>"
 
-    html.append(heading("Item calibrated"))
+    verifies = r["procedure"] == "slider-crank"
+    html.append(heading("Item verified" if verifies else "Item calibrated"))
     if src.is_campaign:
-        html.append(_kv([("campaign", src.details.get("campaign")), ("campaign file", src.details.get("source")),
-                         ("sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
+        html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", src.details.get("source")),
+                         ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
     else:
-        html.append(_kv([("identity", dev.get("identity")), ("chip", dev.get("chip")),
-                         ("range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
-                         ("nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
-                         ("sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
-                         ("driver / URL", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x)
-                          or None)]))
+        html.append(_kv([(label, value) for label, value in (
+            ("Identity", dev.get("identity") or "not recorded"), ("Chip", dev.get("chip")),
+            ("Range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
+            ("Nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
+            ("Sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
+            ("Connection", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x) or None))
+            if value is not None]))
 
     html.append(heading("Method"))
-    html.append(_kv([("procedure", r["procedure"]), ("method", r["method"]), ("model", r["model"]),
-                     ("reference", METHOD_REFERENCES.get(r["procedure"], "—")),
-                     ("settings", {kk: v for kk, v in (r.get("settings") or {}).items() if not isinstance(v, list)
-                                   or len(v) <= 12})]))
+    words = ESTIMATOR_WORDS.get((r["procedure"], r["method"]))
+    html.append(_kv([("Procedure", r["procedure"]),
+                     ("Estimator", f"{r['method']} ({words})" if words else r["method"]), ("Model", r["model"]),
+                     ("Reference document", METHOD_REFERENCES.get(r["procedure"], "—"))]))
+    html.append('<p class="note">The settings the calibration used are listed in the appendix.</p>')
 
     html.append(heading("Conditions"))
     cond_rows = [(label, conditions.get(key)) for key, label in CONDITION_FIELDS
                  if key in conditions and key != "certificate_number"]
     if prov.get("temperature_c") is not None:
-        cond_rows.append(("sensor temperature", f"{prov['temperature_c']:g} °C"))
+        cond_rows.append(("Sensor temperature", f"{prov['temperature_c']:g} °C"))
     records = src.details.get("records") or []   # a live campaign: one recording per test
-    cond_rows.append(("date of calibration", prov.get("recording_start") or prov.get("created")
-                      or (records[0].get("captured") if records else None)))
+    cond_rows.append((f"Date of {'verification' if verifies else 'calibration'}", _when(prov.get("recording_start") or prov.get("created")
+                                                   or (records[0].get("captured") if records else None))
+                      or "not stated in the source"))
     html.append(_kv(cond_rows))
 
     html.append(heading("Traceability and records"))
-    html.append(_kv([("software", f"accelrig {prov.get('software_version') or __version__} (calibration), "
-                                  f"accelrig {__version__} (this certificate)"),
-                     ("recording hash", prov.get("recording_hash")), ("recording", prov.get("recording_source")),
-                     ("samples", prov.get("recording_samples")), ("source of this certificate", src.path)]))
+    html.append(_kv([(label, value) for label, value in (
+        ("Measurement reference", measurement_reference(src)),
+        ("Software", f"accelrig {prov.get('software_version') or __version__} (calibration), "
+                     f"accelrig {__version__} (this certificate)"),
+        ("Recording hash", prov.get("recording_hash")), ("Recording", prov.get("recording_source")),
+        ("Samples", prov.get("recording_samples")), ("Source of this certificate", src.path))
+        if value is not None]))
     if records:
         html.append("<h3>Recordings of the tests</h3>")
         html.append(_table(["test", "captured", "samples", "recording hash"],
-                           [[str(rec.get("test", i + 1)), str(rec.get("captured") or "—"), str(rec.get("samples")),
-                             str(rec.get("recording_hash"))] for i, rec in enumerate(records)]))
+                           [[str(rec.get("test", i + 1)), str(_when(rec.get("captured")) or "—"),
+                             str(rec.get("samples")), str(rec.get("recording_hash"))] for i, rec in enumerate(records)]))
 
     html.append(heading("Results"))
-    html.append(f'<p class="note">{escape(coverage_statement(k, src.details.get("coverage_dof")))}</p>')
-    head = ["quantity", "value", "u (k = 1)", f"U (k = {k:g})", "unit"]
+    html.append(f'<p class="note">{html_text(coverage_statement(k, src.details.get("coverage_dof")))}</p>')
+    # k as the coverage statement gives it: a Student's t to two decimals, a chosen k as given
+    k_text = f"{k:.2f}" if src.details.get("coverage_dof") is not None else f"{k:g}"
+    head = ["quantity", "value", "u (k = 1)", f"U (k = {k_text})", "unit"]
     if r.get("correction"):
         html.append("<h3>Correction: calibrated = C · (raw − b), raw = counts × nominal scale</h3>")
         html.append(_table(head, correction_rows(r["correction"], k)))
     else:
-        html.append('<p class="note">No canonical correction: this method does not determine all of C and b, '
-                    "and accelrig does not fill them with guesses.</p>")
+        html.append('<p class="note">No correction matrix C and bias b are stated: this method does not determine '
+                    "all of them.</p>")
     html.append("<h3>Method parameters</h3>")
     if r.get("parameter_meaning"):
-        html.append(f'<p class="note">{escape(r["parameter_meaning"])}.</p>')
+        html.append(f'<p class="note">{html_text(_sentence(r["parameter_meaning"]))}</p>')
     html.append(_table(head, parameter_rows(src, k)))
     html.append(groups_html(src, k))
+    if "verdict" not in src.details:
+        html.append('<p class="note">No statement of conformity to a specification is made.</p>')
 
     budgets = budgets_html(src)
     if budgets:
         html.append(heading("Uncertainty budget") + budgets)
-    html.append(heading("Quality figures and verdicts"))
-    html.append(verdicts_html(src))
-    quality = {kk: v for kk, v in (r.get("quality") or {}).items() if not isinstance(v, (list, dict))
-               or len(str(v)) < 400}
-    html.append(_kv(list(quality.items())))
+    html.append(heading("Checks and verdicts"))
+    html.append(verdicts_html(src) or '<p class="note">The method records no check beyond its uncertainty budget '
+                "and the warnings below.</p>")
 
     html.append(heading("Warnings"))
     warnings = r.get("warnings") or []
-    html.append("<ul>" + "".join(f'<li class="warn">{escape(w)}</li>' for w in warnings) + "</ul>"
-                if warnings else "<p>None.</p>")
+    html.append("<ul>" + "".join(f'<li class="warn">{html_text(_sentence(as_finding(w)))}</li>' for w in warnings)
+                + "</ul>" if warnings else "<p>None.</p>")
 
     if figures is not None:
         html.append(heading("Figures"))
         for fig in figures:
-            html.append(f"<figure>{fig.svg}<figcaption><b>{escape(fig.title)}.</b> {escape(fig.caption)}"
+            html.append(f"<figure>{fig.svg}<figcaption><b>{html_text(fig.title)}.</b> {html_text(fig.caption)}"
                         "</figcaption></figure>")
         for reason in missing_figures or []:
-            html.append(f'<p class="note">Figure not shown: {escape(reason)}.</p>')
+            html.append(f'<p class="note">Figure not shown: {html_text(as_finding(reason))}.</p>')
+
+    settings, quality = appendix_rows(src)
+    html.append("<h2>Appendix: settings and fit figures as recorded</h2>")
+    html.append('<p class="note">For the record and for repeating the calibration; the results above do not '
+                "need them to be read.</p>")
+    if settings:
+        html.append("<h3>Settings</h3>" + _kv(settings))
+    if quality:
+        html.append("<h3>Fit figures</h3>" + _kv(quality))
     html.append('<p class="note">The results relate only to the item calibrated, under the conditions stated. '
                 "This certificate shall not be reproduced except in full.</p>")
     html.append("</body></html>")

@@ -1,7 +1,8 @@
 """Figures for a profile: re-run its calibration on the recording it names, when that file is still there.
 
 A profile keeps the numbers, not the per-pose tables or per-sample arrays.  When
-``provenance.recording_source`` names a file whose hash is the profile's
+``provenance.recording_source`` names a file (or ``Source.recording_path``, the
+command's --recording, gives one) whose hash is the profile's
 ``recording_hash``, the calibration is run again with the profile's settings;
 its arrays are used for the figures only if it reproduces the certified
 correction.  Otherwise the certificate says why the figures are missing.
@@ -24,7 +25,9 @@ REPRODUCE_RTOL = 1e-6
 def _recording_path(src: Source) -> Path | None:
     """The file the profile names: beside the profile or from here, the one whose hash is the profile's
     (a relative name can find another file of that name from another folder); else the first found (its
-    hash is then said to differ)."""
+    hash is then said to differ).  A file given with --recording is the one."""
+    if src.recording_path:
+        return Path(src.recording_path)
     name = src.provenance.get("recording_source")
     if not name:
         return None
@@ -60,17 +63,37 @@ def _rerun(src: Source, rec):
                            cross_axis_sd=settings.get("cross_axis_sd", 0.0115))
 
 
+def needs_recording(src: Source) -> bool:
+    """Whether this source's figures come from re-running its calibration on its recording."""
+    return src.kind == "profile" and not src.arrays and src.procedure in RECOMPUTABLE
+
+
+def missing_recording(src: Source) -> str:
+    """Why the calibrated recording is not at hand, in the certificate's words."""
+    name = src.provenance.get("recording_source")
+    named = (f"the profile names it {name!r}, which is no file beside the profile or in the folder the "
+             "certificate was written from" if name else "the profile names no file")
+    return (f"the calibrated recording ({src.provenance.get('recording_hash') or 'no hash recorded'}) was not at "
+            f"hand ({named}), so the figures drawn from it were not recomputed")
+
+
+def recording_hint(src: Source) -> str | None:
+    """What the operator can do when the figures need a recording that is not found (for the command's
+    stderr, never the certificate), else None."""
+    if not needs_recording(src) or _recording_path(src) is not None:
+        return None
+    return (f"{missing_recording(src)}; give the calibrated recording with --recording FILE "
+            "(its sha256 is checked against the profile's)")
+
+
 def add_arrays_from_recording(src: Source) -> str | None:
     """Fill ``src.result['arrays']`` (and the per-pose table) by re-running the calibration; return why not,
     or None when done or not needed."""
-    if src.kind != "profile" or src.arrays or src.procedure not in RECOMPUTABLE:
+    if not needs_recording(src):
         return None
-    if not src.provenance.get("recording_source"):
-        return "the profile names no recording file to recompute the figures from"
     path = _recording_path(src)
     if path is None:
-        return (f"the recording the profile names ({src.provenance.get('recording_source')}) is not here, so "
-                "the figures that need it were not recomputed")
+        return missing_recording(src)
     from accelrig.recording import load_recording
 
     try:

@@ -33,6 +33,16 @@ METHOD_REFERENCES = {
               "2025 (paper 001)",
 }
 
+# What a result's method code means, for a reader who does not know the program's names
+ESTIMATOR_WORDS = {
+    ("static", "map"): "maximum a posteriori fit: each pose's tilt from its face a nuisance with the flatness prior",
+    ("static", "lm"): "Levenberg-Marquardt least squares of |C (raw − b)| = g over the orientations",
+    ("static", "vp"): "variable projection with Levenberg-Marquardt (exact faces)",
+    ("static", "paper"): "the paper's Nelder-Mead search over the angles (exact faces)",
+    ("wheel", "joint"): "joint maximum-likelihood fit of the whole coast",
+    ("wheel", "paper"): "the paper's four steps",
+}
+
 RESULT_KEYS = ("procedure", "method", "model", "parameters")
 
 
@@ -46,6 +56,7 @@ class Source:
     provenance: dict = field(default_factory=dict)
     noise: dict | None = None
     path: str | None = None
+    recording_path: str | None = None   # the calibrated recording, when given (report --recording)
 
     @property
     def procedure(self) -> str:
@@ -80,7 +91,8 @@ def from_result(result: CalibrationResult, recording: Recording | None = None, d
     dev.update({k: v for k, v in (device or {}).items() if v is not None})
     provenance = {"software_version": __version__}
     if recording is not None:
-        provenance.update({"recording_hash": recording.content_hash(), "recording_source": meta.get("source"),
+        provenance.update({"recording_hash": recording.content_hash(),
+                           "recording_source": meta.get("file") or meta.get("source"),
                            "recording_samples": len(recording), "recording_start": meta.get("start_time"),
                            "temperature_c": meta.get("temperature_c")})
     return Source(kind, plain, dev, to_plain(provenance), noise)

@@ -3,8 +3,7 @@
     python docs/examples/make_certificates.py [OUT_DIR]     (default: docs/examples)
 
 Run from the repository root with the 'report' extra installed.  The issue date and the recordings' start
-times are fixed, so a rerun changes the files only when the numbers or the layout change (and in the fit's
-wall-clock time, which the quality figures keep).  tests/test_report.py checks that the files here are what
+times are fixed, so a rerun changes the files only when the numbers, the words or the layout change.  tests/test_report.py checks that the files here are what
 the code renders now: after a change that alters them, run this script and commit what it writes.
 """
 

@@ -59,7 +59,7 @@ from accelrig.procedures.rotary.bench import (
     read_encoder_csv,
 )
 from accelrig.recording import load_recording, loss_warning
-from accelrig.result import CalibrationResult, Estimate, to_plain
+from accelrig.result import CalibrationResult, Estimate, format_value, to_plain
 from accelrig.safe_yaml import load_yaml_file
 from accelrig.spec import Field, ListOf, Number, Object, OneOf, String, check, optional
 
@@ -404,36 +404,44 @@ def run_campaign(path: str | os.PathLike, on_test=None) -> CalibrationResult:
 def report_markdown(result: CalibrationResult) -> str:
     report = result.details
     k = report["coverage_factor"]
+
+    def s_u_U(e: dict) -> str:
+        """S | u (%) | U of a group (paper 001, Table 3), rounded by the one rule (format_value): S and U as
+        the certificate prints them."""
+        u_percent = 100 * e["overall_relative_uncertainty"]
+        return (f"{format_value(e['mean_sensitivity'], e['overall_uncertainty'])[0]} | "
+                f"{format_value(u_percent, u_percent)[1]} | "
+                f"{format_value(e['mean_sensitivity'], e['expanded_uncertainty'])[1]}")
+
     lines = [f"# Rotary bench campaign: {report['campaign']}", ""]
     lines += ["## Tests", "", "| # | sensor | label | rate (Hz) | u (Hz) | axis | component | S (counts per m/s^2) | u |",
               "|---|---|---|---|---|---|---|---|---|"]
     for t in report["tests"]:
+        rate, rate_u = format_value(t["sample_rate_hz"]["value"], t["sample_rate_hz"]["uncertainty"])
         for axis, s in t["sensitivity"].items():
-            lines.append(f"| {t['index']} | {t['sensor']} | {t['label']} | {t['sample_rate_hz']['value']:.3f} | "
-                         f"{t['sample_rate_hz']['uncertainty']:.3g} | {axis} | {s['component']} | "
-                         f"{s['value']:.3f} | {s['uncertainty']:.3f} |")
+            s_text, u_text = format_value(s["value"], s["uncertainty"])
+            lines.append(f"| {t['index']} | {t['sensor']} | {t['label']} | {rate} | {rate_u} | {axis} | "
+                         f"{s['component']} | {s_text} | {u_text} |")
     lines += ["", "## Budget per sensor axis (Table 2)", ""]
     for sensor, axes in report["per_axis"].items():
         for axis, e in axes.items():
-            lines += [f"### {sensor} axis {axis}: S = {e['mean_sensitivity']:.3f} counts per m/s^2", "",
-                      e["budget_markdown"], ""]
+            s_text = format_value(e["mean_sensitivity"], e["overall_uncertainty"])[0]
+            lines += [f"### {sensor} axis {axis}: S = {s_text} counts per m/s^2", "", e["budget_markdown"], ""]
             if e["linearity"]:
                 lin = e["linearity"]
-                lines.append(f"Linearity: S = {lin['slope']:.3f} +- {lin['slope_sd']:.3f}, b = "
+                slope, slope_u = format_value(lin["slope"], lin["slope_sd"])
+                lines.append(f"Linearity: S = {slope} +- {slope_u}, b = "
                              f"{lin['intercept']:.2f} counts, R^2 = {lin['r_squared']:.6f}, n = {lin['n']}")
                 lines.append("")
     lines += ["## Group results (Table 3)", "", "| case | group | S (counts per m/s^2) | u (%) | "
               f"U, k = {k:g} (counts per m/s^2) |", "|---|---|---|---|---|"]
     for sensor, axes in report["per_axis"].items():
         for axis, e in axes.items():
-            lines.append(f"| 1 | {sensor} axis {axis} | {e['mean_sensitivity']:.3f} | "
-                         f"{100 * e['overall_relative_uncertainty']:.3f} | {e['expanded_uncertainty']:.3f} |")
+            lines.append(f"| 1 | {sensor} axis {axis} | {s_u_U(e)} |")
     for sensor, e in report["per_sensor"].items():
-        lines.append(f"| 2 | {sensor} | {e['mean_sensitivity']:.3f} | {100 * e['overall_relative_uncertainty']:.3f} | "
-                     f"{e['expanded_uncertainty']:.3f} |")
+        lines.append(f"| 2 | {sensor} | {s_u_U(e)} |")
     b = report["batch"]
-    lines.append(f"| 3 | batch ({len(b['sensors'])} sensor{'' if len(b['sensors']) == 1 else 's'}) | {b['mean_sensitivity']:.3f} | "
-                 f"{100 * b['overall_relative_uncertainty']:.3f} | {b['expanded_uncertainty']:.3f} |")
+    lines.append(f"| 3 | batch ({len(b['sensors'])} sensor{'' if len(b['sensors']) == 1 else 's'}) | {s_u_U(b)} |")
     lines += ["", "## ANOVA", "", "| groups | F | p | means differ (5 %) |", "|---|---|---|---|"]
     for sensor, a in report["anova"]["across_axes"].items():
         lines.append(_anova_row(f"{sensor}: across axes", a))
