@@ -97,7 +97,7 @@ def certificate_text(page: str) -> str:
     """What a certificate or batch report says, for comparing two renderings: its words without the markup,
     the figures (drawings of the same arrays; their section is cut), times of day, the software version and
     the fits' wall-clock seconds (which differ between two runs of the same code)."""
-    page = re.sub(r"<h2>\d+\. Figures</h2>.*?(?=<h2>Appendix|<p class=\"note\">[^<]*</p></body>)", "", page,
+    page = re.sub(r"<h2>\d+\. Figures</h2>.*?(?=<h3>Authorisation|<h2>Appendix|<p class=\"note\">[^<]*</p></body>)", "", page,
                   flags=re.S)
     page = re.sub(r"<(style|svg)\b.*?</\1>", " ", page, flags=re.S)
     text = html.unescape(re.sub(r"<[^>]+>", " ", page))

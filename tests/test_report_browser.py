@@ -96,9 +96,16 @@ def test_pdf_breaks_no_value_unit_or_part_name_at_its_hyphen(tmp_path):
     result.warnings.append("the offsets of " + ", ".join(f"ICM-20948 unit {i} moved by -0.{i}5 m/s^2"
                                                            for i in range(1, 30)))
     pdf = tmp_path / "static.pdf"
-    write_certificate(from_result(result, rec, device={**DEVICE, "chip": "ICM-20948"}), pdf, figures=False)
+    write_certificate(from_result(result, rec, device={**DEVICE, "chip": "ICM-20948"}), pdf,
+                      {"certificate_number": 'C-7 "b"', "approved_by": "Dr. A. Weber"}, figures=False)
     text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True, check=True,
                           timeout=120).stdout
     assert "ICM-20948 unit 29" in text   # the warning is there, whole
     broken = [line for line in text.splitlines() if re.search(r"\S-$", line.rstrip())]
     assert broken == [], broken
+    # every page names the certificate and says which page of how many (ISO/IEC 17025 7.8.2.1), and the
+    # person who authorises it is named above the signature line
+    pages = text.count("\f") + (not text.endswith("\f"))
+    footers = re.findall(r'No\. C-7 "b" · Page (\d+) of (\d+)', text)
+    assert [int(p) for p, _ in footers] == list(range(1, pages + 1)) and {int(n) for _, n in footers} == {pages}
+    assert re.search(r"Approved by\s+Dr\. A\. Weber", text) and "Signature" in text

@@ -37,6 +37,8 @@ def register(sub, groups) -> None:
     p.add_argument("--number", help="certificate number")
     p.add_argument("--customer", help="customer (name and address)")
     p.add_argument("--operator", help="who performed the calibration")
+    p.add_argument("--approved-by", metavar="NAME", help="who authorises the certificate (printed above the "
+                   "signature line; without it the name is left blank to fill in by hand)")
     p.add_argument("--location", help="where it was performed")
     p.add_argument("--temperature", help="ambient temperature, e.g. '23.0 ± 1.0 °C'")
     p.add_argument("--humidity", help="relative humidity, e.g. '45 ± 10 %%'")
@@ -52,6 +54,7 @@ def run(args) -> int:
     # before anything is rendered: an issued certificate (its number, operator) is not replaced unasked
     writable_target(args.output, args.force, inputs=list(args.source) + [f for f in (args.noise, args.recording) if f])
     conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
+                  "approved_by": args.approved_by,
                   "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
     if len(args.source) > 1 or Path(args.source[0]).is_dir():
         if args.noise:

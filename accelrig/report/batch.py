@@ -323,14 +323,25 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     from html import escape
 
     from accelrig import __version__
-    from accelrig.report.html import CSS, _kv, _sentence, _table, _when, coverage_statement, format_value
+    from accelrig.report.html import (
+        CSS,
+        _kv,
+        _sentence,
+        _table,
+        _when,
+        approval_block,
+        coverage_statement,
+        format_value,
+        page_css,
+    )
     from accelrig.report.wording import as_finding, html_text
 
     conditions = {key: v for key, v in (conditions or {}).items() if v not in (None, "")}
     issued = issued or datetime.now(UTC)
     k = batch.k
     html = ["<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>Calibration batch report</title>"
-            f"<style>{CSS}{BATCH_CSS}</style></head><body><h1>Calibration batch report</h1>"]
+            f"<style>{CSS}{BATCH_CSS}{page_css(conditions.get('certificate_number'))}</style></head><body>"
+            "<h1>Calibration batch report</h1>"]
     number = conditions.get("certificate_number")
     html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
                 f"{issued.strftime('%Y-%m-%d %H:%M UTC')} · written with accelrig {escape(__version__)} · "
@@ -410,6 +421,7 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
         for fig in figures:
             html.append(f"<figure>{fig.svg}<figcaption><b>{escape(fig.title)}.</b> {escape(fig.caption)}"
                         "</figcaption></figure>")
+    html.append(approval_block(conditions, "report"))
     html.append('<p class="note">Each device\'s own certificate (accelrig report SOURCE) holds its full results; '
                 "this report compares them. It shall not be reproduced except in full.</p></body></html>")
     return "".join(html)

@@ -23,6 +23,7 @@ from accelrig.report.wording import as_finding, display_unit, html_text
 from accelrig.result import Estimate, format_value
 
 DEFAULT_K = 2.0
+# approved_by is not a condition: it has its own block, with the signature (approval_block)
 CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
                     ("temperature", "Ambient temperature"), ("humidity", "Relative humidity"),
                     ("certificate_number", "Certificate number"))
@@ -40,8 +41,28 @@ white-space:nowrap}.kv th{width:48mm;white-space:nowrap}.kv td{overflow-wrap:any
 .verdict-pass{color:#060;font-weight:bold}.verdict-open{color:#8a3b00;font-weight:bold}figure{margin:2mm 0;break-inside:avoid}figure svg{max-width:100%;height:auto}
 figcaption{font-size:9pt;color:#333}.note{font-size:9pt;color:#333}
 body{hyphens:manual}.nb{white-space:nowrap}
-@page{size:A4;margin:12mm}
+@page{size:A4;margin:12mm 12mm 16mm}
+.sign td{height:9mm;min-width:60mm}
 """
+
+
+def page_css(number: str | None) -> str:
+    """Each printed page names its document and says which page of how many (ISO/IEC 17025 7.8.2.1),
+    in the page's bottom margin, which Chromium fills from CSS @page margin boxes."""
+    label = f"No. {number} · " if number else ""
+    # a CSS string: backslash, quote and line ends escaped as CSS wants them
+    label = "".join(c if c not in '\\"\n\r' else f"\\{ord(c):x} " for c in label)
+    return ("@page{@bottom-left{content:\"" + label + "Page \" counter(page) \" of \" counter(pages);"
+            "font-size:8pt;color:#555}}")
+
+
+def approval_block(conditions: dict, what: str) -> str:
+    """Who authorises the document (named by --approved-by, else a blank to fill in), with lines to sign."""
+    name = conditions.get("approved_by")
+    return (f"<h3>Authorisation</h3><p class=\"note\">This {what} is issued under the authority of the person "
+            "named below.</p><table class=\"kv sign\"><tr><th>Approved by</th><td>"
+            + (html_text(name) if name else "") + "</td></tr><tr><th>Signature</th><td></td></tr>"
+            "<tr><th>Date</th><td></td></tr></table>")
 
 
 def _plain(value) -> str:
@@ -293,7 +314,7 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     # the slider-crank judges a calibration made elsewhere; every other procedure determines one
     title = "Verification certificate" if r["procedure"] == "slider-crank" else "Calibration certificate"
     html = [f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>{escape(title)}</title>"
-            f"<style>{CSS}</style></head><body>"]
+            f"<style>{CSS}{page_css(conditions.get('certificate_number'))}</style></head><body>"]
     html.append(f"<h1>{escape(title)}</h1>")
     number = conditions.get("certificate_number")
     html.append(f'<p class="note">{("No. " + html_text(number) + " · ") if number else ""}issued '
@@ -389,6 +410,8 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
                         "</figcaption></figure>")
         for reason in missing_figures or []:
             html.append(f'<p class="note">Figure not shown: {html_text(as_finding(reason))}.</p>')
+
+    html.append(approval_block(conditions, "verification certificate" if verifies else "certificate"))
 
     settings, quality = appendix_rows(src)
     html.append("<h2>Appendix: settings and fit figures as recorded</h2>")
