@@ -51,7 +51,7 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     assert kinds[1] == "hold_still" and messages[1] == "+z is down: hold still"
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
-    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
+    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "faces 6 of 6"
     # six faces are enough to compute; the guided sequence asks for one face of each axis again (+x twice
     # before the six were in is no drift check: it is not far apart in time)
     assert kinds[-1] == "again" and events[-1].kind == "instruction"
@@ -107,8 +107,9 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     # still asks for the opposite faces (then the first ones, so that their third holds come last)
     rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z", seed=4)
     proc = StaticProcedure(rec.rate)
-    proc.feed(rec)
-    proc.finish()
+    events = proc.feed(rec) + proc.finish()
+    assert [e.message for e in events if e.data["kind"] == "progress"][-1] == ("+z held again: not one the "
+                                                                               "drift check asked for")
     assert proc.faces["again_round"] == 2 and proc.faces["again_missing"] == ["-z", "-x", "-y"]
 
     rec, _, _ = _record("sim://static", seed=4)   # the rig's default is the wizard's whole sequence
@@ -116,6 +117,12 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     events = proc.feed(rec) + proc.finish()
     assert events[-1].data["kind"] == "complete" and proc.complete
     assert "+y is down a third time (the drift check's last round): hold still" in [e.message for e in events]
+    # the log says what each hold was, once: the six faces, then the drift check's nine holds by face
+    # (it said "6 of 6" again after each of them)
+    counts = [e.message for e in events if e.data["kind"] == "progress"]
+    assert counts == [f"faces {n} of 6" for n in range(1, 7)] + [
+        f"drift check {k} of 9: {face}" for k, face in enumerate(["+z", "+x", "+y", "-z", "-x", "-y",
+                                                                   "+z", "+x", "+y"], start=1)]
     assert proc.faces["again_round"] is None and proc.faces["third_done"] == ["+z", "+x", "+y"]
     assert proc.faces["n_poses"] == proc.faces["holds_asked"] == 15
     result = proc.result()

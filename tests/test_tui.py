@@ -47,6 +47,47 @@ async def test_help_lists_the_keys_of_the_screen_below():
 
 
 @async_test
+async def test_help_reaches_a_dialog_and_tells_what_it_asks():
+    from accelrig.tui.screens.calibrate import CalibrateMenu
+    from accelrig.tui.screens.dialogs import ChoiceScreen, PathScreen
+    from tui_support import screen_lines
+
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        # a dialog with a text field: ? types itself (a URL holds one), F1 opens the dialog's own help
+        await pilot.press("m")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        dialog = app.screen
+        assert "f1 Help" in screen_lines(app)[-1]
+        await pilot.press("question_mark")
+        assert dialog.query_one("#path").value.endswith("?") and app.screen is dialog
+        await pilot.press("f1")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        assert "MQTT broker of the fleet" in text_of(app, "#help-intro")
+        assert "Save" in text_of(app, "#help-keys") and "Calibrate" not in text_of(app, "#help-keys")
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is dialog)
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+        # a choice (the wheel wizard on the static rig offers the simulated wheel): ? works at once
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        menu = app.screen.query_one("#wizards")
+        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
+        choice = app.screen
+        assert "? Help" in screen_lines(app)[-1]
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        guide = text_of(app, "#help-intro")
+        assert "Use the simulated wheel rig" in guide and "escape goes back without choosing" in guide
+        await pilot.press("f1")   # F1 (or ?) again closes the help
+        await wait_for(pilot, lambda: app.screen is choice)
+
+
+@async_test
 async def test_connect_screen_switches_device_and_shows_identity():
     app = AccelrigApp(device=FINITE, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
@@ -72,6 +113,26 @@ async def test_connect_screen_switches_device_and_shows_identity():
         assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown
         await pilot.press("escape")
         await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+
+
+@async_test
+async def test_one_enter_on_a_found_device_connects_to_it():
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        first = app.session
+        await pilot.press("c")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
+        found = app.screen.query_one("#found")
+        await wait_for(pilot, lambda: found.option_count > 0)
+        found.focus()
+        found.highlighted = next(i for i in range(found.option_count)
+                                 if found.get_option_at_index(i).id == "sim://still")
+        await pilot.press("enter")   # once: it picked the URL into the field and waited for a second enter
+        await wait_for(pilot, lambda: app.session is not first, timeout=10)
+        assert app.session.url == "sim://still"
+        await wait_for(pilot, lambda: "connected" in text_of(app, "#connect-status"))
+        assert "Devices found (enter connects" in str(app.screen.query("Label").first().render())
 
 
 @async_test

@@ -36,7 +36,7 @@ class ConnectScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header()
         with Vertical(id="connect-box"):
-            yield Label("Devices found (enter picks one; r scans again, including BLE):")
+            yield Label("Devices found (enter connects; r scans again, including BLE):")
             yield OptionList(id="found")
             yield Label("Device URL:")
             with Horizontal(id="url-row"):
@@ -87,9 +87,10 @@ class ConnectScreen(Screen):
 
     @on(OptionList.OptionSelected, "#found")
     def pick(self, event: OptionList.OptionSelected) -> None:
-        url_input = self.query_one("#url", Input)
-        url_input.value = event.option.id
-        url_input.focus()
+        """enter on a found device connects to it (one enter, as the label says); its URL stays in the field
+        to be edited and connected again."""
+        self.query_one("#url", Input).value = event.option.id
+        self.connect()
 
     @on(Input.Submitted, "#url")
     @on(Button.Pressed, "#do-connect")

@@ -20,7 +20,6 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
@@ -28,14 +27,14 @@ from accelrig.estimation.gravity_fit import MULTI_ASKED_WHY
 from accelrig.procedures.static.poses import LAST_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
-from accelrig.tui.screens.dialogs import ChoiceScreen
+from accelrig.tui.screens.dialogs import ChoiceScreen, Dialog
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
 
-class RedoScreen(ModalScreen[str | None]):
+class RedoScreen(Dialog[str | None]):
     """Which face to take again."""
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
@@ -43,6 +42,11 @@ class RedoScreen(ModalScreen[str | None]):
     def __init__(self, done: list[str]):
         super().__init__()
         self.done = done
+
+    def help_text(self) -> str:
+        return ("[b]Take a face again[/b]\n\nThe face you pick is forgotten (every pose of it) and the wizard asks "
+                "you to put it down again: for a face that was bumped or held on a tilted surface.  The arrows move, "
+                "enter picks, escape keeps every face.")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
