@@ -39,6 +39,7 @@ import threading
 import time
 from pathlib import Path
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -58,6 +59,13 @@ from accelrig.tui.widgets.keys import KeyFooter
 EVENT_STYLES = {"problem": "bold red", "ready": "bold green", "instruction": "bold", "captured": "green"}
 # Event kinds that replace the instruction line (progress only goes to the log and the bar).
 INSTRUCTION_KINDS = ("instruction", "captured", "ready", "problem")
+
+
+def shortened(text: str, width: int) -> str:
+    """``text`` cut to ``width`` columns with an ellipsis at the end (at least its first character shows)."""
+    if len(text) <= width:
+        return text
+    return text[:max(width - 1, 1)] + "…"
 
 
 def device_facts(info) -> dict:
@@ -193,7 +201,6 @@ class ProcedureWizard(Screen):
 
     def help_text(self) -> str:
         """What ? shows in a wizard: what this procedure needs and does, then its keys (listed by the help)."""
-        from rich.markup import escape
 
         from accelrig.tui.rigs import NEEDS
 
@@ -373,11 +380,13 @@ class ProcedureWizard(Screen):
             self._pumping = True
             actions, self._actions = self._actions, []
             self.pump(self._generation, self.procedure, self.recorder if feeding else None, stats.state, actions)
-        line = (f"{self.url}   {stats.state.value}   {stats.delivered_rate:.1f} Hz   "
-                f"captured {self.recorder.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
+        stream = self.query_one("#wizard-stream", Static)
+        counters = (f"   {stats.state.value}   {stats.delivered_rate:.1f} Hz   captured {self.recorder.samples} "
+                    f"samples   drops {stats.missing}   gaps {stats.gap_events}")
+        line = shortened(self.url, stream.content_size.width - len(counters)) + counters
         if line != self._stream_line:  # an idle screen does no work
             self._stream_line = line
-            self.query_one("#wizard-stream", Static).update(line)
+            stream.update(escape(line))
         self.report_state(stats)
 
     @work(thread=True, group="wizard-pump")
