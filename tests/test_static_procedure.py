@@ -195,6 +195,27 @@ def test_too_short_pose_is_reported_live_and_not_used():
         proc.result()
 
 
+def test_a_pose_too_short_to_have_a_face_is_not_called_nearest_none():
+    from accelrig.procedures.static.poses import PoseDetector
+
+    # the live wizard said "motion detected: still pose (nearest None) held only 0.0 s" between two faces
+    assert PoseDetector._describe(None, False) == "the pose"
+    assert PoseDetector._describe("+x", False) == "still pose (nearest +x)"
+    assert PoseDetector._describe("+x", True) == "+x down"
+
+
+def test_the_any_orientation_flow_tells_the_pose_closed_by_the_end_of_data_as_an_orientation():
+    # the last pose, closed by finish(), was told in the faces' words ("1 of 6") in the multi-position log
+    rec, rig, _ = _record("sim://static?orientations=10&hold=4", seed=21)
+    last = rig.truth()["poses"][-1]
+    proc = StaticProcedure(rec.rate, model="multi-position")
+    proc.feed(rec.slice(0, int(np.searchsorted(rec.t, last["start"] + 3.0))))   # ends 3 s into the last pose
+    events = proc.finish()
+    assert [e.data["kind"] for e in events] == ["captured", "progress"]
+    assert events[1].message.startswith(f"{proc.orientations['n_distinct']} distinct orientations")
+    assert not any("of 6" in e.message for e in events)
+
+
 def test_fewer_than_six_faces_names_the_missing_ones():
     rec, _, _ = _record("sim://static?order=+z,-z,+x,-y", seed=5)
     with pytest.raises(CalibrationError) as info:

@@ -47,6 +47,24 @@ async def test_help_lists_the_keys_of_the_screen_below():
 
 
 @async_test
+async def test_help_on_the_calibrate_menu_says_what_each_wizard_needs_and_not_the_lists_own_keys():
+    from accelrig.tui.screens.calibrate import CalibrateMenu
+
+    app = AccelrigApp(device=FINITE)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        guide = text_of(app, "#help-intro")
+        assert "enter starts the wizard" in guide and "model multi-position" in guide
+        assert "Tilted wheel" in guide and "needs rotation" in guide
+        keys = text_of(app, "#help-keys")
+        assert "Back" in keys and "Scroll Left" not in keys and "Page Right" not in keys
+
+
+@async_test
 async def test_help_reaches_a_dialog_and_tells_what_it_asks():
     from accelrig.tui.screens.calibrate import CalibrateMenu
     from accelrig.tui.screens.dialogs import ChoiceScreen, PathScreen

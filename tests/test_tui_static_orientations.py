@@ -30,7 +30,7 @@ async def test_any_orientation_counts_distinct_orientations_maps_them_and_fits_m
         orientations = wizard.procedure.orientations
         assert orientations["n_distinct"] >= MULTI_MIN_DISTINCT and orientations["more"] == 0
         sphere = str(wizard.query_one("#sphere").render())
-        assert f"distinct orientations {orientations['n_distinct']} of 9 (enough" in sphere
+        assert f"distinct orientations {orientations['n_distinct']}, 9 needed (enough" in sphere
         assert sphere.count("●") + sphere.count("◉") >= 1 and "+z up" in sphere
         log = "\n".join(line.text for line in wizard.query_one("#events").lines)
         assert "1 distinct orientation, 8 more needed" in log and "faces" not in log

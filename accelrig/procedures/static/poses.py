@@ -486,6 +486,8 @@ class PoseDetector:
 
     @staticmethod
     def _describe(face: str | None, flat: bool) -> str:
+        if face is None:   # too short to have a face: "still pose (nearest None)" was said
+            return "the pose"
         return f"{face} down" if flat else f"still pose (nearest {face})"
 
     def _count_events(self, now: float, face: str | None) -> list[Event]:

@@ -131,7 +131,8 @@ class StaticWizard(ProcedureWizard):
             state = (f"[green]● still[/]: held {faces['held_seconds']:.1f} of {self.procedure.hold:g} s"
                      if faces["still"] else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
             if not orientations["more"] and orientations["more_asked"]:
-                state += (f"; {orientations['more_asked']} more orientations asked, {MULTI_ASKED_WHY} "
+                asked = orientations["more_asked"]
+                state += (f"; {asked} more orientation{'s' if asked != 1 else ''} asked, {MULTI_ASKED_WHY} "
                           "(c computes without)")
             self.query_one("#pose-state", Static).update(state)
             return
