@@ -120,6 +120,12 @@ async def test_connect_screen_switches_device_and_shows_identity():
         ids = [found.get_option_at_index(i).id for i in range(found.option_count)]
         # the flashable emulated chips are offered (calibrate on the static rig, then flash)
         assert "i2c-sim://mpu9250?rig=static" in ids
+        # ? says how to connect and the URL forms (it gave the app's opening text)
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        assert "enter connects to the one highlighted" in text_of(app, "#help-intro")
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
         url_input = app.screen.query_one("#url")
         url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
         url_input.focus()

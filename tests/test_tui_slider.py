@@ -69,6 +69,13 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert "left out at this width: model (s saves every column)" in str(
             screen.query_one("#steps-left-out").render())
         assert verification["verdict"] in str(app.screen.query_one("#verdict").render())
+        # ? tells how to read the verification (it said "Connect a device (c)", a key this screen does not have)
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: app.screen is not screen)
+        guide = str(app.screen.query_one("#help-intro").render())
+        assert "Slider-crank verification" in guide and "Connect a device" not in guide
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is screen)
         # the step table's k, the clearance flag's and the verdict's are told apart under the table
         meaning = str(screen.query_one("#verification-k").render())
         assert "k for U (per step):" in meaning and "k (in clearance):" in meaning

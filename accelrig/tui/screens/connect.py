@@ -33,6 +33,17 @@ class ConnectScreen(Screen):
         super().__init__()
         self.wizard = wizard
 
+    def help_text(self) -> str:
+        """What ? shows here: how to connect, and the URL forms."""
+        back = "the wizard" if self.wizard else "the live view"
+        return ("[b]Connect a device[/b]\n"
+                "The arrows move in the list of devices found, and enter connects to the one highlighted.  Or "
+                "tab to the URL field, type a device URL and press enter (in the field ? types itself: F1 opens "
+                f"this help).  r scans again (Bluetooth takes a few seconds).  escape goes back to {back}.\n"
+                f"URLs: {escape(URL_HINT)}; sim://RIG plays a simulated rig (static, wheel, slider-crank, rotary, "
+                "still), replay://FILE plays a recording.  The box at the bottom shows the connected device: "
+                "its identity, range and the rate it delivers.")
+
     def compose(self) -> ComposeResult:
         yield Header()
         with Vertical(id="connect-box"):

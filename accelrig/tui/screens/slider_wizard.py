@@ -91,6 +91,17 @@ class VerificationScreen(AsksBeforeClosing, Screen):
                 Binding("escape", "close", "Close")]
     saved_thing = "the verification"
 
+    def help_text(self) -> str:
+        """What ? shows here (the app's opening text named c as connect, which does nothing here)."""
+        return ("[b]Slider-crank verification[/b]\n"
+                "The verdict at the top says whether the crank radius seen in the sensor's motion agrees with the "
+                "caliper within the stated uncertainty, and why.  Read the warnings next, then the checks in "
+                "sentences.  The table gives each step (columns a narrow terminal leaves out are named under it); "
+                "the lines under it say which coverage factor k is which.  The plot shows the first harmonic "
+                "against its clearance band, then the radius per step (n for the next).\n"
+                "s saves the verification (YAML, every column); escape goes back to the wizard (asking first while "
+                "it is not saved).")
+
     def __init__(self, verification):
         super().__init__()
         self.verification = verification
