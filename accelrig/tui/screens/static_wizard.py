@@ -34,6 +34,11 @@ from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
 
+# under the grid or the map once a finite source (a recording, a scripted simulation) has delivered everything:
+# "turn it to a new orientation" and "put +x down once more" would ask for poses that cannot come
+ENDED_STATE = "[dim]the source ended: no more poses will come (the headline says what can still be done)[/]"
+
+
 class RedoScreen(Dialog[str | None]):
     """Which face to take again."""
 
@@ -129,8 +134,9 @@ class StaticWizard(ProcedureWizard):
             orientations = self.procedure.orientations
             self.query_one("#sphere", SphereMap).show(orientations)
             state = (f"[green]● still[/]: held {faces['held_seconds']:.1f} of {self.procedure.hold:g} s"
-                     if faces["still"] else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
-            if not orientations["more"] and orientations["more_asked"]:
+                     if faces["still"] else ENDED_STATE if self.source_ended
+                     else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
+            if not orientations["more"] and orientations["more_asked"] and not self.source_ended:
                 asked = orientations["more_asked"]
                 state += (f"; {asked} more orientation{'s' if asked != 1 else ''} asked, {MULTI_ASKED_WHY} "
                           "(c computes without)")
@@ -140,6 +146,8 @@ class StaticWizard(ProcedureWizard):
         if faces["still"]:
             state = (f"[green]● still[/]: {faces['current_face'] or 'not flat'} down, held "
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
+        elif self.source_ended:
+            state = ENDED_STATE
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
         elif faces["again_missing"] and faces.get("again_round") == 3:
