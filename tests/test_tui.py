@@ -126,37 +126,25 @@ async def test_connect_screen_switches_device_and_shows_identity():
         assert "enter connects to the one highlighted" in text_of(app, "#help-intro")
         await pilot.press("escape")
         await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
+        assert "Devices found (enter connects" in str(app.screen.query("Label").first().render())
+        # one enter on a found device connects to it (it copied the URL into the field and waited for another)
+        found.focus()
+        found.highlighted = ids.index("sim://still")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.session is not first, timeout=10)
+        assert app.session.url == "sim://still" and first.stats().state in (State.STOPPED, State.ENDED)
+        await wait_for(pilot, lambda: "connected" in text_of(app, "#connect-status"))
+        listed = app.session
         url_input = app.screen.query_one("#url")
         url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
         url_input.focus()
         await pilot.press("enter")
-        await wait_for(pilot, lambda: app.session is not first)
-        assert first.stats().state in (State.STOPPED, State.ENDED)
+        await wait_for(pilot, lambda: app.session is not listed)
         await pilot.pause(0.6)
         shown = text_of(app, "#connected-device")
         assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown
         await pilot.press("escape")
         await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
-
-
-@async_test
-async def test_one_enter_on_a_found_device_connects_to_it():
-    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
-    async with app.run_test(size=(80, 24)) as pilot:
-        await wait_for(pilot, lambda: app.session is not None)
-        first = app.session
-        await pilot.press("c")
-        await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
-        found = app.screen.query_one("#found")
-        await wait_for(pilot, lambda: found.option_count > 0)
-        found.focus()
-        found.highlighted = next(i for i in range(found.option_count)
-                                 if found.get_option_at_index(i).id == "sim://still")
-        await pilot.press("enter")   # once: it picked the URL into the field and waited for a second enter
-        await wait_for(pilot, lambda: app.session is not first, timeout=10)
-        assert app.session.url == "sim://still"
-        await wait_for(pilot, lambda: "connected" in text_of(app, "#connect-status"))
-        assert "Devices found (enter connects" in str(app.screen.query("Label").first().render())
 
 
 @async_test
