@@ -33,6 +33,20 @@ async def test_live_view_shows_device_rate_and_stats():
 
 
 @async_test
+async def test_the_device_line_keeps_one_row_with_a_long_url():
+    # "±2 / g  1000 Hz" wrapped onto a second row under a long URL and pushed the traces down
+    url = "i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3"
+    app = AccelrigApp(device=url, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None and app.session.info is not None)
+        line = app.screen.query_one("#device-line")
+        await wait_for(pilot, lambda: "…" in str(line.render()))
+        text = str(line.render())
+        assert line.size.height == 1 and text.startswith("i2c-sim://mpu9250?rig=static")
+        assert text.endswith("mpu9250  id i2c-sim-mpu9250-seed3  ±2 g  200 Hz")
+
+
+@async_test
 async def test_help_lists_the_keys_of_the_screen_below():
     app = AccelrigApp(device=FINITE)
     async with app.run_test(size=(80, 24)) as pilot:

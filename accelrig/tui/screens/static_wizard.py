@@ -33,7 +33,6 @@ from accelrig.tui.widgets.faces import FaceGrid
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
-
 # under the grid or the map once a finite source (a recording, a scripted simulation) has delivered everything:
 # "turn it to a new orientation" and "put +x down once more" would ask for poses that cannot come
 ENDED_STATE = "[dim]the source ended: no more poses will come (the headline says what can still be done)[/]"

@@ -55,17 +55,11 @@ from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import loss_warning, save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 from accelrig.tui.widgets.keys import KeyFooter
+from accelrig.tui.widgets.live import shortened
 
 EVENT_STYLES = {"problem": "bold red", "ready": "bold green", "instruction": "bold", "captured": "green"}
 # Event kinds that replace the instruction line (progress only goes to the log and the bar).
 INSTRUCTION_KINDS = ("instruction", "captured", "ready", "problem")
-
-
-def shortened(text: str, width: int) -> str:
-    """``text`` cut to ``width`` columns with an ellipsis at the end (at least its first character shows)."""
-    if len(text) <= width:
-        return text
-    return text[:max(width - 1, 1)] + "…"
 
 
 def device_facts(info) -> dict:
