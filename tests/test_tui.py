@@ -91,13 +91,14 @@ async def test_help_reaches_a_dialog_and_tells_what_it_asks():
         await pilot.press("m")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         dialog = app.screen
-        assert "f1 Help" in screen_lines(app)[-1]
+        # enter opens the broker's screen, and says so (it said "Save")
+        assert "⏎ Open esc Cancel f1 Help" in screen_lines(app)[-1]
         await pilot.press("question_mark")
         assert dialog.query_one("#path").value.endswith("?") and app.screen is dialog
         await pilot.press("f1")
         await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
         assert "MQTT broker of the fleet" in text_of(app, "#help-intro")
-        assert "Save" in text_of(app, "#help-keys") and "Calibrate" not in text_of(app, "#help-keys")
+        assert "Open" in text_of(app, "#help-keys") and "Calibrate" not in text_of(app, "#help-keys")
         await pilot.press("escape")
         await wait_for(pilot, lambda: app.screen is dialog)
         await pilot.press("escape")

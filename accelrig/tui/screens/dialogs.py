@@ -33,13 +33,13 @@ DIALOG_TEXT_WIDTH = 66   # a .dialog's 72 columns less its border, padding and a
 class Dialog(ModalScreen[ScreenResultType]):
     """A modal dialog.  A modal screen takes no key from the app's bindings, so help (? or F1) is bound here
     again: it shows the dialog's keys and its ``help_text`` (what it asks), not the screen's below.  ``keys`` are the dialog's
-    own (key, action, description) bindings made at run time (a question's "y Leave  n Stay"), listed before
+    own bindings made at run time (a question's "y Leave  n Stay"), listed before
     help in the footer."""
 
-    def __init__(self, keys: tuple[tuple[str, str, str], ...] = ()):
+    def __init__(self, keys: tuple[Binding, ...] = ()):
         super().__init__()
-        for key, action, description in keys:
-            self._bindings.bind(key, action, description)
+        for binding in keys:
+            self._bindings.bind(binding.key, binding.action, binding.description, priority=binding.priority)
         self._bindings.bind("question_mark,f1", "app.help", "Help", key_display="?")
 
 
@@ -60,7 +60,7 @@ class ConfirmScreen(Dialog[bool]):
 
     def __init__(self, question: str, yes: str = "Yes", no: str = "No", details: str | None = None):
         # the footer names the answers as the buttons do ("y Leave  n Stay")
-        super().__init__(keys=(("y", "answer(True)", yes), ("n", "answer(False)", no)))
+        super().__init__(keys=(Binding("y", "answer(True)", yes), Binding("n", "answer(False)", no)))
         self.question = question
         self.details = details
         self.yes, self.no = yes, no
@@ -106,26 +106,28 @@ class ConfirmScreen(Dialog[bool]):
 
 
 class PathScreen(Dialog[str | None]):
-    """Ask for a file path; dismisses with the path, or None on escape."""
+    """Ask for a file path (or another one-line answer, a broker's URL); dismisses with it, or None on escape.
+    ``verb`` is what enter does with it ("Save", "Write", "Open"), in the footer and the hint."""
 
-    # enter is the field's own key; bound here too (priority) so the footer shows it
-    BINDINGS = [Binding("enter", "submit", "Save", priority=True), Binding("escape", "cancel", "Cancel")]
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, prompt: str, default: str):
-        super().__init__()
+    def __init__(self, prompt: str, default: str, verb: str = "Save"):
+        # enter is the field's own key; bound here too (priority) so the footer shows it, first
+        super().__init__(keys=(Binding("enter", "submit", verb, priority=True),))
         self.prompt = prompt
         self.default = default
+        self.verb = verb
 
     def help_text(self) -> str:
-        return (f"[b]{escape(self.prompt)}[/b]\n\nType or edit it in the field (~ is your home folder; a folder that "
-                "does not exist yet is made).  enter takes it, escape cancels and writes nothing.  In the field ? "
-                "types itself: F1 opens this help.")
+        return (f"[b]{escape(self.prompt)}[/b]\n\nType or edit it in the field (~ is your home folder).  enter "
+                f"{self.verb.lower()}s, escape cancels and nothing is done.  In the field ? types itself: F1 opens "
+                "this help.")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Static(self.prompt)
             yield Input(value=self.default, id="path")
-            yield Static("[dim]enter saves, escape cancels[/dim]")
+            yield Static(f"[dim]enter {self.verb.lower()}s, escape cancels[/dim]")
         yield KeyFooter()
 
     def action_submit(self) -> None:

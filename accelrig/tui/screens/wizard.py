@@ -635,7 +635,8 @@ class ProcedureWizard(Screen):
             self.log_event("nothing captured yet", "yellow")
             return
         default = str(Path(self.app.output_dir) / f"{self.capture_name}-capture.csv")
-        path = await self.app.push_screen_wait(PathScreen("Write the captured samples to (.csv or .npz):", default))
+        path = await self.app.push_screen_wait(PathScreen("Write the captured samples to (.csv or .npz):", default,
+                                                                   verb="Write"))
         if path is None:
             return
         try:
