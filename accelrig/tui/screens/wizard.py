@@ -430,7 +430,9 @@ class ProcedureWizard(Screen):
     def _pumped(self, generation: int, notes, events, called: bool, acted: bool, error: str | None,
                 done: bool) -> None:
         self._pumping = False
-        if generation != self._generation:
+        if generation != self._generation or not self.app.is_running:
+            # a pump that ends while the app quits reports to nobody: the screen's widgets are being removed
+            # (the face grid's cells were gone: NoMatches); what it read is in the capture on disk
             return
         for text, style in notes:
             self.log_event(text, style)
