@@ -51,7 +51,7 @@ def test_live_feeding_in_any_block_size_finds_the_same_poses_and_tells_the_opera
     assert kinds[1] == "hold_still" and messages[1] == "+z is down: hold still"
     assert any(m.startswith("+z down captured (") for m in messages)
     assert "+x already done (holding it adds data)" in messages
-    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "6 of 6"
+    assert [m for k_, m in zip(kinds, messages, strict=True) if k_ == "progress"][-1] == "faces 6 of 6"
     # six faces are enough to compute; the guided sequence asks for one face of each axis again (+x twice
     # before the six were in is no drift check: it is not far apart in time)
     assert kinds[-1] == "again" and events[-1].kind == "instruction"
@@ -107,8 +107,9 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     # still asks for the opposite faces (then the first ones, so that their third holds come last)
     rec, _, _ = _record("sim://static?order=+z,-z,+x,-x,+y,-y,+z,+x,+y,+z", seed=4)
     proc = StaticProcedure(rec.rate)
-    proc.feed(rec)
-    proc.finish()
+    events = proc.feed(rec) + proc.finish()
+    assert [e.message for e in events if e.data["kind"] == "progress"][-1] == ("+z held again: not one the "
+                                                                               "drift check asked for")
     assert proc.faces["again_round"] == 2 and proc.faces["again_missing"] == ["-z", "-x", "-y"]
 
     rec, _, _ = _record("sim://static", seed=4)   # the rig's default is the wizard's whole sequence
@@ -116,6 +117,12 @@ def test_the_guided_sequence_ends_with_one_face_of_each_axis_again():
     events = proc.feed(rec) + proc.finish()
     assert events[-1].data["kind"] == "complete" and proc.complete
     assert "+y is down a third time (the drift check's last round): hold still" in [e.message for e in events]
+    # the log says what each hold was, once: the six faces, then the drift check's nine holds by face
+    # (it said "6 of 6" again after each of them)
+    counts = [e.message for e in events if e.data["kind"] == "progress"]
+    assert counts == [f"faces {n} of 6" for n in range(1, 7)] + [
+        f"drift check {k} of 9: {face}" for k, face in enumerate(["+z", "+x", "+y", "-z", "-x", "-y",
+                                                                   "+z", "+x", "+y"], start=1)]
     assert proc.faces["again_round"] is None and proc.faces["third_done"] == ["+z", "+x", "+y"]
     assert proc.faces["n_poses"] == proc.faces["holds_asked"] == 15
     result = proc.result()
@@ -186,6 +193,27 @@ def test_too_short_pose_is_reported_live_and_not_used():
     assert any(e.data["kind"] == "too_short" and e.kind == "problem" and "held only" in e.message for e in events)
     with pytest.raises(CalibrationError, match=r"\+z held but too short at t = "):
         proc.result()
+
+
+def test_a_pose_too_short_to_have_a_face_is_not_called_nearest_none():
+    from accelrig.procedures.static.poses import PoseDetector
+
+    # the live wizard said "motion detected: still pose (nearest None) held only 0.0 s" between two faces
+    assert PoseDetector._describe(None, False) == "the pose"
+    assert PoseDetector._describe("+x", False) == "still pose (nearest +x)"
+    assert PoseDetector._describe("+x", True) == "+x down"
+
+
+def test_the_any_orientation_flow_tells_the_pose_closed_by_the_end_of_data_as_an_orientation():
+    # the last pose, closed by finish(), was told in the faces' words ("1 of 6") in the multi-position log
+    rec, rig, _ = _record("sim://static?orientations=10&hold=4", seed=21)
+    last = rig.truth()["poses"][-1]
+    proc = StaticProcedure(rec.rate, model="multi-position")
+    proc.feed(rec.slice(0, int(np.searchsorted(rec.t, last["start"] + 3.0))))   # ends 3 s into the last pose
+    events = proc.finish()
+    assert [e.data["kind"] for e in events] == ["captured", "progress"]
+    assert events[1].message.startswith(f"{proc.orientations['n_distinct']} distinct orientations")
+    assert not any("of 6" in e.message for e in events)
 
 
 def test_fewer_than_six_faces_names_the_missing_ones():

@@ -33,6 +33,20 @@ async def test_live_view_shows_device_rate_and_stats():
 
 
 @async_test
+async def test_the_device_line_keeps_one_row_with_a_long_url():
+    # "±2 / g  1000 Hz" wrapped onto a second row under a long URL and pushed the traces down
+    url = "i2c-sim://mpu9250?rig=static&pace=fast&rate=200&seed=3"
+    app = AccelrigApp(device=url, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None and app.session.info is not None)
+        line = app.screen.query_one("#device-line")
+        await wait_for(pilot, lambda: "…" in str(line.render()))
+        text = str(line.render())
+        assert line.size.height == 1 and text.startswith("i2c-sim://mpu9250?rig=static")
+        assert text.endswith("mpu9250  id i2c-sim-mpu9250-seed3  ±2 g  200 Hz")
+
+
+@async_test
 async def test_help_lists_the_keys_of_the_screen_below():
     app = AccelrigApp(device=FINITE)
     async with app.run_test(size=(80, 24)) as pilot:
@@ -44,6 +58,66 @@ async def test_help_lists_the_keys_of_the_screen_below():
             assert description in keys
         await pilot.press("escape")
         assert isinstance(app.screen, LiveScreen)
+
+
+@async_test
+async def test_help_on_the_calibrate_menu_says_what_each_wizard_needs_and_not_the_lists_own_keys():
+    from accelrig.tui.screens.calibrate import CalibrateMenu
+
+    app = AccelrigApp(device=FINITE)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        guide = text_of(app, "#help-intro")
+        assert "enter starts the wizard" in guide and "model multi-position" in guide
+        assert "Tilted wheel" in guide and "needs rotation" in guide
+        keys = text_of(app, "#help-keys")
+        assert "Back" in keys and "Scroll Left" not in keys and "Page Right" not in keys
+
+
+@async_test
+async def test_help_reaches_a_dialog_and_tells_what_it_asks():
+    from accelrig.tui.screens.calibrate import CalibrateMenu
+    from accelrig.tui.screens.dialogs import ChoiceScreen, PathScreen
+    from tui_support import screen_lines
+
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        # a dialog with a text field: ? types itself (a URL holds one), F1 opens the dialog's own help
+        await pilot.press("m")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        dialog = app.screen
+        # enter opens the broker's screen, and says so (it said "Save")
+        assert "⏎ Open esc Cancel f1 Help" in screen_lines(app)[-1]
+        await pilot.press("question_mark")
+        assert dialog.query_one("#path").value.endswith("?") and app.screen is dialog
+        await pilot.press("f1")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        assert "MQTT broker of the fleet" in text_of(app, "#help-intro")
+        assert "Open" in text_of(app, "#help-keys") and "Calibrate" not in text_of(app, "#help-keys")
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is dialog)
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: isinstance(app.screen, LiveScreen))
+        # a choice (the wheel wizard on the static rig offers the simulated wheel): ? works at once
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))
+        menu = app.screen.query_one("#wizards")
+        menu.highlighted = [menu.get_option_at_index(i).id for i in range(menu.option_count)].index("wheel")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
+        choice = app.screen
+        assert "? Help" in screen_lines(app)[-1]
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        guide = text_of(app, "#help-intro")
+        assert "Use the simulated wheel rig" in guide and "escape goes back without choosing" in guide
+        await pilot.press("f1")   # F1 (or ?) again closes the help
+        await wait_for(pilot, lambda: app.screen is choice)
 
 
 @async_test
@@ -61,12 +135,26 @@ async def test_connect_screen_switches_device_and_shows_identity():
         ids = [found.get_option_at_index(i).id for i in range(found.option_count)]
         # the flashable emulated chips are offered (calibrate on the static rig, then flash)
         assert "i2c-sim://mpu9250?rig=static" in ids
+        # ? says how to connect and the URL forms (it gave the app's opening text)
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
+        assert "enter connects to the one highlighted" in text_of(app, "#help-intro")
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
+        assert "Devices found (enter connects" in str(app.screen.query("Label").first().render())
+        # one enter on a found device connects to it (it copied the URL into the field and waited for another)
+        found.focus()
+        found.highlighted = ids.index("sim://still")
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.session is not first, timeout=10)
+        assert app.session.url == "sim://still" and first.stats().state in (State.STOPPED, State.ENDED)
+        await wait_for(pilot, lambda: "connected" in text_of(app, "#connect-status"))
+        listed = app.session
         url_input = app.screen.query_one("#url")
         url_input.value = "sim://still?seed=9&pace=fast&seconds=3&range=4"
         url_input.focus()
         await pilot.press("enter")
-        await wait_for(pilot, lambda: app.session is not first)
-        assert first.stats().state in (State.STOPPED, State.ENDED)
+        await wait_for(pilot, lambda: app.session is not listed)
         await pilot.pause(0.6)
         shown = text_of(app, "#connected-device")
         assert "sim-random-9" in shown and "±4 g" in shown and "delivered" in shown

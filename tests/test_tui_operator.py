@@ -146,7 +146,7 @@ async def test_a_first_time_operator_gets_the_six_face_wizard_with_no_detour_and
         form = app.screen
         assert form.field("model").value == "" and not form.query_one("#settings-remembered").display
         # the footer shows the form's keys, not the wizard's below it (which do nothing there)
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: "Start" in screen_lines(app)[-1], timeout=10)
         footer = screen_lines(app)[-1]
         assert "Start" in footer and "Cancel" in footer and "Defaults" in footer, footer
         assert "Write data" not in footer and "redo a face" not in footer, footer
@@ -159,7 +159,8 @@ async def test_a_first_time_operator_gets_the_six_face_wizard_with_no_detour_and
         assert "Write data" in screen_lines(app)[-1]   # the wizard's keys once it is in front
         app.push_screen(ConfirmScreen("Leave this calibration?", "Leave", "Stay"))
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
-        await pilot.pause(0.2)
+        # the footer is drawn after the dialog (under load it was still blank after a fixed 0.2 s)
+        await wait_for(pilot, lambda: "Leave" in screen_lines(app)[-1], timeout=10)
         footer = screen_lines(app)[-1]
         assert "Leave" in footer and "Stay" in footer and "Write data" not in footer, footer
 

@@ -48,6 +48,14 @@ async def test_rotary_steps_by_keystroke_to_the_campaign_report(tmp_path):
         assert campaign.query_one("#campaign-0").row_count == 4   # 2 steps x 2 axes
         # numbered as the wizard numbered the steps (from 1), the device named, each step's recording traced
         assert [campaign.query_one("#campaign-0").get_row_at(i)[0] for i in range(4)] == ["1", "1", "2", "2"]
+        # ? here tells how to read the campaign (it said "Connect a device (c)", and c writes the certificate)
+        await pilot.press("question_mark")
+        await wait_for(pilot, lambda: app.screen is not campaign)
+        guide = str(app.screen.query_one("#help-intro").render())
+        assert "Rotary bench: the campaign" in guide and "c writes the certificate" in guide
+        assert "Connect a device" not in guide
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: app.screen is campaign)
         # S and its u rounded together, as on every screen (was "416.324" beside "1.2")
         from accelrig.result import format_value
 

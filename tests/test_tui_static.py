@@ -10,7 +10,7 @@ from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
-from tui_support import async_test, wait_for  # noqa: E402
+from tui_support import async_test, screen_lines, wait_for  # noqa: E402
 
 DEVICE = "sim://static?seed=3&pace=fast"
 
@@ -115,6 +115,8 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await default_settings_to_results(app, pilot, timeout=90)
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
+        # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu")
+        assert screen_lines(app)[-1].rstrip().endswith("f Flash n Next plot c Certificate esc Close ? Help q Quit")
         driver = app.session.driver
         before = driver.chip.read_offset_words()
         await pilot.press("f")

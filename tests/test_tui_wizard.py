@@ -264,3 +264,23 @@ async def test_an_open_that_was_superseded_closes_its_own_stream_and_leaves_the_
         assert list((tmp_path / "stale").glob("*.parquet")) and not list((tmp_path / "stale").glob("*.seg"))
         samples = current.samples
         await wait_for(pilot, lambda: current.samples > samples)   # the wizard's own stream goes on
+
+
+@async_test
+async def test_status_line_fits_one_row_with_a_long_url_cut_not_its_counters(tmp_path):
+    # a long device URL pushed "gaps 0" onto a second row at 80 columns
+    url = "sim://still?seed=12&pace=fast&seconds=4&range=4&rate=200"
+    app = AccelrigApp(device=url, refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        wizard = await open_wizard(app, pilot, seconds=3600)
+        await wait_for(pilot, lambda: wizard.recorder is not None and wizard.recorder.samples > 0)
+        await pilot.pause(0.2)
+        stream = wizard.query_one("#wizard-stream")
+        text = str(stream.render())
+        assert stream.size.height == 1 and "\n" not in text and len(text) <= stream.content_size.width
+        assert text.startswith("sim://still?seed") and "…" in text and url not in text
+        assert text.endswith(f"gaps {wizard.session.stats().gap_events}") and "drops 0" in text
+        # with room for it the URL is whole
+        await pilot.resize_terminal(120, 30)
+        await pilot.pause(0.3)
+        await wait_for(pilot, lambda: str(stream.render()).startswith(url + "   "))

@@ -8,6 +8,7 @@ import yaml
 from textual import work
 from textual.app import App
 from textual.binding import Binding
+from textual.widgets import Input
 
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
@@ -161,6 +162,12 @@ class AccelrigApp(App):
         for screen in self.screen_stack:
             if hasattr(screen, "session_changed"):
                 screen.session_changed()
+
+    def get_key_display(self, binding: Binding) -> str:
+        """Help's key as it works now: in a text field ? types itself (a URL has one), so F1 is named."""
+        if binding.action in ("help", "app.help") and isinstance(self.focused, Input):
+            return "f1"
+        return super().get_key_display(binding)
 
     def action_help(self) -> None:
         if not isinstance(self.screen, HelpScreen):

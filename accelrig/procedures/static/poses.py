@@ -72,7 +72,8 @@ from accelrig.units import COUNT_MAX, STANDARD_GRAVITY, saturated
 OPPOSITE_ROUND_WHY = "so the fit can test the drift between the holds"
 LAST_ROUND_WHY = "so their holds, spread over the run, show the drift's shape"
 # The holds the guided sequence asks for: the six faces, then the drift check's three rounds of one per axis
-GUIDED_HOLDS = len(FACES) + 3 * len(AXES)
+DRIFT_HOLDS = 3 * len(AXES)   # the drift check: one face of each axis, its opposite, the first a third time
+GUIDED_HOLDS = len(FACES) + DRIFT_HOLDS
 
 _CHI2_1_MEDIAN = 0.4549364   # median of chi^2 with 1 dof: median(d^2) = 0.455 var(d) for a normal d
 
@@ -179,6 +180,7 @@ class PoseDetector:
         self._seg_captured = False
         self._seg_problem_reported = False
         self._now = 0.0
+        self._drift_checked = 0   # the drift check's holds counted at the last capture (each is said once)
 
     # ------------------------------------------------------------- progress
     @property
@@ -304,6 +306,7 @@ class PoseDetector:
         if self._held_captured and self._seg_face == face:
             self._seg_captured = False   # the pose held now is taken again when it qualifies
             n += 1
+        self._drift_checked = sum(len(held) for held in self.again_rounds)   # the next hold counts from here
         return [pose_event("redo", f"{face} down forgotten ({n} pose{'s' if n != 1 else ''}): put it down again",
                            self._now, face, len(self.faces_done) / len(FACES))]
 
@@ -408,7 +411,7 @@ class PoseDetector:
             if problem is None:
                 events.append(pose_event("captured", f"{self._describe(self._seg_face, self._seg_flat)} captured "
                                          f"({self.hold:.1f} s)", now, self._seg_face))
-                events += self._count_events(now)
+                events += self._count_events(now, self._seg_face)
             else:
                 self._seg_problem_reported = True
                 events.append(pose_event(problem[0], problem[1], now, self._seg_face))
@@ -478,17 +481,28 @@ class PoseDetector:
         if not self._seg_captured:
             events.append(pose_event("captured", f"{self._describe(pose.face, self._seg_flat)} captured "
                                                  f"({pose.duration:.1f} s)", now, pose.face))
-            events += self._count_events(now)
+            events += self._count_events(now, pose.face)
         return events
 
     @staticmethod
     def _describe(face: str | None, flat: bool) -> str:
+        if face is None:   # too short to have a face: "still pose (nearest None)" was said
+            return "the pose"
         return f"{face} down" if flat else f"still pose (nearest {face})"
 
-    def _count_events(self, now: float) -> list[Event]:
-        """How many faces are done, after a capture; then the faces to hold again; 'complete' at the end."""
+    def _count_events(self, now: float, face: str | None) -> list[Event]:
+        """What the capture of ``face`` was (a face, a hold of the drift check, or neither), each once; then
+        the faces to hold again; 'complete' at the end."""
         n = len(self.faces_done)
-        events = [pose_event("progress", f"{n} of 6", now, progress=n / len(FACES))]
+        checked = sum(len(held) for held in self.again_rounds)
+        if n < len(FACES) or checked == self._drift_checked:
+            # after the six, a hold the drift check did not ask for is said as such (not "6 of 6" again)
+            text = f"faces {n} of 6" if n < len(FACES) or not self._drift_checked else (
+                f"{face or 'a still pose'} held again: not one the drift check asked for")
+        else:
+            text = f"drift check {checked} of {DRIFT_HOLDS}: {face}"
+        self._drift_checked = checked
+        events = [pose_event("progress", text, now, progress=n / len(FACES))]
         if n < len(FACES):
             return events
         again, round_ = self.again_missing, self.again_round

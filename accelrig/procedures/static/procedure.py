@@ -166,7 +166,10 @@ class StaticProcedure(Procedure):
         return self.detector.forget(arguments["face"])
 
     def finish(self) -> list[Event]:
-        return self.detector.finish()
+        # the pose closed by the end of the data is told as feed tells it (the any-orientation flow said
+        # "1 of 6" faces here)
+        found = self.detector.finish()
+        return self._orientation_events(found) if self.any_orientation else found
 
     @property
     def progress(self) -> float:

@@ -49,6 +49,24 @@ def wizard_screen(path: str, *args, **kwargs):
 class CalibrateMenu(Screen):
     BINDINGS = [Binding("escape", "back", "Back")]
 
+    def help_text(self) -> str:
+        """What ? shows here: each wizard and what its rig is, so an operator picks the one that fits."""
+        from rich.markup import escape
+
+        from accelrig.tui.rigs import NEEDS
+
+        lines = ["[b]Choose a calibration[/b]: the arrows move, enter starts the wizard on the connected device "
+                 "(c on the live view connects another), escape goes back.  A device that cannot serve the "
+                 "wizard is said, and the wizard offers its simulated rig."]
+        for key, title, _ in available_wizards():
+            needs = NEEDS.get(key)
+            lines.append(f"[b]{escape(title)}[/b]" + (f": needs {escape(needs.motion)}; the simulated rig: "
+                                                     f"{escape(needs.demo_note)}" if needs is not None else ""))
+            if key == "static":
+                lines.append("  A sensor that cannot sit on its faces: choose the model multi-position in the "
+                             "static wizard's settings (12 orientations, any).")
+        return "\n".join(lines)
+
     def compose(self) -> ComposeResult:
         yield Header()
         with Vertical(id="calibrate-box"):

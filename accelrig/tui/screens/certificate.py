@@ -37,7 +37,7 @@ async def write_certificate_flow(screen, result, recording, device: dict | None,
     default = default_certificate_path(app.output_dir, result, device)
     prompt = ("Write the certificate to (.pdf or .html):" if certificate.find_browser() else
               "Write the certificate to (.html; no Chromium is installed here, so a .pdf cannot be printed):")
-    path = await app.push_screen_wait(PathScreen(prompt, str(default)))
+    path = await app.push_screen_wait(PathScreen(prompt, str(default), verb="Write"))
     if path is None:
         set_status("no certificate written")
         return None

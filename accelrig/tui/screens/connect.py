@@ -33,10 +33,21 @@ class ConnectScreen(Screen):
         super().__init__()
         self.wizard = wizard
 
+    def help_text(self) -> str:
+        """What ? shows here: how to connect, and the URL forms."""
+        back = "the wizard" if self.wizard else "the live view"
+        return ("[b]Connect a device[/b]\n"
+                "The arrows move in the list of devices found, and enter connects to the one highlighted.  Or "
+                "tab to the URL field, type a device URL and press enter (in the field ? types itself: F1 opens "
+                f"this help).  r scans again (Bluetooth takes a few seconds).  escape goes back to {back}.\n"
+                f"URLs: {escape(URL_HINT)}; sim://RIG plays a simulated rig (static, wheel, slider-crank, rotary, "
+                "still), replay://FILE plays a recording.  The box at the bottom shows the connected device: "
+                "its identity, range and the rate it delivers.")
+
     def compose(self) -> ComposeResult:
         yield Header()
         with Vertical(id="connect-box"):
-            yield Label("Devices found (enter picks one; r scans again, including BLE):")
+            yield Label("Devices found (enter connects; r scans again, including BLE):")
             yield OptionList(id="found")
             yield Label("Device URL:")
             with Horizontal(id="url-row"):
@@ -87,9 +98,10 @@ class ConnectScreen(Screen):
 
     @on(OptionList.OptionSelected, "#found")
     def pick(self, event: OptionList.OptionSelected) -> None:
-        url_input = self.query_one("#url", Input)
-        url_input.value = event.option.id
-        url_input.focus()
+        """enter on a found device connects to it (one enter, as the label says); its URL stays in the field
+        to be edited and connected again."""
+        self.query_one("#url", Input).value = event.option.id
+        self.connect()
 
     @on(Input.Submitted, "#url")
     @on(Button.Pressed, "#do-connect")

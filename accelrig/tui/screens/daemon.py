@@ -22,6 +22,14 @@ class DaemonScreen(Screen):
 
     BINDINGS = [Binding("r", "refresh_now", "Refresh now"), Binding("escape", "back", "Back")]
 
+    def help_text(self) -> str:
+        """What ? shows here (the app's opening text named keys that this screen does not have)."""
+        return ("[b]A running daemon's devices[/b] (read-only, refreshed every second from its status socket)\n"
+                "Each row: the device's state, delivered rate, samples delivered / written / dropped / missing, "
+                "gaps, connects, megabytes written and the profile in use.  Under the table: what is wrong with "
+                "each device, and the columns a narrow terminal leaves out (accelrig daemon status prints them "
+                "all).  r refreshes now; escape goes back (or quits when the daemon is all this shows).")
+
     def __init__(self, socket_path: str | Path, interval: float = 1.0):
         super().__init__()
         self.socket_path = Path(socket_path)

@@ -11,7 +11,7 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
-from textual.screen import ModalScreen
+from textual.screen import ModalScreen, ScreenResultType
 from textual.widgets import Button, Input, OptionList, Static
 from textual.widgets.option_list import Option
 
@@ -30,7 +30,20 @@ def tell(status: Static, text: str) -> None:
 DIALOG_TEXT_WIDTH = 66   # a .dialog's 72 columns less its border, padding and a scrollbar
 
 
-class ConfirmScreen(ModalScreen[bool]):
+class Dialog(ModalScreen[ScreenResultType]):
+    """A modal dialog.  A modal screen takes no key from the app's bindings, so help (? or F1) is bound here
+    again: it shows the dialog's keys and its ``help_text`` (what it asks), not the screen's below.  ``keys`` are the dialog's
+    own bindings made at run time (a question's "y Leave  n Stay"), listed before
+    help in the footer."""
+
+    def __init__(self, keys: tuple[Binding, ...] = ()):
+        super().__init__()
+        for binding in keys:
+            self._bindings.bind(binding.key, binding.action, binding.description, priority=binding.priority)
+        self._bindings.bind("question_mark,f1", "app.help", "Help", key_display="?")
+
+
+class ConfirmScreen(Dialog[bool]):
     """Ask a yes/no question; dismisses with True only on an explicit yes.
 
     ``details`` (what the answer will do, e.g. a flash plan's register table) scroll above the question
@@ -46,13 +59,18 @@ class ConfirmScreen(ModalScreen[bool]):
     ]
 
     def __init__(self, question: str, yes: str = "Yes", no: str = "No", details: str | None = None):
-        super().__init__()
+        # the footer names the answers as the buttons do ("y Leave  n Stay")
+        super().__init__(keys=(Binding("y", "answer(True)", yes), Binding("n", "answer(False)", no)))
         self.question = question
         self.details = details
         self.yes, self.no = yes, no
-        # the footer names the answers as the buttons do ("y Leave  n Stay")
-        self._bindings.bind("y", "answer(True)", yes)
-        self._bindings.bind("n", "answer(False)", no)
+
+    def help_text(self) -> str:
+        scrolls = ("  The text above the question scrolls with the arrows and page keys." if self.details is not None
+                   else "")
+        return (f"[b]A question[/b]: {escape(self.question)}\n\n"
+                f"y ({escape(self.yes)}) does what the question says; n ({escape(self.no)}) or escape does "
+                f"not.{scrolls}")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
@@ -87,22 +105,29 @@ class ConfirmScreen(ModalScreen[bool]):
             self.query_one("#details", VerticalScroll).scroll_relative(y=lines, animate=False)
 
 
-class PathScreen(ModalScreen[str | None]):
-    """Ask for a file path; dismisses with the path, or None on escape."""
+class PathScreen(Dialog[str | None]):
+    """Ask for a file path (or another one-line answer, a broker's URL); dismisses with it, or None on escape.
+    ``verb`` is what enter does with it ("Save", "Write", "Open"), in the footer and the hint."""
 
-    # enter is the field's own key; bound here too (priority) so the footer shows it
-    BINDINGS = [Binding("enter", "submit", "Save", priority=True), Binding("escape", "cancel", "Cancel")]
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, prompt: str, default: str):
-        super().__init__()
+    def __init__(self, prompt: str, default: str, verb: str = "Save"):
+        # enter is the field's own key; bound here too (priority) so the footer shows it, first
+        super().__init__(keys=(Binding("enter", "submit", verb, priority=True),))
         self.prompt = prompt
         self.default = default
+        self.verb = verb
+
+    def help_text(self) -> str:
+        return (f"[b]{escape(self.prompt)}[/b]\n\nType or edit it in the field (~ is your home folder).  enter "
+                f"{self.verb.lower()}s, escape cancels and nothing is done.  In the field ? types itself: F1 opens "
+                "this help.")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Static(self.prompt)
             yield Input(value=self.default, id="path")
-            yield Static("[dim]enter saves, escape cancels[/dim]")
+            yield Static(f"[dim]enter {self.verb.lower()}s, escape cancels[/dim]")
         yield KeyFooter()
 
     def action_submit(self) -> None:
@@ -114,7 +139,7 @@ class PathScreen(ModalScreen[str | None]):
         self.dismiss(None)
 
 
-class ChoiceScreen(ModalScreen[str | None]):
+class ChoiceScreen(Dialog[str | None]):
     """Ask the operator to pick one of a few ``(id, text)`` choices; dismisses with the id, or None on escape."""
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
@@ -123,6 +148,11 @@ class ChoiceScreen(ModalScreen[str | None]):
         super().__init__()
         self.question = question
         self.choices = choices
+
+    def help_text(self) -> str:
+        listed = "\n".join(f"  • {escape(text)}" for _, text in self.choices)
+        return (f"[b]{escape(self.question)}[/b]\n\n{listed}\n\nThe arrows move to a choice and enter picks it; "
+                "escape goes back without choosing.")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
@@ -175,7 +205,7 @@ class AsksBeforeClosing:
             self.app.pop_screen()
 
 
-class SettingsForm(ModalScreen):
+class SettingsForm(Dialog):
     """A procedure's declared settings as a form: one field per ``Setting``.
 
     Each field starts with ``texts`` (what the operator typed last time, or a simulated rig's values) or
@@ -208,6 +238,14 @@ class SettingsForm(ModalScreen):
         self.check = check
         self.remembered = dict(remembered or {})
         self.filled = dict(filled or {})
+
+    def help_text(self) -> str:
+        fields = "\n".join(f"  [b]{escape(s.title.split(' (')[0])}[/b]: {escape(s.describe())}" for s in self.settings)
+        return (f"[b]{escape(self.title_text)}[/b]\n\nWhat the procedure needs, one field each; a blank field "
+                "takes its default (in grey), a field marked required must be filled.  tab or the arrows move "
+                "between fields, enter starts, a value that cannot work is refused in red with the reason, ctrl+r "
+                f"puts every field back to its default, escape cancels.  In a field ? types itself: F1 opens this "
+                f"help.\n\n{fields}")
 
     def compose(self) -> ComposeResult:
         with VerticalScroll(classes="dialog settings-form"):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from textual.app import ComposeResult
+from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import ModalScreen, Screen
@@ -31,6 +31,8 @@ class HelpScreen(ModalScreen):
             binding = active.binding
             if not binding.description or (binding.action, binding.description) in seen:
                 continue
+            if not isinstance(active.node, (Screen, App)):
+                continue   # a list's or a field's own keys (Scroll Left, Page Right, ...): the line below says them
             seen.add((binding.action, binding.description))
             shown = binding.key_display or self.app.get_key_display(binding)
             rows.append(f"  [b]{shown:>10}[/b]  {binding.description}")
@@ -38,8 +40,8 @@ class HelpScreen(ModalScreen):
         with VerticalScroll(id="help-box"):
             yield Static(guide() if guide is not None else INTRO, id="help-intro")
             yield Static("[b]Keys on this screen[/b]\n" + "\n".join(rows), id="help-keys")
-            yield Static("[dim]tab / shift+tab move between fields, enter activates, "
-                         "the mouse works too.  escape closes this help.[/dim]")
+            yield Static("[dim]tab / shift+tab move between fields, the arrows and page keys move in a list, "
+                         "enter activates, the mouse works too.  escape closes this help.[/dim]")
         yield KeyFooter()   # the help's own key: the screen below's keys do not work while it is open
 
     def action_close(self) -> None:

@@ -69,7 +69,8 @@ class LiveScreen(Screen):
 
         url = await self.app.push_screen_wait(PathScreen(
             "MQTT broker of the fleet (mqtt://HOST[:PORT], or mqtts:// for TLS; for a user name and password "
-            "start with: accelrig tui --broker URL --username NAME --password-file FILE):", "mqtt://localhost:1883"))
+            "start with: accelrig tui --broker URL --username NAME --password-file FILE):", "mqtt://localhost:1883",
+            verb="Open"))
         if url is None:
             return
         try:

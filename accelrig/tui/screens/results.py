@@ -240,7 +240,7 @@ class ResultsScreen(AsksBeforeClosing, Screen):
     saved_thing = "the profile"
     BINDINGS = [
         Binding("s", "save", "Save profile"),
-        Binding("f", "flash", "Flash to device"),
+        Binding("f", "flash", "Flash"),
         Binding("n", "next_plot", "Next plot"),
         Binding("c", "certificate", "Certificate"),
         Binding("escape", "close", "Close"),

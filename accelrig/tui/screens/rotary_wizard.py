@@ -102,6 +102,16 @@ class CampaignScreen(AsksBeforeClosing, Screen):
                 Binding("escape", "close", "Close")]
     saved_thing = "the campaign report"
 
+    def help_text(self) -> str:
+        """What ? shows here (the app's opening text named c as connect, which it is not here)."""
+        return ("[b]Rotary bench: the campaign[/b]\n"
+                "Read the warnings first: a contribution left out of the budget is said there.  The plot shows each "
+                "test's sensitivity per axis (the same axis should agree); the tables give every step's sensitivity "
+                "S with its u (k = 1), the uncertainty budget per axis, the linearity line and the group results, "
+                "with units and the coverage factor stated.\n"
+                "s saves the report (Markdown, or YAML by the file's suffix), c writes the certificate; escape goes "
+                "back to the wizard (asking first while the report is not saved).")
+
     def __init__(self, result, device: dict | None = None):
         super().__init__()
         self.report = result

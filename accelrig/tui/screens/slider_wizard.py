@@ -13,7 +13,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Header, Static
+from textual.widgets import Header, Static
 
 from accelrig.errors import AccelrigError
 from accelrig.files import atomic_write
@@ -28,6 +28,13 @@ from accelrig.tui.screens.results import result_views
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
+from accelrig.tui.widgets.table import FittedTable
+
+STEP_COLUMNS = ("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k for U", "flags")
+# what a narrow terminal keeps first: each step's radius against the caliper and its flags; the model's
+# amplitude goes first (the plot draws it)
+STEP_PRIORITY = [STEP_COLUMNS.index(title) for title in
+                 ("step", "radius mm", "u mm", "flags", "Hz", "amplitude", "u", "k for U", "model")]
 
 
 def response_series(frequency, measured, model) -> list[Series]:
@@ -83,6 +90,17 @@ class VerificationScreen(AsksBeforeClosing, Screen):
     BINDINGS = [Binding("s", "save", "Save verification"), Binding("n", "next_plot", "Next plot"),
                 Binding("escape", "close", "Close")]
     saved_thing = "the verification"
+
+    def help_text(self) -> str:
+        """What ? shows here (the app's opening text named c as connect, which does nothing here)."""
+        return ("[b]Slider-crank verification[/b]\n"
+                "The verdict at the top says whether the crank radius seen in the sensor's motion agrees with the "
+                "caliper within the stated uncertainty, and why.  Read the warnings next, then the checks in "
+                "sentences.  The table gives each step (columns a narrow terminal leaves out are named under it); "
+                "the lines under it say which coverage factor k is which.  The plot shows the first harmonic "
+                "against its clearance band, then the radius per step (n for the next).\n"
+                "s saves the verification (YAML, every column); escape goes back to the wizard (asking first while "
+                "it is not saved).")
 
     def __init__(self, verification):
         super().__init__()
@@ -144,7 +162,9 @@ class VerificationScreen(AsksBeforeClosing, Screen):
                          f"{v['crank_radius_m'] * 1e3:g} ± {v['clearance_m'] * 1e3:g} mm"
                          + (f"; motor tops out near {v['rolloff_hz']:.2f} Hz" if v["rolloff_hz"] is not None else ""),
                          id="verification-radius")
-            yield DataTable(id="steps", show_cursor=False, zebra_stripes=True)
+            # the columns that fit whole (at 80 columns the table was 3 cells too wide and scrolled sideways)
+            yield FittedTable(STEP_PRIORITY, id="steps")
+            yield Static("", id="steps-left-out")
             # which k is which (analysis.coverage_factors, the same text as the CLI's and the JSON's)
             yield Static("\n".join(f"[b]{escape(label)}:[/b] {escape(v.get('coverage_factors', {})[key])}"
                                    for key, label in COVERAGE_FACTOR_LABELS.items() if key in v.get("coverage_factors", {})),
@@ -154,19 +174,32 @@ class VerificationScreen(AsksBeforeClosing, Screen):
 
     def on_mount(self) -> None:
         self.sub_title = "verification"
-        table = self.query_one("#steps", DataTable)
-        table.add_columns("step", "Hz", "amplitude", "u", "model", "radius mm", "u mm", "k for U", "flags")
-        for s in self.verification.details["steps"]:
+        rows = []
+        steps = self.verification.details["steps"]
+        for s in steps:
             flags = [name for name, on_ in (("motor-limited", s["motor_limited"]), ("backlash", s["backlash"]),
                                             ("link rings", s["link_ringing"]), ("unsteady", s["speed_unsteady"]),
                                             ("outside", not s["within_clearance"])) if on_]
             # a value beside its u is rounded with it (format_value), as on every screen
             amplitude, amplitude_u = format_value(s["amplitude"]["value"], s["amplitude"]["uncertainty"])
             radius, radius_u = format_value(s["radius_m"]["value"] * 1e3, s["radius_m"]["uncertainty"] * 1e3)
-            table.add_row(s["label"], f"{s['frequency_hz']['value']:.3f}", amplitude, amplitude_u,
-                          f"{s['model_amplitude']:.4g}", radius, radius_u,
-                          f"{s.get('radius_k', 2.0):.2f}", " ".join(flags))
+            rows.append([s["label"], f"{s['frequency_hz']['value']:.3f}", amplitude, amplitude_u,
+                         f"{s['model_amplitude']:.4g}", radius, radius_u, f"{s.get('radius_k', 2.0):.2f}",
+                         " ".join(flags)])
+        self.query_one("#steps", FittedTable).show(STEP_COLUMNS, rows, [s["label"] for s in steps])
+        self.call_after_refresh(self.say_left_out)
         self.show_plot()
+
+    def on_resize(self) -> None:
+        self.call_after_refresh(self.say_left_out)
+
+    def say_left_out(self) -> None:
+        """Under the steps: the columns this width leaves out, and where they all are."""
+        left_out = self.query_one("#steps", FittedTable).left_out
+        note = self.query_one("#steps-left-out", Static)
+        note.update(f"[dim]left out at this width: {', '.join(left_out)} (s saves every column)[/]" if left_out
+                    else "")
+        note.display = bool(left_out)
 
     def show_plot(self) -> None:
         view = self.plots[self.plot_index % len(self.plots)]

@@ -20,7 +20,6 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.screen import ModalScreen
 from textual.widgets import Label, OptionList, ProgressBar, Static
 from textual.widgets.option_list import Option
 
@@ -28,14 +27,18 @@ from accelrig.estimation.gravity_fit import MULTI_ASKED_WHY
 from accelrig.procedures.static.poses import LAST_ROUND_WHY
 from accelrig.procedures.static.procedure import StaticProcedure
 from accelrig.tui.rigs import ORIENTATIONS_DEMO_NOTE, ORIENTATIONS_DEMO_URL, plays_faces_only
-from accelrig.tui.screens.dialogs import ChoiceScreen
+from accelrig.tui.screens.dialogs import ChoiceScreen, Dialog
 from accelrig.tui.screens.wizard import ProcedureWizard
 from accelrig.tui.widgets.faces import FaceGrid
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.sphere import SphereMap
 
+# under the grid or the map once a finite source (a recording, a scripted simulation) has delivered everything:
+# "turn it to a new orientation" and "put +x down once more" would ask for poses that cannot come
+ENDED_STATE = "[dim]the source ended: no more poses will come (the headline says what can still be done)[/]"
 
-class RedoScreen(ModalScreen[str | None]):
+
+class RedoScreen(Dialog[str | None]):
     """Which face to take again."""
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
@@ -43,6 +46,11 @@ class RedoScreen(ModalScreen[str | None]):
     def __init__(self, done: list[str]):
         super().__init__()
         self.done = done
+
+    def help_text(self) -> str:
+        return ("[b]Take a face again[/b]\n\nThe face you pick is forgotten (every pose of it) and the wizard asks "
+                "you to put it down again: for a face that was bumped or held on a tilted surface.  The arrows move, "
+                "enter picks, escape keeps every face.")
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
@@ -125,9 +133,11 @@ class StaticWizard(ProcedureWizard):
             orientations = self.procedure.orientations
             self.query_one("#sphere", SphereMap).show(orientations)
             state = (f"[green]● still[/]: held {faces['held_seconds']:.1f} of {self.procedure.hold:g} s"
-                     if faces["still"] else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
-            if not orientations["more"] and orientations["more_asked"]:
-                state += (f"; {orientations['more_asked']} more orientations asked, {MULTI_ASKED_WHY} "
+                     if faces["still"] else ENDED_STATE if self.source_ended
+                     else "[yellow]◌ moving[/]: turn it to a new orientation and hold still")
+            if not orientations["more"] and orientations["more_asked"] and not self.source_ended:
+                asked = orientations["more_asked"]
+                state += (f"; {asked} more orientation{'s' if asked != 1 else ''} asked, {MULTI_ASKED_WHY} "
                           "(c computes without)")
             self.query_one("#pose-state", Static).update(state)
             return
@@ -135,6 +145,8 @@ class StaticWizard(ProcedureWizard):
         if faces["still"]:
             state = (f"[green]● still[/]: {faces['current_face'] or 'not flat'} down, held "
                      f"{faces['held_seconds']:.1f} of {self.procedure.hold:g} s")
+        elif self.source_ended:
+            state = ENDED_STATE
         elif faces["missing"]:
             state = "[yellow]◌ moving[/]: put the next face down and hold still"
         elif faces["again_missing"] and faces.get("again_round") == 3:

@@ -39,6 +39,7 @@ import threading
 import time
 from pathlib import Path
 
+from rich.markup import escape
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -54,6 +55,7 @@ from accelrig.profiles.flash import flash_url_profile
 from accelrig.recording import loss_warning, save_recording
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm
 from accelrig.tui.widgets.keys import KeyFooter
+from accelrig.tui.widgets.live import shortened
 
 EVENT_STYLES = {"problem": "bold red", "ready": "bold green", "instruction": "bold", "captured": "green"}
 # Event kinds that replace the instruction line (progress only goes to the log and the bar).
@@ -193,7 +195,6 @@ class ProcedureWizard(Screen):
 
     def help_text(self) -> str:
         """What ? shows in a wizard: what this procedure needs and does, then its keys (listed by the help)."""
-        from rich.markup import escape
 
         from accelrig.tui.rigs import NEEDS
 
@@ -373,11 +374,13 @@ class ProcedureWizard(Screen):
             self._pumping = True
             actions, self._actions = self._actions, []
             self.pump(self._generation, self.procedure, self.recorder if feeding else None, stats.state, actions)
-        line = (f"{self.url}   {stats.state.value}   {stats.delivered_rate:.1f} Hz   "
-                f"captured {self.recorder.samples} samples   drops {stats.missing}   gaps {stats.gap_events}")
+        stream = self.query_one("#wizard-stream", Static)
+        counters = (f"   {stats.state.value}   {stats.delivered_rate:.1f} Hz   captured {self.recorder.samples} "
+                    f"samples   drops {stats.missing}   gaps {stats.gap_events}")
+        line = shortened(self.url, stream.content_size.width - len(counters)) + counters
         if line != self._stream_line:  # an idle screen does no work
             self._stream_line = line
-            self.query_one("#wizard-stream", Static).update(line)
+            stream.update(escape(line))
         self.report_state(stats)
 
     @work(thread=True, group="wizard-pump")
@@ -427,7 +430,9 @@ class ProcedureWizard(Screen):
     def _pumped(self, generation: int, notes, events, called: bool, acted: bool, error: str | None,
                 done: bool) -> None:
         self._pumping = False
-        if generation != self._generation:
+        if generation != self._generation or not self.app.is_running:
+            # a pump that ends while the app quits reports to nobody: the screen's widgets are being removed
+            # (the face grid's cells were gone: NoMatches); what it read is in the capture on disk
             return
         for text, style in notes:
             self.log_event(text, style)
@@ -632,7 +637,8 @@ class ProcedureWizard(Screen):
             self.log_event("nothing captured yet", "yellow")
             return
         default = str(Path(self.app.output_dir) / f"{self.capture_name}-capture.csv")
-        path = await self.app.push_screen_wait(PathScreen("Write the captured samples to (.csv or .npz):", default))
+        path = await self.app.push_screen_wait(PathScreen("Write the captured samples to (.csv or .npz):", default,
+                                                                   verb="Write"))
         if path is None:
             return
         try:

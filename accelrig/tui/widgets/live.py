@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from rich.markup import escape
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import Sparkline, Static
@@ -14,6 +15,14 @@ from accelrig.units import STANDARD_GRAVITY, saturated
 
 AXIS_STYLES = ("red", "green", "dodger_blue1")
 PLOT_POINTS = 600  # points handed to a plot per refresh; more than any terminal shows
+
+
+def shortened(text: str, width: int) -> str:
+    """``text`` cut to ``width`` columns with an ellipsis at the end (at least its first character shows):
+    a device URL on a one-row status line, whose counters must stay whole."""
+    if len(text) <= width:
+        return text
+    return text[:max(width - 1, 1)] + "…"
 
 
 class LiveWindow:
@@ -64,6 +73,7 @@ class LiveView(Vertical):
         self._session: Session | None = None
         self._window: LiveWindow | None = None
         self._last_stats = None
+        self._device_text: str | None = None   # the device line as last drawn
 
     def compose(self) -> ComposeResult:
         yield Static("", id="device-line")
@@ -77,6 +87,7 @@ class LiveView(Vertical):
         device = self.query_one("#device-line", Static)
         if session is None or session.info is None:
             device.update(connect_error or "connecting ...")
+            self._device_text = None
             return
         if session is not self._session:
             self._session = session
@@ -87,10 +98,16 @@ class LiveView(Vertical):
             plot = self.query_one("#axes-plot", LinePlot)
             limit = info.range_g * STANDARD_GRAVITY
             plot.y_range = (-limit, limit)
-            device.update(
-                f"[b]{info.url}[/b]  {info.chip}  id {info.identity}  ±{info.range_g:g} g  "
-                f"{info.nominal_rate:g} Hz"
-            )
+        info = session.info
+        # one row: a URL too long for it is cut with an ellipsis (the connect screen shows it whole); the
+        # chip, identity, range and rate stay whole.  Before the first layout the width is not known yet.
+        facts = f"  {info.chip}  id {info.identity}  ±{info.range_g:g} g  {info.nominal_rate:g} Hz"
+        width = device.content_size.width
+        url = shortened(info.url, width - len(facts)) if width else info.url
+        line = f"[b]{escape(url)}[/b]{escape(facts)}"
+        if line != self._device_text:
+            self._device_text = line
+            device.update(line)
         window = self._window
         new = window.update()
         stats = session.stats()

@@ -43,7 +43,8 @@ def coverage_text(orientations: dict) -> str:
     n, needed, more = orientations["n_distinct"], orientations["needed"], orientations["more"]
     asked = orientations.get("more_asked", 0)
     need = f"{more} more needed" if more else f"enough; {asked} more asked" if asked else "enough"
-    lines.append(f"distinct orientations {n} of {needed} ({need}; within {orientations['distinct_deg']:g}° counts once)   "
+    # "11 of 9" read as a count out of a total: say how many are needed instead
+    lines.append(f"distinct orientations {n}, {needed} needed ({need}; within {orientations['distinct_deg']:g}° counts once)   "
                  f"octants {orientations['octants']} of 8   poses {orientations['n_poses']}")
     return "\n".join(lines)
 
