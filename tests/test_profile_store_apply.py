@@ -300,3 +300,31 @@ def test_a_profile_and_data_that_both_leave_the_device_unnamed_are_said_in_gramm
     profile.data["device"]["identity"] = None
     warnings = apply_profile(profile, rec)[1]
     assert "neither the profile nor the data name the device" in " ".join(warnings)
+
+
+def test_a_damaged_store_file_is_skipped_with_a_warning_and_the_older_profile_chosen(tmp_path, cli):
+    """One half-copied file must not stop every device: it is skipped, named and listed as broken; its device
+    falls back to its newest profile that loads, and a device left with none is told to repair, not recalibrate."""
+    sensor = SensorModel()
+    store = ProfileStore(tmp_path / "store")
+    older = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
+    other = store.add(truth_profile(sensor, identity="dev-2", created="2026-11-01T00:00:00Z"))
+    damaged = older.parent / "20261125T040000Z-static.yaml"
+    damaged.write_text(older.read_text()[:200])   # cut off mid-copy: not valid YAML
+    assert [s.path for s in store.entries()] == sorted([older, other])
+    assert [b.path for b in store.scan()[1]] == [damaged]
+    choice = store.choose("dev-1", now=datetime(2026, 11, 26, tzinfo=UTC))
+    assert choice.stored.path == older and [b.path for b in choice.skipped] == [damaged]
+    assert str(damaged) in choice.warnings[0] and "repair or remove it" in choice.warnings[0]
+    assert store.choose("dev-2").warnings == []   # another device's damaged file is not its concern
+    r = cli("profile", "list", "--store", str(store.root))
+    assert r.returncode == 0, r.stderr
+    assert "dev-1" in r.stdout and "dev-2" in r.stdout
+    broken_row = next(line for line in r.stdout.splitlines() if damaged.name in line)
+    assert broken_row.startswith("BROKEN")
+    assert f"skipped a store entry that cannot be used: {damaged}" in r.stderr and "not valid YAML" in r.stderr
+    # the device's only file is damaged: refused, naming it, and the fix is to repair it
+    older.unlink()
+    with pytest.raises(ProfileError) as err:
+        store.choose("dev-1")
+    assert str(damaged) in err.value.message and "repair or remove that file" in err.value.hint

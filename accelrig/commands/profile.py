@@ -119,8 +119,8 @@ def resolve(spec: str, args, date: str | None = None, data: Recording | None = N
 
 def run_list(args) -> int:
     store = ProfileStore(args.store)
-    entries = store.entries(args.device)
-    if not entries:
+    entries, broken = store.scan(args.device)
+    if not entries and not broken:
         say(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
         return 0
     rows = [("device", "created", "procedure", "method", "residual rms", "file")]
@@ -128,7 +128,11 @@ def run_list(args) -> int:
         rms = e.profile.data["quality"]["residual_rms"]
         rows.append((e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
                      "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root))))
+    # an entry that cannot be used is listed as such (and said why on stderr); the others stay usable
+    rows += [("BROKEN", "-", "-", "-", "-", str(b.path.relative_to(store.root))) for b in broken]
     _print_table(rows)
+    for b in broken:
+        warn(b.warning())
     return 0
 
 

@@ -337,6 +337,10 @@ def check_config(config: DaemonConfig) -> list[str]:
                          + (f"profiles for {', '.join(held)}" if held else "no profile at all")
                          + " (`accelrig profile add PROFILE` files one)")
             notes.append(note)
+    if any(d.profile_path is None and d.profile == "store" for d in config.devices):
+        # a file there that cannot be used is skipped when a device connects (its older profiles and every
+        # other device's stay usable): said now, not refused, so one damaged file stops no device
+        notes += [f"WARNING: profile store: {b.warning()}" for b in ProfileStore(config.profile_store).scan()[1]]
     if config.mqtt is not None:
         notes.append(check_mqtt(config.mqtt))
     check_output_writable(config.output)

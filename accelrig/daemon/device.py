@@ -399,10 +399,15 @@ class DeviceRunner:
         try:
             profile, warnings = self._find_profile(info)
         except ProfileError as exc:
+            from accelrig.profiles.store import UnusableProfiles
+
             self.profile_note = "none"
-            self._without_profile(exc.message, "calibrate the device and file its profile (accelrig profile add "
-                                  "PROFILE)" if device.profile == "store" else
-                                  f"give {device.field('profile')} a profile made for this device", "profile")
+            # its stored files cannot be read: repairing them is the fix, not a new calibration
+            fix = (exc.hint if isinstance(exc, UnusableProfiles) else
+                   "calibrate the device and file its profile (accelrig profile add PROFILE)"
+                   if device.profile == "store" else
+                   f"give {device.field('profile')} a profile made for this device")
+            self._without_profile(exc.message, fix, "profile")
             return None
         for warning in warnings:
             self.log(f"{device.name}: {warning}")
@@ -419,7 +424,7 @@ class DeviceRunner:
         none``, or a raw device with none stored); ProfileError when the one it needs cannot be used."""
         from accelrig.profiles.apply import check_compatible
         from accelrig.profiles.io import load_profile
-        from accelrig.profiles.store import ProfileStore
+        from accelrig.profiles.store import ProfileStore, UnusableProfiles
 
         device = self.device
         if device.profile == "none":
@@ -428,9 +433,11 @@ class DeviceRunner:
             store = ProfileStore(self.config.profile_store)
             try:
                 choice = store.choose(info.identity, data=info.to_dict(), units="counts")
-            except ProfileError:
+            except ProfileError as exc:
                 if device.output == "raw" and not device.flash:
-                    return None, []
+                    return None, [b.warning() for b in store.scan(info.identity)[1]]
+                if isinstance(exc, UnusableProfiles):
+                    raise
                 held = store.identities()
                 raise ProfileError(f"no profile for {info.identity!r} in the store {store.root} "
                                    + (f"(it holds {', '.join(held)})" if held else "(it is empty)")) from None
