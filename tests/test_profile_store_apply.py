@@ -328,3 +328,41 @@ def test_a_damaged_store_file_is_skipped_with_a_warning_and_the_older_profile_ch
     with pytest.raises(ProfileError) as err:
         store.choose("dev-1")
     assert str(damaged) in err.value.message and "repair or remove that file" in err.value.hint
+
+
+def test_apply_from_the_store_names_the_profile_chosen_even_when_it_is_the_only_one(tmp_path, cli):
+    """docs/profiles.md: stderr names the profile chosen (it said nothing when no other was passed over)."""
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.2, seed=1)
+    rec.meta["identity"] = "dev-1"
+    raw = tmp_path / "raw.csv"
+    write_csv(rec, raw)
+    store = ProfileStore(tmp_path / "store")
+    only = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
+    for spec in ("auto", "dev-1"):
+        r = cli("profile", "apply", spec, str(raw), "-o", str(tmp_path / f"{spec}.csv"), "--store", str(store.root))
+        assert r.returncode == 0, r.stderr
+        assert f"accelrig: profile {only} (static_faces, ±2 g, 2026-11-01 00:00): the " in r.stderr, r.stderr
+        assert "of 1 stored for 'dev-1' that applies to the data" in r.stderr
+
+
+def test_applying_a_profile_to_a_daemons_calibrated_output_leaves_its_calibrated_copies_out_and_says_so():
+    """The daemon's calibrated segments hold raw counts plus cal_x.. and u_x..: applying a profile calibrates the
+    counts again; the recorded copies are left out (they duplicated ax and u_ax silently), and the warning says so."""
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.2, seed=1)
+    profile = truth_profile(sensor, identity=None)
+    first, _ = apply_profile(profile, rec, uncertainty=True)
+    channels = {"cal_x": first.acc[:, 0], "cal_y": first.acc[:, 1], "cal_z": first.acc[:, 2],
+                **{f"u_{a}": first.channels[f"u_a{a}"] for a in "xyz"}}
+    reference = {"path": "/store/p.yaml", "identity": profile.identity, "created": profile.data["provenance"]["created"],
+                 "procedure": profile.procedure, "method": profile.method}
+    daemon_output = Recording(rec.t, rec.acc, rec.units, channels, dict(rec.meta, profile=reference))
+    out, warnings = apply_profile(profile, daemon_output, uncertainty=True)
+    assert sorted(out.channels) == ["u_ax", "u_ay", "u_az"]
+    np.testing.assert_array_equal(out.acc, first.acc)
+    said = next(w for w in warnings if "cal_x, cal_y, cal_z, u_x, u_y, u_z" in w)
+    assert "left out" in said and "that same profile" in said and "/store/p.yaml" in said
+    other = truth_profile(sensor, identity=None, created="2026-12-01T00:00:00Z")
+    _, warnings = apply_profile(other, daemon_output)
+    assert any("left out" in w and "that same profile" not in w for w in warnings)

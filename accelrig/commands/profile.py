@@ -107,7 +107,8 @@ def resolve(spec: str, args, date: str | None = None, data: Recording | None = N
     choice = ProfileStore(args.store).choose(spec, date or args.date, args.max_age_days,
                                              data=None if data is None else data.meta,
                                              units=None if data is None else data.units)
-    for note in choice.notes:
+    # stderr names the profile chosen, always (the notes already do when some were passed over)
+    for note in choice.notes or [choice.chosen_as]:
         print(f"accelrig: {printable(note)}", file=sys.stderr)
     for w in choice.warnings:
         warn(w)

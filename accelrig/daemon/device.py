@@ -54,11 +54,12 @@ from accelrig.acquisition.session import Session, State
 from accelrig.daemon.clock import UtcClock
 from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
 from accelrig.errors import AccelrigError, ProfileError, StorageError, StorageFull
+from accelrig.profiles.apply import RECORDED_CALIBRATED_CHANNELS, RECORDED_UNCERTAINTY_CHANNELS
 
 POLL = 0.2                 # s between writes of what arrived
 DISK_RETRY = 2.0           # s between write attempts while the disk is full
-CALIBRATED_CHANNELS = ("cal_x", "cal_y", "cal_z")
-UNCERTAINTY_CHANNELS = ("u_x", "u_y", "u_z")
+CALIBRATED_CHANNELS = RECORDED_CALIBRATED_CHANNELS     # the names `profile apply` knows to leave out
+UNCERTAINTY_CHANNELS = RECORDED_UNCERTAINTY_CHANNELS
 RECORDING_STATES = ("streaming", "recording raw")   # samples are being written ("recording raw": without
                                                     # the profile the configuration asks for)
 

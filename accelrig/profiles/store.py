@@ -97,6 +97,7 @@ class Choice:
     warnings: list[str]
     notes: list[str] = field(default_factory=list)   # which profile was chosen among several, and why
     skipped: list[Broken] = field(default_factory=list)   # the device's files that could not be used
+    chosen_as: str = ""   # the chosen profile in words and the rule that chose it, for whoever says which was used
 
 
 class ProfileStore:
@@ -263,11 +264,10 @@ class ProfileStore:
             reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(UTC)
             order = sorted(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
             rule = f"the closest to {reference.strftime('%Y-%m-%d %H:%M')} UTC"
-        chosen, notes = order[0], []
+        chosen, notes, why_not = order[0], [], {}
         if data is not None and len(entries) > 1:
             from accelrig.profiles.apply import check_compatible
 
-            why_not = {}
             for stored in order:
                 try:
                     check_compatible(stored.profile, data, units)
@@ -290,7 +290,10 @@ class ProfileStore:
                 f"profile {chosen.path.name} is {age.days} days older than {when} "
                 f"(more than {max_age_days:g}); recalibrate the device"
             )
-        return Choice(chosen, warnings, notes, skipped)
+        chosen_as = (f"profile {chosen.path} ({_describe(chosen)}): {rule} of {len(entries)} stored for "
+                     f"{identity!r}" + (" that applies to the data" if data is not None and chosen.path not in why_not
+                                        else ""))
+        return Choice(chosen, warnings, notes, skipped, chosen_as)
 
 
 def _reason(exc: AccelrigError, path: Path) -> str:
