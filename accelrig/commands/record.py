@@ -62,7 +62,7 @@ def run(args) -> int:
     from accelrig.acquisition.session import Session, State
     from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
-    from accelrig.segments import SegmentWriter, recover
+    from accelrig.segments import DirectoryLock, SegmentWriter, recover
     from accelrig.settings import Setting
 
     # nan, inf and a month are refused like any bad number (a NaN length would never be reached)
@@ -79,6 +79,10 @@ def run(args) -> int:
                         "give a folder for segments, or a file name ending .csv, .npz or .parquet")
     # one file: its segment goes to a hidden directory beside it, then becomes the file
     directory = output.parent / f".{output.name}.parts" if single else output
+    if directory.is_dir():
+        # another process recording into it: refused now, naming it, before the device is opened (the writer
+        # takes the lock for the whole recording); a lock left by a killed record is released
+        DirectoryLock(directory).release()
     if single and directory.is_dir() and not any(directory.iterdir()):
         directory.rmdir()   # left empty by a record stopped before its first sample
     if single and directory.exists():
