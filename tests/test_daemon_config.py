@@ -364,3 +364,25 @@ def test_a_damaged_store_file_warns_at_check_and_the_daemon_takes_the_older_prof
     assert runner._choose_profile(info) is None
     assert str(damaged) in runner.profile_problem and "repair or remove that file" in runner.profile_problem
     assert "calibrate the device" not in runner.profile_problem
+
+
+def test_the_serial_driver_is_given_the_daemons_stall_limit_unless_its_url_sets_its_own(tmp_path):
+    """One stall limit per device: the serial driver cut a silent device after its own 2 s as "disconnected",
+    so the daemon's stall_seconds and its documented "stalled: ..." cause never happened."""
+    from accelrig.daemon.device import DeviceRunner
+    from accelrig.errors import DeviceStalled
+
+    config = parse_config({"output": str(tmp_path), "stall_seconds": 0.4, "devices": [
+        {"name": "ser", "url": "serial-sim://still?seed=4&rate=200&stall_at=0.2&stall_for=inf"},
+        {"name": "own", "url": "serial-sim://still?seed=4&rate=200&stall=0.3"},
+        {"name": "plain", "url": "sim://still"}]})
+    limits = [DeviceRunner(d, config, lambda line: None).stall_limit for d in config.devices]
+    assert limits == [0.4, 0.3, 0.4]
+    driver = DeviceRunner(config.devices[0], config, lambda line: None)._driver()
+    with driver:
+        assert driver.stall_timeout == 0.4     # was 2, whatever the daemon's stall_seconds
+        with pytest.raises(DeviceStalled, match=r"sent no data for 0.4 s: the device stalled") as err:
+            for _ in range(200):
+                driver.read(0.05)
+    assert err.value.seconds == 0.4
+    assert str(driver.url.raw) == config.devices[0].url    # the URL as configured, in every message

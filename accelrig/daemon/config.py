@@ -111,7 +111,8 @@ DAEMON_CONFIG = Object(
         "segment_megabytes": optional(Number(exclusive_minimum=0, description=(
             "a segment is finished at this size, MB; default 256"))),
         "stall_seconds": optional(Number(exclusive_minimum=0, description=(
-            "a connected device that delivers nothing for this long is reconnected; default 10"))),
+            "a connected device that delivers nothing for this long is reconnected (serial and BLE drivers "
+            "are given the same limit; a device URL's own stall=S overrides it for that device); default 10"))),
         "reconnect_initial": optional(Number(exclusive_minimum=0, description=(
             "first wait before reconnecting a device, s; doubled after each failure; default 1"))),
         "reconnect_max": optional(Number(exclusive_minimum=0, description=(

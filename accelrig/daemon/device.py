@@ -53,7 +53,7 @@ from accelrig.acquisition.recorder import Recorder, stream_meta
 from accelrig.acquisition.session import Session, State
 from accelrig.daemon.clock import UtcClock
 from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
-from accelrig.errors import AccelrigError, ProfileError, StorageError, StorageFull
+from accelrig.errors import AccelrigError, DeviceStalled, ProfileError, StorageError, StorageFull
 from accelrig.profiles.apply import RECORDED_CALIBRATED_CHANNELS, RECORDED_UNCERTAINTY_CHANNELS
 
 POLL = 0.2                 # s between writes of what arrived
@@ -335,7 +335,7 @@ class DeviceRunner:
 
         self._set("connecting", self.last_error)
         try:
-            driver = UtcDriver(driver_for(self.device.url))
+            driver = UtcDriver(self._driver())
         except AccelrigError as exc:
             raise ConfigError(f"{self.device.field('url')}: {exc}") from None
         session = Session(driver=driver, buffer_seconds=30.0)
@@ -372,6 +372,31 @@ class DeviceRunner:
                  f"{info.nominal_rate:g} Hz), profile {self.profile_note}")
         if self.profile_problem is not None:
             self.log(f"{self.device.name}: WARNING: {self.profile_problem}")
+
+    def _driver(self):
+        """The device's driver, told this device's stall limit (``stall_limit``) when it watches for stalls
+        itself (serial, BLE): the driver and the daemon then cut a silent device at the same moment, and
+        both record it as ``stalled: ...``."""
+        from accelrig.acquisition.url import DeviceURL
+
+        url = DeviceURL.parse(self.device.url)
+        driver = driver_for(url)
+        if "stall" not in url.params and "stall" in (driver.known_options() or ()):
+            # url.raw stays as configured; the driver takes at most an hour
+            url.params["stall"] = repr(min(float(self.config.stall_seconds), 3600.0))
+        return driver
+
+    @property
+    def stall_limit(self) -> float:
+        """Seconds without data after which this connected device counts as stalled: the daemon's
+        ``stall_seconds``, or the device URL's own ``stall=S`` (serial, BLE) when it gives one."""
+        from accelrig.acquisition.url import DeviceURL
+
+        own = DeviceURL.parse(self.device.url).get_str("stall")
+        try:
+            return float(own) if own is not None else float(self.config.stall_seconds)
+        except ValueError:   # the driver refuses it, naming the option, when it opens
+            return float(self.config.stall_seconds)
 
     def _streaming_state(self) -> tuple[str, str | None]:
         """(state, why) while samples are written: "recording raw" says the profile it needs is not used."""
@@ -548,7 +573,7 @@ class DeviceRunner:
 
     def _stream(self) -> tuple[bool, str | None]:
         """Write what arrives until the connection ends; (samples arrived?, why it ended or None)."""
-        session, stall = self.session, self.config.stall_seconds
+        session, stall = self.session, self.stall_limit
         streamed = False
         reason: str | None = None
         finished = 0
@@ -569,7 +594,11 @@ class DeviceRunner:
                 stats = session.stats()
                 self.delivered_rate = stats.delivered_rate
                 if session.interrupted:
-                    reason = f"disconnected: {session.interrupted}"
+                    # the driver's own stall watch (serial, BLE) uses this device's limit too: the same cause
+                    cut = session.interruption
+                    reason = (f"stalled: no data for {cut.seconds or stall:g} s while connected ({session.interrupted})"
+                              if isinstance(cut, DeviceStalled)
+                              else f"disconnected: {session.interrupted}")
                     break
                 if session.state == State.ENDED:
                     self._set("ended", "the source delivered everything it had")
