@@ -145,7 +145,7 @@ def apply_profile(
         warnings.append(
             f"the recording held channels {', '.join(recorded)}, calibrated while it was recorded"
             + (f" with profile {used}" if used else "")
-            + f"; they are left out: ax, ay, az are its raw counts calibrated with "
+            + "; they are left out: ax, ay, az are its raw counts calibrated with "
             + ("that same profile, and equal its cal_x, cal_y, cal_z" if same else f"profile {profile.path or '(given)'}")
             + ("; u_ax, u_ay, u_az are their uncertainties" if uncertainty else ""))
     if uncertainty:
