@@ -158,7 +158,8 @@ def _loss_kind(cause: str) -> tuple[str, str, str]:
     if c.startswith("stalled"):
         return "stall", "not sent while the device stalled", "check the device's power and firmware"
     if c.startswith(("not recording", "crash")):
-        return "stopped", "not recorded while the recorder was stopped", "keep the recorder running"
+        return ("stopped", "not recorded while the recorder was stopped or restarting",
+                "the daemon's log and journal say why it stopped (a reload, a restart, a crash)")
     if c.startswith("reader overrun"):
         return "overrun", "skipped by a reader that fell behind", "the host could not keep up: lower its load"
     if c.startswith("disconnected"):

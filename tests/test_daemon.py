@@ -279,7 +279,10 @@ def test_calibrated_output_and_offsets_flashed_on_every_connect(tmp_path):
         raw = load_recording(out / name)
         assert raw.meta["identity"] and raw.meta["chip"]
         applied, warnings = apply_profile(load_profile(path), raw)
-        assert warnings == [], warnings
+        # nothing about the device; only that the recorded calibrated channels are left out (same profile)
+        assert len(warnings) == 1 and warnings[0].startswith("the recording held channels cal_x, cal_y, cal_z"), warnings
+        assert "that same profile, and equal its cal_x, cal_y, cal_z" in warnings[0]
+        assert not any(c in applied.channels for c in ("cal_x", "cal_y", "cal_z", "u_x", "u_y", "u_z"))
         daemon_cal = np.column_stack([raw.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
         np.testing.assert_allclose(applied.acc, daemon_cal, atol=1e-9)
 
@@ -486,7 +489,7 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     first_meta = read_arrays(segment_files(out / "pier")[0])[4]
     assert first_meta["recording_raw"].startswith("recording raw: no profile for") and first_meta["profile"] is None
     applied, warnings = apply_profile(load_profile(example), rec)
-    assert warnings == []
+    assert len(warnings) == 1 and "cal_x, cal_y, cal_z, calibrated while it was recorded" in warnings[0], warnings
     daemon_cal = np.column_stack([rec.channels[c] for c in ("cal_x", "cal_y", "cal_z")])
     np.testing.assert_allclose(applied.acc[first_calibrated:], daemon_cal[first_calibrated:], atol=1e-9)
     assert abs(np.linalg.norm(applied.acc[:first_calibrated].mean(axis=0)) - STANDARD_GRAVITY) < 0.02
