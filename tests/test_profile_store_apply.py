@@ -40,6 +40,16 @@ def truth_profile(sensor: SensorModel, identity="dev-1", created=None, cov_scale
     return profile_from_result(res, device=dev, created=created)
 
 
+def raw_csv(tmp_path, seconds=0.5):
+    """A still recording of device 'dev-1' (a random +-2 g sensor, no noise) as raw.csv: (sensor, rec, path)."""
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=seconds, seed=1)
+    rec.meta["identity"] = "dev-1"
+    raw = tmp_path / "raw.csv"
+    write_csv(rec, raw)
+    return sensor, rec, raw
+
+
 def test_sample_covariances_equal_the_per_sample_definition():
     rng = np.random.default_rng(3)
     a = rng.standard_normal((12, 12)) * 1e-3
@@ -175,11 +185,7 @@ def test_store_choose_latest_closest_and_old(tmp_path):
 
 
 def test_cli_apply_list_show_diff_validate(tmp_path, cli):
-    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
-    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.5, seed=1)
-    rec.meta["identity"] = "dev-1"
-    raw = tmp_path / "raw.csv"
-    write_csv(rec, raw)
+    sensor, rec, raw = raw_csv(tmp_path)
     prof = tmp_path / "p.yaml"
     save_profile(truth_profile(sensor), prof)
     out = tmp_path / "cal.csv"
@@ -268,11 +274,7 @@ def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
 
 
 def test_apply_from_the_store_picks_the_newest_profile_that_applies_and_says_why(tmp_path, cli):
-    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)   # +-2 g
-    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.5, seed=1)
-    rec.meta["identity"] = "dev-1"
-    raw = tmp_path / "raw.csv"
-    write_csv(rec, raw)
+    sensor, rec, raw = raw_csv(tmp_path)
     store = ProfileStore(tmp_path / "store")
     static = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
     wheel = truth_profile(sensor, created="2026-11-20T00:00:00Z")
@@ -332,11 +334,7 @@ def test_a_damaged_store_file_is_skipped_with_a_warning_and_the_older_profile_ch
 
 def test_apply_from_the_store_names_the_profile_chosen_even_when_it_is_the_only_one(tmp_path, cli):
     """docs/profiles.md: stderr names the profile chosen (it said nothing when no other was passed over)."""
-    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
-    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.2, seed=1)
-    rec.meta["identity"] = "dev-1"
-    raw = tmp_path / "raw.csv"
-    write_csv(rec, raw)
+    sensor, rec, raw = raw_csv(tmp_path, seconds=0.2)
     store = ProfileStore(tmp_path / "store")
     only = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
     for spec in ("auto", "dev-1"):
