@@ -30,6 +30,16 @@ class DeviceError(AccelrigError):
     exit_code = 3
 
 
+class DeviceStalled(DeviceError):
+    """A connected device sent no data for longer than its stall limit (``seconds``): the link is up, the
+    device silent.  Drivers that watch for it raise this, so whoever reports it says "stalled", not
+    "disconnected"."""
+
+    def __init__(self, message: str, hint: str | None = None, seconds: float | None = None):
+        super().__init__(message, hint)
+        self.seconds = seconds
+
+
 class MissingExtraError(DeviceError):
     """A driver or feature needs an optional dependency that is not installed."""
 

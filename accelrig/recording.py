@@ -148,18 +148,114 @@ def lost_samples(meta: dict) -> int:
     return sum(max(int(g.get("missing", 0)), 0) for g in meta.get("gaps") or [] if isinstance(g, dict))
 
 
+def _loss_kind(cause: str) -> tuple[str, str, str]:
+    """(kind, what happened to the samples, what to do) for a gap's recorded cause."""
+    c = str(cause).lower()
+    if c.startswith("disk full"):
+        return "disk", "dropped while the disk was full", "give the recordings more disk space"
+    if c.startswith("fifo overflow"):
+        return "fifo", "lost in the chip's FIFO (read too late)", "lower the rate or the host's load"
+    if c.startswith("stalled"):
+        return "stall", "not sent while the device stalled", "check the device's power and firmware"
+    if c.startswith(("not recording", "crash")):
+        return ("stopped", "not recorded while the recorder was stopped or restarting",
+                "the daemon's log and journal say why it stopped (a reload, a restart, a crash)")
+    if c.startswith("reader overrun"):
+        return "overrun", "skipped by a reader that fell behind", "the host could not keep up: lower its load"
+    if c.startswith("disconnected"):
+        return "link", "lost while the device was disconnected", "check the cable or radio link"
+    return "link", "lost on the link", "check the cable or radio link"
+
+
+@dataclass
+class Loss:
+    """The samples a recording lacks, from its gap records (``loss_of``).
+
+    ``counted``: the samples gaps of known size say are missing; ``estimated``: those of gaps of unknown size
+    (-1) from the time they lasted and the nominal rate; ``unmeasured``: gaps of unknown size and unknown
+    duration; ``seconds``: the time the gaps lasted, where known; ``by_kind``: samples per kind of cause, so
+    the warning follows each gap's recorded cause (a full disk is not a cable).
+    """
+
+    delivered: int
+    gaps: int = 0
+    counted: int = 0
+    estimated: int = 0
+    unknown: int = 0           # gaps of unknown size
+    unmeasured: int = 0        # ... of which the duration is unknown too
+    seconds: float = 0.0
+    nominal_rate: float | None = None
+    by_kind: dict = field(default_factory=dict)   # (kind, what happened) -> [samples, what, advice]
+
+    @property
+    def missing(self) -> int:
+        return self.counted + self.estimated
+
+    def summary(self) -> str:
+        """What a recording lacks, in one phrase: `no samples lost`, `N samples lost in G gaps ...`."""
+        if not self.gaps:
+            return "no samples lost"
+        kept = "(kept as gaps, never filled in)"
+        if not self.unknown:
+            return f"{self.counted} samples lost in {_gaps(self.gaps)} {kept}"
+        parts = [f"{self.counted} samples counted"] if self.counted else []
+        if self.estimated or not self.unmeasured:
+            parts.append(f"about {self.estimated} samples estimated at the nominal {self.nominal_rate:g} Hz over the "
+                         f"{_gaps(self.unknown - self.unmeasured)} of unknown size")
+        if self.unmeasured:
+            parts.append(f"{_gaps(self.unmeasured)} of unknown size and length")
+        return f"{_gaps(self.gaps)}, {self.seconds:.2f} s missing: {' and '.join(parts)} {kept}"
+
+    def warning(self) -> str | None:
+        """One line when more than LOSS_WARN_SHARE of the samples are missing, naming what lost them (the gaps'
+        recorded causes) and what to do; else None."""
+        total = self.delivered + self.missing
+        if not total or self.missing / total <= LOSS_WARN_SHARE:
+            return None
+        about = "about " if self.estimated else ""
+        share = f"{self.missing / total:.1%}, more than {LOSS_WARN_SHARE:.0%}"
+        if {kind for kind, _ in self.by_kind} == {"link"}:
+            return (f"the link lost {about}{self.missing} of {total} samples ({share}) in {_gaps(self.gaps)}: kept as "
+                    "gaps, never filled in; check the cable or radio link")
+        kinds = sorted(self.by_kind.values(), key=lambda k: -k[0])
+        advice = list(dict.fromkeys(k[2] for k in kinds))
+        return (f"{about}{self.missing} of {total} samples ({share}) are missing in {_gaps(self.gaps)}: "
+                + "; ".join(f"{k[0]} {k[1]}" for k in kinds) + "; kept as gaps, never filled in; "
+                + "; ".join(advice))
+
+
+def _gaps(n: int) -> str:
+    return f"{n} gap" if n == 1 else f"{n} gaps"
+
+
+def loss_of(delivered: int, gaps: list[dict], nominal_rate: float | None) -> Loss:
+    """The Loss of ``delivered`` samples with these gap records ({"missing", "cause", "seconds"})."""
+    loss = Loss(delivered, nominal_rate=nominal_rate)
+    for g in gaps:
+        if not isinstance(g, dict):
+            continue
+        missing, seconds = int(g.get("missing", g.get("samples", 0)) or 0), g.get("seconds")
+        loss.gaps += 1
+        if seconds is not None and seconds > 0:
+            loss.seconds += float(seconds)
+        if missing >= 0:
+            loss.counted += missing
+        else:
+            loss.unknown += 1
+            if seconds is not None and nominal_rate:
+                missing = int(round(max(float(seconds), 0.0) * float(nominal_rate)))
+                loss.estimated += missing
+            else:
+                loss.unmeasured += 1
+                missing = 0
+        kind, what, advice = _loss_kind(g.get("cause", ""))
+        loss.by_kind.setdefault((kind, what), [0, what, advice])[0] += missing
+    return loss
+
+
 def loss_warning(rec: Recording) -> str | None:
-    """One line when the recording lost more than LOSS_WARN_SHARE of its samples, else None."""
-    return link_loss_warning(len(rec), lost_samples(rec.meta), len(rec.meta.get("gaps") or []))
-
-
-def link_loss_warning(delivered: int, missing: int, gaps: int) -> str | None:
-    """One line when ``missing`` samples (in ``gaps`` gaps) are more than LOSS_WARN_SHARE of all, else None."""
-    total = delivered + missing
-    if not total or missing / total <= LOSS_WARN_SHARE:
-        return None
-    return (f"the link lost {missing} of {total} samples ({missing / total:.1%}, more than {LOSS_WARN_SHARE:.0%}) "
-            f"in {gaps} gaps: kept as gaps, never filled in; check the cable or radio link")
+    """One line when the recording lacks more than LOSS_WARN_SHARE of its samples, else None."""
+    return loss_of(len(rec), rec.meta.get("gaps") or [], rec.meta.get("nominal_rate")).warning()
 
 
 def count_scale(meta: dict) -> float | None:

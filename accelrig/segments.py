@@ -44,6 +44,9 @@ Files, in one directory per device (one ``stem``):
   metadata holds JSON: scale (m/s^2 per count), device identity, range, rates, the time base,
   gap records, sample count and first/last times.  pandas (``read_parquet``) and pyarrow read it
   without accelrig.
+* ``.lock``: held (``fcntl.flock``) by the one process writing into the directory, with its pid and
+  command line; a second writer is refused naming it.  The kernel releases it when the writer exits,
+  however (kill -9 included), so a stale file never blocks the next one; a clean close removes it.
 """
 
 from __future__ import annotations
@@ -64,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from accelrig.errors import DataError, StorageError, StorageFull
+from accelrig.errors import DataError, StorageError, StorageFull, printable
 from accelrig.files import META_PREFIX, fsync_directory
 from accelrig.result import to_json
 
@@ -84,6 +87,7 @@ STEM_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
 NAME_PATTERN = re.compile(r"^(?P<stem>[A-Za-z0-9][A-Za-z0-9_-]*)\.(?P<index>\d{6})(?:\.(?P<stamp>\d{8}T\d{6}Z))?"
                           r"(?P<suffix>\.seg|\.parquet)$")
 FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
+LOCK_NAME = ".lock"
 RESERVED_COLUMNS = ("time", "ax", "ay", "az")
 
 
@@ -108,6 +112,10 @@ def ns_to_seconds(ns) -> np.ndarray:
 
 def _utc_stamp(ns: int) -> str:
     return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(ns // NS))
+
+
+def _iso(ns: int) -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(ns // NS))
 
 
 # --------------------------------------------------------------------------- frames
@@ -242,8 +250,56 @@ def _read_scanned(scanned: Scan, lo: int, hi: int):
 # --------------------------------------------------------------------------- writer
 
 
+class DirectoryLock:
+    """The one writer of a directory of segments: ``DIR/.lock``, flock'ed while held, naming its holder.
+
+    Two writers in one directory interleave segments that overlap in time (each at its own rate), and then
+    no reader can use the directory; the second is refused instead, naming the first (pid, command).
+    """
+
+    def __init__(self, directory: str | os.PathLike):
+        import sys
+
+        self.path = Path(directory) / LOCK_NAME
+        while True:
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+            except OSError as exc:
+                raise _storage_error(exc, self.path) from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 4096).decode("utf-8", "replace").strip()
+                os.close(fd)
+                raise StorageError(f"{self.path.parent}: another process is recording into it"
+                                   + (f" (pid {printable(holder)})" if holder else "")
+                                   + ": refusing to write a second recording among its segments",
+                                   "record into another directory, or stop that process first") from None
+            # the holder may have removed the file between our open and our lock: then hold the new one
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}: {' '.join(sys.argv)[:400]}\n".encode())
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        self.path.unlink(missing_ok=True)   # removed while still held: the next writer opens a fresh file
+        os.close(self._fd)
+        self._fd = None
+
+
 class SegmentWriter:
-    """Streams blocks into rotating segments in ``directory``; see the module docstring."""
+    """Streams blocks into rotating segments in ``directory``; see the module docstring.
+
+    It holds the directory's lock (DirectoryLock) from construction to ``close``.
+    """
 
     def __init__(self, directory: str | os.PathLike, *, stem: str, meta: dict, scale: float,
                  channels: tuple[str, ...] | list[str] = (), segment_seconds: float = 3600.0,
@@ -266,6 +322,7 @@ class SegmentWriter:
         if not os.access(self.directory, os.W_OK | os.X_OK):
             raise StorageError(f"{self.directory}: the output directory is not writable",
                                "choose a directory you may write to, or fix its permissions")
+        self._dir_lock = DirectoryLock(self.directory)   # a second writer is refused here
         self.stem = stem
         self.meta = dict(meta)
         self.meta.setdefault("time_base", "utc")
@@ -336,9 +393,14 @@ class SegmentWriter:
 
     def close(self) -> list[Path]:
         """Finish the open segment (and any left pending by a full disk); the finished paths."""
-        if self._fd is not None:
-            self._close_open()
-        self._finish_pending()
+        try:
+            if self._fd is not None:
+                self._close_open()
+            self._finish_pending()
+        finally:
+            # released even with a segment left pending by a full disk: it is closed, complete and readable,
+            # and the next writer into the directory (the daemon's next connection) must not be refused
+            self._dir_lock.release()
         return list(self._finished)
 
     # ----------------------------------------------------------------- internals
@@ -878,6 +940,7 @@ def read_arrays(path: str | os.PathLike, start: float | None = None, stop: float
         raise DataError(f"{path}: no samples between {start} and {stop}" if start is not None or stop is not None
                         else f"{path}: the segments hold no samples")
     used = list({id(part): part for part, _, _, _ in plan}.values())   # the segments read, in order
+    _check_in_time_order(path, used)
     _check_one_device_state(path, used)
     # a channel some segments lack (a daemon that recorded raw counts only until its profile came) is NaN there
     names = list(dict.fromkeys(name for part in used for name in part.info["channels"]))
@@ -966,6 +1029,24 @@ def _describe_spans(meta: dict, used: list, starts: dict, total: int) -> None:
     if described:
         meta["calibrated_channels"] = {**described, "where": "the spans with calibrated true (NaN elsewhere); "
                                        "each span names its profile"}
+
+
+def _check_in_time_order(path, used: list[_Part]) -> None:
+    """Each segment read must begin after the one before it ends: two that overlap in time are two recordings
+    written into one directory at once (a second writer, before writers took the directory's lock), and
+    their samples cannot be one time series.  Said as such, not as the time-base error it would become."""
+    previous = None
+    for part in used:
+        first, last = part.info.get("first_ns"), part.info.get("last_ns")
+        if first is None or last is None:
+            continue
+        if previous is not None and first <= previous.info["last_ns"]:
+            span = (lambda p: f"{_iso(p.info['first_ns'])} to {_iso(p.info['last_ns'])}")
+            raise DataError(f"{path}: two recordings overlap in time in this directory: segments "
+                            f"{previous.path.name} ({span(previous)}) and {part.path.name} ({span(part)})",
+                            "two writers recorded into it at once; move one recording's segments to a "
+                            "directory of their own, or read a stretch where only one recorded with --start/--stop")
+        previous = part
 
 
 def _check_one_device_state(path, used: list[_Part]) -> None:

@@ -7,7 +7,8 @@ Options:
     rate=HZ         requested sample rate (default 2048); the device reports what it delivers
     range=G         full scale +-G: 2, 4 (default), 8, 16
     frame=N         samples per DATA frame (default 64, at most what the device allows)
-    stall=S         seconds without data before the device counts as stalled (default 2)
+    stall=S         seconds without data before the device counts as stalled (default 2; under the
+                    daemon, its stall_seconds)
 While streaming, the port is read at most every 50 ms (sooner when more than 1 KB
 would wait in its buffer), so a wake-up takes several frames.
     command_timeout=S   wait for a reply before retrying a command (default 0.5)

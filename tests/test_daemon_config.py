@@ -401,3 +401,57 @@ def test_flash_on_a_device_that_cannot_hold_offsets_is_refused_at_check_and_star
 
     with pytest.raises(ConfigError, match=r"^devices\[1\]\.flash"):
         Daemon(path)
+
+
+def test_a_damaged_store_file_warns_at_check_and_the_daemon_takes_the_older_profile(tmp_path):
+    """ExecStartPre runs `daemon check`: a half-copied profile must not stop every device after a reboot, and the
+    device it belongs to records with its older profile, told which file to repair, never to recalibrate."""
+    from accelrig.acquisition.driver import driver_for
+    from accelrig.daemon.device import DeviceRunner
+    from accelrig.profiles import load_profile
+    from accelrig.profiles.store import ProfileStore
+
+    driver = driver_for("sim://still?seed=3")
+    info = driver.open()
+    driver.close()
+    profile = load_profile(REPO / "profiles" / "example-static_faces-vp.yaml")
+    profile.data["device"].update(identity=info.identity, range_g=info.range_g, scale=info.scale)
+    store = ProfileStore(tmp_path / "store")
+    good = store.add(profile)
+    damaged = good.parent / "20991125T040000Z-static.yaml"   # newer than the good one
+    damaged.write_text("calibration: {procedure: static\n")
+    config = parse_config({"output": str(tmp_path / "out"), "profile_store": str(store.root),
+                           "devices": [{"url": "sim://still?seed=3", "name": "pier", "output": "calibrated"}]})
+    notes = check_config(config)   # was: ProfileError, exit 6
+    assert any(n.startswith("WARNING: profile store: skipped") and str(damaged) in n for n in notes), notes
+    log = []
+    runner = DeviceRunner(config.devices[0], config, log.append)
+    runner._problems, runner._problem_sources = [], set()
+    assert runner._choose_profile(info).path == good and runner.profile_problem is None
+    assert any(str(damaged) in line and "repair or remove it" in line for line in log), log
+    good.unlink()   # only the damaged file left: recording raw, told to repair it
+    assert runner._choose_profile(info) is None
+    assert str(damaged) in runner.profile_problem and "repair or remove that file" in runner.profile_problem
+    assert "calibrate the device" not in runner.profile_problem
+
+
+def test_the_serial_driver_is_given_the_daemons_stall_limit_unless_its_url_sets_its_own(tmp_path):
+    """One stall limit per device: the serial driver cut a silent device after its own 2 s as "disconnected",
+    so the daemon's stall_seconds and its documented "stalled: ..." cause never happened."""
+    from accelrig.daemon.device import DeviceRunner
+    from accelrig.errors import DeviceStalled
+
+    config = parse_config({"output": str(tmp_path), "stall_seconds": 0.4, "devices": [
+        {"name": "ser", "url": "serial-sim://still?seed=4&rate=200&stall_at=0.2&stall_for=inf"},
+        {"name": "own", "url": "serial-sim://still?seed=4&rate=200&stall=0.3"},
+        {"name": "plain", "url": "sim://still"}]})
+    limits = [DeviceRunner(d, config, lambda line: None).stall_limit for d in config.devices]
+    assert limits == [0.4, 0.3, 0.4]
+    driver = DeviceRunner(config.devices[0], config, lambda line: None)._driver()
+    with driver:
+        assert driver.stall_timeout == 0.4     # was 2, whatever the daemon's stall_seconds
+        with pytest.raises(DeviceStalled, match=r"sent no data for 0.4 s: the device stalled") as err:
+            for _ in range(200):
+                driver.read(0.05)
+    assert err.value.seconds == 0.4
+    assert str(driver.url.raw) == config.devices[0].url    # the URL as configured, in every message

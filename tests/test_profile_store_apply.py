@@ -40,6 +40,16 @@ def truth_profile(sensor: SensorModel, identity="dev-1", created=None, cov_scale
     return profile_from_result(res, device=dev, created=created)
 
 
+def raw_csv(tmp_path, seconds=0.5):
+    """A still recording of device 'dev-1' (a random +-2 g sensor, no noise) as raw.csv: (sensor, rec, path)."""
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=seconds, seed=1)
+    rec.meta["identity"] = "dev-1"
+    raw = tmp_path / "raw.csv"
+    write_csv(rec, raw)
+    return sensor, rec, raw
+
+
 def test_sample_covariances_equal_the_per_sample_definition():
     rng = np.random.default_rng(3)
     a = rng.standard_normal((12, 12)) * 1e-3
@@ -175,11 +185,7 @@ def test_store_choose_latest_closest_and_old(tmp_path):
 
 
 def test_cli_apply_list_show_diff_validate(tmp_path, cli):
-    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
-    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.5, seed=1)
-    rec.meta["identity"] = "dev-1"
-    raw = tmp_path / "raw.csv"
-    write_csv(rec, raw)
+    sensor, rec, raw = raw_csv(tmp_path)
     prof = tmp_path / "p.yaml"
     save_profile(truth_profile(sensor), prof)
     out = tmp_path / "cal.csv"
@@ -286,11 +292,7 @@ def test_profile_show_fits_80_columns_and_reads_every_sentence_whole(cli):
 
 
 def test_apply_from_the_store_picks_the_newest_profile_that_applies_and_says_why(tmp_path, cli):
-    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)   # +-2 g
-    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.5, seed=1)
-    rec.meta["identity"] = "dev-1"
-    raw = tmp_path / "raw.csv"
-    write_csv(rec, raw)
+    sensor, rec, raw = raw_csv(tmp_path)
     store = ProfileStore(tmp_path / "store")
     static = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
     wheel = truth_profile(sensor, created="2026-11-20T00:00:00Z")
@@ -318,3 +320,65 @@ def test_a_profile_and_data_that_both_leave_the_device_unnamed_are_said_in_gramm
     profile.data["device"]["identity"] = None
     warnings = apply_profile(profile, rec)[1]
     assert "neither the profile nor the data name the device" in " ".join(warnings)
+
+
+def test_a_damaged_store_file_is_skipped_with_a_warning_and_the_older_profile_chosen(tmp_path, cli):
+    """One half-copied file must not stop every device: it is skipped, named and listed as broken; its device
+    falls back to its newest profile that loads, and a device left with none is told to repair, not recalibrate."""
+    sensor = SensorModel()
+    store = ProfileStore(tmp_path / "store")
+    older = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
+    other = store.add(truth_profile(sensor, identity="dev-2", created="2026-11-01T00:00:00Z"))
+    damaged = older.parent / "20261125T040000Z-static.yaml"
+    damaged.write_text(older.read_text()[:200])   # cut off mid-copy: not valid YAML
+    assert [s.path for s in store.entries()] == sorted([older, other])
+    assert [b.path for b in store.scan()[1]] == [damaged]
+    choice = store.choose("dev-1", now=datetime(2026, 11, 26, tzinfo=UTC))
+    assert choice.stored.path == older and [b.path for b in choice.skipped] == [damaged]
+    assert str(damaged) in choice.warnings[0] and "repair or remove it" in choice.warnings[0]
+    assert store.choose("dev-2").warnings == []   # another device's damaged file is not its concern
+    r = cli("profile", "list", "--store", str(store.root))
+    assert r.returncode == 0, r.stderr
+    assert "dev-1" in r.stdout and "dev-2" in r.stdout
+    broken_row = next(line for line in r.stdout.splitlines() if damaged.name in line)
+    assert broken_row.startswith("BROKEN")
+    assert f"skipped a store entry that cannot be used: {damaged}" in r.stderr and "not valid YAML" in r.stderr
+    # the device's only file is damaged: refused, naming it, and the fix is to repair it
+    older.unlink()
+    with pytest.raises(ProfileError) as err:
+        store.choose("dev-1")
+    assert str(damaged) in err.value.message and "repair or remove that file" in err.value.hint
+
+
+def test_apply_from_the_store_names_the_profile_chosen_even_when_it_is_the_only_one(tmp_path, cli):
+    """docs/profiles.md: stderr names the profile chosen (it said nothing when no other was passed over)."""
+    sensor, rec, raw = raw_csv(tmp_path, seconds=0.2)
+    store = ProfileStore(tmp_path / "store")
+    only = store.add(truth_profile(sensor, created="2026-11-01T00:00:00Z"))
+    for spec in ("auto", "dev-1"):
+        r = cli("profile", "apply", spec, str(raw), "-o", str(tmp_path / f"{spec}.csv"), "--store", str(store.root))
+        assert r.returncode == 0, r.stderr
+        assert f"accelrig: profile {only} (static_faces, ±2 g, 2026-11-01 00:00): the " in r.stderr, r.stderr
+        assert "of 1 stored for 'dev-1' that applies to the data" in r.stderr
+
+
+def test_applying_a_profile_to_a_daemons_calibrated_output_leaves_its_calibrated_copies_out_and_says_so():
+    """The daemon's calibrated segments hold raw counts plus cal_x.. and u_x..: applying a profile calibrates the
+    counts again; the recorded copies are left out (they duplicated ax and u_ax silently), and the warning says so."""
+    sensor = SensorModel.random(np.random.default_rng(11), noise_density=0.0)
+    rec = simulate(StillRig(), sensor, SimClock(), seconds=0.2, seed=1)
+    profile = truth_profile(sensor, identity=None)
+    first, _ = apply_profile(profile, rec, uncertainty=True)
+    channels = {"cal_x": first.acc[:, 0], "cal_y": first.acc[:, 1], "cal_z": first.acc[:, 2],
+                **{f"u_{a}": first.channels[f"u_a{a}"] for a in "xyz"}}
+    reference = {"path": "/store/p.yaml", "identity": profile.identity, "created": profile.data["provenance"]["created"],
+                 "procedure": profile.procedure, "method": profile.method}
+    daemon_output = Recording(rec.t, rec.acc, rec.units, channels, dict(rec.meta, profile=reference))
+    out, warnings = apply_profile(profile, daemon_output, uncertainty=True)
+    assert sorted(out.channels) == ["u_ax", "u_ay", "u_az"]
+    np.testing.assert_array_equal(out.acc, first.acc)
+    said = next(w for w in warnings if "cal_x, cal_y, cal_z, u_x, u_y, u_z" in w)
+    assert "left out" in said and "that same profile" in said and "/store/p.yaml" in said
+    other = truth_profile(sensor, identity=None, created="2026-12-01T00:00:00Z")
+    _, warnings = apply_profile(other, daemon_output)
+    assert any("left out" in w and "that same profile" not in w for w in warnings)

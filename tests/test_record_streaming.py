@@ -110,6 +110,7 @@ def test_record_into_a_directory_a_crash_left_open_recovers_it_first(tmp_path, c
     w = SegmentWriter(out, stem="sim-random-1", meta={}, scale=0.001)
     w.write(np.arange(10) / 100.0 + 1.7e9, np.zeros((10, 3), np.int16))
     os.close(w._fd)                                   # the recording process died here
+    os.close(w._dir_lock._fd)                         # ... and the kernel released its lock (the file stays)
     assert main(["record", "sim://still?seed=1&pace=fast", "--seconds", "1", "-o", str(out)]) == 0
     assert "closed after a crash: 10 samples in 1 complete blocks kept; no block lost" in capsys.readouterr().err
     assert sorted(p.suffix for p in out.iterdir()) == [".parquet", ".parquet"]
@@ -152,3 +153,49 @@ def test_a_csv_or_npz_too_long_for_memory_is_refused_up_front_or_stops_at_the_li
     assert main(["record", "sim://still?seed=1&pace=fast&rate=2048", "-o", str(out)]) == 0
     assert len(load_recording(out)) == 5000
     assert "stopped at 5000 samples, the most a .npz file holds" in capsys.readouterr().err
+
+
+def _segments_with_gaps(directory, gaps, rate=200.0, n=2000):
+    """A device's segments: ``n`` samples, then each gap (samples, cause, seconds) followed by ``n`` more."""
+    from accelrig.segments import SegmentWriter
+
+    meta = {"nominal_rate": rate, "identity": "sim-still-21", "device": "sim://still?seed=21", "driver": "sim",
+            "chip": "sim", "range_g": 2.0, "scale": 0.001}
+    t = 1_763_950_000.0
+    with SegmentWriter(directory, stem="dev", meta=meta, scale=0.001) as w:
+        for k, gap in enumerate([*gaps, None]):
+            w.write(t + np.arange(n) / rate, np.full((n, 3), k, np.int16))
+            t += n / rate
+            if gap is not None:
+                samples, cause, seconds = gap
+                w.gap(t, samples, cause, seconds)
+                t += seconds
+
+
+def test_the_summary_states_the_time_gaps_of_unknown_size_took_and_the_rate_between_them(tmp_path, cli):
+    """Disconnects and stalls are gaps of unknown size (-1) with a known duration: the summary said "0 samples
+    lost in 2 gaps" and averaged the rate across them (171 Hz for a 200 Hz device)."""
+    source = tmp_path / "flaky"
+    _segments_with_gaps(source, [(-1, "disconnected: gone", 2.0), (-1, "disconnected: gone", 3.0)])
+    r = cli("record", f"replay://{source}?pace=fast", "-o", tmp_path / "out.npz")
+    assert r.returncode == 0, r.stderr
+    summary = r.stderr.splitlines()[-1]
+    assert " samples (34.99 s at 200.0 Hz) " in summary, summary
+    assert summary.endswith("; 2 gaps, 5.00 s missing: about 1000 samples estimated at the nominal 200 Hz over the "
+                            "2 gaps of unknown size (kept as gaps, never filled in)"), summary
+    assert "about 1000 of 7000 samples (14.3%" in r.stderr
+
+
+def test_the_loss_warning_follows_each_gaps_recorded_cause(tmp_path):
+    """A full disk is not a cable: the read-back warning names what lost the samples, from the gap records."""
+    from accelrig.recording import loss_warning
+
+    _segments_with_gaps(tmp_path / "full", [(600, "disk full", 3.0)])
+    warning = loss_warning(load_recording(tmp_path / "full"))
+    assert warning.startswith("600 of 4600 samples (13.0%, more than 1%) are missing in 1 gap: 600 dropped while "
+                              "the disk was full; kept as gaps, never filled in; give the recordings more disk space")
+    assert "cable" not in warning and "link" not in warning
+    _segments_with_gaps(tmp_path / "mixed", [(600, "disk full", 3.0), (-1, "stalled: no data for 10 s", 1.0)])
+    warning = loss_warning(load_recording(tmp_path / "mixed"))
+    assert "about 800 of 6800 samples" in warning and "600 dropped while the disk was full" in warning
+    assert "200 not sent while the device stalled" in warning and "check the device's power" in warning

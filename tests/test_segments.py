@@ -255,6 +255,9 @@ def test_kill_9_then_recover_keeps_exactly_the_complete_blocks(tmp_path):
         child.wait()
     last = max(last, int((child.stdout.read().split() or [last])[-1]))
     assert last >= 40
+    # the killed writer's lock file stays behind, but the kernel released its lock: the next writer gets it
+    assert (out / ".lock").read_text().startswith(f"{child.pid}: ")
+    SegmentWriter(out, stem="other", meta={}, scale=0.001)._dir_lock.release()
     reports = recover(out)
     assert len(reports) == 1
     report = reports[0]
@@ -529,3 +532,31 @@ def test_a_directory_whose_channels_or_flashed_offsets_change_reads_as_one_or_by
     _, acc, _, _, meta = read_arrays(tmp_path, start=float(t[256]), units="counts")   # the flashed stretch alone
     assert len(acc) == 128 and meta["hardware_bias_removed"] == flashed["hardware_bias_removed"]
     assert len(read_arrays(tmp_path, stop=float(t[256]))[1]) == 256
+
+
+def test_a_second_writer_into_a_directory_is_refused_naming_the_first_and_the_lock_goes_with_close(tmp_path, cli):
+    """Two writers in one directory interleave segments overlapping in time that no reader can use."""
+    first = SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001)
+    write_blocks(first, range(2))
+    with pytest.raises(StorageError, match=rf"another process is recording into it \(pid {os.getpid()}: "):
+        SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001)
+    r = cli("record", "sim://still?seed=1", "-o", tmp_path, "--seconds", "0.2")   # `record` alike
+    assert r.returncode == StorageError.exit_code and f"{tmp_path}: another process is recording into it" in r.stderr
+    first.close()
+    assert not (tmp_path / ".lock").exists()
+    with SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001) as again:
+        write_blocks(again, range(2), t0=T0 + 100)
+    assert read_segments(tmp_path).meta["segments"][0].startswith("dev.000000")
+
+
+def test_segments_overlapping_in_time_are_said_to_be_two_recordings(tmp_path):
+    """What an unlocked second writer left (as the daemon and record did before the lock): the reader names
+    the two segments instead of a time-base or gap error."""
+    with SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001) as w:
+        write_blocks(w, range(100))                     # 3.1 s
+    with SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001) as w:
+        write_blocks(w, range(10), t0=T0 + 1.0)         # begins 1 s into the first
+    with pytest.raises(DataError, match=r"two recordings overlap in time in this directory: segments "
+                                        r"dev\.000000\.\S+ \(.* to .*\) and dev\.000001\."):
+        read_segments(tmp_path)
+    assert len(read_segments(tmp_path, stop=T0 + 0.5)) == int(0.5 * RATE) + 1   # the stretch before: one recording

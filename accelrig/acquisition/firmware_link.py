@@ -18,7 +18,7 @@ from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
 from accelrig.acquisition.timebase import StreamClock
-from accelrig.errors import DeviceError
+from accelrig.errors import DeviceError, DeviceStalled
 from accelrig.result import Correction
 from accelrig.units import scale_for_range
 
@@ -202,11 +202,12 @@ class FirmwareDriver(Driver):
                 placed += self.sequencer.push(frame)
         if not placed:
             if time.monotonic() - self._last_data > self.stall_timeout:
-                raise DeviceError(
+                raise DeviceStalled(
                     f"{self.url.raw} sent no data for {self.stall_timeout:g} s: the device stalled "
                     f"(link so far: {self.stats.frames} frames, {self.stats.crc_errors} CRC errors, "
                     f"{self.stats.lost_frames} lost frames)",
                     "check the device and the link; stall=SECONDS in the URL changes the limit",
+                    seconds=self.stall_timeout,
                 )
             return []
         self._last_data = time.monotonic()

@@ -80,6 +80,14 @@ class Recorder:
         self.missing = 0
         self.gap_events = 0
         self.full = False
+        # every gap as {"missing", "cause", "seconds"}: seconds is the time missing (the samples either side,
+        # less one nominal period), known once the sample after it arrives; what the summary and its loss
+        # warning are made of (a gap of unknown size, missing -1, still has a duration)
+        self.gap_log: list[dict] = []
+        self._last_t: float | None = None            # device time of the last sample kept
+        self._open_gaps: list[dict] = []             # gaps after the last sample kept, waiting for the next
+        self._gap_span = 0.0                         # seconds between the samples either side of every gap
+        self._gap_intervals = 0                      # sample intervals that span a gap
 
     @classmethod
     def attach(cls, session: Session, writer: SegmentWriter | None = None) -> Recorder:
@@ -123,6 +131,7 @@ class Recorder:
                     self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": self.gap_cause})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
+            self._time_gaps(chunk)
             if not chunk.n:
                 return
             if self._t0 is None:
@@ -134,7 +143,45 @@ class Recorder:
                     self._channels[name].append(chunk.channels[name])
             self.samples += chunk.n
             self.seconds = float(chunk.t[-1] - self._t0)
-            self.rate = (self.samples - 1) / self.seconds if self.seconds > 0 else 0.0
+            self._last_t = float(chunk.t[-1])
+            # the rate of the stretches without gaps: a gap's time and its interval left out of both
+            steady = self.seconds - self._gap_span
+            self.rate = (self.samples - 1 - self._gap_intervals) / steady if steady > 0 else 0.0
+
+    def _time_gaps(self, chunk: Chunk) -> None:
+        """Log this chunk's gaps with the time each one lasted (from the samples either side)."""
+        found = [(0, chunk.lost, "reader overrun")] if chunk.lost else []
+        found += [(pos, missing, self.gap_cause) for pos, missing in chunk.gaps]
+        at: dict[int, list[dict]] = {}   # the gaps before each sample of the chunk (n: after its last)
+        for pos, missing, cause in found:
+            entry = {"missing": missing, "cause": cause, "seconds": None}
+            self.gap_log.append(entry)
+            at.setdefault(min(pos, chunk.n), []).append(entry)
+        if chunk.n and self._open_gaps:
+            at.setdefault(0, [])
+        for pos in sorted(at):
+            entries = at[pos]
+            if pos == 0:   # the gaps after the previous chunk's last sample end here too
+                entries, self._open_gaps = self._open_gaps + entries, []
+            if pos >= chunk.n:
+                self._open_gaps += entries       # timed by the next sample, in a later chunk
+                continue
+            before = float(chunk.t[pos - 1]) if pos > 0 else self._last_t
+            self._close_gaps(entries, before, float(chunk.t[pos]))
+
+    def _close_gaps(self, entries: list[dict], before: float | None, after: float) -> None:
+        """Gaps between the samples at ``before`` and ``after`` (one interval, whatever their number)."""
+        if before is None:   # before the first sample: no time to measure
+            return
+        self._gap_span += after - before
+        self._gap_intervals += 1
+        for e in entries:   # several gaps at one place share its time (counted once, by the first)
+            e["seconds"] = max(after - before - 1.0 / self.info.nominal_rate, 0.0) if e is entries[0] else 0.0
+
+    @property
+    def missing_seconds(self) -> float:
+        """Time the gaps took (known once the sample after each has arrived)."""
+        return sum(g["seconds"] or 0.0 for g in self.gap_log)
 
     def _stream(self, chunk: Chunk) -> None:
         """Write a chunk to the writer: each run of samples, and each gap record at its place with its

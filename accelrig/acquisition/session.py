@@ -81,6 +81,7 @@ class Session:
         self.ring: RingBuffer | None = None
         self.state = State.CLOSED
         self.last_error: str | None = None
+        self.interruption: Exception | None = None   # the error that ended the pump (a DeviceStalled says stalled)
         self._lock = threading.Lock()
         self._space = threading.Condition(self._lock)  # lossless readers made room
         self._stop = threading.Event()
@@ -262,6 +263,7 @@ class Session:
                     return
         except AccelrigError as exc:
             # The device went away (unplugged, link lost): say so, keep the data.
+            self.interruption = exc
             self._finish(State.DISCONNECTED, str(exc))
         except Exception as exc:  # a bug in a driver: report it rather than die silently
             traceback.print_exc()

@@ -107,7 +107,8 @@ def resolve(spec: str, args, date: str | None = None, data: Recording | None = N
     choice = ProfileStore(args.store).choose(spec, date or args.date, args.max_age_days,
                                              data=None if data is None else data.meta,
                                              units=None if data is None else data.units)
-    for note in choice.notes:
+    # stderr names the profile chosen, always (the notes already do when some were passed over)
+    for note in choice.notes or [choice.chosen_as]:
         print(f"accelrig: {printable(note)}", file=sys.stderr)
     for w in choice.warnings:
         warn(w)
@@ -119,8 +120,8 @@ def resolve(spec: str, args, date: str | None = None, data: Recording | None = N
 
 def run_list(args) -> int:
     store = ProfileStore(args.store)
-    entries = store.entries(args.device)
-    if not entries:
+    entries, broken = store.scan(args.device)
+    if not entries and not broken:
         say(f"no profiles in {store.root}" + (f" for device {args.device!r}" if args.device else ""))
         return 0
     from accelrig.tables import fitted_lines
@@ -132,9 +133,13 @@ def run_list(args) -> int:
         rows.append([printable(c) for c in (   # escaped first, so the columns line up
             e.identity, e.profile.data["provenance"]["created"], e.profile.procedure, e.profile.method,
             "-" if rms is None else f"{rms:.4g} m/s^2", str(e.path.relative_to(store.root)))])
+    # an entry that cannot be used is listed as such (and said why on stderr); the others stay usable
+    rows += [["BROKEN", "-", "-", "-", "-", printable(str(b.path.relative_to(store.root)))] for b in broken]
     # 80 columns: the file (under the store) stacks under the table when it does not fit beside the rest
     for line in fitted_lines(titles, rows, (0, 1, 2, 3, 4, 5)):
         say(line)
+    for b in broken:
+        warn(b.warning())
     return 0
 
 

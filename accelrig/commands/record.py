@@ -62,7 +62,7 @@ def run(args) -> int:
     from accelrig.acquisition.session import Session, State
     from accelrig.files import writable_target
     from accelrig.profiles.flash import flash_url_profile
-    from accelrig.segments import SegmentWriter, recover
+    from accelrig.segments import DirectoryLock, SegmentWriter, recover
     from accelrig.settings import Setting
 
     # nan, inf and a month are refused like any bad number (a NaN length would never be reached)
@@ -79,6 +79,10 @@ def run(args) -> int:
                         "give a folder for segments, or a file name ending .csv, .npz or .parquet")
     # one file: its segment goes to a hidden directory beside it, then becomes the file
     directory = output.parent / f".{output.name}.parts" if single else output
+    if directory.is_dir():
+        # another process recording into it: refused now, naming it, before the device is opened (the writer
+        # takes the lock for the whole recording); a lock left by a killed record is released
+        DirectoryLock(directory).release()
     if single and directory.is_dir() and not any(directory.iterdir()):
         directory.rmdir()   # left empty by a record stopped before its first sample
     if single and directory.exists():
@@ -149,12 +153,12 @@ def run(args) -> int:
         if show:
             sys.stderr.write("\n")
     kept = f"{recorder.samples} samples ({recorder.seconds:.2f} s)"
-    from accelrig.recording import link_loss_warning
+    from accelrig.recording import loss_of
 
-    lost = (f"{recorder.missing} samples lost in {recorder.gap_events} gaps (kept as gaps, never filled in)"
-            if recorder.missing or recorder.gap_events else "no samples lost")
-
-    loss = link_loss_warning(recorder.samples, recorder.missing, recorder.gap_events)
+    # gaps of unknown size (a disconnect, a stall) count by the time they lasted, estimated at the nominal rate
+    summary = loss_of(recorder.samples, recorder.gap_log, session.info.nominal_rate)
+    lost = summary.summary()
+    loss = summary.warning()
     if loss is not None:
         print(f"accelrig: warning: {loss}", file=sys.stderr)
     if not recorder.samples:
@@ -173,6 +177,7 @@ def run(args) -> int:
         # Ctrl+C is how an open-ended recording ends; cutting a requested length short is not success
         return 0 if args.seconds is None and args.samples is None else 130
     # said on a terminal and in a log alike: a piped record is otherwise silent for its whole length
+    # the rate of the stretches without gaps (a gap's time would lower it)
     print(f"accelrig record: kept {recorder.samples} samples ({recorder.seconds:.2f} s at {recorder.rate:.1f} Hz) "
           f"in {output}; {lost}", file=sys.stderr)
     return 0

@@ -111,7 +111,8 @@ DAEMON_CONFIG = Object(
         "segment_megabytes": optional(Number(exclusive_minimum=0, description=(
             "a segment is finished at this size, MB; default 256"))),
         "stall_seconds": optional(Number(exclusive_minimum=0, description=(
-            "a connected device that delivers nothing for this long is reconnected; default 10"))),
+            "a connected device that delivers nothing for this long is reconnected (serial and BLE drivers "
+            "are given the same limit; a device URL's own stall=S overrides it for that device); default 10"))),
         "reconnect_initial": optional(Number(exclusive_minimum=0, description=(
             "first wait before reconnecting a device, s; doubled after each failure; default 1"))),
         "reconnect_max": optional(Number(exclusive_minimum=0, description=(
@@ -337,6 +338,10 @@ def check_config(config: DaemonConfig) -> list[str]:
                          + (f"profiles for {', '.join(held)}" if held else "no profile at all")
                          + " (`accelrig profile add PROFILE` files one)")
             notes.append(note)
+    if any(d.profile_path is None and d.profile == "store" for d in config.devices):
+        # a file there that cannot be used is skipped when a device connects (its older profiles and every
+        # other device's stay usable): said now, not refused, so one damaged file stops no device
+        notes += [f"WARNING: profile store: {b.warning()}" for b in ProfileStore(config.profile_store).scan()[1]]
     if config.mqtt is not None:
         notes.append(check_mqtt(config.mqtt))
     check_output_writable(config.output)

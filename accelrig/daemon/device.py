@@ -53,12 +53,13 @@ from accelrig.acquisition.recorder import Recorder, stream_meta
 from accelrig.acquisition.session import Session, State
 from accelrig.daemon.clock import UtcClock
 from accelrig.daemon.config import ConfigError, DaemonConfig, DeviceConfig
-from accelrig.errors import AccelrigError, ProfileError, StorageError, StorageFull
+from accelrig.errors import AccelrigError, DeviceStalled, ProfileError, StorageError, StorageFull
+from accelrig.profiles.apply import RECORDED_CALIBRATED_CHANNELS, RECORDED_UNCERTAINTY_CHANNELS
 
 POLL = 0.2                 # s between writes of what arrived
 DISK_RETRY = 2.0           # s between write attempts while the disk is full
-CALIBRATED_CHANNELS = ("cal_x", "cal_y", "cal_z")
-UNCERTAINTY_CHANNELS = ("u_x", "u_y", "u_z")
+CALIBRATED_CHANNELS = RECORDED_CALIBRATED_CHANNELS     # the names `profile apply` knows to leave out
+UNCERTAINTY_CHANNELS = RECORDED_UNCERTAINTY_CHANNELS
 RECORDING_STATES = ("streaming", "recording raw")   # samples are being written ("recording raw": without
                                                     # the profile the configuration asks for)
 
@@ -338,7 +339,7 @@ class DeviceRunner:
 
         self._set("connecting", self.last_error)
         try:
-            driver = UtcDriver(driver_for(self.device.url))
+            driver = UtcDriver(self._driver())
         except AccelrigError as exc:
             raise ConfigError(f"{self.device.field('url')}: {exc}") from None
         session = Session(driver=driver, buffer_seconds=30.0)
@@ -376,6 +377,31 @@ class DeviceRunner:
         if self.profile_problem is not None:
             self.log(f"{self.device.name}: WARNING: {self.profile_problem}")
 
+    def _driver(self):
+        """The device's driver, told this device's stall limit (``stall_limit``) when it watches for stalls
+        itself (serial, BLE): the driver and the daemon then cut a silent device at the same moment, and
+        both record it as ``stalled: ...``."""
+        from accelrig.acquisition.url import DeviceURL
+
+        url = DeviceURL.parse(self.device.url)
+        driver = driver_for(url)
+        if "stall" not in url.params and "stall" in (driver.known_options() or ()):
+            # url.raw stays as configured; the driver takes at most an hour
+            url.params["stall"] = repr(min(float(self.config.stall_seconds), 3600.0))
+        return driver
+
+    @property
+    def stall_limit(self) -> float:
+        """Seconds without data after which this connected device counts as stalled: the daemon's
+        ``stall_seconds``, or the device URL's own ``stall=S`` (serial, BLE) when it gives one."""
+        from accelrig.acquisition.url import DeviceURL
+
+        own = DeviceURL.parse(self.device.url).get_str("stall")
+        try:
+            return float(own) if own is not None else float(self.config.stall_seconds)
+        except ValueError:   # the driver refuses it, naming the option, when it opens
+            return float(self.config.stall_seconds)
+
     def _streaming_state(self) -> tuple[str, str | None]:
         """(state, why) while samples are written: "recording raw" says the profile it needs is not used."""
         if self.profile_problem is not None:
@@ -403,10 +429,15 @@ class DeviceRunner:
         try:
             profile, warnings = self._find_profile(info)
         except ProfileError as exc:
+            from accelrig.profiles.store import UnusableProfiles
+
             self.profile_note = "none"
-            self._without_profile(exc.message, "calibrate the device and file its profile (accelrig profile add "
-                                  "PROFILE)" if device.profile == "store" else
-                                  f"give {device.field('profile')} a profile made for this device", "profile")
+            # its stored files cannot be read: repairing them is the fix, not a new calibration
+            fix = (exc.hint if isinstance(exc, UnusableProfiles) else
+                   "calibrate the device and file its profile (accelrig profile add PROFILE)"
+                   if device.profile == "store" else
+                   f"give {device.field('profile')} a profile made for this device")
+            self._without_profile(exc.message, fix, "profile")
             return None
         for warning in warnings:
             self.log(f"{device.name}: {warning}")
@@ -423,7 +454,7 @@ class DeviceRunner:
         none``, or a raw device with none stored); ProfileError when the one it needs cannot be used."""
         from accelrig.profiles.apply import check_compatible
         from accelrig.profiles.io import load_profile
-        from accelrig.profiles.store import ProfileStore
+        from accelrig.profiles.store import ProfileStore, UnusableProfiles
 
         device = self.device
         if device.profile == "none":
@@ -432,9 +463,11 @@ class DeviceRunner:
             store = ProfileStore(self.config.profile_store)
             try:
                 choice = store.choose(info.identity, data=info.to_dict(), units="counts")
-            except ProfileError:
+            except ProfileError as exc:
                 if device.output == "raw" and not device.flash:
-                    return None, []
+                    return None, [b.warning() for b in store.scan(info.identity)[1]]
+                if isinstance(exc, UnusableProfiles):
+                    raise
                 held = store.identities()
                 raise ProfileError(f"no profile for {info.identity!r} in the store {store.root} "
                                    + (f"(it holds {', '.join(held)})" if held else "(it is empty)")) from None
@@ -544,7 +577,7 @@ class DeviceRunner:
 
     def _stream(self) -> tuple[bool, str | None]:
         """Write what arrives until the connection ends; (samples arrived?, why it ended or None)."""
-        session, stall = self.session, self.config.stall_seconds
+        session, stall = self.session, self.stall_limit
         streamed = False
         reason: str | None = None
         finished = 0
@@ -565,7 +598,11 @@ class DeviceRunner:
                 stats = session.stats()
                 self.delivered_rate = stats.delivered_rate
                 if session.interrupted:
-                    reason = f"disconnected: {session.interrupted}"
+                    # the driver's own stall watch (serial, BLE) uses this device's limit too: the same cause
+                    cut = session.interruption
+                    reason = (f"stalled: no data for {cut.seconds or stall:g} s while connected ({session.interrupted})"
+                              if isinstance(cut, DeviceStalled)
+                              else f"disconnected: {session.interrupted}")
                     break
                 if session.state == State.ENDED:
                     self._set("ended", "the source delivered everything it had")

@@ -21,6 +21,10 @@ from accelrig.recording import Recording
 from accelrig.result import Correction
 
 UNCERTAINTY_CHANNELS = ("u_ax", "u_ay", "u_az")
+# what the daemon writes beside the raw counts when its output is calibrated (daemon.device): applying a
+# profile to its segments calibrates the raw counts again, so these are left out of the result (and said)
+RECORDED_CALIBRATED_CHANNELS = ("cal_x", "cal_y", "cal_z")
+RECORDED_UNCERTAINTY_CHANNELS = ("u_x", "u_y", "u_z")
 
 
 def _same(a: float, b: float) -> bool:
@@ -128,6 +132,22 @@ def apply_profile(
     raw = raw_si(rec, profile)
     corr = correction_for(profile, rec.meta)
     channels = dict(rec.channels)
+    recorded = [c for c in RECORDED_CALIBRATED_CHANNELS + RECORDED_UNCERTAINTY_CHANNELS if c in channels]
+    if recorded:
+        # calibrated while recorded (a daemon's calibrated output): ax, ay, az become the raw counts calibrated
+        # with this profile; the recorded copies would repeat them (same profile) or contradict them (another)
+        for name in recorded:
+            del channels[name]
+        ref = rec.meta.get("profile") if isinstance(rec.meta.get("profile"), dict) else {}
+        used = ref.get("path")
+        same = bool(ref) and (ref.get("identity"), ref.get("created"), ref.get("procedure"), ref.get("method")) == (
+            profile.identity, profile.data["provenance"]["created"], profile.procedure, profile.method)
+        warnings.append(
+            f"the recording held channels {', '.join(recorded)}, calibrated while it was recorded"
+            + (f" with profile {used}" if used else "")
+            + "; they are left out: ax, ay, az are its raw counts calibrated with "
+            + ("that same profile, and equal its cal_x, cal_y, cal_z" if same else f"profile {profile.path or '(given)'}")
+            + ("; u_ax, u_ay, u_az are their uncertainties" if uncertainty else ""))
     if uncertainty:
         clash = [c for c in UNCERTAINTY_CHANNELS if c in channels]
         if clash:

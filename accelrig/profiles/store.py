@@ -13,6 +13,13 @@ its creation time and procedure:
 
 Choosing: the latest profile, or the one closest in time to a date (imucal's
 idea); a warning when the chosen one is older than a configurable age.
+
+A file that cannot be used (not valid YAML, not a valid profile, filed under
+another device, a link out of the store) or a device folder that cannot be
+read is skipped, never fatal: every other device, and the device's other
+profiles, stay usable.  Each skipped entry is a warning naming it and why
+(``Broken``), in ``profile list``, in the choice's warnings and in
+``daemon check``: one half-copied file must not stop a fleet from recording.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
-from accelrig.errors import DataError, ProfileError
+from accelrig.errors import AccelrigError, DataError, ProfileError
 from accelrig.files import OutputExists, make_dirs
 from accelrig.profiles.io import Profile, load_profile, save_profile
 from accelrig.settings import Setting
@@ -68,11 +75,29 @@ class StoredProfile:
         return self.profile.created
 
 
+class UnusableProfiles(ProfileError):
+    """The device has files in the store, but none can be used: the fix is to repair them, not to recalibrate."""
+
+
+@dataclass
+class Broken:
+    """A store entry that cannot be used (skipped): its path and why."""
+
+    path: Path
+    reason: str   # names the path
+
+    def warning(self) -> str:
+        return (f"skipped a store entry that cannot be used: {self.reason}; repair or remove it "
+                "(`accelrig profile validate FILE` says what is wrong)")
+
+
 @dataclass
 class Choice:
     stored: StoredProfile
     warnings: list[str]
     notes: list[str] = field(default_factory=list)   # which profile was chosen among several, and why
+    skipped: list[Broken] = field(default_factory=list)   # the device's files that could not be used
+    chosen_as: str = ""   # the chosen profile in words and the rule that chose it, for whoever says which was used
 
 
 class ProfileStore:
@@ -138,36 +163,53 @@ class ProfileStore:
                 return sorted(Path(e.path) for e in it)
         except OSError as exc:
             raise ProfileError(f"{folder}: cannot read the store folder ({exc.strerror})",
-                               "fix its permissions: the store is repaired, never skipped") from None
+                               "fix its permissions") from None
 
-    def entries(self, identity: str | None = None) -> list[StoredProfile]:
-        """Every valid stored profile (of one device if given), oldest first.
+    def scan(self, identity: str | None = None) -> tuple[list[StoredProfile], list[Broken]]:
+        """Every valid stored profile (of one device if given), oldest first, and every entry skipped.
 
-        A file that does not load, a folder that cannot be read or a link out of the store is
-        an error naming it: a store with a broken entry must be repaired, not silently skipped.
+        A file that does not load or is filed under another device, a device folder that cannot be
+        read, or a link out of the store is skipped and returned as ``Broken`` (path, why): the rest of
+        the store stays usable.  Only a store root that cannot be read is an error.
         """
         if not self.root.is_dir():
-            return []
+            return [], []
         if identity is not None:
             dirs = [self.device_dir(identity)]
         else:
             dirs = [p for p in self._listing(self.root) if p.is_dir()]
-        out = []
+        out, broken = [], []
         for d in dirs:
             if not d.is_dir():
                 continue
-            self._check_inside(d)
-            for path in self._listing(d):
+            try:
+                self._check_inside(d)
+                listing = self._listing(d)
+            except ProfileError as exc:
+                broken.append(Broken(d, _reason(exc, d)))
+                continue
+            for path in listing:
                 if path.suffix != ".yaml":
                     continue
-                self._check_inside(path)
-                profile = load_profile(path)
+                try:
+                    self._check_inside(path)
+                    profile = load_profile(path)
+                except AccelrigError as exc:
+                    broken.append(Broken(path, _reason(exc, path)))
+                    continue
                 if identity is not None and profile.identity != identity:
-                    raise ProfileError(f"{path}: device.identity {profile.identity!r} does not belong in the "
-                                       f"directory of {identity!r}", "move the file to its device's directory")
+                    broken.append(Broken(path, f"{path}: device.identity {profile.identity!r} does not belong "
+                                               f"in the folder of {identity!r} (move the file to its device's "
+                                               "folder)"))
+                    continue
                 out.append(StoredProfile(path, profile))
         # Same creation second: the file added later (higher -N suffix) counts as newer.
-        return sorted(out, key=lambda s: (s.created, _sequence(s.path)))
+        return sorted(out, key=lambda s: (s.created, _sequence(s.path))), broken
+
+    def entries(self, identity: str | None = None) -> list[StoredProfile]:
+        """Every valid stored profile (of one device if given), oldest first; unusable entries are skipped
+        (``scan`` returns them too, to be said)."""
+        return self.scan(identity)[0]
 
     def identities(self) -> list[str]:
         return sorted({s.identity for s in self.entries()})
@@ -198,10 +240,21 @@ class ProfileStore:
                 parse_datetime(date)
             except ValueError:
                 raise ProfileError(f"{date!r} is not a date", "give an ISO date, e.g. 2026-11-01") from None
-        entries = self.entries(identity)
+        entries, skipped = self.scan(identity)
+        if not entries and skipped:
+            raise UnusableProfiles(f"no stored profile of device {identity!r} can be used: "
+                                   + "; ".join(b.reason for b in skipped),
+                                   "repair or remove " + ("that file" if len(skipped) == 1 else "those files")
+                                   + " (`accelrig profile validate FILE` says what is wrong)")
         if not entries:
-            known = self.identities()
-            hint = f"known devices: {', '.join(known)}" if known else f"the store {self.root} is empty"
+            known, broken = self.scan()
+            names = sorted({s.identity for s in known})
+            hint = (f"known devices: {', '.join(names)}" if names
+                    else f"the store {self.root} is empty" if not broken
+                    else f"the store {self.root} holds no usable profile")
+            if broken:   # one of them may be this device's, misfiled or damaged
+                hint += (f"; {len(broken)} store entr{'y' if len(broken) == 1 else 'ies'} cannot be used: "
+                         + "; ".join(b.reason for b in broken))
             raise ProfileError(f"no stored profile for device {identity!r}", hint)
         if date is None:
             reference = now or datetime.now(UTC)
@@ -211,11 +264,10 @@ class ProfileStore:
             reference = parse_datetime(date) if isinstance(date, str) else date.astimezone(UTC)
             order = sorted(entries, key=lambda s: (abs(s.created - reference), -s.created.timestamp()))
             rule = f"the closest to {reference.strftime('%Y-%m-%d %H:%M')} UTC"
-        chosen, notes = order[0], []
+        chosen, notes, why_not = order[0], [], {}
         if data is not None and len(entries) > 1:
             from accelrig.profiles.apply import check_compatible
 
-            why_not = {}
             for stored in order:
                 try:
                     check_compatible(stored.profile, data, units)
@@ -230,7 +282,7 @@ class ProfileStore:
                 notes.append(f"profile {chosen.path.name} ({_describe(chosen)}): {rule} that applies to the data")
                 notes += [f"passed over {s.path.name} ({_describe(s)}): {why_not[s.path]}"
                           for s in order[:order.index(chosen)]]
-        warnings = []
+        warnings = [b.warning() for b in skipped]
         age = reference - chosen.created
         if age > timedelta(days=max_age_days):
             when = "now" if date is None else reference.strftime("%Y-%m-%d")
@@ -238,7 +290,16 @@ class ProfileStore:
                 f"profile {chosen.path.name} is {age.days} days older than {when} "
                 f"(more than {max_age_days:g}); recalibrate the device"
             )
-        return Choice(chosen, warnings, notes)
+        chosen_as = (f"profile {chosen.path} ({_describe(chosen)}): {rule} of {len(entries)} stored for "
+                     f"{identity!r}" + (" that applies to the data" if data is not None and chosen.path not in why_not
+                                        else ""))
+        return Choice(chosen, warnings, notes, skipped, chosen_as)
+
+
+def _reason(exc: AccelrigError, path: Path) -> str:
+    """Why an entry was skipped, naming it (load errors name their file already)."""
+    text = str(exc)
+    return text if str(path) in text else f"{path}: {text}"
 
 
 def _describe(stored: StoredProfile) -> str:

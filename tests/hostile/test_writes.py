@@ -210,7 +210,11 @@ def test_store_refuses_a_link_out_of_itself(guarded, tmp_path):
     store = tmp_path / "store"
     store.mkdir()
     (store / "sim-random-11-00000000").symlink_to(outside)
-    assert_refused(guarded("profile", "list", "--store", store), "links outside the store")
+    # not followed: listed as broken and named on stderr (one bad entry stops no other device)
+    result = guarded("profile", "list", "--store", store)
+    assert result.returncode == 0 and "Traceback" not in result.stderr
+    assert "links outside the store" in result.stderr and "refusing to follow it" in result.stderr
+    assert "20260101T000000Z" not in result.stdout and result.stdout.splitlines()[-1].startswith("BROKEN")
 
 
 def test_store_names_an_unreadable_folder(guarded, tmp_path, monkeypatch):
@@ -225,7 +229,10 @@ def test_store_names_an_unreadable_folder(guarded, tmp_path, monkeypatch):
         return real_scandir(path)
 
     monkeypatch.setattr(os, "scandir", scandir)   # root reads any folder: simulate what a user meets
-    assert_refused(guarded("profile", "list", "--store", store), f"{device}: cannot read the store folder")
+    result = guarded("profile", "list", "--store", store)   # skipped and named; the other devices stay listed
+    assert result.returncode == 0 and f"{device}: cannot read the store folder" in result.stderr
+    assert_refused(guarded("profile", "show", "sim-random-11", "--store", store),
+                   f"{device}: cannot read the store folder")
 
 
 def test_an_unwritable_store_is_one_line(guarded, tmp_path):

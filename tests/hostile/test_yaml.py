@@ -69,7 +69,8 @@ def test_an_alias_bomb_in_the_store_is_named_not_a_hang(limited, guarded, tmp_pa
     store = tmp_path / "store"
     (store / "dev-12345678").mkdir(parents=True)
     (store / "dev-12345678" / "20260101T000000Z-static.yaml").write_text(LAUGHS)
-    assert_refused(limited("profile", "list", "--store", store, timeout=15), "aliases")   # a real process
+    result = limited("profile", "list", "--store", store, timeout=15)   # a real process: skipped and named
+    assert result.returncode == 0 and "aliases" in result.stderr and "Traceback" not in result.stderr
     for command in (("profile", "show", "dev"), ("profile", "diff", "dev", "dev")):
         assert_refused(guarded(*command, "--store", store), "aliases")
 
