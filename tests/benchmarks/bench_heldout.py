@@ -399,10 +399,20 @@ def main(argv=None) -> int:
         print(f"{condition.procedure} / {condition.name}: done", file=sys.stderr, flush=True)
         if args.details:
             kept = [o for o in outcomes if not o.refused]
+            # the unwarned runs are the ones the 90-98 % target judges: their coverage per parameter, and each
+            # miss with its run (seed index), so a few runs under a threshold can be told from a pattern
+            clean = [(i, o) for i, o in enumerate(outcomes) if not o.refused and not o.warnings]
             for k in (kept[0].errors if kept else {}):
                 z = np.array([o.errors[k] / o.u[k] for o in kept if o.u.get(k)])
+                zc = np.array([o.errors[k] / o.u[k] for _, o in clean if o.u.get(k)])
+                unwarned = f"  unwarned {np.mean(np.abs(zc) <= 2):.2f} of {zc.size}" if zc.size else ""
                 print(f"    {k:10s} cover {np.mean(np.abs(z) <= 2):.2f}  z mean {z.mean():+.2f} sd {z.std():.2f}"
-                      f"  max |z| {np.max(np.abs(z)):.1f}", file=sys.stderr)
+                      f"  max |z| {np.max(np.abs(z)):.1f}{unwarned}", file=sys.stderr)
+            misses = [f"run {i}: " + ", ".join(f"{k} {o.errors[k] / o.u[k]:+.1f} u" for k in o.errors
+                                              if o.u.get(k) and abs(o.errors[k] / o.u[k]) > 2)
+                      for i, o in clean if any(o.u.get(k) and abs(o.errors[k] / o.u[k]) > 2 for k in o.errors)]
+            for miss in misses:
+                print(f"    unwarned, not covered: {miss}", file=sys.stderr)
             # what the warnings say, by kind (the text after the step's name, up to its first digit), in runs
             kinds = Counter(kind for o in kept for kind in {re.split(r"[0-9]", w.split("): ", 1)[-1])[0][:60]
                                                              for w in o.warnings})
