@@ -43,6 +43,9 @@ def _flexing_link_sentence(link: dict) -> str:
                 "link or mounting seen")
     resonance = link.get("resonance_hz")
     seen = f"a resonance near {resonance:.0f} Hz" if resonance else "harmonics that shrink with speed"
+    if link.get("ring_hz"):
+        return (f"checked over {link['steps']} steady steps: {seen}, the link's ring at the dead centres (the "
+                f"harmonics' trend alone: p = {link['p_value']:.1g}; see the warnings)")
     return (f"checked over {link['steps']} steady steps: {seen} (p = {link['p_value']:.1g}, see the warnings)")
 
 

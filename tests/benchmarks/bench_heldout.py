@@ -298,6 +298,10 @@ def slider_rows() -> list[tuple[str, SliderCase, tuple[str, ...]]]:
          SliderCase(link_hz=300.0, breakaway=1.5, stribeck_v=0.005, reversal_v=0.01), lack),
         ("link 300 Hz, Stribeck friction turning over 30 mm/s",
          SliderCase(link_hz=300.0, breakaway=1.5, stribeck_v=0.01, reversal_v=0.03), lack),
+        # a sharp band: the slider sticks at each dead centre until the stretched link breaks it free (about
+        # 0.5 um of lost motion), a fixed crank angle after the dead centre, as play is crossed
+        ("link 450 Hz, Stribeck friction turning over 3 mm/s",
+         SliderCase(link_hz=450.0, breakaway=1.5, stribeck_v=0.005, reversal_v=0.003), lack),
         ("link 450 Hz, Stribeck friction turning over 10 mm/s",
          SliderCase(link_hz=450.0, breakaway=1.5, stribeck_v=0.005, reversal_v=0.01), lack),
         ("link 450 Hz, Stribeck friction turning over 30 mm/s",

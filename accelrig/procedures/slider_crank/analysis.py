@@ -128,6 +128,21 @@ RING_GROWTH = 0.5
 # phase at the ring frequency moves by f_ring times that delay (held-out braked slide, 10 um: hundreds of degrees).
 # The phases are judged as one at this false-alarm rate (ring_keeps_timing).
 RING_TIMING_ALPHA = 1e-3
+# A link named by its ring corrects the radii by its resonance even where the trend could not show it
+# (compliance_with_ring): the ring's c_ring = 1 / (2 pi f_ring)^2 carries this relative u for what a ring is, a damped
+# one running at sqrt(1 - zeta^2) of the resonance that amplifies the harmonics (a spring-damper link amplifies them
+# by 1 + (f / f_r)^2 whatever its damping, to that order): c_ring high by zeta^2, 5 % at zeta 0.22; a ring that still
+# shows after 2.5 of its cycles (ring_frequency) is damped less
+RING_RESONANCE_U = 0.05
+# ... or, where its timing moves, when its lost motion is too small for play waiting at the dead centres: play is
+# crossed there only where the rail's friction outweighs the slider's inertia (else the force through the link reverses
+# elsewhere and the knock comes later), and the contact that then takes it up, ringing at f_ring with the slider's mass,
+# gives way by that friction over its stiffness each way, so play there loses at least 2 A_1 (1 - lambda) / (2 pi
+# f_ring)^2.  A link on a rail whose friction turns over sharply (a few mm/s) and holds 1.5 times its sliding value at
+# rest sticks at each dead centre until the stretched link breaks it free: a fixed crank angle after the dead centre
+# like play, but losing only the friction over the link's stiffness (held-out 450 Hz link: 0.1-2 um, 0.03-0.13 of that
+# bound at 10 Hz; braked play 1.7-5.7 of it).  Judged per flagged step, one-sided, at RING_TIMING_ALPHA over the steps
+# (lost_motion_below_hold).
 # A dead-centre event counts as mirrored (odd harmonics only, _mirrored) when the power of its part that repeats
 # half a turn on is below this share of the power of its part that flips.
 MIRROR_SHARE = 0.1
@@ -736,6 +751,13 @@ class StepFit:
     times: np.ndarray | None = field(default=None, repr=False)   # the step's sample times, s (for _mirrored)
 
 
+def play_from_third(a3: float, omega2: float) -> float:
+    """Play b (m) taken up at the dead centres from the acceleration's third harmonic A_3 (m/s^2) at omega^2: the
+    take-ups make the displacement a square wave of +-b/2 about the crank's, whose third harmonic is 2b / (3 pi)
+    (the crank's kinematics have none), so b = 1.5 pi A_3 / (9 omega^2).  Linear: it maps A_3's u alike."""
+    return 1.5 * np.pi * a3 / (9 * omega2)
+
+
 def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
     """The step's estimates and their u, from its fits and the covariance the residual checks gave."""
     fit, motion, backlash = state.fit, state.motion, state.backlash
@@ -776,7 +798,7 @@ def step_result(state: StepFit, checks: ResidualChecks) -> StepResult:
         # (2b/pi) |sin delta| in phase with the crank, at one edge of the bound or the other, whichever
         # side the slider rides: a two-point distribution, sd that share, when it exceeds the rectangle's.
         third = float(fit.amplitude[2]) / (9 * omega2)
-        play = 1.5 * np.pi * third
+        play = play_from_third(float(fit.amplitude[2]), omega2)
         u_play = max(3 * third / np.sqrt(3), 3 * third * abs(np.sin(state.take_up)))
         u_radius = float(np.hypot(u_radius, u_play))
     model = crank_radius * omega2
@@ -1158,25 +1180,36 @@ def check_compliance(steps: list[StepResult]) -> dict | None:
         if played:
             judged = [i for i in judged if i not in played]
             fitted = _fit_compliance(steps, judged)
-    if fitted is not None:
-        # named whatever the trend's significance: a stiff link's ring at 450 Hz moves the harmonics too little to
-        # be seen, yet its frequency is what the trend admits, and it is not play
-        _name_link_ringing(steps, fitted[0], fitted[1])
-    if fitted is None or fitted[2] >= COMPLIANCE_ALPHA:
+    # named whatever the trend's significance: a stiff link's ring at 450 Hz moves the harmonics too little to be
+    # seen, yet its frequency is what the trend admits, and it is not play
+    ring = _name_link_ringing(steps, fitted[0], fitted[1]) if fitted is not None else None
+    if fitted is None or (fitted[2] >= COMPLIANCE_ALPHA and ring is None):
         return None
     c, u_c, p_value = fitted
+    found = {"trend_c_s2": c, "trend_c_uncertainty_s2": u_c}
+    if ring is not None:
+        # the link the ring names amplifies the harmonics whether or not the trend could show it (a 450 Hz link
+        # moves a 10 Hz step's radius by 0.05 %, several times its u): its resonance corrects every radius
+        c, u_c = compliance_with_ring(c, u_c, *ring)
+        found.update(ring_hz=ring[0], ring_uncertainty_hz=ring[1])
     omega2 = np.array([(2 * np.pi * steps[i].frequency_hz.value) ** 2 for i in judged])
     top = float(omega2.max())
-    found = {"c_s2": c, "c_uncertainty_s2": u_c, "p_value": p_value, "steps": len(judged),
-             "second_harmonic_gain_at_top": float(1 / (1 - 4 * c * top))}
+    found.update({"c_s2": c, "c_uncertainty_s2": u_c, "p_value": p_value, "steps": len(judged),
+                  "second_harmonic_gain_at_top": float(1 / (1 - 4 * c * top))})
     if c > 0:
         f_r = 1 / (2 * np.pi * np.sqrt(c))
         u_fr = 0.5 * f_r * u_c / c
         found.update(resonance_hz=f_r, resonance_uncertainty_hz=u_fr)
-        what = (f"the slider's harmonics grow with speed beyond the rigid crank's law (its 2nd harmonic "
-                f"{100 * (found['second_harmonic_gain_at_top'] - 1):.2g} % above the 1st's share at "
-                f"{np.sqrt(top) / (2 * np.pi):.3g} Hz, p = {p_value:.1g}): the link or the slider's mounting flexes, "
-                f"as a resonance near {f_r:.0f} +- {u_fr:.0f} Hz would (or the sensor's response rises with frequency)")
+        trend = (f"the slider's harmonics grow with speed beyond the rigid crank's law (its 2nd harmonic "
+                 f"{100 * (found['second_harmonic_gain_at_top'] - 1):.2g} % above the 1st's share at "
+                 f"{np.sqrt(top) / (2 * np.pi):.3g} Hz, p = {p_value:.1g})")
+        if fitted[2] >= COMPLIANCE_ALPHA:
+            trend = (f"the link rings at {ring[0]:.0f} +- {ring[1]:.2g} Hz where the rail's friction reverses, its "
+                     f"resonance, which raises the radius from the motion by {100 * c * top:.2g} % at "
+                     f"{np.sqrt(top) / (2 * np.pi):.3g} Hz: more than the harmonics' trend alone could show (p = "
+                     f"{p_value:.1g})")
+        what = (f"{trend}: the link or the slider's mounting flexes, as a resonance near {f_r:.0f} +- {u_fr:.2g} Hz "
+                "would" + ("" if ring is not None else " (or the sensor's response rises with frequency)"))
         if 4 * c * top > COMPLIANCE_REFUSE:
             raise CalibrationError(
                 f"{what}; that close to the fastest step the slider's motion is not a crank's with one resonance "
@@ -1189,9 +1222,9 @@ def check_compliance(steps: list[StepResult]) -> dict | None:
                             f"harmonic {100 * (1 - found['second_harmonic_gain_at_top']):.2g} % below the 1st's share "
                             f"at {np.sqrt(top) / (2 * np.pi):.3g} Hz, p = {p_value:.1g}): the sensor's response falls "
                             "with frequency, or the stand damps its motion; u(radius) includes the bias that implies")
-    for k, i in enumerate(judged):
-        step = steps[i]
-        w2 = omega2[k]
+    # every step: the spring amplifies the steps the trend left out (uneven play, a wandering speed) alike
+    for i, step in enumerate(steps):
+        w2 = (2 * np.pi * step.frequency_hz.value) ** 2
         radius, u_radius = step.radius_m.value, step.radius_m.uncertainty
         u_stat = float(np.sqrt(max(u_radius**2 - step.radius_play_uncertainty_m**2, 0.0)))
         if c > 0:
@@ -1232,6 +1265,7 @@ def compliance_status(steps: list[StepResult], found: dict | None) -> dict:
     if found is not None:
         status["resonance_hz"] = found.get("resonance_hz")
         status["p_value"] = found["p_value"]
+        status["ring_hz"] = found.get("ring_hz")   # the link named by its ring: its resonance corrects the radii
     if not status["made"]:
         left = [(sum(1 for s in steps if s.speed_unsteady), "whose speed wandered"),
                 (sum(1 for s in steps if s.state is not None and s.state.motion.harmonics < 2),
@@ -1262,22 +1296,13 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     takes no force step there.  (A lost-motion size cannot decide it: play at a stiff contact and a ringing
     compliant link shift the slider alike within a factor of 2-4.)
     """
-    flagged = [s for s in steps if s.backlash and s.take_up_deg == 0 and s.knock_peak > 0 and s.state is not None
-               and s.state.times is not None]
+    flagged = _flagged_at_dead_centres(steps)
     if not flagged or not (np.isfinite(c) and np.isfinite(u_c)):
         return False
-    found = [(ring_frequency(s), s) for s in flagged]
-    found = [(ring, s) for ring, s in found if np.isfinite(ring[0])]
-    if not found:
+    ring = one_ring(flagged)
+    if ring is None:
         return False
-    rings = np.array([ring[0] for ring, _ in found])
-    f_ring = float(np.median(rings))
-    if np.max(np.abs(rings / f_ring - 1.0)) > RING_SPREAD:
-        return False
-    # the scatter of the steps' rings, but never below the bin they are read on: steps that all peak in one bin
-    # have a scatter of 0, not a frequency known to 0
-    bin_hz = max(ring[2] for ring, _ in found)
-    u_f = max(float(np.std(rings, ddof=1) / np.sqrt(rings.size)), bin_hz) if rings.size > 1 else 0.05 * f_ring
+    f_ring, u_f, found = ring
     c_ring = 1.0 / (2 * np.pi * f_ring) ** 2
     u_both = float(np.hypot(u_c, 2 * c_ring * u_f / f_ring))
     # and only where the trend could tell that compliance from none (u below c_ring): steps too few or too close
@@ -1289,8 +1314,63 @@ def _is_link_ringing(steps: list[StepResult], c: float, u_c: float) -> bool:
     # a trend that cannot rule out a rigid link agrees with a knock at one contact frequency as well: the link's
     # ring is a friction step's, the same size at every speed; a knock grows with speed (RING_GROWTH).  A friction
     # that turns over a broad band rings the link more as the speed rises, but at one timing against the dead
-    # centres; a knock comes a fixed crank angle after them, later in time at a slower step (RING_TIMING_ALPHA)
-    return knock_growth(flagged) < RING_GROWTH or ring_keeps_timing([s for _, s in found], f_ring, u_f)
+    # centres; a knock comes a fixed crank angle after them, later in time at a slower step (RING_TIMING_ALPHA).
+    # A link that sticks until it breaks free comes late too, but loses less motion than play waiting there would
+    return (knock_growth(flagged) < RING_GROWTH or ring_keeps_timing(found, f_ring, u_f)
+            or lost_motion_below_hold(found, f_ring, u_f))
+
+
+def _flagged_at_dead_centres(steps: list[StepResult]) -> list[StepResult]:
+    """The steps flagged with play taken up at the dead centres (what _is_link_ringing judges)."""
+    return [s for s in steps if s.backlash and s.take_up_deg == 0 and s.knock_peak > 0 and s.state is not None
+            and s.state.times is not None]
+
+
+def one_ring(flagged: list[StepResult]) -> tuple[float, float, list[StepResult]] | None:
+    """The one frequency the flagged steps' events ring at (Hz: the median of ring_frequency), its u (Hz) and the
+    steps read; None when no step shows a ring or one rings beyond RING_SPREAD of the median (no one resonance)."""
+    found = [(ring_frequency(s), s) for s in flagged]
+    found = [(ring, s) for ring, s in found if np.isfinite(ring[0])]
+    if not found:
+        return None
+    rings = np.array([ring[0] for ring, _ in found])
+    f_ring = float(np.median(rings))
+    if np.max(np.abs(rings / f_ring - 1.0)) > RING_SPREAD:
+        return None
+    # the scatter of the steps' rings, but never below the bin they are read on: steps that all peak in one bin
+    # have a scatter of 0, not a frequency known to 0
+    bin_hz = max(ring[2] for ring, _ in found)
+    u_f = max(float(np.std(rings, ddof=1) / np.sqrt(rings.size)), bin_hz) if rings.size > 1 else 0.05 * f_ring
+    return f_ring, u_f, [s for _, s in found]
+
+
+def lost_motion_below_hold(steps: list[StepResult], f_ring: float, u_f: float) -> bool:
+    """Whether some step's dead-centre event loses less motion than play waiting at the dead centres must.
+
+    Play is crossed at the dead centres only where the rail's friction F outweighs the slider's inertia there,
+    F >= m A_1 (1 - lambda) at the weaker (outer) one; the contact that then takes it up (stiffness m (2 pi
+    f_ring)^2: it rings at f_ring with the slider's mass) gives way by F / k each way, so the lost motion is at
+    least 2 A_1 (1 - lambda) / (2 pi f_ring)^2, plus the gap.  The lost motion is read as step_result's play,
+    from the third harmonic (play_from_third), with its u; the bound's u is the ring frequency's.  A step below the bound by more than the
+    one-sided normal quantile at RING_TIMING_ALPHA over the steps (Sidak) is not play held there: a link that
+    sticks until it is stretched enough to break free.  |A_3| only reads high under noise, so the test errs
+    towards play.  Steps with fewer than three harmonics fitted cannot say."""
+    judged = [s for s in steps if len(np.atleast_1d(s.harmonic_amplitudes.value)) >= 3]
+    if not judged or not (np.isfinite(f_ring) and f_ring > 0):
+        return False
+    z = float(stats.norm.isf(1.0 - (1.0 - RING_TIMING_ALPHA) ** (1.0 / len(judged))))
+    ring2 = (2 * np.pi * f_ring) ** 2
+    for s in judged:
+        omega2 = (2 * np.pi * s.frequency_hz.value) ** 2
+        lam = s.state.crank_radius / s.state.rod_length
+        a1 = float(np.atleast_1d(s.harmonic_amplitudes.value)[0])
+        a3, u_a3 = (float(np.atleast_1d(v)[2]) for v in (s.harmonic_amplitudes.value, s.harmonic_amplitudes.uncertainty))
+        lost, u_lost = play_from_third(a3, omega2), play_from_third(u_a3, omega2)
+        hold = 2 * a1 * (1 - lam) / ring2
+        u = float(np.hypot(u_lost, hold * 2 * u_f / f_ring))
+        if u > 0 and hold - lost > z * u:
+            return True
+    return False
 
 
 def ring_phase(step: StepResult, f_ring: float) -> tuple[float, float, float]:
@@ -1350,13 +1430,30 @@ def knock_growth(steps: list[StepResult]) -> float:
     return float(np.polyfit(np.log(speeds[keep]), np.log(knocks[keep]), 1)[0])
 
 
-def _name_link_ringing(steps: list[StepResult], c: float, u_c: float) -> None:
-    """Steps flagged with play at the dead centres whose event is the flexing link ringing (_is_link_ringing)."""
-    if _is_link_ringing(steps, c, u_c):
-        for i, s in enumerate(steps):
-            if s.backlash and s.take_up_deg == 0:
-                f_ring = ring_frequency(s)[0]
-                steps[i] = replace(s, backlash=False, link_ringing=True, ring_hz=float(f_ring))
+def _name_link_ringing(steps: list[StepResult], c: float, u_c: float) -> tuple[float, float] | None:
+    """Steps flagged with play at the dead centres whose event is the flexing link ringing (_is_link_ringing):
+    named so; returns the link's ring frequency and its u (Hz, one_ring), None when the events are not its ring."""
+    if not _is_link_ringing(steps, c, u_c):
+        return None
+    f_ring, u_f, _ = one_ring(_flagged_at_dead_centres(steps))
+    for i, s in enumerate(steps):
+        if s.backlash and s.take_up_deg == 0:
+            steps[i] = replace(s, backlash=False, link_ringing=True, ring_hz=float(ring_frequency(s)[0]))
+    return f_ring, u_f
+
+
+def compliance_with_ring(c: float, u_c: float, f_ring: float, u_f: float) -> tuple[float, float]:
+    """The link's compliance from the harmonics' trend (c, u_c) and from its ring, c_ring = 1 / (2 pi f_ring)^2,
+    combined by their weights; u widened by the Birge ratio when they disagree beyond their u.
+
+    The ring's u: the ring frequency's (``u_f``, through c_ring's slope) and RING_RESONANCE_U of c_ring for what
+    the ring is (a damped ring runs at sqrt(1 - zeta^2) of the resonance that amplifies the harmonics)."""
+    c_ring = 1.0 / (2 * np.pi * f_ring) ** 2
+    u_ring = c_ring * float(np.hypot(2 * u_f / f_ring, RING_RESONANCE_U))
+    w_trend, w_ring = 1.0 / u_c**2, 1.0 / u_ring**2
+    c_both = (w_trend * c + w_ring * c_ring) / (w_trend + w_ring)
+    chi2 = (c - c_ring) ** 2 / (u_c**2 + u_ring**2)
+    return float(c_both), float(np.sqrt(max(chi2, 1.0) / (w_trend + w_ring)))
 
 
 def _crank_locked_lines(step: StepResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
