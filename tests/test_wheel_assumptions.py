@@ -5,12 +5,16 @@ Recordings come from accelrig.sim (the wheel's trajectory differentiated numeric
 with coloured noise and drift), which shares no equation with the estimator.
 """
 
+import contextlib
+
 import numpy as np
 import pytest
 
 from accelrig.errors import CalibrationError
 from accelrig.procedures.wheel import assumptions, paper, start
 from accelrig.procedures.wheel import fit as wheel_fit
+from accelrig.procedures.wheel import procedure as wheel_procedure
+from accelrig.procedures.wheel.assumptions import check_residuals
 from accelrig.procedures.wheel.checks import survey
 from accelrig.procedures.wheel.fit import free_set, wheel_crb
 from accelrig.procedures.wheel.model import TABLE_I_OMEGA, WheelState, model_and_jacobian
@@ -303,16 +307,23 @@ def test_a_gross_wobble_is_refused_naming_the_bearing():
     assert "bearing play" in str(err.value) and "bearing" in err.value.hint
 
 
-def nodding_coast(nod_deg, seed, sd=0.08, seconds=90.0, rate=RATE, tilt_deg=45.0):
+def nodding_coast(nod_deg, seed, sd=0.08, seconds=90.0, rate=RATE, tilt_deg=45.0, swing=0.0):
     """A coast whose axis nods in space once per turn (bearing play): the tilt swings by ``nod_deg`` cos(theta),
     so gravity's share along the axis and across it changes with the wheel angle while the centripetal and
-    tangential terms stay where they are; a slowing spin w = 9 - 0.045 t, white noise ``sd``."""
+    tangential terms stay where they are; a slowing spin w = 9 - 0.045 t, white noise ``sd``.  With ``swing``, the
+    wheel is also unbalanced: its angle runs ahead and behind by ``swing`` (9 / w)^2 cos(theta) rad (a steady
+    torque locked to the angle moves it by more as the wheel slows), its speed and acceleration with it."""
     t = np.arange(int(seconds * rate)) / rate
     w = 9.0 - 0.045 * t
     theta = 1.0 + 9.0 * t - 0.0225 * t**2
+    tangential = np.full(t.size, -0.045)
+    if swing:
+        theta = theta + swing * (9.0 / w) ** 2 * np.cos(theta)
+        w = np.gradient(theta, t, edge_order=2)
+        tangential = np.gradient(w, t, edge_order=2)
     alpha = np.radians(tilt_deg + nod_deg * np.cos(theta))
     bench = np.stack([0.28 * w**2 + 9.80665 * np.sin(alpha) * np.cos(theta),
-                      0.28 * -0.045 + 9.80665 * np.sin(alpha) * np.sin(theta), 9.80665 * np.cos(alpha)], axis=1)
+                      0.28 * tangential + 9.80665 * np.sin(alpha) * np.sin(theta), 9.80665 * np.cos(alpha)], axis=1)
     raw = OFFSET + bench @ WheelRig().rotation.T * GAIN + np.random.default_rng(seed).normal(0.0, sd, (t.size, 3))
     return Recording(t, raw, meta={"range_g": 4.0})
 
@@ -343,6 +354,29 @@ def test_a_slight_nod_widens_u_by_its_unseen_half():
     assert any("turns with the wheel at twice its angle, as an axis that nods about" in w and "once per turn" in w
                for w in result.warnings)
     assert np.all(np.abs(z_scores(result)) < 3)
+
+
+def test_a_steady_nod_on_an_unbalanced_wheel_is_not_read_as_changing(monkeypatch):
+    """A steady nod's unseen half (gravity turned, the centripetal term spared) leaves in the residuals what changes
+    with w^2; with the speed law taken in beside the wobble, the test of the nod's change read it as a nod growing
+    over the run, and refused steady nods as play that opens above some speed (held-out steady 0.1 deg nods: 8 of
+    120 refused at 1 %, the nod 0.05 deg larger at the end on average).  The unseen half is now projected out of
+    that test.  Here (quiet, so what the test reads is the structure, not the noise) main read 0.09 -> 0.16 deg,
+    p = 3e-5; the checks are read directly, since the steady nod itself is refused on its size at this noise."""
+    seen = {}
+
+    def spy(*args, **kwargs):
+        seen["checks"] = checks = check_residuals(*args, **kwargs)
+        return checks
+
+    monkeypatch.setattr(wheel_procedure, "check_residuals", spy)
+    with contextlib.suppress(CalibrationError):
+        calibrate_wheel(nodding_coast(0.1, seed=2, sd=0.03, swing=0.003), radius=0.28)
+    checks = seen["checks"]
+    assert checks.causes == ["speed law", "wobble"]
+    assert not checks.nod_change.significant
+    start, end = checks.nod_ends_deg
+    assert abs(end - start) < 0.03 and 0.07 < 0.5 * (start + end) < 0.15
 
 
 def test_white_noise_keeps_the_crb_and_stays_quiet():
