@@ -1056,17 +1056,37 @@ def _check_one_device_state(path, used: list[_Part]) -> None:
     scales = {p.info["scale"] for p in used}
     if len(scales) > 1:
         raise DataError(f"{path}: the segments were recorded at different scales {sorted(scales)} (range changed)",
-                        "read each stretch separately with --start/--stop")
-    states: dict[str, str] = {}   # flashed offsets -> the first segment with them
-    for part in used:
+                        _stretches_hint(used, lambda p: p.info["scale"]))
+    states: dict[str, _Part] = {}   # flashed offsets -> the first segment with them
+
+    def flashed(part: _Part) -> str:
         removed = _current_meta(part.info["meta"]).get("hardware_bias_removed")
-        said = ("no offsets flashed" if removed is None
+        return ("no offsets flashed" if removed is None
                 else "offsets [" + ", ".join(f"{float(v):.4g}" for v in removed) + "] m/s^2 flashed")
-        states.setdefault(said, part.path.name)
+
+    for part in used:
+        states.setdefault(flashed(part), part)
     if len(states) > 1:
         raise DataError(f"{path}: the chip's flashed offsets change between the segments read ("
-                        + "; ".join(f"{said} from {name}" for said, name in states.items()) + ")",
-                        "read each stretch separately with --start/--stop")
+                        + "; ".join(f"{said} from {part.path.name}" + (f" ({_iso(part.info['first_ns'])})"
+                                                                        if part.info.get("first_ns") else "")
+                                    for said, part in states.items()) + ")",
+                        _stretches_hint(used, flashed))
+
+
+def _stretches_hint(used: list[_Part], state) -> str:
+    """How to read each stretch of one state: with UTC segments, the --stop/--start of the first change
+    (the read is [start, stop), so the same time ends one stretch and begins the next)."""
+    generic = "read each stretch separately with --start/--stop"
+    if used[0].info["meta"].get("time_base") != "utc":
+        return generic
+    for before, after in zip(used, used[1:], strict=False):
+        first_ns = after.info.get("first_ns")
+        if state(before) != state(after) and first_ns:
+            when = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(first_ns // NS)) + f".{first_ns % NS // 1000:06d}Z"
+            return (f"read each stretch separately: --stop {when} ends the one before the change, "
+                    f"--start {when} begins the one after")
+    return generic
 
 
 def _current_meta(stored: dict) -> dict:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -524,10 +525,10 @@ def test_a_directory_whose_channels_or_flashed_offsets_change_reads_as_one_or_by
     with SegmentWriter(tmp_path, stem="dev", meta=flashed, scale=0.001, channels=("theta",)) as w:
         write_blocks(w, range(4, 6), jitter=False)
     with pytest.raises(DataError, match=r"the chip's flashed offsets change between the segments read \(no offsets "
-                                        r"flashed from dev\.000000\.\S+; offsets \[0\.25, -0\.0575, 0\.0287\] m/s\^2 "
-                                        r"flashed from dev\.000002\.\S+\)") as err:
+                                        r"flashed from dev\.000000\.\S+ \(\S+\); offsets \[0\.25, -0\.0575, 0\.0287\] "
+                                        r"m/s\^2 flashed from dev\.000002\.\S+ \(\S+\)\)") as err:
         read_arrays(tmp_path)
-    assert "--start/--stop" in err.value.hint
+    assert "--stop " in err.value.hint and "--start " in err.value.hint
     t, _, _ = expected(range(6), jitter=False)
     _, acc, _, _, meta = read_arrays(tmp_path, start=float(t[256]), units="counts")   # the flashed stretch alone
     assert len(acc) == 128 and meta["hardware_bias_removed"] == flashed["hardware_bias_removed"]
@@ -560,3 +561,23 @@ def test_segments_overlapping_in_time_are_said_to_be_two_recordings(tmp_path):
                                         r"dev\.000000\.\S+ \(.* to .*\) and dev\.000001\."):
         read_segments(tmp_path)
     assert len(read_segments(tmp_path, stop=T0 + 0.5)) == int(0.5 * RATE) + 1   # the stretch before: one recording
+
+
+def test_a_change_of_flashed_offsets_in_utc_segments_names_the_time_that_splits_the_stretches(tmp_path):
+    """The refusal gives the UTC time of the change, and that one time read as --stop and as --start gives
+    exactly the stretch before and the stretch after (a field engineer had to read it out of a file name)."""
+    from accelrig.segments import resolve_range
+
+    raw = {"identity": "x", "time_base": "utc"}
+    with SegmentWriter(tmp_path, stem="dev", meta=raw, scale=0.001) as w:
+        write_blocks(w, range(3), jitter=False)
+    with SegmentWriter(tmp_path, stem="dev", meta={**raw, "hardware_bias_removed": [0.25, -0.05, 0.03]},
+                       scale=0.001) as w:
+        write_blocks(w, range(3, 5), jitter=False)
+    with pytest.raises(DataError) as err:
+        read_arrays(tmp_path)
+    when = re.search(r"--stop (\S+) ends the one before the change, --start \1 begins", err.value.hint).group(1)
+    assert when.endswith("Z") and "(2025-11-24T" in err.value.message
+    before = read_arrays(tmp_path, *resolve_range(tmp_path, None, when), units="counts")[1]
+    after = read_arrays(tmp_path, *resolve_range(tmp_path, when, None), units="counts")[1]
+    assert (len(before), len(after)) == (192, 128)
