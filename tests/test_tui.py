@@ -208,3 +208,23 @@ def test_cli_says_which_extra_is_missing_without_textual(monkeypatch, capsys):
     assert main(["tui"]) == 3
     err = capsys.readouterr().err
     assert "the TUI needs the Python package 'textual'" in err and "accelrig[tui]" in err
+
+
+@async_test
+async def test_a_long_path_is_shown_whole_under_its_field():
+    # the field shows the end of a long path (a newcomer saw only "/i2c-sim-mpu9250-seed14-...yaml")
+    from accelrig.tui.screens.dialogs import PathScreen
+    from tui_support import screen_lines
+
+    default = "/root/.local/share/accelrig/profiles/i2c-sim-mpu9250-seed14/20261125T034500Z-static.yaml"
+    app = AccelrigApp(device=FINITE, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        app.push_screen(PathScreen("Save the profile to (the store by default):", default))
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        await pilot.pause(0.1)
+        shown = "".join(line.strip() for line in screen_lines(app))
+        assert "/root/.local/share/accelrig/profiles/" in shown and "20261125T034500Z-static.yaml" in shown
+        await pilot.press("ctrl+u", *"short.yaml")   # a path the field shows whole: no second line
+        await pilot.pause(0.1)
+        assert str(app.screen.query_one("#path-whole").render()).strip() == ""

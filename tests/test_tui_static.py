@@ -121,6 +121,7 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         before = driver.chip.read_offset_words()
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        assert not app._notifications, "a notification lies over the plan while it asks"
         plan = str(app.screen.query_one("#details-text").render())
         assert "Flash plan for" in plan and "OFFSET" in plan.upper()
         assert "Write to the device?" in str(app.screen.query_one("#question").render())

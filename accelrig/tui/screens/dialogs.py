@@ -105,6 +105,10 @@ class ConfirmScreen(Dialog[bool]):
             self.query_one("#details", VerticalScroll).scroll_relative(y=lines, animate=False)
 
 
+# a path longer than this no longer fits the dialog's field: it is also shown whole, wrapped, under it
+WHOLE_PATH_FROM = 60
+
+
 class PathScreen(Dialog[str | None]):
     """Ask for a file path (or another one-line answer, a broker's URL); dismisses with it, or None on escape.
     ``verb`` is what enter does with it ("Save", "Write", "Open"), in the footer and the hint."""
@@ -127,8 +131,17 @@ class PathScreen(Dialog[str | None]):
         with Vertical(classes="dialog"):
             yield Static(self.prompt)
             yield Input(value=self.default, id="path")
+            # the field shows the end of a long path (where the cursor is); the whole of it, wrapped, here
+            yield Static(self._whole(self.default), id="path-whole")
             yield Static(f"[dim]enter {self.verb.lower()}s, escape cancels[/dim]")
         yield KeyFooter()
+
+    @staticmethod
+    def _whole(value: str) -> str:
+        return f"[dim]{escape(value)}[/dim]" if len(value) > WHOLE_PATH_FROM else ""
+
+    def on_input_changed(self, event: Input.Changed) -> None:
+        self.query_one("#path-whole", Static).update(self._whole(event.value))
 
     def action_submit(self) -> None:
         path = self.query_one("#path", Input).value.strip()

@@ -497,6 +497,8 @@ class ResultsScreen(AsksBeforeClosing, Screen):
     @work(exclusive=True, group="flash-confirm")
     async def confirm_flash(self, plan: FlashPlan) -> None:
         plan_text = escape(format_plan(plan, width=DIALOG_TEXT_WIDTH))
+        # "reading the device to plan the flash ..." would lie over the plan's right half while it asks
+        self.app.clear_notifications()
         if await self.app.push_screen_wait(ConfirmScreen("Write to the device?", "Write", "Cancel", details=plan_text)):
             self.set_status("writing ...")
             self.write_flash(plan)
