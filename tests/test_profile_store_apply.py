@@ -335,7 +335,11 @@ def test_a_damaged_store_file_is_skipped_with_a_warning_and_the_older_profile_ch
     assert [b.path for b in store.scan()[1]] == [damaged]
     choice = store.choose("dev-1", now=datetime(2026, 11, 26, tzinfo=UTC))
     assert choice.stored.path == older and [b.path for b in choice.skipped] == [damaged]
-    assert str(damaged) in choice.warnings[0] and "repair or remove it" in choice.warnings[0]
+    # the damaged file is newer than the one used: said first, as an older calibration in use (the reviewer
+    # found it said only "skipped a store entry" while an 11-month-old profile calibrated the data)
+    assert choice.warnings[0].startswith(f"the newest profile filed for 'dev-1' ({damaged.name}) cannot be read: "
+                                         f"an older one is used instead ({older.name}")
+    assert str(damaged) in choice.warnings[1] and "repair or remove it" in choice.warnings[1]
     assert store.choose("dev-2").warnings == []   # another device's damaged file is not its concern
     r = cli("profile", "list", "--store", str(store.root))
     assert r.returncode == 0, r.stderr

@@ -492,3 +492,11 @@ def test_the_campaign_markdown_prints_s_and_u_by_the_one_rule(campaign_run):
             assert re.search(rf"\| 1 \| {sensor} axis {axis} \| {re.escape(s)} \| [0-9.]+ \| {re.escape(expanded)} \|",
                              text)
             assert f"### {sensor} axis {axis}: S = {s} counts per m/s^2" in text
+
+
+def test_the_certificate_number_in_the_page_footer_cannot_end_the_style_element():
+    # --number is free text, and the footer's CSS string sits inside <style>
+    from accelrig.report.html import page_css
+
+    css = page_css('12</style><script>alert(1)</script> "x"\\')
+    assert "<" not in css and css.count('"') == 4   # the label's own quotes escaped: one string, then " of "

@@ -90,6 +90,13 @@ class Broken:
         return (f"skipped a store entry that cannot be used: {self.reason}; repair or remove it "
                 "(`accelrig profile validate FILE` says what is wrong)")
 
+    @property
+    def filed(self) -> datetime | None:
+        """When the entry was filed, from the stamp its file name starts with (the store names files so);
+        None for a folder or a name without one."""
+        match = re.match(r"(\d{8}T\d{6}Z)", self.path.name)
+        return datetime.strptime(match.group(1), "%Y%m%dT%H%M%SZ").replace(tzinfo=UTC) if match else None
+
 
 @dataclass
 class Choice:
@@ -283,6 +290,13 @@ class ProfileStore:
                 notes += [f"passed over {s.path.name} ({_describe(s)}): {why_not[s.path]}"
                           for s in order[:order.index(chosen)]]
         warnings = [b.warning() for b in skipped]
+        # a damaged file newer than the one used: the data get an older calibration than the newest filed,
+        # which the operator must hear as such, not as a store entry skipped in passing
+        newer = [b for b in skipped if b.filed is not None and b.filed > chosen.created]
+        if newer and date is None:
+            warnings.insert(0, f"the newest profile filed for {identity!r} ({newer[-1].path.name}) cannot be read: "
+                               f"an older one is used instead ({chosen.path.name}, {_describe(chosen)}); repair "
+                               "or remove the damaged file, or file the newest calibration again")
         age = reference - chosen.created
         if age > timedelta(days=max_age_days):
             when = "now" if date is None else reference.strftime("%Y-%m-%d")

@@ -50,8 +50,9 @@ def page_css(number: str | None) -> str:
     """Each printed page names its document and says which page of how many (ISO/IEC 17025 7.8.2.1),
     in the page's bottom margin, which Chromium fills from CSS @page margin boxes."""
     label = f"No. {number} · " if number else ""
-    # a CSS string: backslash, quote and line ends escaped as CSS wants them
-    label = "".join(c if c not in '\\"\n\r' else f"\\{ord(c):x} " for c in label)
+    # a CSS string inside <style>: backslash, quote and line ends escaped as CSS wants them, and < too,
+    # so a number holding "</style>" cannot end the style element (the number is free text)
+    label = "".join(c if c not in '\\"\n\r<' else f"\\{ord(c):x} " for c in label)
     return ("@page{@bottom-left{content:\"" + label + "Page \" counter(page) \" of \" counter(pages);"
             "font-size:8pt;color:#555}}")
 
