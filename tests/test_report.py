@@ -477,6 +477,13 @@ def test_a_certificate_states_findings_and_keeps_internals_in_its_appendix(stati
         "u(g) is small: the gains' u rests on it")
     assert as_finding("Nelder-Mead stopped before converging: too many evaluations") == (
         "Nelder-Mead stopped before converging: too many evaluations")
+    # a finding that starts like advice or mentions an option is kept whole, the option said in words
+    # (reviewer: the first two lost their first clause, the third its "given with ...")
+    assert as_finding("hold 3 lasted 1.2 s: its mean is noisy") == "hold 3 lasted 1.2 s: its mean is noisy"
+    assert as_finding("the device was calibrated with --range-g 4 but recorded at 8 g: its gains are off by 2x") == (
+        "the device was calibrated with the range-g setting 4 but recorded at 8 g: its gains are off by 2x")
+    assert as_finding("the cross-axis prior is 0.02 (given with --cross-axis-sd)") == (
+        "the cross-axis prior is 0.02 (given with the cross-axis-sd setting)")
 
 
 def test_the_campaign_markdown_prints_s_and_u_by_the_one_rule(campaign_run):

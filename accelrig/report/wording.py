@@ -30,14 +30,26 @@ HYPHENATED = re.compile(r"\S*[-\u2212\u2010]\S*")
 
 
 def _is_advice(clause: str) -> bool:
+    """A clause that advises: it starts with an advice verb (after a joiner or a condition), names an
+    accelrig command, or is little more than an option ("--model six-face").  A finding that merely
+    mentions an option ("calibrated with --range-g 4 but recorded at 8 g") is not advice: it is kept,
+    the option said in words (``_options_in_words``)."""
     text = clause.strip().lower()
     for joiner in LEADING_JOINERS:
         if text.startswith(joiner):
             text = text[len(joiner):]
-    if CLI_OPTION.search(clause) or CLI_COMMAND.search(clause):
+    if CLI_COMMAND.search(clause):
+        return True
+    if CLI_OPTION.search(clause) and len(CLI_OPTION.sub("", clause).split()) <= 1:
         return True
     heads = [text] + (text.split(", ")[1:] if text.startswith(CONDITIONS) else [])
     return any(re.split(r"[\s,]", head, maxsplit=1)[0] in ADVICE_VERBS for head in heads)
+
+
+def _options_in_words(text: str) -> str:
+    """An option a kept finding mentions, as words a customer reads: "--cross-axis-sd" -> "the cross-axis-sd
+    setting"."""
+    return CLI_OPTION.sub(lambda m: f"the {m.group(0)[2:]} setting", text)
 
 
 def _top_level_split(text: str) -> list[tuple[str, str]]:
@@ -74,14 +86,17 @@ def _drop_advice_asides(text: str) -> str:
 
 def as_finding(text: str) -> str:
     """``text`` without the operator's advice: asides that name an option or advise are removed, and so is
-    every clause that advises (starts with an advice verb, names an option or an accelrig command).  What
-    remains is what was found; a text that is all advice is returned without its options' asides."""
+    every clause after the first that advises (starts with an advice verb, names an accelrig command, or is
+    little more than an option).  What remains is what was found, an option it mentions said in words."""
     text = str(text).strip()
     plain = _drop_advice_asides(text)
-    kept = [(sep, clause) for sep, clause in _top_level_split(plain) if clause.strip() and not _is_advice(clause)]
-    if not kept:
-        return plain
-    out = kept[0][1] + "".join(sep + clause for sep, clause in kept[1:])
+    clauses = _top_level_split(plain)
+    # the first clause is what was seen (procedures say the finding first, then what to do): always kept,
+    # even when it starts like advice ("hold 3 lasted 1.2 s: its mean is noisy")
+    kept = clauses[:1] + [(sep, clause) for sep, clause in clauses[1:] if clause.strip() and not _is_advice(clause)]
+    if not kept[0][1].strip():
+        return _options_in_words(plain)
+    out = _options_in_words(kept[0][1] + "".join(sep + clause for sep, clause in kept[1:]))
     out = out.rstrip(" ;:,")
     if text.endswith((".", "?")) and not out.endswith((".", "?")):
         out += "."
