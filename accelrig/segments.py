@@ -335,7 +335,13 @@ class SegmentWriter:
         self.finisher = finisher
         self._pending_lock = threading.Lock()   # pending and _finished (the finisher's thread changes them)
         self._finishing = threading.Lock()      # held while one of this writer's segments is converted
-        self._index = _next_index(self.directory, stem)
+        try:
+            self._index = _next_index(self.directory, stem)
+        except BaseException:
+            # no writer came of it: a lock kept would refuse this process's own next writer (a daemon's
+            # reconnect) for as long as it runs
+            self._dir_lock.release()
+            raise
         self._fd: int | None = None
         self.open_path: Path | None = None
         self._size = 0

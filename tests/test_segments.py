@@ -581,3 +581,15 @@ def test_a_change_of_flashed_offsets_in_utc_segments_names_the_time_that_splits_
     before = read_arrays(tmp_path, *resolve_range(tmp_path, None, when), units="counts")[1]
     after = read_arrays(tmp_path, *resolve_range(tmp_path, when, None), units="counts")[1]
     assert (len(before), len(after)) == (192, 128)
+
+
+def test_a_writer_that_fails_to_start_leaves_the_directory_unlocked(tmp_path, monkeypatch):
+    # reviewer: an error after the lock was taken kept it, so a daemon's reconnect would refuse itself
+    def unreadable(*args):
+        raise StorageError(f"{tmp_path}: cannot list the directory")
+
+    with monkeypatch.context() as m:
+        m.setattr(segments, "_next_index", unreadable)
+        with pytest.raises(StorageError, match="cannot list"):
+            SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001)
+    SegmentWriter(tmp_path, stem="dev", meta={}, scale=0.001).close()   # not "another process is recording"
