@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 
 import yaml
@@ -64,6 +65,7 @@ class AccelrigApp(App):
         self.profile_dir = Path(profile_dir) if profile_dir is not None else None
         self.buffer_seconds = buffer_seconds
         self.session: Session | None = None
+        self._collector_frozen = False   # see use_session
         self.connect_error: str | None = None
         # What the operator last typed into each procedure's setup form (procedure name -> texts),
         # offered again the next time that wizard starts (kept in settings_file() between runs).
@@ -156,6 +158,13 @@ class AccelrigApp(App):
         self.session = session
         self.device = session.url
         self.connect_error = None
+        if not self._collector_frozen:
+            # As record and the daemon do once the device streams: what is loaded by now (textual, numpy,
+            # scipy, the driver: some 110 000 objects) stays for the app's life.  Out of the cyclic
+            # collector's sight, a full collection in this thread takes a few ms instead of 60-130 ms,
+            # during which the pump cannot poll (an MPU-9250 FIFO overflows after 85 ms at 1 kHz).
+            gc.freeze()
+            self._collector_frozen = True
         self.post_message_to_screens()
 
     def post_message_to_screens(self) -> None:
@@ -176,3 +185,7 @@ class AccelrigApp(App):
     def on_unmount(self) -> None:
         if self.session is not None:
             self.session.stop()
+        if self._collector_frozen:
+            # a program (or a test) that goes on after the app gets its objects collected again
+            gc.unfreeze()
+            self._collector_frozen = False
