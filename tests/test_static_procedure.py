@@ -233,6 +233,22 @@ def test_a_pose_that_moved_is_refused_and_says_when():
     assert moved["face"] in str(info.value)
 
 
+def test_noise_that_wanders_for_seconds_is_not_a_move_but_a_tip_in_it_still_is():
+    """AR(1) 0.997 at 200 Hz (a memory of about 1.7 s) over 10 s holds, the long holds the slow-noise warning asks
+    for: the block means wander over the hold far more than their successive steps show, and main called two of
+    this seed's still poses "moved".  The wander shows in |a| as much as in the direction; a 2 degree tip turns
+    the direction only, and is still caught."""
+    noise = {"noise_density": SensorModel.noise_density_for_sd(0.03, 200.0), "ar1": 0.997}
+    still, _, _ = _record("sim://static?tilt=0.1&hold=10", seed=8,
+                          sensor=SensorModel.random(np.random.default_rng(108), **noise))
+    assert [p.detail for p in detect_poses(still).rejected if p.problem == "moved"] == []
+    tipped, rig, _ = _record("sim://static?tilt=0.1&hold=10&moved=3&moved_deg=2", seed=8,
+                             sensor=SensorModel.random(np.random.default_rng(108), **noise))
+    tip = rig.truth()["poses"][2]["moved"]
+    moved = [p for p in detect_poses(tipped).rejected if p.problem == "moved"]
+    assert len(moved) == 1 and moved[0].start - 0.5 <= tip["start"] and tip["stop"] <= moved[0].stop + 0.5
+
+
 def test_saturated_samples_are_refused():
     sensor = SensorModel.random(np.random.default_rng(1), range_g=1.0,
                                 offset=np.array([0.3, 0.3, 0.3]), gain=np.array([1.02, 1.02, 1.02]))

@@ -48,7 +48,9 @@ calibration does not exist yet, and a wrong one must not hide motion):
               the live face grid counts a face done within ``face_tolerance_deg``;
   moved       means of 0.25 s blocks must agree with the pose's plateau within
               ``drift_tolerance`` (0.05 m/s^2, about 0.3 degrees of tilt) or 6
-              noise sd, whichever is larger; up to ``settle`` s (1.0) off the
+              noise sd, whichever is larger, the sd counting the slow noise's
+              wander over the hold as the blocks' |a| shows it (a tip leaves
+              |a| alone, ``MOVED_WANDER_SD``); up to ``settle`` s (1.0) off the
               plateau (by 4.5 sd of a block mean) at either end is the hand settling or starting to lift and
               is trimmed; a shift elsewhere (a slow tip that never trips the
               dispersion) means the pose moved;
@@ -76,6 +78,9 @@ DRIFT_HOLDS = 3 * len(AXES)   # the drift check: one face of each axis, its oppo
 GUIDED_HOLDS = len(FACES) + DRIFT_HOLDS
 
 _CHI2_1_MEDIAN = 0.4549364   # median of chi^2 with 1 dof: median(d^2) = 0.455 var(d) for a normal d
+# A block mean off the plateau by this many sds of the blocks' |a| (which a rotation leaves unchanged) is a move
+# however slowly the noise wanders (_settle).
+MOVED_WANDER_SD = 10.0
 
 # The detector's own kinds of happening, as the contract's kinds of event (data["kind"] keeps the own one).
 EVENT_KIND = {
@@ -569,8 +574,20 @@ class PoseDetector:
         # Edges: strict, noise-based (4.5 sd of a block mean's offset, beyond the 99.9th percentile of
         # its norm), because a half-settled block left in biases the pose mean at the CRB level.
         edge_off = deviation > 4.5 * block_sd
-        # Interior: lenient, so noise never calls a good pose 'moved'.
-        tolerance = max(self.drift_tolerance, 6.0 * block_sd * np.sqrt(2.0))
+        # Interior: lenient, so noise never calls a good pose 'moved'.  Successive block means see only the noise
+        # faster than a block or two; noise with a memory of seconds wanders the block means over the hold far
+        # more than their steps show.  A tip, the way a resting pose moves, turns the vector and leaves |a|
+        # unchanged, so the scatter of the blocks' |a| about its median measures the wander the noise alone
+        # makes, at every separation the test compares, along one axis of three.  The RMS (not the median):
+        # the wander is slow, a pose holds few independent stretches of it.  Only its excess over the fast
+        # noise's share (block_sd, already in the tolerance) is the wander, so white noise keeps the old test.
+        # MOVED_WANDER_SD such sds make false 'moved' rare (simulated, 2-20 s holds: at most 2 poses in 1000
+        # for AR(1) memories up to 2 s, at most 5 in 1000 up to 10 s; with one axis of wander to go on, the
+        # estimate's tail, not its median, sets the factor).
+        norms = np.linalg.norm(means, axis=1)
+        wander_var = max(float(np.mean((norms - np.median(norms)) ** 2)) - block_sd**2, 0.0)
+        tolerance = max(self.drift_tolerance, np.hypot(6.0 * block_sd * np.sqrt(2.0),
+                                                       MOVED_WANDER_SD * np.sqrt(wander_var)))
         off = deviation > tolerance
         allowance = self.settle_blocks
         lead = 0
