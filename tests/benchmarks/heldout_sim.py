@@ -9,7 +9,7 @@ what the project's own stress benchmark (``bench_stress.py``, built on ``accelri
 
 Noise (``noise``): white, power-law 1/f^beta by spectral shaping of a record four times longer
 than the one kept (so the slow part is not periodic in the record), random walk plus white, AR(1)
-(a first-order lag of white noise, stationary from its first sample), AR(2) with a spectral peak,
+(a first-order lag of white noise, stationary from its first sample), alone or under white noise, AR(2) with a spectral peak,
 band-limited vibration.  Offset drifts (``drift``): a step, an exponential
 warm-up, a sinusoidal thermal cycle, each of a stated total size.
 
@@ -41,13 +41,15 @@ G = 9.80665
 
 @dataclass
 class Noise:
-    """Per-sample noise: ``kind`` one of white, power, walk, ar1, ar2, band.
+    """Per-sample noise: ``kind`` one of white, power, walk, ar1, white+ar1, ar2, band.
 
     sd          white sd per sample (m/s^2), per axis scale ``axis``
     beta        power law exponent (power): PSD(f) = white PSD * (corner / f)^beta
     corner      frequency where the coloured part's PSD equals the white PSD (power), Hz
     walk        random-walk step sd per sqrt(s) (walk), m/s^2/sqrt(s)
     r           AR(1) coefficient per sample (ar1): x_k = r x_k-1 + e_k, marginal sd ``sd``, no white part
+    ar_sd       white+ar1: white noise of sd ``sd`` plus an AR(1) part of coefficient ``r`` and marginal sd ``ar_sd``
+                (a slow wander under a white floor; stationary, so not in the truth)
     peak, r     AR(2) peak frequency (Hz) and pole radius (ar2); the sd is ``sd``
     band        (low, high) Hz and ``band_sd`` m/s^2 of a vibration added to white noise (band)
     """
@@ -62,6 +64,7 @@ class Noise:
     r: float = 0.97
     band: tuple[float, float] = (8.0, 12.0)
     band_sd: float = 0.0
+    ar_sd: float = 0.0
 
     def draw(self, n: int, rate: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """(total noise, its slow non-white part) as (n, 3) arrays."""
@@ -88,6 +91,11 @@ class Noise:
             start = rng.standard_normal(3)
             x = signal.lfilter([1.0], [1.0, -self.r], e, axis=0, zi=(self.r * start)[None, :])[0]
             return x * self.sd * scale, np.zeros((n, 3))
+        elif self.kind == "white+ar1":
+            e = rng.standard_normal((n, 3)) * np.sqrt(1.0 - self.r**2)
+            start = rng.standard_normal(3)
+            x = signal.lfilter([1.0], [1.0, -self.r], e, axis=0, zi=(self.r * start)[None, :])[0]
+            return (white + x * self.ar_sd) * scale, np.zeros((n, 3))
         elif self.kind == "ar2":
             # x_k = 2 r cos(w) x_k-1 - r^2 x_k-2 + e_k, scaled to sd; replaces the white part
             w = 2 * np.pi * self.peak / rate

@@ -281,7 +281,8 @@ class StaticProcedure(Procedure):
         # noise slower than a hold: its model checked against the scatter of the holds, before the drift's terms
         # take the degrees of freedom that show it (``slow_model_check``)
         if noise.slow is not None:
-            refusal = slow_model_check(noise, result.quality["chi2"], result.quality["dof"], [p.t for p in poses])
+            refusal = slow_model_check(noise, result.quality["chi2"], result.quality["dof"],
+                                       [p.samples for p in poses], [p.t for p in poses])
             if refusal is not None:
                 raise CalibrationError(refusal, f"{SETTLE_HINT}, or hold the faces again over a longer run")
             for i, s in enumerate(stats):
