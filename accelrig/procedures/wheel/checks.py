@@ -351,8 +351,13 @@ def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -
     index = np.flatnonzero(seen)
     if index.size < 3:
         return None
-    # how far above the slowest turns' centre: r (w^2 - w_last^2) along the radius, and falling while coasting
-    height = np.linalg.norm(centre[index] - centre[index[-1]], axis=1)
+    # how far above the last turns' centre: r (w^2 - w_last^2) along the radius, and falling while coasting.
+    # Signed, along the way the centre moved from the fastest turns: a speed law that dips below the last
+    # turns' speed before it ends (paper 002's Table I cubic does, at about 65 s) takes the centre past the
+    # last one and back, and a distance would read that return as a push
+    offset = centre[index] - centre[index[-1]]
+    far = offset[int(np.argmax(np.einsum("ij,ij->i", offset, offset)))]
+    height = offset @ (far / max(float(np.linalg.norm(far)), 1e-12))
     rise = PUSH_RISE * typical
     last = int(np.argmax(height))
     for k in range(last + 1, index.size):
