@@ -185,15 +185,13 @@ def judge_group(entries: list[Entry], k: float, reference: str | None) -> Group:
         w_mean, w_u, birge = float(x.mean()), float("nan"), None
     use_t = n >= MIN_FOR_T and x.std() > 0
     t_critical = None
+    ref_index = next((i for i, e in enumerate(entries) if e.device == reference), None) if reference else None
+    judged = True
     if use_t:
         from scipy.stats import t as student_t
 
         t_critical = float(student_t.ppf(1 - FAMILY_ALPHA / (2 * n), n - 2))
         rule = f"|E_n| > {E_N_LIMIT:g} and |t| > {t_critical:.2f}"
-    ref_index = next((i for i, e in enumerate(entries) if e.device == reference), None) if reference else None
-    judged = True
-    if use_t:
-        pass
     elif n < MIN_FOR_T and ref_index is None:
         # E_n against the others' weighted mean would flag sound parts for the genuine spread between
         # parts of one type (their u are far smaller), and a part that is off drags the others' reference
@@ -399,12 +397,13 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
 
     html.append("<h2>4. Outliers</h2>")
     outliers = batch.outliers
-    html.append("<ul>" + "".join(
-        f'<li class="verdict-fail">{html_text(j.entry.device)}: {escape(j.entry.quantity)} {escape(j.entry.axis)} = '
-        f"{html_text(format_value(j.entry.value, j.entry.u)[0])} (E_n {_number(j.e_n, 2)}, t {_number(j.t, 2)})</li>"
-        for j in outliers) + "</ul>"
-                if outliers else '<p class="verdict-pass">None: every device agrees with the batch by the rule '
-                                 "above.</p>" if not batch.unjudged else "")
+    if outliers:
+        html.append("<ul>" + "".join(
+            f'<li class="verdict-fail">{html_text(j.entry.device)}: {escape(j.entry.quantity)} {escape(j.entry.axis)} '
+            f"= {html_text(format_value(j.entry.value, j.entry.u)[0])} (E_n {_number(j.e_n, 2)}, "
+            f"t {_number(j.t, 2)})</li>" for j in outliers) + "</ul>")
+    elif not batch.unjudged:
+        html.append('<p class="verdict-pass">None: every device agrees with the batch by the rule above.</p>')
     if batch.unjudged:
         html.append(f'<p class="note">Not judged ({len(batch.unjudged)} of {len(batch.groups)} quantities and axes): '
                     f"{escape(batch.unjudged[0].rule)}.</p>")
