@@ -527,8 +527,16 @@ def slow_model_check(noise: StillNoise, chi2: float, dof: int, samples: list[np.
     axes = f" ({', '.join(slow)})" if slow else ""
     return (f"the noise wanders more slowly than a hold can show{axes}: the holds' gravity magnitudes scatter "
             f"{ratio:.1f}x what the noise within the holds predicts (χ² = {chi2:.3g} for {dof} degrees of freedom), "
-            f"which takes a memory of about {time:.0f} s, more than {SLOW_MEMORY_SHARE:.0%} of the {span:.0f} s run: "
+            f"which takes {_memory_asked(time, span)}: "
             "the run's own average of that noise, which the offsets carry, cannot be bounded from it")
+
+
+def _memory_asked(time: float, span: float) -> str:
+    """The memory the holds ask for, as words: beyond the run itself its size is not measured (an extrapolation
+    to "10113 s" of a 101 s run reads as a finding it is not)."""
+    if time > span:
+        return f"a memory longer than the whole {span:.0f} s run"
+    return f"a memory of about {time:.0f} s, more than {SLOW_MEMORY_SHARE:.0%} of the {span:.0f} s run"
 
 
 def _halves_instead(noise: StillNoise, record: dict, time: float, span: float, samples: list[np.ndarray],
@@ -544,8 +552,8 @@ def _halves_instead(noise: StillNoise, record: dict, time: float, span: float, s
     _trend(noise, samples, times)      # its u was the model's: now the halves' widening's
     noise.warnings.append(
         f"the noise is correlated for longer than a hold can show under its white floor: the holds' variogram and "
-        f"gravity magnitudes (χ² = {record['chi2']:.3g} for {record['dof']} degrees of freedom) ask for a memory of "
-        f"about {time:.0f} s, more than {SLOW_MEMORY_SHARE:.0%} of the {span:.0f} s run: the offsets stand for the run's own "
+        f"gravity magnitudes (χ² = {record['chi2']:.3g} for {record['dof']} degrees of freedom) ask for "
+        f"{_memory_asked(time, span)}: the offsets stand for the run's own "
         f"level of that wander (as for a drift), their u widened from the halves of the poses (1/f), which may read "
         f"a wander this slow low: {SETTLE_HINT}")
 
