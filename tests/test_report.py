@@ -484,6 +484,14 @@ def test_a_certificate_states_findings_and_keeps_internals_in_its_appendix(stati
         "the device was calibrated with the range-g setting 4 but recorded at 8 g: its gains are off by 2x")
     assert as_finding("the cross-axis prior is 0.02 (given with --cross-axis-sd)") == (
         "the cross-axis prior is 0.02 (given with the cross-axis-sd setting)")
+    # advice after a condition and its comma (the static drift and pose texts; the drift one used to end in
+    # "After the six faces put one face of each axis down again", which reached the certificate)
+    assert as_finding("a drift would shift the offsets by up to 0.01 m/s^2; to check, put one face of each axis "
+                      "down again after the six faces (the wizard asks for it)") == (
+        "a drift would shift the offsets by up to 0.01 m/s^2")
+    assert as_finding("not face down (31 degrees from +z): kept; for six faces, put one face flat") == (
+        "not face down (31 degrees from +z): kept")
+    assert as_finding("the run was short; after the six faces, hold one again") == "the run was short"
 
 
 def test_the_campaign_markdown_prints_s_and_u_by_the_one_rule(campaign_run):

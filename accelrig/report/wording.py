@@ -20,8 +20,9 @@ ADVICE_VERBS = frozenset((
     "mount", "move", "put", "record", "reduce", "repeat", "rerun", "re-run", "run", "set", "spin", "state",
     "try", "use", "verify", "wait"))
 LEADING_JOINERS = ("or ", "and ", "then ", "so ", "else ")
-# "unless g was surveyed that well, state u(g) itself": advice after a condition
-CONDITIONS = ("unless ", "if ", "when ", "where ", "for ", "to ")
+# "unless g was surveyed that well, state u(g) itself": advice after a condition (the procedures write
+# the comma: "to check, put one face down again")
+CONDITIONS = ("unless ", "if ", "when ", "where ", "for ", "to ", "after ", "before ")
 CLI_OPTION = re.compile(r"(?<![\w-])--[a-z][\w-]*")
 CLI_COMMAND = re.compile(r"\baccelrig [a-z]")
 # a clause ends at "; ", ": " or a sentence's ". " before a capital (not "e.g. 1e-4", not "0.5 Hz")

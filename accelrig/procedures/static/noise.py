@@ -833,8 +833,8 @@ def _unchecked(noise: StillNoise, times, faces) -> None:
         f"offset drift not checked along {names}: no face of {'that axis' if len(unchecked) == 1 else 'those axes'} "
         f"was held twice, and held once a slow drift looks like the faces' tilt. A drift the within-pose trends "
         f"would miss (up to {float(unseen_rate[unchecked].max()) * span:.2g} m/s^2 over the {span:.0f} s run) "
-        f"would shift the offsets by up to {float(shift.max()):.2g} m/s^2. After the six faces put one face of "
-        "each axis down again (the wizard asks for it) to check")
+        f"would shift the offsets by up to {float(shift.max()):.2g} m/s^2; to check, put one face of each axis "
+        "down again after the six faces (the wizard asks for it)")
 
 
 def drift_bend(noise: StillNoise, anchors: dict[int, tuple[float, float]], middle: float,

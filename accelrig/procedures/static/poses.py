@@ -396,7 +396,7 @@ class PoseDetector:
             face = self._seg_face
             if not self._seg_flat:
                 events.append(pose_event("not_flat", f"not face down ({angle:.0f} degrees from {face}): kept for the "
-                                         "multi-position model; for six faces put one face flat on the table", now))
+                                         "multi-position model; for six faces, put one face flat on the table", now))
             elif not self.missing_faces and face in self.again_missing:
                 which = {1: "again (the drift check)", 2: "again (the drift check: the opposite face)",
                          3: "a third time (the drift check's last round)"}[self.again_round]
