@@ -349,6 +349,24 @@ def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_on
     assert figures == [] and "hash differs" in missing[0]
 
 
+def test_the_figures_of_a_profile_with_poses_left_out_leave_them_out_again(static_run, tmp_path):
+    """calibrate static --skip-pose: re-running for the figures leaves the same poses out, so the certified
+    correction is reproduced (without them the re-run would not match and the figures would be dropped)."""
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    path = tmp_path / "rec.csv"
+    write_csv(static_run[1], path)
+    rec = load_recording(path)
+    result = calibrate_static(rec, skip_poses=[2, 9])
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+    figures, missing = figures_for(load_source(profile))
+    assert missing == [] and len(figures) == 1
+
+
 def test_a_relative_recording_name_finds_the_calibrated_file_beside_the_profile(static_run, tmp_path, monkeypatch):
     """Calibrated in a folder as 'six.csv', reported from its parent, which holds another six.csv: the file
     whose hash is the profile's is used (the first found was, and the figure was refused)."""

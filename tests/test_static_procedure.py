@@ -6,7 +6,7 @@ import pytest
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import CalibrationError, DataError
 from accelrig.procedures.static.noise import shape_holds
-from accelrig.procedures.static.procedure import StaticProcedure, calibrate_static, detect_poses
+from accelrig.procedures.static.procedure import StaticProcedure, calibrate_static, detect_poses, pose_table
 from accelrig.recording import Recording
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.static import DEFAULT_ORDER, StaticRig
@@ -231,6 +231,33 @@ def test_a_pose_that_moved_is_refused_and_says_when():
     when = float(str(info.value).split("t = ")[1].split(" s")[0])
     assert moved["moved"]["start"] - 0.5 <= when <= moved["moved"]["stop"] + 0.5
     assert moved["face"] in str(info.value)
+
+
+def test_a_moved_pose_the_operator_leaves_out_is_reported_and_the_rest_calibrate():
+    """A recording whose -x face moved and was held again later: the refusal names the pose's number and the
+    later hold, and --skip-pose (skip_poses) leaves that pose out, said in the table, the settings and a
+    warning; a number the recording does not hold is refused."""
+    rec, rig, _ = _record("sim://static?moved=4&moved_deg=2", seed=3)
+    face = rig.truth()["poses"][3]["face"]
+    with pytest.raises(DataError) as info:
+        calibrate_static(rec)
+    again = [r["index"] for r in pose_table(*_found(rec))[0] if r["face"] == face and r["fate"] == "used"]
+    assert again and f"pose 4: {face} down moved" in str(info.value)
+    assert f"held still again as pose {', '.join(map(str, again))}" in str(info.value)
+    assert "--skip-pose 4" in str(info.value)
+    result = calibrate_static(rec, skip_poses=[4])
+    row = result.details["poses"][3]
+    assert (row["fate"], row["reason"]) == ("left out", "on request: it moved")
+    assert result.quality["n_poses"] == result.quality["n_poses_found"] - 1
+    assert result.settings["skip_poses"] == [4]
+    assert any(w.startswith(f"left out on the operator's request: pose 4 ({face} down") for w in result.warnings)
+    with pytest.raises(DataError, match="no pose 99 to leave out"):
+        calibrate_static(rec, skip_poses=[99])
+
+
+def _found(rec):
+    proc = detect_poses(rec)
+    return proc.detector.accepted(), proc.rejected
 
 
 def test_noise_that_wanders_for_seconds_is_not_a_move_but_a_tip_in_it_still_is():

@@ -91,6 +91,8 @@ class StaticProcedure(Procedure):
         self._started = False
         self._n_distinct = 0
         self._n_captured = 0
+        # pose numbers (pose_table's) the operator asked to leave out of a recording (calibrate --skip-pose)
+        self.left_out: frozenset[int] = frozenset()
 
     @classmethod
     def create(cls, values: dict, device: dict) -> StaticProcedure:
@@ -237,6 +239,9 @@ class StaticProcedure(Procedure):
     def result(self) -> CalibrationResult:
         """The calibration, or a CalibrationError saying what cannot be calibrated and what to do."""
         rows, used = pose_table(self.detector.accepted(), self.rejected)
+        used = [(k, p) for k, p in used if k not in self.left_out]
+        for k in sorted(self.left_out):
+            rows[k - 1].update(fate="left out", reason=f"on request: {LEFT_OUT_WHY[rows[k - 1]['fate']]}")
         if not used and self.any_orientation:
             raise CalibrationError("no usable still pose was found",
                                    f"hold the sensor still for {self.detector.min_hold:g} s in each of at least "
@@ -277,6 +282,8 @@ class StaticProcedure(Procedure):
                                     "ljung_box_p": [w.p_value if w else None for w in pose_noise]}
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
+        if self.left_out:
+            settings["skip_poses"] = sorted(self.left_out)
         result = build_result(poses, stats, rows, model, self.method, settings, noise)
         # noise slower than a hold: its model checked against the scatter of the holds, before the drift's terms
         # take the degrees of freedom that show it (``slow_model_check``)
@@ -338,6 +345,8 @@ class StaticProcedure(Procedure):
 
 
 FATES = {None: "used", "too_short": "too short", "moved": "moved", "saturated": "saturated"}
+LEFT_OUT_WHY = {"used": "it was usable", "too short": "it was too short", "moved": "it moved",
+                "saturated": "it saturated"}
 
 
 def _check_model(model: str, method: str) -> None:
@@ -758,14 +767,36 @@ def detect_poses(rec: Recording, **values) -> StaticProcedure:
     return proc
 
 
-def calibrate_static(rec: Recording, **values) -> CalibrationResult:
+def calibrate_static(rec: Recording, skip_poses=(), **values) -> CalibrationResult:
     """Six-face calibration of a recording (the batch form); bad data raise one clear DataError/CalibrationError.
 
-    ``values``: any of the declared SETTINGS by name (model, method, g, min_hold, still_threshold)."""
+    ``values``: any of the declared SETTINGS by name (model, method, g, min_hold, still_threshold).
+    ``skip_poses``: pose numbers (the pose table's, in time order from 1) the operator leaves out, e.g. a
+    face that moved and was held again later; a moved or saturated pose not left out refuses the recording,
+    because what to do with a pose a person captured is theirs to decide."""
     proc = detect_poses(rec, **values)
-    for pose in proc.rejected:
-        if pose.problem in ("moved", "saturated"):
-            raise DataError(pose.detail)
+    rows, _ = pose_table(proc.detector.accepted(), proc.rejected)
+    skip = frozenset(int(k) for k in skip_poses)
+    unknown = sorted(k for k in skip if not 1 <= k <= len(rows))
+    if unknown:
+        raise DataError(f"there is no pose {', '.join(map(str, unknown))} to leave out: the recording holds "
+                        f"{len(rows)} still poses, numbered from 1 in time order",
+                        "the text report's pose table numbers them, as does --json's details.poses")
+    for row in rows:
+        if row["fate"] in ("moved", "saturated") and row["index"] not in skip:
+            again = [r["index"] for r in rows if r["fate"] == "used" and r["face"] == row["face"]
+                     and r["index"] not in skip]
+            held = (f"; {row['face']} down was held still again as pose {', '.join(map(str, again))}"
+                    if again else "")
+            raise DataError(f"pose {row['index']}: {row['reason']}{held}",
+                            f"or leave pose {row['index']} out with --skip-pose {row['index']}")
+    proc.left_out = skip
     result = proc.result()
+    if skip:
+        result.warnings.append(
+            "left out on the operator's request: " + "; ".join(
+                f"pose {r['index']} ({r['face']} down, {r['start']:.1f}-{r['stop']:.1f} s; "
+                f"{r['reason'].removeprefix('on request: ')})"
+                for r in result.details["poses"] if r["index"] in skip))
     result.settings["recording"] = rec.meta.get("source") or rec.meta.get("device")
     return result
