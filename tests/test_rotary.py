@@ -336,6 +336,21 @@ def test_procedure_takes_timed_steps_from_the_stream_and_reports_the_campaign():
     assert proc.act("capture") == []
 
 
+def test_a_step_the_bench_ran_at_another_angle_than_the_plan_is_not_kept():
+    """The plan says 20 degrees, the bench swings 34 (newcomer 14 #6): the step was labelled 20deg and
+    certified so; the encoder shows the swing, so the step is refused, saying both angles."""
+    values = {"tangential": "x", "radial": "y", "plan": "5:20", "repeats": 1, "seconds": 2.0, "radius": 0.170,
+              "radius_uncertainty": 0.0005, "ref_radius": 0.145, "rate_method": "fit"}
+    rng = np.random.default_rng(4)
+    rec = simulate(RotaryRig(frequency=5.0, amplitude_deg=34.0, duration=3.0), paper_sensor(rng),
+                   SimClock(NOMINAL, 0.003, 0.0), seconds=3.0, seed=5, units="counts")
+    proc = RotaryProcedure.create(values, {"nominal_rate": NOMINAL, "channels": ["theta"], "scale": rec.meta["scale"]})
+    proc.act("capture")
+    events = proc.feed(rec.to_si())
+    assert [e.kind for e in events] == ["problem"] and proc.results == []
+    assert "swinging 34.0 degrees peak to peak, the plan says 20" in events[0].message
+
+
 def test_an_encoder_coarser_than_stated_gets_the_u_of_its_own_steps(sim_test):
     """The quantisation term uses the step the log shows when it is coarser than the stated 0.01 degree
     (held-out audit: a 0.1-degree encoder kept the stated step's u and covered the truth in 45 % of runs)."""
