@@ -312,11 +312,12 @@ def check_meta(meta, where: str) -> dict:
     return meta
 
 
-def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | None = None) -> Recording:
+def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
+             default_units: str = "m/s^2") -> Recording:
     """Read an interchange CSV.
 
-    ``units`` overrides what the file's metadata says (default m/s^2).  ``rate``
-    (Hz) supplies times for a file without a ``t`` column.
+    ``units`` overrides what the file's metadata says (``default_units`` when it says nothing: m/s^2, or
+    counts for a rotary bench's MEMS log).  ``rate`` (Hz) supplies times for a file without a ``t`` column.
     """
     path = Path(path)
     header, data, meta = read_table(path, ACC_COLUMNS, "a recording CSV", "t,ax,ay,az")
@@ -334,7 +335,7 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
             raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
         t = np.arange(data.shape[0]) / float(rate)
     channels = {name: data[:, i] for name, i in col.items() if name not in ("t",) + ACC_COLUMNS}
-    file_units = meta.get("units", "m/s^2")
+    file_units = meta.get("units", default_units)
     rec_units = normalise_unit(units) if units else normalise_unit(file_units)
     meta.setdefault("source", str(path))
     meta["units"] = rec_units
@@ -547,25 +548,27 @@ def _check_npz(path: Path) -> None:
 
 
 def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
-                   start: float | str | None = None, stop: float | str | None = None) -> Recording:
+                   start: float | str | None = None, stop: float | str | None = None,
+                   default_units: str = "m/s^2") -> Recording:
     """Load a CSV or native recording, or segments (a directory of them, a .parquet or .seg file),
     chosen by the file suffix.
 
     ``start``/``stop`` keep a time range: seconds from the first sample, or an ISO-8601 UTC time
     such as 2026-11-24T01:00:00Z (segments, and files whose metadata give their UTC time origin).
+    ``units`` overrides what the file declares; ``default_units`` stands for a CSV that declares nothing.
     """
-    rec = _load(Path(path), units, rate, start, stop)
+    rec = _load(Path(path), units, rate, start, stop, default_units)
     # where it was read from, whatever its header declares as its "source" (a description such as "imucal
     # sensor 3"): a profile keeps this, so that a certificate can find the file again (report.recompute)
     rec.meta["file"] = str(path)
     return rec
 
 
-def _load(path: Path, units, rate, start, stop) -> Recording:
+def _load(path: Path, units, rate, start, stop, default_units="m/s^2") -> Recording:
     if path.is_dir() or path.suffix.lower() in SEGMENT_SUFFIXES:
         return read_segments(path, *resolve_range(path, start, stop), units="counts" if units == "counts" else None)
     if start is not None or stop is not None:
-        return time_range(load_recording(path, units, rate), start, stop)
+        return time_range(load_recording(path, units, rate, default_units=default_units), start, stop)
     if path.suffix.lower() == NATIVE_SUFFIX:
         rec = load_native(path)
         if units:
@@ -575,7 +578,7 @@ def _load(path: Path, units, rate, start, stop) -> Recording:
         # the usual slip: a profile or a saved result where the recording belongs
         raise DataError(f"{path}: a {path.suffix[1:].upper()} file (a profile or a saved result?), not a recording",
                         "give the recording: a CSV, a .npz or segments (a .parquet/.seg file or their folder)")
-    return read_csv(path, units=units, rate=rate)
+    return read_csv(path, units=units, rate=rate, default_units=default_units)
 
 
 def read_segments(path: str | os.PathLike, start: float | None = None, stop: float | None = None,

@@ -13,7 +13,7 @@ from accelrig.errors import DataError, DeviceError
 from accelrig.procedures.rotary.bench import EncoderLog, analyse_test, read_encoder_csv
 from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.recording import save_recording
+from accelrig.recording import load_recording, save_recording
 from accelrig.sim.campaign import paper_sensor, write_sim_campaign
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.rotary import (
@@ -204,6 +204,30 @@ def test_cli_json(files, capsys):
     doc = json.loads(capsys.readouterr().out)["details"]
     assert abs(doc["sample_rate_hz"]["value"] - clock.true_rate) < 0.01
     assert doc["sensitivity"]["x"]["component"] == "tangential"
+    assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
+
+
+def test_a_recording_from_accelrig_record_calibrates_without_units_and_a_bare_log_is_counts(files, tmp_path, capsys):
+    """calibrate rotary read every file as counts unless told (newcomer 14 #5): a recording made by
+    'accelrig record' (m/s^2 with its counts scale declared) was refused as "far too small for counts".  Now the
+    file's declared units stand, and a log that declares nothing is counts, as a bench logger writes it."""
+    rec = tmp_path / "rot.csv"
+    assert main(["record", "sim://rotary?seed=3&pace=fast&rate=1000&seconds=4", "-o", str(rec)]) == 0
+    assert '"units": "m/s^2"' in rec.read_text().splitlines()[0]
+    capsys.readouterr()
+    assert main(["calibrate", "rotary", "--mems", str(rec), "--radius", "0.170", "--tangential", "x", "--radial", "y",
+                 "--nominal-rate", "1000", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["details"]
+    assert doc["sensitivity"]["x"]["component"] == "tangential"
+    true = true_sensitivity(load_recording(rec).meta["truth"])
+    assert doc["sensitivity"]["x"]["value"] == pytest.approx(true["x"], rel=5e-3)
+    d, truth, _ = files
+    bare = tmp_path / "bare.csv"
+    bare.write_text("".join(line for line in (d / "m.csv").read_text().splitlines(keepends=True)
+                            if not line.startswith("#")))
+    assert main(["calibrate", "rotary", "--mems", str(bare), "--encoder", str(d / "e.csv"), "--radius", "0.170",
+                 "--tangential", "x", "--radial", "y", "--nominal-rate", "1660", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["details"]
     assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
 
 

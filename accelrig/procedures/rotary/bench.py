@@ -1110,10 +1110,12 @@ def _bland_altman_reference(enc: EncoderLog, enc_fit: SineFit, setup: RotarySetu
 
 def load_test_inputs(mems_path: str | os.PathLike, encoder_path: str | os.PathLike | None, nominal_rate: float,
                      units: str | None = None) -> tuple[Recording, EncoderLog | None]:
-    """The MEMS recording (counts; a file without ``t`` gets k / nominal_rate) and the encoder log, if given."""
+    """The MEMS recording (a file without ``t`` gets k / nominal_rate) and the encoder log, if given.
+    ``units``: what the file's values are; None takes what the file declares, else counts (a bench logger's
+    raw output; ``accelrig record`` declares m/s^2 and the counts scale, which ``mems_counts`` undoes)."""
     if units is not None:
         normalise_unit(units)
-    mems = load_recording(mems_path, units=units, rate=nominal_rate)
+    mems = load_recording(mems_path, units=units, rate=nominal_rate, default_units="counts")
     return mems, (read_encoder_csv(encoder_path) if encoder_path else None)
 
 

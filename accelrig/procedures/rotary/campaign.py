@@ -31,7 +31,7 @@ YAML (paths relative to the YAML file; per-test keys override the defaults)::
     components: [tangential, centripetal]   # add dc to use the radial DC part
     correlation: 1.0            # between u_rep, u_l, u_ref
     coverage_factor: 2
-    units: counts               # of the MEMS files
+    units: counts               # of the MEMS files (default: what each file declares, else counts)
     tests:
       - {sensor: S1, mems: s1_xy_5hz_a.csv, encoder: s1_xy_5hz_a_enc.csv,
          tangential: x, radial: y, frequency: 5}
@@ -166,7 +166,7 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
             "nominal_rate": float(merged["nominal_rate"]),
             "frequency": float(merged["frequency"]) if "frequency" in merged else None,
             "rate_method": merged.get("rate_method", "fit"),
-            "units": merged.get("units", "counts"),
+            "units": merged.get("units"),   # None: what the file declares, else counts
         }
         encoder = merged.get("encoder")
         out.append(CampaignTest(
@@ -189,7 +189,7 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
 def run_test(test: CampaignTest) -> RotaryTest:
     o = test.options
     try:
-        mems = load_recording(test.mems, units=o["units"], rate=o["nominal_rate"])
+        mems = load_recording(test.mems, units=o["units"], rate=o["nominal_rate"], default_units="counts")
         encoder = read_encoder_csv(test.encoder) if test.encoder else None
         result = analyse_test(mems, encoder, o["tangential"], o["radial"], o["nominal_rate"],
                               o["frequency"], o["rate_method"], test.setup)
