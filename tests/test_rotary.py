@@ -11,7 +11,7 @@ from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
 from accelrig.errors import DataError, DeviceError
 from accelrig.procedures.rotary.bench import EncoderLog, analyse_test, read_encoder_csv
-from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, write_report
+from accelrig.procedures.rotary.campaign import load_campaign, report_markdown, run_campaign, write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
 from accelrig.recording import load_recording, save_recording
 from accelrig.sim.campaign import paper_sensor, write_sim_campaign
@@ -294,6 +294,18 @@ def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
     with pytest.raises(DataError, match="suffix"):
         write_report(result, tmp_path / "r.txt")
     assert not (tmp_path / "r.txt").exists()
+
+
+def test_axes_that_differ_are_said_beside_the_case_2_mean_that_stands_for_the_sensor(campaign):
+    """Case 2 (paper 001, Table 3) is one value for the whole sensor, the mean of its axes with their spread in
+    u; a newcomer read it as the sensitivity beside an ANOVA saying the axes differ (newcomer 14 #7)."""
+    _, result = campaign
+    differ = [s for s, a in result.details["anova"]["across_axes"].items() if a.get("means_differ")]
+    assert differ   # the simulated sensors' axes differ by about 0.1-0.4 %, seen with repeats
+    for sensor in differ:
+        assert any(w.startswith(f"{sensor}: its axes' sensitivities differ (one-way ANOVA") and "case 1" in w
+                   for w in result.warnings)
+    assert f"| 2 | {differ[0]} (mean of its axes) |" in report_markdown(result)
 
 
 def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):

@@ -232,7 +232,7 @@ def groups_html(src: Source, k: float) -> str:
         return ""
     rows = [_group_row("1", f"{sensor} axis {axis}", e) for sensor, axes in d["per_axis"].items()
             for axis, e in axes.items()]
-    rows += [_group_row("2", sensor, e) for sensor, e in d["per_sensor"].items()]
+    rows += [_group_row("2", f"{sensor} (mean of its axes)", e) for sensor, e in d["per_sensor"].items()]
     b = d["batch"]
     rows.append(_group_row("3", f"batch ({len(b['sensors'])} sensors)", b))
     tests = []
