@@ -42,7 +42,7 @@ from __future__ import annotations
 import json
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -92,9 +92,7 @@ class UtcDriver(Driver):
         if not blocks:
             return blocks
         arrival = time.monotonic()   # every block of this read had arrived by now
-        return [Block(b.seq, b.counter, b.host_time, b.counts, b.scale,
-                      self.clock.map(b.t, arrival, int(b.gap_before)), b.gap_before, b.channels)
-                for b in blocks]
+        return [replace(b, t=self.clock.map(b.t, arrival, int(b.gap_before))) for b in blocks]
 
     def close(self) -> None:
         self.inner.close()
