@@ -287,7 +287,7 @@ class ProcedureWizard(Screen):
         title = f"{cls.title}: settings" + (" (filled in for the simulated rig)" if filled else "")
         answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, {**remembered, **filled},
                                                               check=self.make_procedure, remembered=remembered,
-                                                              filled=filled))
+                                                              filled=filled, note=cls.settings_note))
         if answer is None:
             self.app.pop_screen()
             return
