@@ -211,7 +211,8 @@ def sim_lost_tail(driver: FirmwareDriver, sent_all: bool) -> list[Block]:
         blocks.append(Block(driver._block_seq, driver.sequencer.next_counter, now, np.empty((0, 3), np.int16),
                             driver.info.scale, np.empty(0), missing))
         driver._block_seq += 1
-    driver._last_data = now
+    if blocks:   # a stream of which nothing ever arrived has nothing to end: it stalls, as it should
+        driver._last_data = now
     return blocks
 
 

@@ -244,14 +244,14 @@ def test_a_frame_that_overtakes_the_streams_first_frame_does_not_start_the_strea
     # It used to: the overtaken first frame was then counted late and its samples dropped.
     stats = P.LinkStats()
     seq = P.DataSequencer(stats, reorder_window=2)
-    out = run(seq, frames_for([1, 0]))
-    assert out == []   # the first frames wait, as any frame does for a predecessor that may still come
-    out += run(seq, frames_for([2, 3])) + seq.flush()
+    assert run(seq, frames_for([1])) == []   # the first frame waits for one that may have been overtaken
+    out = run(seq, frames_for([0, 2, 3])) + seq.flush()
     assert [f.seq for f, _, _ in out] == [0, 1, 2, 3]
     assert stats.late_frames == stats.lost_frames == stats.duplicate_frames == 0
-    # a stream shorter than the window is released at its end
+    # a stream of one frame is released at its end; serial (no window) never waits
     short = P.DataSequencer(P.LinkStats(), reorder_window=8)
-    assert run(short, frames_for([5, 4])) == [] and [f.seq for f, _, _ in short.flush()] == [4, 5]
+    assert run(short, frames_for([5])) == [] and [f.seq for f, _, _ in short.flush()] == [5]
+    assert [f.seq for f, _, _ in run(P.DataSequencer(P.LinkStats()), frames_for([7]))] == [7]
 
 
 def test_frame_older_than_the_first_one_released_is_late_not_a_duplicate():

@@ -310,12 +310,12 @@ class DataSequencer:
     """Orders DATA frames by sequence number and turns counter jumps into counted gaps.
 
     ``reorder_window`` frames may wait for a missing predecessor (BLE can
-    reorder notifications; serial cannot, so it uses 0).  Before the stream's
-    first frame is released every frame waits so, as any may have overtaken
-    an older one: the stream starts at the oldest of the first
-    ``reorder_window + 1`` frames.  A frame that arrives after its
-    predecessor was declared lost is dropped and counted as late: samples are
-    never inserted into the past.  ``push`` returns
+    reorder notifications; serial cannot, so it uses 0).  With a window, the
+    stream starts at the older of its first two frames, so a frame that
+    overtakes the very first one does not start it (one frame's wait, not
+    the window's: at low rates a window of frames is seconds).  A frame that
+    arrives after its predecessor was declared lost is dropped and counted as
+    late: samples are never inserted into the past.  ``push`` returns
     ``[(frame, first_counter, gap_before)]`` in order: ``first_counter`` is
     the device counter of the frame's first sample without 32-bit wrap, and
     ``gap_before`` the samples missing before it by the device counter
@@ -348,7 +348,7 @@ class DataSequencer:
 
     def push(self, frame: DataFrame) -> list[tuple[DataFrame, int, int]]:
         stats = self.stats
-        if self._next_seq is None:   # not started: wait for the frames a first one may have overtaken
+        if self._next_seq is None:   # not started: wait for a frame the first one may have overtaken
             if frame.seq in self._pending:
                 stats.duplicate_frames += 1
                 return []
@@ -425,7 +425,7 @@ class DataSequencer:
         out = []
         while True:
             if self._next_seq is None:
-                if len(self._pending) <= self.window:
+                if len(self._pending) <= min(self.window, 1):
                     return out
                 self._start_at_oldest()
             frame = self._pending.pop(self._next_seq, None)
