@@ -162,6 +162,9 @@ def _loss_kind(cause: str) -> tuple[str, str, str]:
                 "the daemon's log and journal say why it stopped (a reload, a restart, a crash)")
     if c.startswith("reader overrun"):
         return "overrun", "skipped by a reader that fell behind", "the host could not keep up: lower its load"
+    if c.startswith("gap in the replayed recording"):
+        return ("replayed", "already missing from the replayed recording (it records no cause)",
+                "look at the original recording's source")
     if c.startswith("disconnected"):
         return "link", "lost while the device was disconnected", "check the cable or radio link"
     return "link", "lost on the link", "check the cable or radio link"

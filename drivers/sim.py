@@ -128,7 +128,8 @@ class SimDriver(Driver):
         if d.disconnected:
             raise DeviceError(f"simulated device {self.url.raw} disconnected", "reconnect or check the cable")
         if d.exhausted:
-            return []
+            tail = d.lost_tail(time.monotonic())
+            return [tail] if tail is not None else []
         if self.pace == "fast":
             n = d.block_size
         else:
@@ -149,7 +150,8 @@ class SimDriver(Driver):
             n -= take
             if block is not None:
                 blocks.append(block)
-        return blocks
+        tail = d.lost_tail(host_time)
+        return blocks + [tail] if tail is not None else blocks
 
     def close(self) -> None:
         self.device = None

@@ -213,10 +213,13 @@ def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_r
     profile = tmp_path / "p.yaml"
     save_profile(profile_from_result(result, rec), profile)
     out = tmp_path / "from-profile.html"
-    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab"]) == 0
+    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab", "--customer", "C. Ltd",
+                 "--customer-reference", "PO 4711/B"]) == 0
     html = out.read_text()
     assert_every_parameter_with_its_u_and_U(result, html)
     assert "B. Lab" in html and rec.content_hash() in html
+    # the customer's reference (order number) is stated, under the customer
+    assert html.index("C. Ltd") < html.index("Customer reference") < html.index("PO 4711/B")
     # an issued certificate is not replaced unasked (the operator's name would be gone)
     assert main(["report", str(profile), "-o", str(out)]) != 0
     assert "B. Lab" in out.read_text()

@@ -24,7 +24,8 @@ from accelrig.result import Estimate, format_value
 
 DEFAULT_K = 2.0
 # approved_by is not a condition: it has its own block, with the signature (approval_block)
-CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
+CONDITION_FIELDS = (("customer", "Customer"), ("customer_reference", "Customer reference"),
+                    ("operator", "Operator"), ("location", "Location"),
                     ("temperature", "Ambient temperature"), ("humidity", "Relative humidity"),
                     ("certificate_number", "Certificate number"))
 # facts of the run, not of the item: wall-clock time and solver iterations change from run to run

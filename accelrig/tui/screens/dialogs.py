@@ -243,9 +243,11 @@ class SettingsForm(Dialog):
     AUTO_FOCUS = ".setting-input"
 
     def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
-                 check=None, remembered: dict[str, str] | None = None, filled: dict[str, str] | None = None):
+                 check=None, remembered: dict[str, str] | None = None, filled: dict[str, str] | None = None,
+                 note: str = ""):
         super().__init__()
         self.title_text = title
+        self.note = note
         self.settings = tuple(settings)
         self.texts = dict(texts or {})
         self.check = check
@@ -254,7 +256,8 @@ class SettingsForm(Dialog):
 
     def help_text(self) -> str:
         fields = "\n".join(f"  [b]{escape(s.title.split(' (')[0])}[/b]: {escape(s.describe())}" for s in self.settings)
-        return (f"[b]{escape(self.title_text)}[/b]\n\nWhat the procedure needs, one field each; a blank field "
+        note = f"\n\n{escape(self.note[:1].upper() + self.note[1:])}." if self.note else ""
+        return (f"[b]{escape(self.title_text)}[/b]{note}\n\nWhat the procedure needs, one field each; a blank field "
                 "takes its default (in grey), a field marked required must be filled.  tab or the arrows move "
                 "between fields, enter starts, a value that cannot work is refused in red with the reason, ctrl+r "
                 f"puts every field back to its default, escape cancels.  In a field ? types itself: F1 opens this "
@@ -264,6 +267,8 @@ class SettingsForm(Dialog):
         with VerticalScroll(classes="dialog settings-form"):
             # a Static wraps a title wider than the dialog (a Label cut it, and its closing parenthesis)
             yield Static(f"[b]{escape(self.title_text)}[/b]", id="settings-title")
+            if self.note:   # what the fields need together, which no one label says
+                yield Static(escape(self.note[:1].upper() + self.note[1:] + "."), id="settings-note")
             yield Static(self.remembered_text(), id="settings-remembered")
             for s in self.settings:
                 with Horizontal(classes="setting-row"):
