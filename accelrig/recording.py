@@ -609,7 +609,7 @@ def time_range(rec: Recording, start: float | str | None, stop: float | str | No
         except ValueError:
             pass
         when = utc_seconds(name, value)
-        if not _has_utc(rec):
+        if utc_origin(rec) is None:
             raise DataError(f"--{name} {value}: {rec.meta.get('source', 'the recording')} carries no absolute time "
                             "(its metadata give no UTC time origin), so a UTC time cannot be placed in it",
                             f"give --{name} in seconds from the first sample")
@@ -619,12 +619,16 @@ def time_range(rec: Recording, start: float | str | None, stop: float | str | No
     if hi <= lo:
         raise DataError(f"no samples from {'the first sample' if start is None else start} to before "
                         f"{'the end' if stop is None else stop} (the recording spans {rec.duration:.3f} s"
-                        + (f" from {_utc_text(rec.meta['time_origin'] + t0)}" if _has_utc(rec) else "") + ")")
+                        + (f" from {_utc_text(rec.meta['time_origin'] + t0)}" if utc_origin(rec) is not None else "") + ")")
     return rec.slice(lo, hi)
 
 
-def _has_utc(rec: Recording) -> bool:
-    return rec.meta.get("time_base") == "utc" and isinstance(rec.meta.get("time_origin"), int | float)
+def utc_origin(rec: Recording) -> float | None:
+    """The UTC epoch seconds of t = 0 when the recording carries absolute time (``record`` and the daemon
+    write time_base "utc" and time_origin), else None."""
+    if rec.meta.get("time_base") == "utc" and isinstance(rec.meta.get("time_origin"), int | float):
+        return float(rec.meta["time_origin"])
+    return None
 
 
 def _utc_text(epoch: float) -> str:

@@ -231,6 +231,25 @@ def test_a_recording_from_accelrig_record_calibrates_without_units_and_a_bare_lo
     assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
 
 
+def test_an_encoder_log_in_utc_meets_a_recording_that_carries_its_utc_start(files, tmp_path):
+    """A BLE sensor recorded with 'accelrig record' (t from 0, its UTC start in the metadata) and the bench's
+    encoder logged on the lab's clock in UTC epoch seconds: the two meet on UTC (newcomer 14 #4 was told they
+    'do not overlap in time'); a recording without a UTC start says what is missing."""
+    d, truth, _ = files
+    origin = 1795587089.25
+    enc = read_encoder_csv(d / "e.csv")
+    write_encoder_csv(tmp_path / "utc.csv", {"t": enc.t + origin, "theta": enc.theta})
+    mems = load_recording(d / "m.csv")
+    relative = analyse_test(mems, enc, "x", "y", NOMINAL, 5.0)
+    with pytest.raises(DataError, match="carries no UTC time"):
+        analyse_test(mems, read_encoder_csv(tmp_path / "utc.csv"), "x", "y", NOMINAL, 5.0)
+    mems.meta.update(time_base="utc", time_origin=origin)
+    on_utc = analyse_test(mems, read_encoder_csv(tmp_path / "utc.csv"), "x", "y", NOMINAL, 5.0)
+    for axis in ("x", "y"):
+        assert on_utc.sensitivity[axis].value == pytest.approx(relative.sensitivity[axis].value, rel=1e-9)
+        assert on_utc.sensitivity[axis].value == pytest.approx(truth[axis], rel=1e-3)
+
+
 def test_cli_bad_input_is_one_line(files):
     d, _, _ = files
     r = run_cli("calibrate", "rotary", "--mems", str(d / "m.csv"), "--encoder", str(d / "e.csv"), "--radius", "0.170",
