@@ -186,4 +186,10 @@ async def test_the_campaign_screen_plots_the_sensitivities_and_writes_the_certif
         assert app.screen.query_one("#path").value.endswith("sim-0042-rotary-certificate.html")
         await pilot.press("enter")
         await wait_for(pilot, lambda: screen.certificate_path is not None, timeout=60)
-        assert "Group results" in screen.certificate_path.read_text(encoding="utf-8")
+        page = screen.certificate_path.read_text(encoding="utf-8")
+        assert "Group results" in page
+        # the item calibrated names the device the campaign screen was given, beside the campaign and its file
+        # (newcomer 14 #7: a live campaign's certificate had no chip, range or connection)
+        item = page.split("Item calibrated")[1].split("<h2>")[0]
+        assert "<th>Identity</th>" in item and DEVICE["identity"] in item and "<td>±4 g</td>" in item
+        assert "<th>Campaign file</th>" in item

@@ -330,17 +330,24 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
 
     verifies = r["procedure"] == "slider-crank"
     html.append(heading("Item verified" if verifies else "Item calibrated"))
+    device_rows = [(label, value) for label, value in (
+        ("Identity", dev.get("identity") or "not recorded"), ("Chip", dev.get("chip")),
+        ("Range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
+        ("Nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
+        ("Sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
+        ("Connection", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x) or None))
+        if value is not None]
     if src.is_campaign:
-        html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", src.details.get("source")),
-                         ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
+        # a campaign from a file names the file; one recorded live in the TUI has none, but has its device
+        records = src.details.get("records") or []
+        source = src.details.get("source") or (
+            f"none: recorded live, one recording per test ({len(records)}, under Recordings of the tests)"
+            if records else "not recorded")
+        html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", source),
+                         ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", []))),
+                         *(device_rows if dev.get("identity") else [])]))
     else:
-        html.append(_kv([(label, value) for label, value in (
-            ("Identity", dev.get("identity") or "not recorded"), ("Chip", dev.get("chip")),
-            ("Range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
-            ("Nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
-            ("Sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
-            ("Connection", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x) or None))
-            if value is not None]))
+        html.append(_kv(device_rows))
 
     html.append(heading("Method"))
     words = ESTIMATOR_WORDS.get((r["procedure"], r["method"]))
