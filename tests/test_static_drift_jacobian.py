@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from accelrig.estimation import gravity_fit
 from accelrig.estimation.gravity_fit import PoseStats, fit_six_face, magnitude_z, magnitude_z_response
 from accelrig.geometry import FACES, face_down_direction, rotation_xyz
 from accelrig.procedures.static import procedure as static_procedure
@@ -168,13 +167,21 @@ def test_the_calibration_from_the_fits_response_equals_the_one_from_refits(monke
         assert np.all(np.delete(column, axis, axis=1) == 0) and np.any(column[:, axis] != 0)
 
 
-def test_the_static_calibration_fits_three_times_not_nine(monkeypatch):
-    """The fit count the response saves: the first fit (for the faces held again), the one the drift terms'
-    Jacobian comes from, and the one on the referred means; where it used to refit once per term too."""
+def test_the_drift_terms_cost_one_fit_not_one_per_term(monkeypatch):
+    """The refits the response saves: of the calibration's six-face fits, the drift terms' Jacobian takes one
+    (the one that gives the response), where it took one plus one per term (seven with three rates and three
+    curvatures); the others are the result's own (the first fit, for the faces held again, and the one on the
+    referred means: three in all on white noise)."""
     calls = []
     real_fit = static_procedure.fit_six_face
-    monkeypatch.setattr(static_procedure, "fit_six_face", lambda *a, **k: calls.append(1) or real_fit(*a, **k))
+
+    def counted(*args, **options):
+        calls.append((options.get("inflation", "repeatability"), options.get("mean_shifts") is not None))
+        return real_fit(*args, **options)
+
+    monkeypatch.setattr(static_procedure, "fit_six_face", counted)
     result = calibrate_static(_drift_record(21), pose_flatness_deg=0.5, g_u=0.0)
     assert result.quality["noise"]["drift"]["rate_from"] == "fit"
+    assert len(result.quality["noise"]["drift"]["shape"]["fitted"]["axes"]) == 3      # 3 rates, 3 curvatures
+    assert [c for c in calls if c[0] == "none"] == [("none", True)]
     assert len(calls) == 3
-    assert gravity_fit.fit_six_face is real_fit
