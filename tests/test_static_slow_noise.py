@@ -194,6 +194,6 @@ def test_a_wander_whose_memory_no_hold_shows_is_said_to_leave_the_offsets_at_the
                                                        "holds can show")]
     assert len(said) == 1 and "the offsets stand for the run's own level" in said[0] and "settle" in said[0]
     shown = result.quality["noise"]["drift"]["slow_noise"]["memory_shown"]
-    assert not shown["shown"] and shown["time_s"] > 0.25 * shown["longest_hold_s"]
+    assert not shown["shown"] and shown["longest_hold_s"] < 2.0 * shown["median_hold_s"]    # holds of one length
     # the rise over the run at the halves' rate: 4e-6 (m/s^2)^2 per s over about 85 s, sd about 0.02 m/s^2
     assert 0.01 < shown["rise_over_run_sd"] < 0.04
