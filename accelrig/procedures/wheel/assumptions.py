@@ -346,7 +346,7 @@ N_UNSEEN = 2
 # The tests that decide whether the model misses a structure, each a family of regressors: the wobble at 3x, the
 # structure locked to the wheel angle (speed law and wobble together), the offset drift's line and its shape beyond
 # the line.  Any one found is taken in, and a take-in costs u and precision (the speed law's slow shapes and a
-# drift share the gains' direction: on paper 002's Table I a false take-in moved gain_y by 4-6 of the CRB's sd), so
+# drift share the gains' direction: on paper 002's Table I a false take-in moved gain_y by up to 5.4 of the CRB's sd), so
 # the four are judged together at ALPHA, Holm's step-down: the smallest p against ALPHA / 4, the next against
 # ALPHA / 3, ...  Each at ALPHA, a record that holds the model took something in 3.75 % of the time (Table I at
 # 0.08 m/s^2, 160 records: 6), and 3 of the benchmark's 30 draws left the CRB.  Which cause an angle-locked
