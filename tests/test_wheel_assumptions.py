@@ -173,23 +173,19 @@ def test_a_record_that_starts_at_rest_and_pushed_is_fitted_on_its_free_coast():
 
 
 def test_a_drift_taken_in_by_a_false_alarm_keeps_its_move_in_u():
-    """On a record of the model itself the tests that decide a take-in together fire in about 1 run in 100 (their
-    shared level), and a drift taken in then moves the estimates along the direction a drift on the radius shares
-    with the gains: the take-in happens exactly when the drift's estimate is large.  bench_wheel.py's draw 101 on
-    paper 002's Table I: the drift test reads p = 0.0008, below ALPHA / 4, and the take-in moves an estimate by 1.3
-    of the larger model's u; u includes the move.  (The stress benchmark's stopping wheel, seed 100003, moved them
-    by 2.4 u at p = 0.008, which the shared level no longer takes in.)"""
-    rec, truth = table_i_recording(101)
+    """Stress audit: on a clean wheel that stops, the drift test fires in about 1 run in 100 (its level), and the
+    drift taken in then moves every estimate by 2-3 of the larger model's u, along the direction a drift on the
+    radius shares with the gains: the take-in happens exactly when the drift's estimate is large.  Seed 100003
+    (the stress benchmark's first run) moved them by 2.4 u; u now includes the move."""
+    viscous = 0.01
+    coulomb = 6.0 * viscous / np.expm1(viscous * 75.0)
+    rec, _ = record(seed=100003, rig_options={"friction": "coulomb-viscous", "omega": np.array([6.0, 0, 0, 0]),
+                                              "coulomb": coulomb, "viscous": viscous})
     result = calibrate_wheel(rec, radius=0.28)
     checks = result.quality["residual_checks"]
-    drift = checks["offset_drift_test"]
-    assert drift["significant"] and drift["level"] == assumptions.FIRST_LEVEL
-    assert checks["offset_drift_move_over_u"] > 1
+    assert checks["offset_drift_test"]["significant"] and checks["offset_drift_move_over_u"] > 2
     assert "u includes the move taking the drift in made" in result.quality["uncertainty"]
-    p = result.parameters
-    z = np.concatenate([(np.array(p["gain"].value) - truth.gain) / np.array(p["gain"].uncertainty),
-                        (np.array(p["offset"].value) - truth.offset) / np.array(p["offset"].uncertainty)])
-    assert np.all(np.abs(z) < 2), z
+    assert np.all(np.abs(z_scores(result)) < 2)
 
 
 def test_an_unbalanced_wheel_is_seen_and_taken_in():
@@ -383,74 +379,13 @@ def test_a_steady_nod_on_an_unbalanced_wheel_is_not_read_as_changing(monkeypatch
     assert abs(end - start) < 0.03 and 0.07 < 0.5 * (start + end) < 0.15
 
 
-def test_the_models_tests_share_alpha_step_down():
-    """Holm's step-down over the tests that decide a take-in: the smallest p against ALPHA / 4, the next against
-    ALPHA / 3, ... and each test says the level it was judged at."""
-    alpha = assumptions.ALPHA
-
-    def tests(*p_values):
-        return {name: assumptions.ScoreTest(name, 0.0, 1, p, 0.0, "white")
-                for name, p in zip(assumptions.FAMILIES, p_values, strict=True)}
-
-    # each below ALPHA, none below ALPHA / 4: nothing found (each at ALPHA, all four were)
-    judged = tests(0.004, 0.005, 0.006, 0.009)
-    assert assumptions._holm(judged) == [] and not any(t.significant for t in judged.values())
-    assert all(t.level == alpha / 4 for t in judged.values())
-    # the first found lowers the bar for the rest to ALPHA / 3, then ALPHA / 2
-    judged = tests(0.2, 0.002, 0.003, 0.0049)
-    assert assumptions._holm(judged) == ["wheel angle", "offset drift", "offset drift shape"]
-    assert [judged[n].level for n in assumptions.FAMILIES] == [alpha, alpha / 4, alpha / 3, alpha / 2]
-    assert [judged[n].significant for n in assumptions.FAMILIES] == [False, True, True, True]
-    # a test that could not be made (too few blocks: p NaN) is never found
-    assert assumptions._holm(tests(float("nan"), 0.5, 0.5, 0.5)) == []
-
-
-def table_i_recording(seed):
-    """One of bench_wheel.py's draws on paper 002's Table I (0.08 m/s^2): the model itself, nothing to find."""
-    from accelrig.procedures.wheel.model import (
-        TABLE_I_GAIN,
-        TABLE_I_MISALIGNMENT_DEG,
-        TABLE_I_OFFSET,
-        TABLE_I_THETA0_DEG,
-        TABLE_I_TILT_DEG,
-    )
-
-    rig = WheelRig(radius=0.28, tilt_deg=TABLE_I_TILT_DEG, duration=90.0, omega=TABLE_I_OMEGA,
-                   misalignment_deg=TABLE_I_MISALIGNMENT_DEG, theta0_deg=TABLE_I_THETA0_DEG)
-    sensor = SensorModel(offset=TABLE_I_OFFSET, gain=TABLE_I_GAIN, range_g=4.0,
-                         noise_density=SensorModel.noise_density_for_sd(0.08, RATE))
-    truth = WheelState(rig.theta0, rig.omega, rig.tilt, rig.radius, rig.rotation, np.array(TABLE_I_GAIN),
-                       np.array(TABLE_I_OFFSET))
-    return simulate(rig, sensor, SimClock(RATE), seconds=90.0, seed=seed), truth
-
-
-def test_a_record_of_the_model_takes_nothing_in_at_one_tests_level():
-    """bench_wheel.py's draw 25: the wobble at 3x reads p = 0.005.  Each of the four tests at ALPHA, that took a
-    wobble in on a record of the model itself (3 of the benchmark's 30 draws did so, and the take-in moved gain_y by
-    3.7 of the CRB's sd here); judged together at ALPHA, nothing is taken in and u is the CRB's."""
-    rec, truth = table_i_recording(25)
-    result = calibrate_wheel(rec, radius=0.28)
-    checks = result.quality["residual_checks"]
-    third = checks["wobble_3x_test"]
-    assert assumptions.FIRST_LEVEL < third["p_value"] < assumptions.ALPHA
-    assert third["level"] == assumptions.FIRST_LEVEL and not third["significant"]
-    assert checks["angle_locked_causes"] == [] and "offset_drift_m_s2" not in checks
-    assert "the CRB at the estimate" in result.quality["uncertainty"]
-    crb = np.sqrt(np.diag(wheel_crb(rec.t - rec.t[0], truth, free_set(0.28, None), 0.08)))
-    assert np.allclose(np.sqrt(np.diag(result.covariance)), crb, rtol=0.05)
-    # the gains where the model alone puts them (the take-in had moved gain_y to -3.8 sd, from -0.15)
-    names = result.parameter_names
-    z = (np.array(result.parameters["gain"].value) - truth.gain) / crb[[names.index(f"gain_{a}") for a in "xyz"]]
-    assert np.all(np.abs(z) < 2), z
-
-
 def test_a_steady_nod_is_not_read_as_an_offset_drift(monkeypatch):
     """A steady nod's unseen half (gravity turned, the centripetal term spared) is no column of the fit; left in the
     residuals it changes with w^2, slowly, and the drift tests read it as the offsets drifting: held-out steady 0.1
-    deg nods took a drift in on 14 % of records, and after it the nod's change test refused 3 of them as a nod that
-    changes its size.  The drift tests now project the unseen half out once a wobble is found.  Quiet (0.03 m/s^2),
-    so what the test reads is the nod: main read a drift at p = 0.003; the checks are read directly, since the nod
-    itself is refused on its size at this noise."""
+    deg nods took a drift in on 14 % of records, each warned as offsets that drifted.  The drift tests now project
+    the unseen half out once a wobble is found.  Quiet (0.03 m/s^2), so what the test reads is the nod: main read a
+    drift at p = 0.003; the checks are read directly, since the nod itself is refused on its size at this noise (on
+    main it was accepted: the drift taken in had widened u)."""
     seen = {}
 
     def spy(*args, **kwargs):
@@ -530,7 +465,7 @@ def test_an_axis_that_nods_twice_per_turn_is_named_and_taken_in():
     was warned as a speed swing and a wobble of 0.8 deg rms "as an axis nodding about 0.04 deg once per turn" (a
     0.1 deg nod twice per turn, with the sensor's own axial motion).  Now the wobble at 3x is tested with the rest
     projected out, named with its size, and taken in with the wobble."""
-    rec, _ = record(seed=26, rig_options={"wobble_deg": 0.1, "wobble_turns": 2})
+    rec, _ = record(seed=23, rig_options={"wobble_deg": 0.1, "wobble_turns": 2})
     result = calibrate_wheel(rec, radius=0.28)
     said = [w for w in result.warnings if "three times its angle" in w]
     assert len(said) == 1 and "nods twice per turn" in said[0]

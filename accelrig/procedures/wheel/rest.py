@@ -32,7 +32,6 @@ from scipy import special
 from accelrig.estimation.crb import numerical_jacobian
 from accelrig.estimation.distributions import chi2
 from accelrig.estimation.residuals import ALPHA
-from accelrig.procedures.wheel.assumptions import FIRST_LEVEL
 from accelrig.procedures.wheel.fit import chunks
 from accelrig.procedures.wheel.model import FreeSet, WheelState, model_and_jacobian, pack, phase, unpack
 from accelrig.units import STANDARD_GRAVITY
@@ -173,9 +172,8 @@ def _allowance(miss: np.ndarray, t: np.ndarray, state: WheelState, free: FreeSet
 
 
 # Without a rest, what a drift along the wheel's plane could be and go unseen: the drift tests (assumptions.py, a
-# line per axis, then Legendre degrees 2-3 in time beyond it) with the model projected out, at this power, at the
-# level a drift test must reach on a record where nothing else is found (FIRST_LEVEL: the model's tests share
-# ALPHA).  A drift shaped exactly like w^2 is missed at any size; these shapes are not w^2, so each has a size the
+# line per axis, then Legendre degrees 2-3 in time beyond it, each at ALPHA) with the model projected out, at this
+# power.  A drift shaped exactly like w^2 is missed at any size; these shapes are not w^2, so each has a size the
 # tests find half the time.
 UNSEEN_POWER = 0.5
 UNSEEN_SHAPES = {
@@ -187,9 +185,8 @@ JUDGED = ("gain_x", "gain_y", "gain_z", "offset_x", "offset_y", "offset_z", "til
 
 
 def _noncentrality_for_power(dof: int) -> float:
-    """The noncentrality at which a chi^2 test of ``dof`` degrees of freedom at FIRST_LEVEL rejects with
-    UNSEEN_POWER."""
-    return float(special.chndtrinc(special.chdtri(dof, FIRST_LEVEL), dof, 1.0 - UNSEEN_POWER))
+    """The noncentrality at which a chi^2 test of ``dof`` degrees of freedom at ALPHA rejects with UNSEEN_POWER."""
+    return float(special.chndtrinc(special.chdtri(dof, ALPHA), dof, 1.0 - UNSEEN_POWER))
 
 
 def unseen_drift(t: np.ndarray, state: WheelState, cov_internal: np.ndarray, free: FreeSet, time_scale: float,
