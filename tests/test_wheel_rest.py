@@ -161,7 +161,9 @@ def test_a_coast_without_a_rest_states_the_drift_it_could_miss_and_three_times_t
 def test_a_speed_law_that_dips_below_its_last_speed_is_not_read_as_a_push():
     """Paper 002's Table I cubic slows to about 5.4 rad/s near 65 s and speeds up again to the end: the turns'
     circle centre passes the last turns' one and comes back.  A distance from it read that return as a push,
-    and the fit dropped the first 43.5 s of a pure coast (5 of 30 bench draws lost their CRB)."""
+    and the fit dropped the first 43.5 s of a pure coast (5 of 30 bench draws lost their CRB).  Its speed-up over
+    the last turns rises as fast as a late stroke: on draw 60 the last window read as a push, leaving a coast of one
+    sample ("the recording holds 1 samples"); a push needs a coast after it."""
     from accelrig.procedures.wheel.checks import coasting_from
     from accelrig.procedures.wheel.model import (
         TABLE_I_GAIN,
@@ -175,6 +177,8 @@ def test_a_speed_law_that_dips_below_its_last_speed_is_not_read_as_a_push():
                    misalignment_deg=TABLE_I_MISALIGNMENT_DEG, theta0_deg=TABLE_I_THETA0_DEG)
     sensor = SensorModel(offset=TABLE_I_OFFSET, gain=TABLE_I_GAIN, range_g=4.0,
                          noise_density=SensorModel.noise_density_for_sd(0.08, 200.0))
-    for seed in (13, 26):   # two of the bench's draws the old rule cut
+    # two of the bench's draws the unsigned height cut; on draw 60 the cubic's rise in the last turns read as a late
+    # stroke and left a coast of one sample
+    for seed in (13, 26, 60):
         rec = simulate(rig, sensor, SimClock(200.0), seconds=90.0, seed=seed)
         assert coasting_from(rec.t, rec.acc, 0.08, 1 / 200.0) is None

@@ -359,13 +359,18 @@ def coasting_from(t: np.ndarray, acc: np.ndarray, noise: float, period: float) -
     far = offset[int(np.argmax(np.einsum("ij,ij->i", offset, offset)))]
     height = offset @ (far / max(float(np.linalg.norm(far)), 1e-12))
     rise = PUSH_RISE * typical
+    # the turns each window leaves after it: a coast must follow a push, with the MIN_TURNS a fit needs
+    turns_after = np.cumsum(arc[::-1])[::-1] / (2 * np.pi)
     last = int(np.argmax(height))
     for k in range(last + 1, index.size):
         # a later stroke that did not reach the first one's speed: a fast rise (a hand's push takes seconds,
-        # while a slow cubic like the paper's Table I law may turn up by a few tenths of a m/s^2 over a minute)
+        # while a slow cubic like the paper's Table I law may turn up by a few tenths of a m/s^2 over a minute).
+        # Not in the record's last turns: there the Table I cubic, speeding up again, rises as fast as a late
+        # stroke would (0.33 m/s^2 over two windows against 0.34 on draw 60, whose last window read as a push and
+        # left a coast of one sample), and a stroke there would leave no coast to fit anyway
         order = np.arange(index.size)
         earlier = height[(index >= index[k] - PUSH_WINDOWS) & (order >= last) & (order < k)]
-        if earlier.size and height[k] > earlier.min() + rise:
+        if earlier.size and height[k] > earlier.min() + rise and turns_after[index[k]] >= MIN_TURNS:
             last = k
     if index[last] == 0:
         return None
