@@ -172,7 +172,8 @@ def run(args) -> int:
             silent = recorder.silent_for()
             if args.seconds is not None:
                 silent = min(silent, args.seconds - recorder.seconds)
-            recorder.end_gap(why, silent - 1.0 / session.info.nominal_rate)
+            if silent > 1.0 / session.info.nominal_rate:   # at least one sample missing
+                recorder.end_gap(why, silent - 1.0 / session.info.nominal_rate)
         session.stop()
         recorder.close()
         finished = writer.close()
