@@ -130,6 +130,16 @@ def _remove(tmp: str) -> None:
         pass
 
 
+def accelrig_home() -> Path:
+    """The user's accelrig data directory: $ACCELRIG_HOME, else $XDG_DATA_HOME/accelrig, else
+    ~/.local/share/accelrig (the profile store, the TUI's captures, simulated devices' records)."""
+    home = os.environ.get("ACCELRIG_HOME")
+    if home:
+        return Path(home)
+    xdg = os.environ.get("XDG_DATA_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".local" / "share") / "accelrig"
+
+
 def make_dirs(path: Path, mode: int = 0o755) -> None:
     """Create ``path`` and its missing parents with ``mode`` less the umask (never world-writable when
     the umask is 000: 0755 stays 0755); an OSError is one DataError."""

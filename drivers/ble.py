@@ -51,6 +51,13 @@ def _run_loop(loop: asyncio.AbstractEventLoop) -> None:
     try:
         loop.run_forever()
     finally:
+        # a reconnect still waiting (closed while the link was down) is cancelled and let finish first:
+        # a task destroyed while pending is a warning on the operator's terminal
+        pending = asyncio.all_tasks(loop)
+        for task in pending:
+            task.cancel()
+        if pending:
+            loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
         loop.close()
 
 
@@ -113,6 +120,13 @@ class BleDriver(FirmwareDriver):
         return [f"ble://{d.address}" + (f"  ({d.name})" if d.name else "") for d in result.get("devices", [])]
 
     # ------------------------------------------------------------ transport
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return {**super().option_help(),
+                "reconnect": "give up reconnecting after a disconnect after this many seconds (default 30; 0: never "
+                             "reconnect)",
+                "backoff": "first reconnect delay, s, doubled after each failure up to 8 s (default 0.5)"}
 
     def _link_options(self) -> set[str]:
         return super()._link_options() | {"reconnect", "backoff"}
@@ -237,6 +251,12 @@ class BleDriver(FirmwareDriver):
     def _link_extra(self) -> dict:
         return {"service_uuid": SERVICE_UUID}
 
+    @property
+    def link_down(self) -> str | None:
+        if self._opened and self.client is None and self._failure is None and not self._closing:
+            return "link down, reconnecting"
+        return None
+
     def _stop_loop(self) -> None:
         if self._loop is not None:
             self._loop.call_soon_threadsafe(self._loop.stop)
@@ -258,13 +278,27 @@ class BleDriver(FirmwareDriver):
             self._stop_loop()
 
 
-BLE_SIM_FAULTS = frozenset({"reorder", "disconnect_at", "outage", "refuse_connects"})
+BLE_SIM_FAULTS = {
+    "reorder": "probability that a notification is delivered after the next one, 0-1 (default 0)",
+    "disconnect_at": "device seconds at which the connection drops, comma separated (e.g. 10,20)",
+    "outage": "device seconds the device stays out of reach after each drop (default 1): at pace=realtime "
+              "connects fail until then (the reconnect=S limit may give up first); at pace=fast the emulated "
+              "clock jumps over it; the samples taken meanwhile are a gap in the stream",
+    "refuse_connects": "connection attempts refused after each drop once the device is in reach again (default 0)",
+}
 
 
 class BleSimDriver(BleDriver):
     scheme = "ble-sim"
     description = "the BLE driver on a fake bleak client to simulated firmware (no radio; demos and tests)"
     extra = None  # needs no bleak: the fake client stands where bleak would
+    takes_rig_options = True
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        from accelrig_drivers.serial import SIM_FAULT_OPTIONS, sim_sensor_options
+
+        return {**super().option_help(), **sim_sensor_options(), **SIM_FAULT_OPTIONS, **BLE_SIM_FAULTS}
 
     def __init__(self, url, client_factory=None):
         super().__init__(url, client_factory)
@@ -285,7 +319,7 @@ class BleSimDriver(BleDriver):
         from accelrig.sim.firmware import SimBleClient
         from accelrig_drivers.serial import firmware_from_url
 
-        self.firmware, _ = firmware_from_url(self.url, P.SAMPLES_PER_BLE_FRAME, BLE_SIM_FAULTS)
+        self.firmware, _ = firmware_from_url(self.url, P.SAMPLES_PER_BLE_FRAME, set(BLE_SIM_FAULTS))
         faults = self.firmware.faults
         faults.reorder = self.url.get_float("reorder", 0.0, low=0.0, high=1.0)
         text = self.url.get_str("disconnect_at", "")
@@ -330,4 +364,4 @@ class BleSimDriver(BleDriver):
     def _link_options(self) -> set[str]:
         from accelrig_drivers.serial import sim_firmware_options
 
-        return super()._link_options() | sim_firmware_options(self.url, BLE_SIM_FAULTS)
+        return super()._link_options() | sim_firmware_options(self.url, set(BLE_SIM_FAULTS))

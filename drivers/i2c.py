@@ -42,7 +42,13 @@ from accelrig.errors import DeviceError, require_extra
 from accelrig.result import Correction
 from accelrig.units import scale_for_range
 
-I2C_OPTIONS = {"chip", "range", "rate", "profile", "poll"}
+I2C_OPTIONS = {
+    "chip": "mpu9250 (default) or icm20948; WHO_AM_I is checked, with known variants",
+    "range": "full scale +-G: 2 (default), 4, 8, 16",
+    "rate": "requested sample rate, Hz (default 1000); the rate delivered is reported, then measured",
+    "profile": "a device profile whose bias is written to the chip's offset registers on every open",
+    "poll": "FIFO poll interval, s (default a third of a FIFO fill, at most 10 ms)",
+}
 DEFAULT_RATE = 1000.0
 
 
@@ -79,8 +85,12 @@ class I2CDriver(Driver):
     def chip_named(self) -> str:
         return self.chip_name()
 
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return dict(I2C_OPTIONS)
+
     def known_options(self) -> set[str]:
-        return I2C_OPTIONS
+        return set(I2C_OPTIONS)
 
     def chip_name(self) -> str:
         return self.url.get_choice("chip", tuple(CHIPS), "mpu9250")

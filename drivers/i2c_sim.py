@@ -34,14 +34,29 @@ from accelrig.sim.rigs import RIGS
 from accelrig.sim.sensor import SensorModel
 from accelrig_drivers.i2c import DEFAULT_RATE, I2C_OPTIONS, I2CDriver, import_smbus2
 
-SIM_OPTIONS = {"rig", "seed", "pace", "truth", "noise", "rate_error", "jitter", "bypass_fifo_rate", "address",
-               "disconnect_after"}
+SIM_OPTIONS = {
+    "rig": "simulated rig (default still); its own options pass through",
+    "seed": "sensor truth, factory trim and noise (default 0)",
+    "pace": "realtime: the wall clock (default); fast: an emulated clock, as fast as possible",
+    "truth": "random: an imperfect sensor drawn from the seed (default); ideal: a perfect one",
+    "noise": "white noise sd per sample at the chip's rate, m/s^2 (default: datasheet density)",
+    "rate_error": "relative error of the chip's oscillator (default 0.004)",
+    "jitter": "host wake-up lateness sd, s, at pace=fast (default 0.0005)",
+    "bypass_fifo_rate": "FIFO rate the emulated part really has in filter bypass, Hz (to test the check)",
+    "address": "I2C address (default 0x68)",
+    "disconnect_after": "seconds after opening when the cable is unplugged: every transfer then fails",
+}
 
 
 class I2CSimDriver(I2CDriver):
     scheme = "i2c-sim"
     description = "the I2C driver over an emulated MPU-9250 / ICM-20948 on a simulated rig"
     extra = "i2c"
+    takes_rig_options = True
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return {**{k: v for k, v in I2C_OPTIONS.items() if k != "chip"}, **SIM_OPTIONS}
 
     def __init__(self, url):
         super().__init__(url)
@@ -62,7 +77,7 @@ class I2CSimDriver(I2CDriver):
         return rig_cls
 
     def known_options(self) -> set[str]:
-        return (I2C_OPTIONS - {"chip"}) | SIM_OPTIONS | set(self._rig_class().options)
+        return (set(I2C_OPTIONS) - {"chip"}) | set(SIM_OPTIONS) | set(self._rig_class().options)
 
     def chip_name(self) -> str:
         name = self.url.target.strip("/")

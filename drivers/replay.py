@@ -39,8 +39,20 @@ class ReplayDriver(Driver):
         self._seq = 0
         self._loops = 0
 
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return {
+            "pace": "realtime: at the recorded rate (default); fast: as fast as possible",
+            "units": "units of the file when it does not say: m/s2 (default), g, mg or counts",
+            "rate": "sample rate, Hz, for a file without a t column",
+            "block": "samples per block (default 256)",
+            "loop": "1: start again at the end (an endless device)",
+            "start": "play from here: seconds from the first sample, or an ISO-8601 UTC time",
+            "stop": "play up to here: seconds from the first sample, or an ISO-8601 UTC time",
+        }
+
     def known_options(self) -> set[str]:
-        return {"pace", "units", "rate", "block", "loop", "start", "stop"}
+        return set(self.option_help())
 
     def open(self) -> DeviceInfo:
         url = self.url

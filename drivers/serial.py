@@ -57,6 +57,11 @@ class SerialDriver(FirmwareDriver):
     extra = "serial"
     link_name = "serial port"
 
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return {**super().option_help(), "baud": f"line rate (default {DEFAULT_BAUD}); refused when too slow for "
+                                                 "the rate"}
+
     def __init__(self, url):
         super().__init__(url)
         self._port = None
@@ -157,20 +162,35 @@ class SerialDriver(FirmwareDriver):
 
 # ------------------------------------------------------------------ simulated firmware
 
-SIM_FAULT_OPTIONS = {"drop", "corrupt", "garbage", "stall_at", "stall_for", "cal_fault"}
+SIM_FAULT_OPTIONS = {
+    "pace": "realtime: the wall clock (default); fast: an emulated clock, as fast as the host reads",
+    "drop": "probability that a DATA frame is never sent, 0-0.99 (default 0)",
+    "corrupt": "probability that one byte of a frame is flipped on the wire, 0-0.99 (default 0)",
+    "garbage": "probability of 1-40 random bytes on the wire before a frame, 0-0.99 (default 0)",
+    "stall_at": "device seconds at which the device stops sending (samples taken meanwhile are lost)",
+    "stall_for": "seconds the stall lasts (default 0; inf: the device never speaks again)",
+    "cal_fault": "the calibration store misbehaves: corrupt (flips a bit of what it stores) or refuse "
+                 "(reports a storage error); default none",
+}
+
+
+def sim_sensor_options() -> dict[str, str]:
+    """The sim:// sensor options a *-sim:// URL takes (the host asks for rate and range; the link paces)."""
+    from accelrig_drivers.sim import SENSOR_OPTIONS
+
+    return {k: v for k, v in SENSOR_OPTIONS.items() if k in ("seed", "rate_error", "jitter", "noise", "truth")}
 
 
 def _shared_sim_options(url: DeviceURL) -> set[str]:
     """The sim:// options a *-sim:// URL passes to the simulated device (its rig named by the target)."""
     from accelrig.sim.rigs import RIGS
-    from accelrig_drivers.sim import SENSOR_OPTIONS
 
     rig_cls = RIGS.get(url.target)
     if rig_cls is None:
         raise DeviceError(f"unknown simulated rig {url.target!r} in {url.raw!r}",
                           f"available: {', '.join(sorted(RIGS))}")
     # options that mean the same as for sim:// go to its parser; rate and range the host asks for
-    return (set(SENSOR_OPTIONS) - {"pace", "block", "drop", "disconnect_after", "rate", "range"}) | set(rig_cls.options)
+    return set(sim_sensor_options()) | set(rig_cls.options)
 
 
 # after the simulated firmware's last frame, how long a host waits for frames lost on the way
@@ -218,7 +238,17 @@ def sim_lost_tail(driver: FirmwareDriver, sent_all: bool) -> list[Block]:
 
 def sim_firmware_options(url: DeviceURL, extra_faults: set[str] = frozenset()) -> set[str]:
     """The options of a *-sim:// URL besides the link's (``firmware_from_url`` takes them)."""
-    return _shared_sim_options(url) | SIM_FAULT_OPTIONS | set(extra_faults) | {"pace"}
+    return _shared_sim_options(url) | set(SIM_FAULT_OPTIONS) | set(extra_faults)
+
+
+def sim_record_file(serial_number: str):
+    """Where a simulated device keeps its calibration record between opens (as a board's flash does):
+    the accelrig home's sim-devices/ (beside profiles/), one file per device identity; never the checkout."""
+    import re
+
+    from accelrig.files import accelrig_home
+
+    return accelrig_home() / "sim-devices" / f"{re.sub(r'[^A-Za-z0-9_-]+', '_', serial_number)}.cal"
 
 
 def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: set[str] = frozenset()):
@@ -238,11 +268,12 @@ def firmware_from_url(url: DeviceURL, max_samples_per_frame: int, extra_faults: 
     )
     if faults.cal_fault == "none":
         faults.cal_fault = None
+    serial_number = f"SIM-{device.seed}"
     firmware = SimFirmware(
         device.rig, device.sensor, rate_error=device.clock.rate_error, jitter=device.clock.jitter,
         seed=int(np.random.SeedSequence(device.seed).generate_state(1)[0]),
-        serial_number=f"SIM-{device.seed}", max_samples_per_frame=max_samples_per_frame,
-        faults=faults,
+        serial_number=serial_number, max_samples_per_frame=max_samples_per_frame,
+        faults=faults, store=sim_record_file(serial_number),
     )
     return firmware, sim_firmware_options(url, extra_faults)
 
@@ -251,6 +282,11 @@ class SerialSimDriver(SerialDriver):
     scheme = "serial-sim"
     description = "the serial driver on a pty to simulated firmware (no hardware; demos and tests)"
     extra = "serial"
+    takes_rig_options = True
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return {**super().option_help(), **sim_sensor_options(), **SIM_FAULT_OPTIONS}
 
     def __init__(self, url):
         super().__init__(url)

@@ -77,8 +77,12 @@ def build_device(url) -> tuple[SimDevice, str]:
 
 class SimDriver(Driver):
     scheme = "sim"
-    sensor_options = SENSOR_OPTIONS
+    takes_rig_options = True
     description = "simulated sensor on a simulated rig (" + ", ".join(sorted(RIGS)) + ")"
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return dict(SENSOR_OPTIONS)
 
     def __init__(self, url):
         super().__init__(url)

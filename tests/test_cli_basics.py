@@ -187,6 +187,33 @@ def test_devices_verbose_lists_every_simulator_option_it_accepts(capsys):
     driver_for("sim://still?disconnect_after=5&drop=0.1").check_url()   # the listed options are accepted
 
 
+DRIVER_URLS = ["sim://still", "serial-sim://still", "ble-sim://still", "i2c-sim://mpu9250?rig=still",
+               "serial:///dev/ttyUSB0", "ble://AA:BB:CC:DD:EE:FF", "i2c://1/0x68", "replay://run.csv"]
+
+
+def test_devices_verbose_lists_every_option_of_every_driver(capsys):
+    """Each driver's URL options, each with what it does, are in `devices -v`: exactly those its URLs accept
+    (besides the rig's own, listed under sim://)."""
+    from accelrig.sim.rigs import RIGS
+
+    assert main(["devices", "-v"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for url in DRIVER_URLS:
+        driver = driver_for(url)
+        listed = set(type(driver).option_help())
+        rig = set(RIGS["still"].options) if type(driver).takes_rig_options else set()
+        assert listed | rig == driver.known_options(), url
+        start = next(i for i, line in enumerate(lines) if line.startswith(f"{driver.scheme}://  "))
+        own = []
+        for line in lines[start + 1:]:
+            if not line.startswith("    "):
+                break
+            own.append(line)
+        for option in listed:
+            assert any(line.startswith(f"        {option}: ") and len(line) > len(option) + 12 for line in own), \
+                (url, option)
+
+
 def test_every_help_fits_80_columns_and_says_one_store_default(monkeypatch, capsys):
     """Every command's and kind's --help at 80 columns: no line wider (a choice setting's words made usage lines
     86 wide, collect's 81); the profile store's default reads the same wherever --store is offered."""

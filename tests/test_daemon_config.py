@@ -547,3 +547,30 @@ def test_a_reload_whose_old_runner_hangs_hands_the_directory_over_when_it_return
     assert kinds.index("connect", first_stop) > first_stop
     causes = [g["cause"] for g in read_segments(tmp_path / "out" / "a").meta["gaps"]]
     assert causes == ["not recording: restarted: its configuration changed"], causes
+
+
+def test_a_ble_link_down_past_the_stall_limit_is_named_a_disconnect_not_a_stall(tmp_path):
+    """A BLE device out of reach while its driver reconnects sends nothing: the daemon's stall watch cut it as
+    "stalled: no data ... while connected", though the link was down. The cause now says so."""
+    import time
+
+    from accelrig.daemon.device import DeviceRunner
+
+    config = parse_config({"output": str(tmp_path), "stall_seconds": 1.0, "devices": [
+        {"name": "tag", "url": "ble-sim://still?seed=5&rate=100&disconnect_at=0.5&outage=600"}]})
+    runner = DeviceRunner(config.devices[0], config, lambda line: None)
+    journal = tmp_path / "tag" / "journal.jsonl"
+
+    def reasons():
+        lines = journal.read_text().splitlines() if journal.exists() else []
+        return [e.get("reason") or "" for e in map(json.loads, lines) if e["event"] == "disconnect"]
+
+    runner.start()
+    try:
+        deadline = time.monotonic() + 60
+        while not any(r.startswith("disconnected: link down, reconnecting (no data for 1 s)") for r in reasons()):
+            assert time.monotonic() < deadline, reasons()
+            time.sleep(0.1)
+    finally:
+        runner.stop()
+        runner.join(30)

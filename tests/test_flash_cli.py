@@ -2,6 +2,7 @@
 
 import io
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -137,3 +138,27 @@ def test_cli_refuses_mismatch_and_devices_without_store(profile_file, capsys):
     code = main(["flash", str(profile_file), "--device", "sim://still", "--force", "--dry-run"])
     assert code == DeviceError.exit_code
     assert "sim:// devices cannot store a calibration" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("scheme", ["serial-sim", "ble-sim"])
+def test_a_simulated_device_keeps_its_flashed_record_between_opens(profile_file, capsys, scheme, tmp_path,
+                                                                    monkeypatch):
+    """flash ... VERIFIED, then the next open (another process in life) shows that record, as a board's flash
+    keeps it: the record lives in the accelrig home, one file per device identity, never in the checkout."""
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    url = f"{scheme}://still?seed=1&pace=fast"
+    assert main(["flash", str(profile_file), "--device", url, "--yes"]) == 0
+    assert "VERIFIED" in capsys.readouterr().out
+    assert main(["flash", str(profile_file), "--device", url, "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "holds no calibration record yet" not in out and "(none)" not in out, out
+    stored = list((Path(os.environ["ACCELRIG_HOME"]) / "sim-devices").glob("SIM-1.cal"))
+    assert len(stored) == 1 and not list(tmp_path.rglob("*.cal"))
+    # a record the store damaged is shown as such and flashed over, not a dead end
+    assert main(["flash", str(profile_file), "--device", url + "&cal_fault=corrupt", "--yes"]) != 0
+    capsys.readouterr()
+    assert main(["flash", str(profile_file), "--device", url, "--yes"]) == 0
+    out = capsys.readouterr().out
+    assert "cannot be used (the calibration record stored on the device fails its CRC" in out and "VERIFIED" in out

@@ -274,6 +274,23 @@ def test_profile_show_gives_angles_in_degrees_as_every_other_view(cli):
     assert angle.endswith(" deg") and f"{value} +- {u}" in angle
 
 
+def test_profile_show_gives_g_as_every_face_does(tmp_path, cli):
+    """A local g from the latitude (9.807394654606906) is shown to 0.01 mm/s^2 with its u, as the calibration's
+    text and the certificate give it, not with every digit of the float."""
+    from pathlib import Path
+
+    import yaml
+
+    example = Path(__file__).resolve().parent.parent / "profiles" / "example-static_faces-vp.yaml"
+    data = yaml.safe_load(example.read_text())
+    data["calibration"]["g"] = data["calibration"]["settings"]["g"] = 9.807394654606906
+    data["calibration"]["settings"]["g_u"] = 1.2345e-4
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(data))
+    r = cli("profile", "show", str(tmp_path / "p.yaml"))
+    assert r.returncode == 0, r.stderr
+    assert "g = 9.80739 +- 0.00012 m/s^2" in r.stdout and "9.807394654606906" not in r.stdout, r.stdout
+
+
 def test_profile_show_fits_80_columns_and_reads_every_sentence_whole(cli):
     """What u holds and the warnings are sentences: shown whole, wrapped under their label (they were cut at
     80 characters with '...'); numbers in lists at 4 digits; every line within 80 columns."""

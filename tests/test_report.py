@@ -225,8 +225,17 @@ def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_r
     assert "B. Lab" in out.read_text()
     assert main(["report", str(profile), "-o", str(out), "--force"]) == 0
     assert "B. Lab" not in out.read_text()
-    # a profile keeps no arrays: the figure it cannot draw is named, not faked
+    # a profile keeps no arrays: the figure it cannot draw is named, not faked, and said on stderr
     assert "Figure not shown" in html
+    assert "accelrig report: figure not shown: the calibrated recording" in capsys.readouterr().err
+    # a bare number is a temperature in °C and a humidity in %; a text with its unit is kept as given
+    assert main(["report", str(profile), "-o", str(tmp_path / "t.html"), "--no-figures", "--temperature", "23",
+                 "--humidity", "45.5"]) == 0
+    conditions = " ".join(text_of((tmp_path / "t.html").read_text()).split())
+    assert "Ambient temperature 23 °C" in conditions and "Relative humidity 45.5 %" in conditions
+    assert main(["report", str(profile), "-o", str(tmp_path / "t2.html"), "--no-figures", "--temperature",
+                 "23.0 ± 1.0 °C"]) == 0
+    assert "Ambient temperature 23.0 ± 1.0 °C" in " ".join(text_of((tmp_path / "t2.html").read_text()).split())
 
     saved = tmp_path / "r.json"
     saved.write_text(to_json(result.to_json_dict()))

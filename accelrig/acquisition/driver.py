@@ -74,6 +74,8 @@ class Driver(abc.ABC):
 
     scheme: ClassVar[str]
     description: ClassVar[str]
+    # a driver on a simulated rig also takes the options of the rig its URL names (besides ``option_help``'s)
+    takes_rig_options: ClassVar[bool] = False
     # pip extra that provides the driver's optional dependency, if any.
     extra: ClassVar[str | None] = None
 
@@ -85,6 +87,11 @@ class Driver(abc.ABC):
     def discover(cls) -> list[str]:
         """URLs of devices this driver can find right now (may be empty)."""
         return []
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        """The options this driver's URLs take, each with what it does (``accelrig devices --verbose``)."""
+        return {}
 
     def known_options(self) -> set[str] | None:
         """The URL options this driver understands (None: it checks them only when it opens)."""
@@ -122,6 +129,12 @@ class Driver(abc.ABC):
     @property
     def at_end(self) -> bool:
         return False
+
+    @property
+    def link_down(self) -> str | None:
+        """Why no data can arrive right now though the device is still open (a link being re-established,
+        in words), or None.  A recording that ends meanwhile counts the time since its last sample as lost."""
+        return None
 
     @property
     def can_flash(self) -> bool:

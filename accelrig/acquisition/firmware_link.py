@@ -22,8 +22,15 @@ from accelrig.errors import DeviceError, DeviceStalled
 from accelrig.result import Correction
 from accelrig.units import scale_for_range
 
-# URL options every firmware device understands
-LINK_OPTIONS = {"rate", "range", "frame", "stall", "command_timeout"}
+# URL options every firmware device understands, with what they do (`accelrig devices --verbose`)
+LINK_OPTIONS = {
+    "rate": "requested sample rate, Hz (default 2048); the device reports what it delivers",
+    "range": "full scale +-G: 2, 4 (default), 8, 16",
+    "frame": "samples per DATA frame (default 64 serial, 37 BLE; at most what the device allows)",
+    "stall": "seconds without data before the device counts as stalled (default 2; under the daemon, its "
+             "stall_seconds)",
+    "command_timeout": "seconds to wait for a reply before a command is sent again (default 0.5)",
+}
 
 
 class FirmwareDriver(Driver):
@@ -68,6 +75,10 @@ class FirmwareDriver(Driver):
         return {}
 
     # -------------------------------------------------------- session
+
+    @classmethod
+    def option_help(cls) -> dict[str, str]:
+        return dict(LINK_OPTIONS)
 
     def _link_options(self) -> set[str]:
         return set(LINK_OPTIONS)
@@ -247,13 +258,14 @@ class FirmwareDriver(Driver):
 
     # -------------------------------------------------------- flashing
 
-    def _read_record(self) -> P.CalibrationRecord | None:
+    def _read_record(self) -> bytes | None:
+        """The calibration record the device holds, as stored (None: it holds none)."""
         reply = self._command(P.CAL_READ, b"", (P.CAL_RECORD, P.ACK))
         if reply.type == P.ACK:
             raise DeviceError(f"the device cannot read its calibration record ({self._ack_status(reply)})")
         if not reply.payload or reply.payload[0] == P.RECORD_EMPTY:
             return None
-        return P.CalibrationRecord.from_bytes(reply.payload[1:])
+        return reply.payload[1:]
 
     def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
         if self.info is None:
@@ -263,7 +275,12 @@ class FirmwareDriver(Driver):
         if not self.info.calibration_store:
             raise DeviceError(f"{self.identity.chip} firmware {self.identity.firmware!r} has no calibration store",
                               "keep the profile on the host and apply it to the stream instead")
-        current = self._read_record()
+        raw = self._read_record()
+        try:
+            current = None if raw is None else P.CalibrationRecord.from_bytes(raw)
+            damaged = None
+        except DeviceError as exc:   # a damaged record is what flashing again repairs: shown, then replaced
+            current, damaged = None, exc.message
         new = P.CalibrationRecord.from_correction(correction, self.config.range_g, profile_id, int(time.time())
                                                   ).as_float32()
         writes = []
@@ -292,7 +309,9 @@ class FirmwareDriver(Driver):
             "record with a CRC-16, then read back and compared byte for byte",
             "data frames stay raw counts: whoever reads the device applies the record (or the profile)",
         ]
-        if current is None:
+        if damaged is not None:
+            notes.append(f"the record the device holds cannot be used ({damaged}): this write replaces it")
+        elif current is None:
             notes.append("the device holds no calibration record yet")
         return FlashPlan(device=f"{self.url.raw} ({self.identity.serial})", writes=writes, residual=residual,
                          notes=notes, payload=new.to_bytes())

@@ -54,6 +54,11 @@ def gap_cause(info: DeviceInfo) -> str:
     return "samples lost by the device or link"
 
 
+# the cause of the gap that follows a reconnect (the link went down and came back: the samples the device took
+# meanwhile were never sent); it starts "disconnected", as recording.loss_of sorts causes
+RECONNECT_CAUSE = "disconnected: the link went down and was re-established"
+
+
 class Recorder:
     """Every sample one reader delivers, from the first ``poll()`` on.
 
@@ -93,6 +98,10 @@ class Recorder:
         self._open_gaps: list[dict] = []             # gaps after the last sample kept, waiting for the next
         self._gap_span = 0.0                         # seconds between the samples either side of every gap
         self._gap_intervals = 0                      # sample intervals that span a gap
+        self._reconnects = 0                         # the link's reconnects seen so far (its gaps' cause)
+        self.last_arrival: float | None = None       # host monotonic time the last sample was taken
+        # the gap from the last sample to the end of the recording (a link still down when it ended), or None
+        self.open_end: dict | None = None
 
     @classmethod
     def attach(cls, session: Session, writer: SegmentWriter | None = None) -> Recorder:
@@ -110,9 +119,12 @@ class Recorder:
         if self.session is not None:
             self.session.notify_read()
         keep = chunk.n
+        end_in_gap = False   # the time limit falls between the last sample kept and a gap's far side
         if keep and seconds is not None:
             t0 = self._t0 if self._t0 is not None else float(chunk.t[0])
             keep = int(np.searchsorted(chunk.t - t0, seconds, side="left"))
+            end_in_gap = keep < chunk.n and (any(pos == keep for pos, *_ in chunk.gaps)
+                                             or (keep == 0 and bool(self._open_gaps)))
         if samples is not None:
             keep = min(keep, samples - self.samples)
         if keep < chunk.n or (samples is not None and self.samples + keep >= samples):
@@ -122,24 +134,65 @@ class Recorder:
                 chunk, counts=chunk.counts[:keep], t=chunk.t[:keep],
                 channels={name: values[:keep] for name, values in chunk.channels.items()},
                 gaps=[gap for gap in chunk.gaps if gap[0] < keep])
-        self._keep(chunk)
+        # a reconnect since the last poll explains the gap the time limit fell in (the link was down then)
+        end_cause = self._cause_after_reconnect() if end_in_gap else None
+        self._keep(chunk, self._causes(chunk))
+        if end_cause is not None and self._last_t is not None:
+            # the samples from the last one kept to the end asked for were lost: said, not left out
+            self.end_gap(end_cause, self._t0 + seconds - self._last_t - 1.0 / self.info.nominal_rate)
         return chunk
 
-    def _keep(self, chunk: Chunk) -> None:
+    def _cause_after_reconnect(self) -> str:
+        """The cause of a gap met now: a reconnect since the last one, or the device's usual way of losing samples."""
+        stats = self.info.link_stats
+        reconnects = stats.reconnects if stats is not None else 0
+        if reconnects > self._reconnects:
+            self._reconnects = reconnects
+            return RECONNECT_CAUSE
+        return self.gap_cause
+
+    def _causes(self, chunk: Chunk) -> list[str]:
+        """The cause of each of the chunk's gaps (the first after a reconnect is the link having been down)."""
+        return [cause or (self._cause_after_reconnect() if i == 0 else self.gap_cause)   # a replay's own first
+                for i, (_, _, cause) in enumerate(chunk.gaps)]
+
+    def end_gap(self, cause: str, seconds: float) -> None:
+        """The recording ended ``seconds`` after its last sample with no sample since, for ``cause`` (a link
+        down, a device gone): a gap of unknown size after the last sample, so the time is counted as lost."""
+        if self.open_end is not None or self._last_t is None:
+            return
+        seconds = max(float(seconds), 0.0)
+        with self._lock:
+            self.open_end = {"missing": -1, "cause": cause, "seconds": seconds}
+            self.gap_log.append(self.open_end)
+            self.gap_events += 1
+            if self.writer is not None:
+                from accelrig.segments import NS
+
+                self.writer.gap(self._last_ns + int((seconds + 1.0 / self.info.nominal_rate) * NS), -1, cause,
+                                seconds)
+            else:
+                self._gaps.append({"index": self.samples, "missing": -1, "cause": cause, "seconds": seconds})
+
+    def silent_for(self) -> float:
+        """Host seconds since the last sample was taken (0 before the first)."""
+        return 0.0 if self.last_arrival is None else time.monotonic() - self.last_arrival
+
+    def _keep(self, chunk: Chunk, causes: list[str]) -> None:
         with self._lock:
             if self.writer is not None:
-                self._stream(chunk)    # the gap records go to the writer, not to memory
+                self._stream(chunk, causes)    # the gap records go to the writer, not to memory
             elif chunk.lost:  # cannot happen on a lossless reader, but never hide it
                 self._gaps.append({"index": self.samples, "missing": chunk.lost, "cause": "reader overrun"})
-            for pos, missing, cause in chunk.gaps:
+            for (pos, missing, _), cause in zip(chunk.gaps, causes, strict=True):
                 if self.writer is None:
-                    self._gaps.append({"index": self.samples + pos, "missing": missing,
-                                       "cause": cause or self.gap_cause})
+                    self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": cause})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
-            self._time_gaps(chunk)
+            self._time_gaps(chunk, causes)
             if not chunk.n:
                 return
+            self.last_arrival = time.monotonic()
             if self._t0 is None:
                 self._t0 = float(chunk.t[0])
             if self.writer is None:
@@ -154,10 +207,10 @@ class Recorder:
             steady = self.seconds - self._gap_span
             self.rate = (self.samples - 1 - self._gap_intervals) / steady if steady > 0 else 0.0
 
-    def _time_gaps(self, chunk: Chunk) -> None:
+    def _time_gaps(self, chunk: Chunk, causes: list[str]) -> None:
         """Log this chunk's gaps with the time each one lasted (from the samples either side)."""
         found = [(0, chunk.lost, "reader overrun")] if chunk.lost else []
-        found += [(pos, missing, cause or self.gap_cause) for pos, missing, cause in chunk.gaps]
+        found += [(pos, missing, cause) for (pos, missing, _), cause in zip(chunk.gaps, causes, strict=True)]
         at: dict[int, list[dict]] = {}   # the gaps before each sample of the chunk (n: after its last)
         for pos, missing, cause in found:
             entry = {"missing": missing, "cause": cause, "seconds": None}
@@ -189,7 +242,7 @@ class Recorder:
         """Time the gaps took (known once the sample after each has arrived)."""
         return sum(g["seconds"] or 0.0 for g in self.gap_log)
 
-    def _stream(self, chunk: Chunk) -> None:
+    def _stream(self, chunk: Chunk, causes: list[str]) -> None:
         """Write a chunk to the writer: each run of samples, and each gap record at its place with its
         cause and duration (from the samples either side, less one period); times in UTC."""
         from accelrig.segments import NS, to_ns
@@ -208,7 +261,7 @@ class Recorder:
         if chunk.lost:
             w.gap(t[0] if chunk.n else time.time_ns(), chunk.lost, "reader overrun")
         start = 0
-        for pos, missing, cause in [*chunk.gaps, (chunk.n, None, None)]:
+        for (pos, missing, _), cause in zip([*chunk.gaps, (chunk.n, None, None)], [*causes, ""], strict=True):
             if pos > start:
                 w.write(t[start:pos], chunk.counts[start:pos],
                         {name: values[start:pos] for name, values in chunk.channels.items()} or None)
@@ -217,7 +270,7 @@ class Recorder:
                 at = int(t[pos]) if pos < chunk.n else time.time_ns()
                 seconds = ((at - self._last_ns) / NS - 1.0 / self.info.nominal_rate
                            if self._last_ns is not None and pos < chunk.n else None)
-                w.gap(at, missing, cause or self.gap_cause, seconds)
+                w.gap(at, missing, cause, seconds)
             start = pos
 
     def close(self) -> None:

@@ -6,8 +6,10 @@ from accelrig.errors import AccelrigError
 
 
 def register(sub, groups) -> None:
-    p = sub.add_parser("devices")
-    p.add_argument("--verbose", "-v", action="store_true", help="also list the simulator's options (every rig's, and each rig's own)")
+    p = sub.add_parser("devices", description="List the installed drivers and the devices each can find now; "
+                       "with --verbose, also every driver's URL options and each simulated rig's own.")
+    p.add_argument("--verbose", "-v", action="store_true",
+                   help="also list every driver's URL options, and each simulated rig's own options")
     p.set_defaults(func=run)
 
 
@@ -23,18 +25,26 @@ def run(args) -> int:
             found = cls.discover()
         except AccelrigError as exc:
             print(f"    (cannot search: {exc})")
-            continue
+            found = []
         for url in found:
             print(f"    {url}")
-        if args.verbose and scheme == "sim":
-            from accelrig.sim.rigs import RIGS
-
-            print("    sim:// options of every rig:")
-            for option, help_text in cls.sensor_options.items():
+        if args.verbose:
+            options = cls.option_help()
+            rigs = " and the options of the rig it names (listed under sim://)" if cls.takes_rig_options else ""
+            if options:
+                print(f"    {scheme}:// options{rigs}:")
+            for option, help_text in options.items():
                 print(f"        {option}: {help_text}")
-            for name in sorted(RIGS):
-                rig = RIGS[name]
-                print(f"    sim://{name}: {rig.description}")
-                for option, help_text in rig.options.items():
-                    print(f"        {option}: {help_text}")
+            if scheme == "sim":
+                _print_rigs()
     return 0
+
+
+def _print_rigs() -> None:
+    from accelrig.sim.rigs import RIGS
+
+    for name in sorted(RIGS):
+        rig = RIGS[name]
+        print(f"    sim://{name}: {rig.description}")
+        for option, help_text in rig.options.items():
+            print(f"        {option}: {help_text}")

@@ -171,7 +171,10 @@ def run_show(args) -> int:
     rng = f"+-{dev['range_g']:g} g" if dev["range_g"] is not None else "range ?"
     rate = f"{dev['rate']:g} Hz" if dev["rate"] is not None else "rate ?"
     _say_wrapped(f"             {rng}, {rate}, raw in {d['units']} (counts x nominal scale)")
-    _say_wrapped(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), g = {cal['g']} m/s^2")
+    # g as every face prints it (report.checks.gravity_text): to 0.01 mm/s^2, with its u where recorded
+    g_u = cal["settings"].get("g_u")
+    gravity = f"g = {cal['g']:.5f}" + (f" +- {g_u:.2g}" if isinstance(g_u, int | float) else "") + " m/s^2"
+    _say_wrapped(f"calibration  {cal['procedure']} / {cal['method']} ({cal['model']}), {gravity}")
     _say_wrapped(f"created      {prov['created']} by accelrig {prov['software_version']}"
           + (f" from {prov['recording_samples']} samples" if prov["recording_samples"] else ""))
     corr = cal["correction"]

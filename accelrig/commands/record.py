@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from accelrig.errors import DataError, DeviceError
+from accelrig.errors import DataError, DeviceError, DeviceStalled
 
 SINGLE_FILE_SUFFIXES = (".csv", ".npz", ".parquet")
 # A .csv or .npz output is assembled in memory at the end (about 40 bytes a sample while it
@@ -32,7 +32,12 @@ def register(sub, groups) -> None:
         "bounded however long it runs); Ctrl+C (or SIGTERM) stops and keeps everything recorded so far. "
         "Progress goes to stderr (a line updated in place on a terminal, a whole line every "
         f"{LOG_PROGRESS_SECONDS:.0f} s when stderr is a pipe or a log), and at the end one line says what was "
-        "kept: samples, duration, rate, file and any samples the link lost; stdout stays empty.",
+        "kept: samples, duration, rate, file and any samples the link lost; stdout stays empty. A link that "
+        "is down when the recording ends (a BLE device reconnecting, a device gone) leaves the time from the "
+        "last sample to the end as a gap of that length in the file, counted and said like any other loss. "
+        "Exit status: 0 the recording ran to its end (any loss is said on stderr and kept as gaps in the file; "
+        "more than 1%% lost is a warning); 3 the device went away before the end (what was taken is kept); "
+        "130 Ctrl+C or SIGTERM cut a requested --seconds/--samples short (what was taken is kept).",
     )
     p.add_argument("url", help="device URL, e.g. 'sim://static?seed=1' or replay://run.csv")
     length = p.add_mutually_exclusive_group()
@@ -133,20 +138,42 @@ def run(args) -> int:
                             "every accelrig command and by numpy/pandas through pyarrow")
         limit = min(limit or IN_MEMORY_SAMPLES, IN_MEMORY_SAMPLES)
 
+    def outage() -> str | None:
+        """Why no sample can arrive now (a gap's cause: the link down, the device gone), or None."""
+        if session.interrupted:
+            kind = "stalled" if isinstance(session.interruption, DeviceStalled) else "disconnected"
+            return f"{kind}: {session.interrupted}"
+        down = session.driver.link_down
+        return f"disconnected: {down}" if down else None
+
     def pull() -> bool:
-        """Give the pump a moment; a device that went away ends the recording with what was taken."""
+        """Give the pump a moment; a device that went away ends the recording with what was taken, and so
+        does the time asked for passing (on the host's clock) while the link is down."""
         time.sleep(0.02)
-        return session.state in (State.ENDED, State.DISCONNECTED, State.FAILED)
+        if session.state in (State.ENDED, State.DISCONNECTED, State.FAILED):
+            return True
+        return (args.seconds is not None and recorder.samples > 0 and outage() is not None
+                and recorder.seconds + recorder.silent_for() >= args.seconds)
 
     previous_term = signal.signal(signal.SIGTERM, _raise_interrupt)
     stopped_by = None
     try:
         try:
             recorder.take_until(pull, args.seconds, limit, progress)
+        except _Terminated:
+            stopped_by = "SIGTERM"
         except KeyboardInterrupt:
             stopped_by = "Ctrl+C"
     finally:
         signal.signal(signal.SIGTERM, previous_term)
+        why = outage()
+        if why is not None and not recorder.full:
+            # the link is down as the recording ends: the time since the last sample is lost, and said
+            silent = recorder.silent_for()
+            if args.seconds is not None:
+                silent = min(silent, args.seconds - recorder.seconds)
+            if silent > 1.0 / session.info.nominal_rate:   # at least one sample missing
+                recorder.end_gap(why, silent - 1.0 / session.info.nominal_rate)
         session.stop()
         recorder.close()
         finished = writer.close()
@@ -158,6 +185,10 @@ def run(args) -> int:
     # gaps of unknown size (a disconnect, a stall) count by the time they lasted, estimated at the nominal rate
     summary = loss_of(recorder.samples, recorder.gap_log, session.info.nominal_rate)
     lost = summary.summary()
+    if recorder.open_end is not None:
+        end = recorder.open_end
+        lost += (f"; no sample came in the last {end['seconds'] + 1.0 / session.info.nominal_rate:.2f} s, "
+                 f"counted as lost ({end['cause']})")
     loss = summary.warning()
     if loss is not None:
         print(f"accelrig: warning: {loss}", file=sys.stderr)
@@ -183,8 +214,12 @@ def run(args) -> int:
     return 0
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM: stops a recording as Ctrl+C does, and is named as itself."""
+
+
 def _raise_interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
+    raise _Terminated
 
 
 def _assemble(finished: list[Path], directory: Path, output: Path, units: str, info, recorder,

@@ -42,8 +42,8 @@ def register(sub, groups) -> None:
     p.add_argument("--approved-by", metavar="NAME", help="who authorises the certificate (printed above the "
                    "signature line; without it the name is left blank to fill in by hand)")
     p.add_argument("--location", help="where it was performed")
-    p.add_argument("--temperature", help="ambient temperature, e.g. '23.0 ± 1.0 °C'")
-    p.add_argument("--humidity", help="relative humidity, e.g. '45 ± 10 %%'")
+    p.add_argument("--temperature", help="ambient temperature, e.g. '23.0 ± 1.0 °C' (a bare number is in °C)")
+    p.add_argument("--humidity", help="relative humidity, e.g. '45 ± 10 %%' (a bare number is in %%)")
     p.set_defaults(func=run)
 
 
@@ -72,7 +72,7 @@ def run(args) -> int:
     import sys
 
     from accelrig.report import load_source, write_certificate
-    from accelrig.report.recompute import recording_hint
+    from accelrig.report.recompute import missing_recording, recording_hint
     from accelrig.report.source import load_noise
 
     src = load_source(args.source[0])
@@ -80,9 +80,15 @@ def run(args) -> int:
         src.noise = load_noise(args.noise, src.noise)
     if args.recording:
         src.recording_path = checked_recording(src, args.recording)
-    if not args.no_figures and (hint := recording_hint(src)):
-        print(f"note: {hint}", file=sys.stderr)
-    write_certificate(src, args.output, conditions, figures=not args.no_figures)
+    hint = None if args.no_figures else recording_hint(src)
+
+    def tell(message: str) -> None:
+        """What takes long, and each figure the certificate goes without and why: one line each on stderr."""
+        if hint is not None and message == f"figure not shown: {missing_recording(src)}":
+            message = f"figure not shown: {hint}"   # with the way out, which the certificate does not carry
+        print(f"accelrig report: {message}", file=sys.stderr, flush=True)
+
+    write_certificate(src, args.output, conditions, figures=not args.no_figures, tell=tell)
     print(f"wrote {args.output}")
     return 0
 
@@ -93,7 +99,7 @@ def checked_recording(src, path: str) -> str:
 
     from accelrig.errors import DataError
     from accelrig.recording import load_recording
-    from accelrig.report.recompute import needs_recording
+    from accelrig.report.recompute import calibrated_span, needs_recording
 
     if not needs_recording(src):
         raise DataError(f"--recording draws a static or wheel profile's figures; {src.path} is a {src.kind} of the "
@@ -101,7 +107,7 @@ def checked_recording(src, path: str) -> str:
                         "leave --recording out")
     if not Path(path).exists():
         raise DataError(f"{path}: no such file", "give the recording the profile was calibrated from")
-    got, wanted = load_recording(path).content_hash(), src.provenance.get("recording_hash")
+    got, wanted = calibrated_span(src, load_recording(path)).content_hash(), src.provenance.get("recording_hash")
     if got != wanted:
         raise DataError(f"{path}: not the recording this profile was calibrated from (its sha256 is {got}, the "
                         f"profile's {wanted})", "give the file the calibration read")

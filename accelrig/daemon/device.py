@@ -102,6 +102,10 @@ class UtcDriver(Driver):
         return self.inner.at_end
 
     @property
+    def link_down(self) -> str | None:
+        return self.inner.link_down
+
+    @property
     def info(self) -> DeviceInfo | None:
         return self.inner.info
 
@@ -636,7 +640,10 @@ class DeviceRunner:
                     self.log(f"{self.device.name}: the source ended")
                     break
                 if now - self.last_data > stall:
-                    reason = f"stalled: no data for {stall:g} s while connected"
+                    # a link being re-established (BLE out of reach) is not a device that stalled while connected
+                    down = session.driver.link_down
+                    reason = (f"disconnected: {down} (no data for {stall:g} s)" if down
+                              else f"stalled: no data for {stall:g} s while connected")
                     break
         finally:
             session.stop()

@@ -168,9 +168,10 @@ PROFILE_V1 = Object(
                 "created": Field(DateTime(description="when the profile was made (UTC)")),
                 "software_version": Field(String(description="accelrig version that made it")),
                 "recording_hash": Field(Nullable(String(pattern=r"sha256:[0-9a-f]{64}", description=(
-                    "sha256 of the calibration recording's numbers")))),
+                    "sha256 of the numbers of the samples calibrated")))),
                 "recording_source": Field(Nullable(String(description="file the recording came from"))),
-                "recording_samples": Field(Nullable(Integer(minimum=0))),
+                "recording_samples": Field(Nullable(Integer(minimum=0, description=(
+                    "samples calibrated: the first N of the recording (a TUI capture runs on after the compute)")))),
                 "recording_start": Field(Nullable(DateTime(description="when the recording started"))),
                 "temperature_c": Field(Nullable(Number(description="sensor temperature, degC, where known"))),
                 "rig": Field(Nullable(Plain(mapping=True, description="rig geometry used"))),

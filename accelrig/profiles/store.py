@@ -32,7 +32,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from accelrig.errors import AccelrigError, DataError, ProfileError
-from accelrig.files import OutputExists, make_dirs
+from accelrig.files import OutputExists, accelrig_home, make_dirs
 from accelrig.profiles.io import Profile, load_profile, save_profile
 from accelrig.settings import Setting
 from accelrig.spec import parse_datetime
@@ -41,12 +41,7 @@ DEFAULT_MAX_AGE_DAYS = 365.0
 
 
 def default_store_dir() -> Path:
-    home = os.environ.get("ACCELRIG_HOME")
-    if home:
-        return Path(home) / "profiles"
-    xdg = os.environ.get("XDG_DATA_HOME")
-    base = Path(xdg) if xdg else Path.home() / ".local" / "share"
-    return base / "accelrig" / "profiles"
+    return accelrig_home() / "profiles"
 
 
 def device_key(identity: str) -> str:

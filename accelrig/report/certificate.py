@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
 
@@ -22,12 +23,17 @@ PRINT_TIMEOUT_S = 120
 
 
 def certificate_html(src: Source, conditions: dict | None = None, figures: bool = True,
-                     issued: datetime | None = None) -> str:
+                     issued: datetime | None = None, tell: Callable[[str], None] | None = None) -> str:
+    """The certificate's page; ``tell`` hears what is being done when it takes long and, one line each, every
+    figure that cannot be shown and why (the page says so too)."""
     drawn, missing = None, None
     if figures:
         from accelrig.report.figures import figures_for
 
-        drawn, missing = figures_for(src)
+        drawn, missing = figures_for(src, tell)
+        if tell is not None:
+            for reason in missing:
+                tell(f"figure not shown: {reason}")
     return render_html(src, conditions, drawn, missing, issued)
 
 
@@ -71,9 +77,10 @@ def html_to_pdf(html_path: Path, pdf_path: Path) -> None:
 
 
 def write_certificate(src: Source, path: str | os.PathLike, conditions: dict | None = None,
-                      figures: bool = True) -> None:
-    """Write FILE.html or FILE.pdf (chosen by the suffix), whole or not at all."""
-    write_page(lambda: certificate_html(src, conditions, figures), path)
+                      figures: bool = True, tell: Callable[[str], None] | None = None) -> None:
+    """Write FILE.html or FILE.pdf (chosen by the suffix), whole or not at all; ``tell`` as for
+    certificate_html."""
+    write_page(lambda: certificate_html(src, conditions, figures, tell=tell), path)
 
 
 def write_page(render, path: str | os.PathLike) -> None:

@@ -10,6 +10,7 @@ prints it.
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -475,12 +476,13 @@ def batch_figures(batch) -> list[Figure]:
 FIGURES = {"static": [static_figure], "wheel": [wheel_figure], "slider-crank": [slider_crank_figure]}
 
 
-def figures_for(src: Source) -> tuple[list[Figure], list[str]]:
-    """The figures this source can show, and the reasons for those it cannot."""
+def figures_for(src: Source, tell: Callable[[str], None] | None = None) -> tuple[list[Figure], list[str]]:
+    """The figures this source can show, and the reasons for those it cannot; ``tell`` hears what is being
+    done when it takes long (re-running a calibration for its arrays)."""
     from accelrig.report.recompute import add_arrays_from_recording
 
     figures, missing = [], []
-    why_not = add_arrays_from_recording(src)
+    why_not = add_arrays_from_recording(src, tell)
     if why_not:
         missing.append(why_not)
     makers = FIGURES.get(src.procedure, [])

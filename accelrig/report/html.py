@@ -28,6 +28,8 @@ CONDITION_FIELDS = (("customer", "Customer"), ("customer_reference", "Customer r
                     ("operator", "Operator"), ("location", "Location"),
                     ("temperature", "Ambient temperature"), ("humidity", "Relative humidity"),
                     ("certificate_number", "Certificate number"))
+# the unit a condition given as a bare number is in ("--temperature 23" is 23 °C)
+CONDITION_UNITS = {"temperature": "°C", "humidity": "%"}
 # facts of the run, not of the item: wall-clock time and solver iterations change from run to run
 NO_BREAK_K = "(k\u00a0=\u00a0"   # "U (k = 2)" in a narrow column stays on one line
 RUN_FACTS = ("fit_seconds", "time_s", "n_evaluations", "iterations", "rate_fit_iterations")
@@ -306,6 +308,18 @@ def appendix_rows(src: Source) -> tuple[list, list]:
     return settings, quality
 
 
+def condition_text(key: str, value):
+    """A condition as the certificate states it: a bare number gets its unit (a text with one is kept)."""
+    unit = CONDITION_UNITS.get(key)
+    if unit is None or value is None:
+        return value
+    try:
+        float(str(value).strip())
+    except ValueError:
+        return value
+    return f"{str(value).strip()} {unit}"
+
+
 def render_html(src: Source, conditions: dict | None = None, figures: list | None = None,
                 missing_figures: list[str] | None = None, issued: datetime | None = None) -> str:
     """The certificate page.  ``figures`` are ``report.figures.Figure`` objects (None: a certificate without)."""
@@ -357,7 +371,7 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
     html.append('<p class="note">The settings the calibration used are listed in the appendix.</p>')
 
     html.append(heading("Conditions"))
-    cond_rows = [(label, conditions.get(key)) for key, label in CONDITION_FIELDS
+    cond_rows = [(label, condition_text(key, conditions.get(key))) for key, label in CONDITION_FIELDS
                  if key in conditions and key != "certificate_number"]
     if prov.get("temperature_c") is not None:
         cond_rows.append(("Sensor temperature", f"{prov['temperature_c']:g} °C"))

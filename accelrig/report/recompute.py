@@ -10,6 +10,7 @@ correction.  Otherwise the certificate says why the figures are missing.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,15 @@ from accelrig.report.source import Source
 RECOMPUTABLE = ("static", "wheel")
 # The re-run must give the certified correction back to rounding (same code, same data, same settings).
 REPRODUCE_RTOL = 1e-6
+
+
+def calibrated_span(src: Source, rec):
+    """The samples of ``rec`` the profile was calibrated from: its first ``recording_samples`` (a TUI capture
+    runs on while the result is computed and shown), else the whole recording."""
+    n = src.provenance.get("recording_samples")
+    if isinstance(n, int) and 0 < n < len(rec):
+        return rec.slice(0, n)
+    return rec
 
 
 def _recording_path(src: Source) -> Path | None:
@@ -38,7 +48,7 @@ def _recording_path(src: Source) -> Path | None:
 
         for candidate in found:
             try:
-                if load_recording(candidate).content_hash() == src.provenance.get("recording_hash"):
+                if calibrated_span(src, load_recording(candidate)).content_hash() == src.provenance.get("recording_hash"):
                     return candidate
             except AccelrigError:
                 continue
@@ -86,9 +96,9 @@ def recording_hint(src: Source) -> str | None:
             "(its sha256 is checked against the profile's)")
 
 
-def add_arrays_from_recording(src: Source) -> str | None:
+def add_arrays_from_recording(src: Source, tell: Callable[[str], None] | None = None) -> str | None:
     """Fill ``src.result['arrays']`` (and the per-pose table) by re-running the calibration; return why not,
-    or None when done or not needed."""
+    or None when done or not needed.  ``tell`` hears what is being done (a wheel's re-run takes a minute)."""
     if not needs_recording(src):
         return None
     path = _recording_path(src)
@@ -100,8 +110,11 @@ def add_arrays_from_recording(src: Source) -> str | None:
         rec = load_recording(path)
     except AccelrigError as exc:
         return f"the recording {path} could not be read again ({exc})"
+    rec = calibrated_span(src, rec)
     if rec.content_hash() != src.provenance.get("recording_hash"):
         return f"the recording {path} is not the one calibrated (its hash differs from the profile's)"
+    if tell is not None:
+        tell(f"re-running the {src.procedure} calibration on {path} ({len(rec)} samples) for the figures ...")
     try:
         again = _rerun(src, rec)
     except AccelrigError as exc:

@@ -3,7 +3,10 @@
 ``SimFirmware`` is the device: it answers commands and, while streaming,
 turns a simulated rig + SensorModel into DATA frame bodies for every
 ``samples_per_frame`` samples its clock has taken.  It keeps a calibration
-record store that checks the record's CRC, as a real firmware must.
+record store that checks the record's CRC, as a real firmware must; given a
+``store`` file it keeps the record there between opens, as a board's flash
+does (``serial-sim://`` and ``ble-sim://`` keep one per simulated device in the
+accelrig home: ``sim_record_file``).
 
 Two transports put it behind the real driver code:
 
@@ -30,11 +33,13 @@ import threading
 import time
 import tty
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from accelrig.acquisition import protocol as P
-from accelrig.errors import DeviceError
+from accelrig.errors import AccelrigError, DeviceError
+from accelrig.files import atomic_write, make_dirs
 from accelrig.sim.device import SimDevice
 from accelrig.sim.rigs.base import Rig
 from accelrig.sim.sensor import SensorModel, SimClock
@@ -66,8 +71,9 @@ class LinkFaults:
                 (stall_for = inf: it never comes back)
     reorder     (BLE) a notification is delivered after the next one
     disconnect_at  (BLE) device times at which the connection drops
-    outage      (BLE) device seconds a disconnect lasts before the device is reachable again
-    refuse_connects  (BLE) connection attempts that fail after each disconnect
+    outage      (BLE) device seconds a disconnect lasts before the device is reachable again (at real-time
+                pace connects fail until then; the driver's reconnect limit may run out first)
+    refuse_connects  (BLE) connection attempts that fail after each disconnect, once it is reachable
     cal_fault   "corrupt": the calibration store flips a bit of what it stores
                 "refuse": it reports a storage error
     """
@@ -101,6 +107,7 @@ class SimFirmware:
         chip: str = FIRMWARE_CHIP,
         max_samples_per_frame: int = P.SAMPLES_PER_BLE_FRAME,
         faults: LinkFaults | None = None,
+        store: Path | None = None,
     ):
         self.rig = rig
         self.sensor = sensor
@@ -115,7 +122,10 @@ class SimFirmware:
         self.streaming = False
         self.seq = 0
         self.numbered_until = 0   # device counter after the last numbered frame's samples (sent or not)
-        self.record: bytes | None = None
+        # the file the calibration record persists in between opens, as a board's flash keeps it across
+        # power cycles (None: held in memory only, gone with this object)
+        self.store = store
+        self.record: bytes | None = store.read_bytes() if store is not None and store.is_file() else None
         self.sent_frames = 0
         self.dropped_frames = 0
         self.stalled_samples = 0
@@ -189,6 +199,12 @@ class SimFirmware:
             stored = bytearray(raw)
             if self.faults.cal_fault == "corrupt":
                 stored[10] ^= 0x04  # a flash cell that did not take the write
+            if self.store is not None:
+                try:
+                    make_dirs(self.store.parent)
+                    atomic_write(self.store, lambda fh: fh.write(bytes(stored)), text=False)
+                except (OSError, AccelrigError):   # the host's disk is this board's flash
+                    return [self._ack(kind, P.STATUS_STORAGE_ERROR)]
             self.record = bytes(stored)
             return [self._ack(kind, P.STATUS_OK)]
         if kind == P.CAL_READ:
@@ -411,7 +427,7 @@ class SimBleClient:
         # state that outlives one client object (one BLE device, several connections)
         self.shared = shared if shared is not None else {"device_time": 0.0, "t0": time.monotonic(),
                                                          "disconnects": list(firmware.faults.disconnect_at),
-                                                         "refusals_left": 0, "connects": 0}
+                                                         "refusals_left": 0, "connects": 0, "reachable_at": 0.0}
         self.is_connected = False
         self.mtu_size = 23  # what BlueZ reports through bleak, whatever was negotiated
         self._callback = None
@@ -420,6 +436,8 @@ class SimBleClient:
 
     async def connect(self, **kwargs) -> bool:
         await asyncio.sleep(0)
+        if self._now() < self.shared["reachable_at"]:   # still out of reach after a disconnect (outage)
+            raise OSError(f"simulated BLE device {self.address} not reachable (outage)")
         if self.shared["refusals_left"] > 0:
             self.shared["refusals_left"] -= 1
             raise OSError(f"simulated BLE device {self.address} not reachable")
@@ -502,6 +520,9 @@ class SimBleClient:
             fw.streaming = False  # the firmware stops streaming when the central goes away
             fw.link_lost = True
         self.shared["refusals_left"] = fw.faults.refuse_connects
+        # out of reach for ``outage`` device seconds: at real-time pace connects fail until then; at fast pace
+        # the emulated clock jumps over it (nobody waits for device time that nothing streams in)
+        self.shared["reachable_at"] = now + fw.faults.outage
         if self.pace == "fast":
             self.shared["device_time"] = now + fw.faults.outage
         if self._disconnected_callback is not None:

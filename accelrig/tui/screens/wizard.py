@@ -560,10 +560,15 @@ class ProcedureWizard(Screen):
         try:
             with self._lock:
                 result = procedure.result()
+                used = self.recorder.samples   # every sample polled was fed: these, and no more, were calibrated
         except AccelrigError as exc:
             self.app.call_from_thread(self.fit_failed, generation, str(exc))
             return
+        # the capture runs on while the result is computed and shown (the operator still holds the last face):
+        # the profile names the samples calibrated (its hash and sample count), so a report re-runs on those
         recording = self.recorder.recording()
+        if len(recording) > used:
+            recording = recording.slice(0, used)
         # heavy link loss says so in the result (and the profile) as the CLI's commands say it (warn_loss):
         # the status line's drop count is gone once the results are up
         if (loss := loss_warning(recording)) is not None and loss not in result.warnings:
