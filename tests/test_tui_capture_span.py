@@ -12,8 +12,9 @@ from accelrig.tui.screens.results import ResultsScreen
 from tui_support import async_test, wait_for
 
 # the six faces, then +z again and again: never through the drift check's rounds, so the wizard does not compute
-# on its own, and 600 s of device time follow the faces; with a small buffer a pump feeds at most 20 s of them
-DEVICE = "sim://static?seed=3&pace=fast&order=+z,-z,+x,-x,+y,-y" + ",+z" * 100
+# on its own, and hours of device time follow the faces, so the source cannot end (and the wizard compute on its
+# own) before the key, even on an idle machine; with a small buffer a pump feeds at most 20 s of them
+DEVICE = "sim://static?seed=3&pace=fast&order=+z,-z,+x,-x,+y,-y" + ",+z" * 2000
 
 
 @async_test
@@ -30,6 +31,9 @@ async def test_a_capture_that_runs_on_after_the_compute_still_gives_the_certific
         # pumps (a pump reads and feeds under this lock), with most of the run still to come
         await asyncio.to_thread(wizard._lock.acquire)
         try:
+            # a pump waits on the lock with what the device delivered since: it feeds after the compute took its
+            # samples, as it does when the key lands mid-read (under load; on an idle machine none was waiting)
+            await wait_for(pilot, lambda: wizard._pumping)
             await pilot.press("c")
         finally:
             wizard._lock.release()
