@@ -78,3 +78,21 @@ async def test_flash_can_be_declined_before_the_stream_stops(tmp_path):
         await choose(pilot, "stay")
         await wait_for(pilot, lambda: "not flashed" in status(app))
         assert app.session is streaming and streaming.stats().state == State.STREAMING
+
+
+@async_test
+async def test_the_last_step_s_note_is_cleared_before_the_plan_is_shown(tmp_path):
+    """A step's note is posted (notify is a message): clearing at once left it over the plan on a loaded machine
+    (CI); the clear is queued behind it."""
+    app = AccelrigApp(device="serial-sim://still?seed=5", refresh_interval=0.05, profile_dir=tmp_path)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await wait_for(pilot, lambda: app.session is not None)
+        app.push_screen(ResultsScreen(small_result(), None, app.session))
+        await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and app.screen.profile is not None)
+        results = app.screen
+        await pilot.pause(0.2)
+        app.clear_notifications()
+        results.set_status("reading the device to plan the flash ...")
+        await results.clear_notifications()
+        await pilot.pause(0.2)
+        assert not app._notifications

@@ -536,7 +536,7 @@ class ResultsScreen(AsksBeforeClosing, Screen):
             self.set_status("reading the device to plan the flash ...")
             plan = await asyncio.to_thread(plan_flash, driver, self.profile, force_hint="")  # no force in the TUI
             # the notifications of the steps would lie over the plan's right half while it asks
-            self.app.clear_notifications()
+            await self.clear_notifications()
             question = ConfirmScreen("Write to the device?", "Write", "Cancel",
                                      details=escape(format_plan(plan, width=DIALOG_TEXT_WIDTH)))
             if not await self.app.push_screen_wait(question):
@@ -551,6 +551,19 @@ class ResultsScreen(AsksBeforeClosing, Screen):
         verdict = "[green]written and verified[/]" if report.verified else "[red]written but NOT verified[/]"
         return f"{verdict}: " + escape("; ".join(f"{w.target} {w.current}" for w in report.readback)
                                        + ("\n" + "\n".join(report.notes) if report.notes else "")), True
+
+    async def clear_notifications(self) -> None:
+        """Clear the notifications, those still on their way too: notify posts a message, so a clear made at
+        once can come before the last step's note (on a loaded machine) and leave it over the plan.  The
+        clear is queued behind them."""
+        cleared = asyncio.Event()
+
+        def clear() -> None:
+            self.app.clear_notifications()
+            cleared.set()
+
+        self.app.call_later(clear)
+        await cleared.wait()
 
     async def reopen_stream(self, url: str, outcome: str, written: bool) -> None:
         """Open the stream again after a flash (or an attempt), as the live view had it.  A device whose store
