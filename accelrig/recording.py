@@ -162,6 +162,9 @@ def _loss_kind(cause: str) -> tuple[str, str, str]:
                 "the daemon's log and journal say why it stopped (a reload, a restart, a crash)")
     if c.startswith("reader overrun"):
         return "overrun", "skipped by a reader that fell behind", "the host could not keep up: lower its load"
+    if c.startswith("gap in the replayed recording"):
+        return ("replayed", "already missing from the replayed recording (it records no cause)",
+                "look at the original recording's source")
     if c.startswith("disconnected"):
         return "link", "lost while the device was disconnected", "check the cable or radio link"
     return "link", "lost on the link", "check the cable or radio link"
@@ -312,11 +315,12 @@ def check_meta(meta, where: str) -> dict:
     return meta
 
 
-def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | None = None) -> Recording:
+def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
+             default_units: str = "m/s^2") -> Recording:
     """Read an interchange CSV.
 
-    ``units`` overrides what the file's metadata says (default m/s^2).  ``rate``
-    (Hz) supplies times for a file without a ``t`` column.
+    ``units`` overrides what the file's metadata says (``default_units`` when it says nothing: m/s^2, or
+    counts for a rotary bench's MEMS log).  ``rate`` (Hz) supplies times for a file without a ``t`` column.
     """
     path = Path(path)
     header, data, meta = read_table(path, ACC_COLUMNS, "a recording CSV", "t,ax,ay,az")
@@ -334,7 +338,7 @@ def read_csv(path: str | os.PathLike, units: str | None = None, rate: float | No
             raise DataError(f"{path}: no 't' column and no sample rate", "add a t column or give the rate (--rate HZ)")
         t = np.arange(data.shape[0]) / float(rate)
     channels = {name: data[:, i] for name, i in col.items() if name not in ("t",) + ACC_COLUMNS}
-    file_units = meta.get("units", "m/s^2")
+    file_units = meta.get("units", default_units)
     rec_units = normalise_unit(units) if units else normalise_unit(file_units)
     meta.setdefault("source", str(path))
     meta["units"] = rec_units
@@ -547,25 +551,27 @@ def _check_npz(path: Path) -> None:
 
 
 def load_recording(path: str | os.PathLike, units: str | None = None, rate: float | None = None,
-                   start: float | str | None = None, stop: float | str | None = None) -> Recording:
+                   start: float | str | None = None, stop: float | str | None = None,
+                   default_units: str = "m/s^2") -> Recording:
     """Load a CSV or native recording, or segments (a directory of them, a .parquet or .seg file),
     chosen by the file suffix.
 
     ``start``/``stop`` keep a time range: seconds from the first sample, or an ISO-8601 UTC time
     such as 2026-11-24T01:00:00Z (segments, and files whose metadata give their UTC time origin).
+    ``units`` overrides what the file declares; ``default_units`` stands for a CSV that declares nothing.
     """
-    rec = _load(Path(path), units, rate, start, stop)
+    rec = _load(Path(path), units, rate, start, stop, default_units)
     # where it was read from, whatever its header declares as its "source" (a description such as "imucal
     # sensor 3"): a profile keeps this, so that a certificate can find the file again (report.recompute)
     rec.meta["file"] = str(path)
     return rec
 
 
-def _load(path: Path, units, rate, start, stop) -> Recording:
+def _load(path: Path, units, rate, start, stop, default_units="m/s^2") -> Recording:
     if path.is_dir() or path.suffix.lower() in SEGMENT_SUFFIXES:
         return read_segments(path, *resolve_range(path, start, stop), units="counts" if units == "counts" else None)
     if start is not None or stop is not None:
-        return time_range(load_recording(path, units, rate), start, stop)
+        return time_range(load_recording(path, units, rate, default_units=default_units), start, stop)
     if path.suffix.lower() == NATIVE_SUFFIX:
         rec = load_native(path)
         if units:
@@ -575,7 +581,7 @@ def _load(path: Path, units, rate, start, stop) -> Recording:
         # the usual slip: a profile or a saved result where the recording belongs
         raise DataError(f"{path}: a {path.suffix[1:].upper()} file (a profile or a saved result?), not a recording",
                         "give the recording: a CSV, a .npz or segments (a .parquet/.seg file or their folder)")
-    return read_csv(path, units=units, rate=rate)
+    return read_csv(path, units=units, rate=rate, default_units=default_units)
 
 
 def read_segments(path: str | os.PathLike, start: float | None = None, stop: float | None = None,
@@ -603,7 +609,7 @@ def time_range(rec: Recording, start: float | str | None, stop: float | str | No
         except ValueError:
             pass
         when = utc_seconds(name, value)
-        if not _has_utc(rec):
+        if utc_origin(rec) is None:
             raise DataError(f"--{name} {value}: {rec.meta.get('source', 'the recording')} carries no absolute time "
                             "(its metadata give no UTC time origin), so a UTC time cannot be placed in it",
                             f"give --{name} in seconds from the first sample")
@@ -613,12 +619,16 @@ def time_range(rec: Recording, start: float | str | None, stop: float | str | No
     if hi <= lo:
         raise DataError(f"no samples from {'the first sample' if start is None else start} to before "
                         f"{'the end' if stop is None else stop} (the recording spans {rec.duration:.3f} s"
-                        + (f" from {_utc_text(rec.meta['time_origin'] + t0)}" if _has_utc(rec) else "") + ")")
+                        + (f" from {_utc_text(rec.meta['time_origin'] + t0)}" if utc_origin(rec) is not None else "") + ")")
     return rec.slice(lo, hi)
 
 
-def _has_utc(rec: Recording) -> bool:
-    return rec.meta.get("time_base") == "utc" and isinstance(rec.meta.get("time_origin"), int | float)
+def utc_origin(rec: Recording) -> float | None:
+    """The UTC epoch seconds of t = 0 when the recording carries absolute time (``record`` and the daemon
+    write time_base "utc" and time_origin), else None."""
+    if rec.meta.get("time_base") == "utc" and isinstance(rec.meta.get("time_origin"), int | float):
+        return float(rec.meta["time_origin"])
+    return None
 
 
 def _utc_text(epoch: float) -> str:

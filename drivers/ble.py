@@ -318,6 +318,15 @@ class BleSimDriver(BleDriver):
         client = self.client
         return client is not None and not self._inbox and sim_stream_read(self, client.shared.get("sent_all", False))
 
+    def read(self, timeout: float = 0.1):
+        from accelrig_drivers.serial import sim_lost_tail
+
+        blocks = super().read(timeout)
+        client = self.client
+        if not blocks and client is not None and not self._inbox:
+            blocks = sim_lost_tail(self, client.shared.get("sent_all", False))
+        return blocks
+
     def _link_options(self) -> set[str]:
         from accelrig_drivers.serial import sim_firmware_options
 

@@ -10,7 +10,9 @@ Options:
                          time (recordings that carry UTC time)
 
 Samples become int16 counts again at the scale the file records, or at the
-finest standard range (2, 4, 8, 16 g) that holds the data.
+finest standard range (2, 4, 8, 16 g) that holds the data.  The recording's gaps
+are replayed where they were, each with the cause it records, so what is recorded
+from a replay says why each gap happened as the original did.
 """
 
 from __future__ import annotations
@@ -71,9 +73,14 @@ class ReplayDriver(Driver):
         self._period = float(self._t[-1] + (self._t[-1] - self._t[0]) / (len(rec) - 1))
         self._channels = rec.channels
         self._scale = float(scale)
-        # the source's gaps are facts of the stream: each one is replayed on the block it precedes
-        self._gaps = {int(g["index"]): int(g["missing"]) for g in rec.meta.get("gaps") or []
-                      if isinstance(g, dict) and "index" in g and "missing" in g}
+        # the source's gaps are facts of the stream: each one is replayed, with its recorded cause, on the
+        # block it precedes (several at one place, or after the last sample: on empty blocks of their own)
+        self._gaps: dict[int, list[tuple[int, str | None]]] = {}
+        for g in rec.meta.get("gaps") or []:
+            if isinstance(g, dict) and "index" in g and "missing" in g and int(g["missing"]):
+                cause = g.get("cause")
+                self._gaps.setdefault(min(int(g["index"]), len(rec)), []).append(
+                    (int(g["missing"]), str(cause) if cause else None))
         self._t0 = time.monotonic()
         rate = rec.rate
         # the replayed device is the one that made the recording: its identity, chip,
@@ -117,19 +124,35 @@ class ReplayDriver(Driver):
             later_gaps = [i for i in self._gaps if self._pos < i < end]
             if later_gaps:
                 end = min(later_gaps)
+            gaps = self._gaps.get(self._pos, [])
+            blocks += self._gap_blocks(gaps[:-1], host)
+            missing, cause = gaps[-1] if gaps else (0, None)
             sl = slice(self._pos, end)
             offset = self._loops * self._period
             blocks.append(Block(
                 seq=self._seq, counter=self._loops * n_total + self._pos, host_time=host,
                 counts=self._counts[sl], scale=self._scale, t=self._t[sl] + offset,
-                gap_before=self._gaps.get(self._pos, 0),
-                channels={k: v[sl] for k, v in self._channels.items()},
+                gap_before=missing, channels={k: v[sl] for k, v in self._channels.items()}, gap_cause=cause,
             ))
             self._seq += 1
             self._pos = end
+        if self._pos >= n_total:   # gaps the recording ends with
+            blocks += self._gap_blocks(self._gaps.get(n_total, []), host)
         if self.loop and self._pos >= n_total:
             self._pos = 0
             self._loops += 1
+        return blocks
+
+    def _gap_blocks(self, gaps: list[tuple[int, str | None]], host: float) -> list[Block]:
+        """Empty blocks carrying these gaps (one block carries one gap)."""
+        blocks = []
+        for missing, cause in gaps:
+            blocks.append(Block(
+                seq=self._seq, counter=self._loops * len(self._counts) + self._pos, host_time=host,
+                counts=np.empty((0, 3), np.int16), scale=self._scale, t=np.empty(0), gap_before=missing,
+                channels={k: np.empty(0) for k in self._channels}, gap_cause=cause,
+            ))
+            self._seq += 1
         return blocks
 
     def close(self) -> None:

@@ -31,6 +31,7 @@ import time
 import numpy as np
 
 from accelrig.acquisition import protocol as P
+from accelrig.acquisition.block import Block
 from accelrig.acquisition.firmware_link import FirmwareDriver
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError, require_extra
@@ -173,7 +174,7 @@ def _shared_sim_options(url: DeviceURL) -> set[str]:
 
 
 # after the simulated firmware's last frame, how long a host waits for frames lost on the way
-# (dropped or damaged) before it counts the stream as ended: well inside the 2 s stall limit
+# (dropped or damaged) before it counts them lost and the stream as ended: well inside the 2 s stall limit
 SIM_END_SETTLE = 0.5
 
 
@@ -182,14 +183,37 @@ def sim_stream_read(driver: FirmwareDriver, sent_all: bool) -> bool:
 
     The bytes of the last frames can still be in the pty or the notification queue when the
     firmware is done, so the frame sequence numbers decide: the host has seen (or counted as
-    lost) every frame the firmware numbered.  A last frame lost on the way is never seen;
-    then a quiet SIM_END_SETTLE ends the stream.
+    lost) every frame the firmware numbered.  Last frames lost on the way are never seen:
+    ``sim_lost_tail`` counts them.
     """
     if not sent_all or driver._pending_data:
         return False
-    if driver.sequencer.next_seq == driver.firmware.seq:
-        return True
-    return time.monotonic() - driver._last_data > SIM_END_SETTLE
+    return driver.sequencer.next_seq == driver.firmware.seq
+
+
+def sim_lost_tail(driver: FirmwareDriver, sent_all: bool) -> list[Block]:
+    """The blocks that end a *-sim stream whose last frames were lost on the way (none otherwise).
+
+    No later frame shows such a loss, so the simulated firmware says where it stopped: once it has
+    sent all and the link has been quiet for SIM_END_SETTLE, frames still held for a predecessor are
+    released, and those never received are counted lost, their samples a gap after the last sample
+    (an empty block carrying it): the stream ends with its loss counted, never silently short.
+    """
+    if not sent_all or driver._pending_data or sim_stream_read(driver, sent_all):
+        return []
+    if time.monotonic() - driver._last_data <= SIM_END_SETTLE:
+        return []
+    now = time.monotonic()
+    blocks = driver._assemble(placed, now) if (placed := driver.sequencer.flush()) else []
+    firmware = driver.firmware
+    missing = driver.sequencer.lose_tail(firmware.seq, firmware.numbered_until)
+    if missing:
+        blocks.append(Block(driver._block_seq, driver.sequencer.next_counter, now, np.empty((0, 3), np.int16),
+                            driver.info.scale, np.empty(0), missing))
+        driver._block_seq += 1
+    if blocks:   # a stream of which nothing ever arrived has nothing to end: it stalls, as it should
+        driver._last_data = now
+    return blocks
 
 
 def sim_firmware_options(url: DeviceURL, extra_faults: set[str] = frozenset()) -> set[str]:
@@ -260,6 +284,12 @@ class SerialSimDriver(SerialDriver):
         # a scripted rig (static, slider-crank, ...) ends: once its last frame has been read,
         # the recording is complete, not a stalled device
         return self.server is not None and sim_stream_read(self, self.server.sent_all)
+
+    def read(self, timeout: float = 0.1) -> list[Block]:
+        blocks = super().read(timeout)
+        if not blocks and self.server is not None:
+            blocks = sim_lost_tail(self, self.server.sent_all)
+        return blocks
 
     def _transport_open(self) -> str:
         from accelrig.sim.firmware import PtyFirmware

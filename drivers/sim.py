@@ -27,7 +27,7 @@ SENSOR_OPTIONS = {
     "rate": "nominal sample rate, Hz (default 200)",
     "rate_error": "relative error of the true rate (default 0.004, i.e. +0.4 %)",
     "jitter": "timestamp jitter sd, s (default 20e-6)",
-    "range": "full scale +-G, g (default 2)",
+    "range": "full scale +-G, g (default 2; 8 on the rotary bench, whose swing exceeds 2 g)",
     "noise": "white noise sd per sample, m/s^2 (default: MPU-9250 density)",
     "truth": "random: an imperfect sensor drawn from the seed (default); ideal: a perfect one",
     "block": "samples per block (default 256; realtime pace delivers at least every 50 ms)",
@@ -54,7 +54,7 @@ def build_device(url) -> tuple[SimDevice, str]:
     seed = url.get_int("seed", 0, low=0)
     pace = url.get_choice("pace", ("realtime", "fast"), "realtime")
     rate = url.get_rate(200.0)
-    range_g = url.get_range_g(2.0)
+    range_g = url.get_range_g(rig_cls.default_range_g)
     block = url.get_int("block", 256, low=1, high=65536)
     seq = np.random.SeedSequence(seed)
     rig_seed, sensor_seed, device_seed = seq.spawn(3)
@@ -128,7 +128,8 @@ class SimDriver(Driver):
         if d.disconnected:
             raise DeviceError(f"simulated device {self.url.raw} disconnected", "reconnect or check the cable")
         if d.exhausted:
-            return []
+            tail = d.lost_tail(time.monotonic())
+            return [tail] if tail is not None else []
         if self.pace == "fast":
             n = d.block_size
         else:
@@ -149,7 +150,8 @@ class SimDriver(Driver):
             n -= take
             if block is not None:
                 blocks.append(block)
-        return blocks
+        tail = d.lost_tail(host_time)
+        return blocks + [tail] if tail is not None else blocks
 
     def close(self) -> None:
         self.device = None

@@ -402,10 +402,10 @@ import sys, time
 from accelrig.daemon import device
 from accelrig.cli import main
 start = device.DeviceRunner.start
-def slow_start(self):
+def slow_start(self, *args, **kwargs):
     if self.device.name == "pier":
         time.sleep(1.0)
-    start(self)
+    start(self, *args, **kwargs)
 device.DeviceRunner.start = slow_start
 sys.exit(main(sys.argv[1:]))
 """

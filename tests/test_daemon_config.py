@@ -249,6 +249,31 @@ def test_utc_clock_keeps_time_increasing_measures_the_rate_and_slews_to_the_host
     assert abs(utc[-1] - (1.7e9 + host["mono"] - 100.0)) < 0.005
 
 
+def test_utc_clock_counts_a_gap_an_empty_block_carries(monkeypatch):
+    """A gap on an empty block (a stream that ended with a loss, or a replayed gap among others at one place)
+    counts as one on the next block does: the same UTC times and the same measured rate follow."""
+    import numpy as np
+
+    from accelrig.daemon import clock as clock_module
+
+    host = {"mono": 100.0}
+    monkeypatch.setattr(clock_module.time, "time", lambda: 1.7e9 + host["mono"] - 100.0)
+    monkeypatch.setattr(clock_module.time, "monotonic", lambda: host["mono"])
+    rate = 100.0
+    utc, measured = {}, {}
+    for empty in (False, True):
+        clock, out = clock_module.UtcClock(rate, min_span=1.0), []
+        for block in range(60):
+            first = 100 * block + (50 if block >= 30 else 0)    # 50 samples lost before block 30
+            if block == 30 and empty:
+                clock.map(np.empty(0), 100.0 + first / rate, 50)
+            t = (first + np.arange(100)) / rate
+            out.append(clock.map(t, 100.0 + (first + 100) / rate, 50 if block == 30 and not empty else 0))
+        utc[empty], measured[empty] = np.concatenate(out), clock.measured_rate
+    np.testing.assert_array_equal(utc[True], utc[False])
+    assert measured[True] == measured[False] == pytest.approx(rate, rel=1e-9)
+
+
 def test_a_reload_with_a_broken_config_keeps_the_running_one(tmp_path, capsys):
     from accelrig.daemon.service import Daemon
 
@@ -455,3 +480,70 @@ def test_the_serial_driver_is_given_the_daemons_stall_limit_unless_its_url_sets_
                 driver.read(0.05)
     assert err.value.seconds == 0.4
     assert str(driver.url.raw) == config.devices[0].url    # the URL as configured, in every message
+
+
+def wait_until_true(condition, timeout: float = 60.0) -> None:
+    import time
+
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_a_reload_whose_old_runner_hangs_hands_the_directory_over_when_it_returns(tmp_path, monkeypatch, capsys):
+    """A restarted device whose old runner took longer than STOP_SECONDS to stop: the old one kept the
+    directory's lock, and the new one was refused beside it and retried with its backoff, its gap blamed on a
+    crash.  Now the new one waits, says so, and starts once the old one has returned and closed its segments."""
+    from accelrig.daemon import service
+    from accelrig.daemon.device import WAITING_FOR_PREVIOUS
+    from accelrig.recording import read_segments
+    from accelrig_drivers.sim import SimDriver
+
+    monkeypatch.setattr(service, "STOP_SECONDS", 0.2)
+    release, hang = threading.Event(), threading.Event()
+    close = SimDriver.close
+
+    def close_that_hangs(self):   # a driver call that outlasts the reload's wait
+        if hang.is_set():
+            assert release.wait(60)
+        close(self)
+
+    monkeypatch.setattr(SimDriver, "close", close_that_hangs)
+    path = tmp_path / "d.yaml"
+
+    def configure(rate):
+        path.write_text(yaml.safe_dump({**MINIMAL, "output": str(tmp_path / "out"),
+                                        "devices": [{"url": f"sim://still?seed=1&rate={rate}", "name": "a"}]}))
+
+    configure(200)
+    daemon = service.Daemon(path)
+    old = daemon._add(daemon.config.devices[0])
+    old.start()
+    try:
+        wait_until_true(lambda: old.counts.written > 0)
+        hang.set()
+        configure(100)
+        daemon.reload()
+        new = daemon.runners["a"]
+        assert new is not old and not old.join(0)
+        assert "its new run starts then" in capsys.readouterr().err
+        wait_until_true(lambda: new.status()["state"] == "waiting")
+        assert new.status()["error"] == WAITING_FOR_PREVIOUS
+        hang.clear()
+        release.set()
+        wait_until_true(lambda: new.counts.written > 0)
+        assert old.join(5) and new.counts.failed_connects == 0 and new.counts.connects == 1
+    finally:
+        hang.clear()
+        release.set()
+        daemon._shutdown()
+    events = [json.loads(line) for line in (tmp_path / "out" / "a" / "journal.jsonl").read_text().splitlines()]
+    kinds = [e["event"] for e in events]
+    assert "connect_failed" not in kinds
+    # the old run stopped (its last sample in the journal) before the new one connected
+    first_stop = kinds.index("stop")
+    assert events[first_stop]["reason"] == "restarted: its configuration changed"
+    assert kinds.index("connect", first_stop) > first_stop
+    causes = [g["cause"] for g in read_segments(tmp_path / "out" / "a").meta["gaps"]]
+    assert causes == ["not recording: restarted: its configuration changed"], causes

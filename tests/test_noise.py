@@ -128,7 +128,10 @@ def test_noise_cli_table_json_and_profile(tmp_path, cli):
     write_csv(rec, path)
     r = run_cli("noise", str(path))
     assert r.returncode == 0, r.stderr
-    assert "| axis | density ug/sqrt(Hz)" in r.stdout
+    assert "axis  density ug/sqrt(Hz)" in r.stdout
+    # 80 columns like every command's table (it was a 120-column Markdown table); nothing dropped
+    assert max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout
+    assert "rate random walk (m/s^2)/sqrt(s)" in r.stdout and "bias instability ug (tau)" in r.stdout
     assert "one-sided" in r.stdout
     r = cli("noise", str(path), "--json")
     data = json.loads(r.stdout)

@@ -240,8 +240,31 @@ def test_sequencer_accounts_for_every_frame(data):
     assert sum(g for _, _, g in out) == stats.lost_samples
 
 
-def test_frame_older_than_the_first_one_seen_is_late_not_a_duplicate():
+def test_a_frame_that_overtakes_the_streams_first_frame_does_not_start_the_stream():
+    # It used to: the overtaken first frame was then counted late and its samples dropped.
     stats = P.LinkStats()
-    out = run(P.DataSequencer(stats, reorder_window=2), frames_for([1, 0, 2]))
-    assert [f.seq for f, _, _ in out] == [1, 2]
+    seq = P.DataSequencer(stats, reorder_window=2)
+    assert run(seq, frames_for([1])) == []   # the first frame waits for one that may have been overtaken
+    out = run(seq, frames_for([0, 2, 3])) + seq.flush()
+    assert [f.seq for f, _, _ in out] == [0, 1, 2, 3]
+    assert stats.late_frames == stats.lost_frames == stats.duplicate_frames == 0
+    # a stream of one frame is released at its end; serial (no window) never waits
+    short = P.DataSequencer(P.LinkStats(), reorder_window=8)
+    assert run(short, frames_for([5])) == [] and [f.seq for f, _, _ in short.flush()] == [5]
+    assert [f.seq for f, _, _ in run(P.DataSequencer(P.LinkStats()), frames_for([7]))] == [7]
+
+
+def test_frame_older_than_the_first_one_released_is_late_not_a_duplicate():
+    stats = P.LinkStats()
+    out = run(P.DataSequencer(stats, reorder_window=1), frames_for([1, 2, 0, 3]))
+    assert [f.seq for f, _, _ in out] == [1, 2, 3]
     assert stats.late_frames == 1 and stats.duplicate_frames == 0 and stats.lost_frames == 0
+
+
+def test_frames_lost_at_the_end_are_counted_once_the_device_says_where_it_stopped():
+    stats = P.LinkStats()
+    seq = P.DataSequencer(stats)
+    run(seq, frames_for([0, 1, 2]))
+    assert seq.lose_tail(5, 50) == 20 and stats.lost_frames == 2 and stats.lost_samples == 20
+    assert seq.next_seq == 5 and seq.next_counter == 50
+    assert seq.lose_tail(5, 50) == 0 and stats.lost_frames == 2   # counted once

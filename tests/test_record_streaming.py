@@ -199,3 +199,38 @@ def test_the_loss_warning_follows_each_gaps_recorded_cause(tmp_path):
     warning = loss_warning(load_recording(tmp_path / "mixed"))
     assert "about 800 of 6800 samples" in warning and "600 dropped while the disk was full" in warning
     assert "200 not sent while the device stalled" in warning and "check the device's power" in warning
+
+
+def test_a_replay_passes_each_gaps_recorded_cause_on(tmp_path, cli):
+    """Replay used to pass the gaps' sizes on but not their causes: whatever was recorded from it blamed
+    the link for every gap (a full disk and a stall became 'frames lost on the link')."""
+    from accelrig.recording import loss_warning
+
+    source = tmp_path / "mixed"
+    _segments_with_gaps(source, [(600, "disk full", 3.0), (-1, "stalled: no data for 10 s", 1.0)])
+    original = [(g["index"], g["missing"], g["cause"]) for g in load_recording(source).meta["gaps"]]
+    for out in (tmp_path / "again.npz", tmp_path / "again"):   # kept in memory, and streamed to segments
+        r = cli("record", f"replay://{source}?pace=fast", "-o", out)
+        assert r.returncode == 0, r.stderr
+        back = load_recording(out)
+        assert [(g["index"], g["missing"], g["cause"]) for g in back.meta["gaps"]] == original
+        assert "disk was full" in loss_warning(back) and "cable" not in loss_warning(back)
+
+
+def test_a_replay_repeats_gaps_at_one_place_and_after_the_last_sample(tmp_path):
+    from accelrig.acquisition.recorder import REPLAYED_GAP, record
+    from accelrig.recording import Recording, save_recording
+
+    t = np.arange(300) / 100.0
+    gaps = [{"index": 100, "missing": 5, "cause": "disk full"},
+            {"index": 100, "missing": -1, "cause": "crash: the recorder was restarted"},
+            {"index": 200, "missing": 3},   # no cause recorded
+            {"index": 300, "missing": 7, "cause": "stalled: no data for 2 s"}]   # the recording ends with it
+    save_recording(Recording(t, np.tile([0.0, 0.0, 9.8], (300, 1)), "m/s^2", {},
+                             {"nominal_rate": 100.0, "gaps": gaps}), tmp_path / "r.npz")
+    with driver_for(f"replay://{tmp_path / 'r.npz'}?pace=fast&block=64") as d:
+        back = record(d)
+    assert len(back) == 300
+    assert [(g["index"], g["missing"], g["cause"]) for g in back.meta["gaps"]] == [
+        (100, 5, "disk full"), (100, -1, "crash: the recorder was restarted"), (200, 3, REPLAYED_GAP),
+        (300, 7, "stalled: no data for 2 s")]

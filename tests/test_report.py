@@ -213,10 +213,13 @@ def test_cli_from_a_profile_a_saved_result_and_a_campaign(static_run, campaign_r
     profile = tmp_path / "p.yaml"
     save_profile(profile_from_result(result, rec), profile)
     out = tmp_path / "from-profile.html"
-    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab"]) == 0
+    assert main(["report", str(profile), "-o", str(out), "--operator", "B. Lab", "--customer", "C. Ltd",
+                 "--customer-reference", "PO 4711/B"]) == 0
     html = out.read_text()
     assert_every_parameter_with_its_u_and_U(result, html)
     assert "B. Lab" in html and rec.content_hash() in html
+    # the customer's reference (order number) is stated, under the customer
+    assert html.index("C. Ltd") < html.index("Customer reference") < html.index("PO 4711/B")
     # an issued certificate is not replaced unasked (the operator's name would be gone)
     assert main(["report", str(profile), "-o", str(out)]) != 0
     assert "B. Lab" in out.read_text()
@@ -347,6 +350,24 @@ def test_a_profile_gets_its_figures_from_the_recording_it_names_and_only_that_on
     path.write_text("\n".join(text) + "\n")
     figures, missing = figures_for(load_source(profile))
     assert figures == [] and "hash differs" in missing[0]
+
+
+def test_the_figures_of_a_profile_with_poses_left_out_leave_them_out_again(static_run, tmp_path):
+    """calibrate static --skip-pose: re-running for the figures leaves the same poses out, so the certified
+    correction is reproduced (without them the re-run would not match and the figures would be dropped)."""
+    from accelrig.procedures.static.procedure import calibrate_static
+    from accelrig.profiles import profile_from_result, save_profile
+    from accelrig.recording import load_recording, write_csv
+    from accelrig.report.figures import figures_for
+
+    path = tmp_path / "rec.csv"
+    write_csv(static_run[1], path)
+    rec = load_recording(path)
+    result = calibrate_static(rec, skip_poses=[2, 9])
+    profile = tmp_path / "p.yaml"
+    save_profile(profile_from_result(result, rec), profile)
+    figures, missing = figures_for(load_source(profile))
+    assert missing == [] and len(figures) == 1
 
 
 def test_a_relative_recording_name_finds_the_calibrated_file_beside_the_profile(static_run, tmp_path, monkeypatch):

@@ -154,8 +154,10 @@ def test_accelrig_report_on_a_directory_writes_one_document_and_lists_what_it_sk
     (directory / "notes.yaml").write_text("what: the bench's notes\n")
     try:
         out = tmp_path / "batch.html"
-        assert main(["report", str(directory), "-o", str(out), "--number", "B-1"]) == 0
+        assert main(["report", str(directory), "-o", str(out), "--number", "B-1", "--customer-reference",
+                     "order 77"]) == 0
         captured = capsys.readouterr()
+        assert "Customer reference" in out.read_text(encoding="utf-8") and "order 77" in out.read_text(encoding="utf-8")
         assert f"1 outliers: dev-{BATCH_GOOD + 1} sensitivity x" in captured.out
         assert "notes.yaml" in captured.err
         page = out.read_text(encoding="utf-8")

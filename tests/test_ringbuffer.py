@@ -1,5 +1,6 @@
 """Ring buffer: wrap-around, overflow accounting, gaps, concurrent producer/consumer."""
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -58,17 +59,18 @@ def test_reader_sees_every_sample_or_counts_it_lost(capacity, sizes, read_every)
 @settings(max_examples=100, deadline=None)
 @given(
     capacity=st.integers(4, 50),
-    blocks=st.lists(st.tuples(st.integers(1, 30), st.integers(0, 9)), min_size=1, max_size=30),
+    blocks=st.lists(st.tuples(st.integers(0, 30), st.integers(0, 9)), min_size=1, max_size=30),
     read_pattern=st.lists(st.booleans(), min_size=30, max_size=30),
 )
 def test_every_driver_gap_reaches_every_reader(capacity, blocks, read_pattern):
-    """Gaps survive to a fast reader, a slow reader and one that reads only at the end."""
+    """Gaps survive to a fast reader, a slow reader and one that reads only at the end, each exactly once
+    (an empty block's gap, at the head, included)."""
     buf = RingBuffer(capacity, SCALE, ("theta",))
     fast, sometimes, late = buf.reader(), buf.reader(), buf.reader()
     totals = {"fast": 0, "sometimes": 0, "late": 0}
 
     def account(name, chunk):
-        totals[name] += sum(max(m, 0) for _, m in chunk.gaps) + chunk.skipped_gap
+        totals[name] += sum(max(m, 0) for _, m, _ in chunk.gaps) + chunk.skipped_gap
 
     written = 0
     for i, (n, gap) in enumerate(blocks):
@@ -90,8 +92,22 @@ def test_gap_positions_are_exact():
     buf.write(make_block(1, 15, 10, gap=5))
     buf.write(make_block(2, 25, 3, gap=-1))
     chunk = r.read()
-    assert chunk.gaps == [(10, 5), (20, -1)]
+    assert chunk.gaps == [(10, 5, None), (20, -1, None)]
     assert chunk.lost == 0 and chunk.skipped_gap == 0
+
+
+def test_a_gap_after_the_last_sample_reaches_readers_at_once_with_its_cause():
+    # a stream that ended with a loss: no sample will ever follow the gap to carry it
+    buf = RingBuffer(100, SCALE, ("theta",))
+    r = buf.reader()
+    buf.write(make_block(0, 0, 10))
+    assert r.read().gaps == []
+    end = make_block(1, 14, 0, gap=4)
+    buf.write(dataclasses.replace(end, gap_cause="dropped at the end"))
+    assert r.read().gaps == [(0, 4, "dropped at the end")]
+    assert r.read().gaps == [] and r.read().skipped_gap == 0   # once
+    late = buf.reader(from_oldest=True).read()
+    assert late.n == 10 and late.gaps == [(10, 4, "dropped at the end")]
 
 
 def test_new_reader_from_oldest_and_from_now():

@@ -11,9 +11,9 @@ from accelrig.acquisition.url import DeviceURL
 from accelrig.cli import main
 from accelrig.errors import DataError, DeviceError
 from accelrig.procedures.rotary.bench import EncoderLog, analyse_test, read_encoder_csv
-from accelrig.procedures.rotary.campaign import load_campaign, run_campaign, write_report
+from accelrig.procedures.rotary.campaign import load_campaign, report_markdown, run_campaign, write_report
 from accelrig.procedures.rotary.procedure import RotaryProcedure
-from accelrig.recording import save_recording
+from accelrig.recording import load_recording, save_recording
 from accelrig.sim.campaign import paper_sensor, write_sim_campaign
 from accelrig.sim.device import simulate
 from accelrig.sim.rigs.rotary import (
@@ -207,6 +207,49 @@ def test_cli_json(files, capsys):
     assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
 
 
+def test_a_recording_from_accelrig_record_calibrates_without_units_and_a_bare_log_is_counts(files, tmp_path, capsys):
+    """calibrate rotary read every file as counts unless told (newcomer 14 #5): a recording made by
+    'accelrig record' (m/s^2 with its counts scale declared) was refused as "far too small for counts".  Now the
+    file's declared units stand, and a log that declares nothing is counts, as a bench logger writes it."""
+    rec = tmp_path / "rot.csv"
+    assert main(["record", "sim://rotary?seed=3&pace=fast&rate=1000&seconds=4", "-o", str(rec)]) == 0
+    assert '"units": "m/s^2"' in rec.read_text().splitlines()[0]
+    capsys.readouterr()
+    assert main(["calibrate", "rotary", "--mems", str(rec), "--radius", "0.170", "--tangential", "x", "--radial", "y",
+                 "--nominal-rate", "1000", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["details"]
+    assert doc["sensitivity"]["x"]["component"] == "tangential"
+    true = true_sensitivity(load_recording(rec).meta["truth"])
+    assert doc["sensitivity"]["x"]["value"] == pytest.approx(true["x"], rel=5e-3)
+    d, truth, _ = files
+    bare = tmp_path / "bare.csv"
+    bare.write_text("".join(line for line in (d / "m.csv").read_text().splitlines(keepends=True)
+                            if not line.startswith("#")))
+    assert main(["calibrate", "rotary", "--mems", str(bare), "--encoder", str(d / "e.csv"), "--radius", "0.170",
+                 "--tangential", "x", "--radial", "y", "--nominal-rate", "1660", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["details"]
+    assert doc["sensitivity"]["y"]["value"] == pytest.approx(truth["y"], rel=1e-3)
+
+
+def test_an_encoder_log_in_utc_meets_a_recording_that_carries_its_utc_start(files, tmp_path):
+    """A BLE sensor recorded with 'accelrig record' (t from 0, its UTC start in the metadata) and the bench's
+    encoder logged on the lab's clock in UTC epoch seconds: the two meet on UTC (newcomer 14 #4 was told they
+    'do not overlap in time'); a recording without a UTC start says what is missing."""
+    d, truth, _ = files
+    origin = 1795587089.25
+    enc = read_encoder_csv(d / "e.csv")
+    write_encoder_csv(tmp_path / "utc.csv", {"t": enc.t + origin, "theta": enc.theta})
+    mems = load_recording(d / "m.csv")
+    relative = analyse_test(mems, enc, "x", "y", NOMINAL, 5.0)
+    with pytest.raises(DataError, match="carries no UTC time"):
+        analyse_test(mems, read_encoder_csv(tmp_path / "utc.csv"), "x", "y", NOMINAL, 5.0)
+    mems.meta.update(time_base="utc", time_origin=origin)
+    on_utc = analyse_test(mems, read_encoder_csv(tmp_path / "utc.csv"), "x", "y", NOMINAL, 5.0)
+    for axis in ("x", "y"):
+        assert on_utc.sensitivity[axis].value == pytest.approx(relative.sensitivity[axis].value, rel=1e-9)
+        assert on_utc.sensitivity[axis].value == pytest.approx(truth[axis], rel=1e-3)
+
+
 def test_cli_bad_input_is_one_line(files):
     d, _, _ = files
     r = run_cli("calibrate", "rotary", "--mems", str(d / "m.csv"), "--encoder", str(d / "e.csv"), "--radius", "0.170",
@@ -272,6 +315,18 @@ def test_campaign_budget_groups_and_comparisons(campaign, tmp_path):
     assert not (tmp_path / "r.txt").exists()
 
 
+def test_axes_that_differ_are_said_beside_the_case_2_mean_that_stands_for_the_sensor(campaign):
+    """Case 2 (paper 001, Table 3) is one value for the whole sensor, the mean of its axes with their spread in
+    u; a newcomer read it as the sensitivity beside an ANOVA saying the axes differ (newcomer 14 #7)."""
+    _, result = campaign
+    differ = [s for s, a in result.details["anova"]["across_axes"].items() if a.get("means_differ")]
+    assert differ   # the simulated sensors' axes differ by about 0.1-0.4 %, seen with repeats
+    for sensor in differ:
+        assert any(w.startswith(f"{sensor}: its axes' sensitivities differ (one-way ANOVA") and "case 1" in w
+                   for w in result.warnings)
+    assert f"| 2 | {differ[0]} (mean of its axes) |" in report_markdown(result)
+
+
 def test_campaign_yaml_errors_name_the_field(campaign, tmp_path):
     truth, _ = campaign
     doc = yaml.safe_load(Path(truth["yaml"]).read_text())
@@ -334,6 +389,21 @@ def test_procedure_takes_timed_steps_from_the_stream_and_reports_the_campaign():
     report = proc.result()
     assert report.details["per_axis"]["sensor"]["x"]["linearity"]["n"] == 4
     assert proc.act("capture") == []
+
+
+def test_a_step_the_bench_ran_at_another_angle_than_the_plan_is_not_kept():
+    """The plan says 20 degrees, the bench swings 34 (newcomer 14 #6): the step was labelled 20deg and
+    certified so; the encoder shows the swing, so the step is refused, saying both angles."""
+    values = {"tangential": "x", "radial": "y", "plan": "5:20", "repeats": 1, "seconds": 2.0, "radius": 0.170,
+              "radius_uncertainty": 0.0005, "ref_radius": 0.145, "rate_method": "fit"}
+    rng = np.random.default_rng(4)
+    rec = simulate(RotaryRig(frequency=5.0, amplitude_deg=34.0, duration=3.0), paper_sensor(rng),
+                   SimClock(NOMINAL, 0.003, 0.0), seconds=3.0, seed=5, units="counts")
+    proc = RotaryProcedure.create(values, {"nominal_rate": NOMINAL, "channels": ["theta"], "scale": rec.meta["scale"]})
+    proc.act("capture")
+    events = proc.feed(rec.to_si())
+    assert [e.kind for e in events] == ["problem"] and proc.results == []
+    assert "swinging 34.0 degrees peak to peak, the plan says 20" in events[0].message
 
 
 def test_an_encoder_coarser_than_stated_gets_the_u_of_its_own_steps(sim_test):

@@ -239,11 +239,46 @@ def test_a_scripted_rig_ends_as_a_complete_recording_not_a_stalled_device(url):
         rec = record(driver)   # until the source ends
         total = driver.firmware.device.total_samples
         delivered, late = driver.stats.samples, driver.stats.late_frames
-        frame = driver.config.samples_per_frame
     assert delivered == total
-    # a frame that overtook the stream's first frame starts the stream; the one it overtook is late
-    assert len(rec) == total - late * frame
+    # a frame that overtakes the stream's first frame waits for it, as for any predecessor
+    assert late == 0 and len(rec) == total
     assert rec.meta["gaps"] == []
+
+
+class LastFrameLost:
+    """A fault draw (the ``random()`` of an rng) that loses exactly the script's last frame: the one
+    after which the simulated device has taken all its samples."""
+
+    def __init__(self, device):
+        self.device = device
+
+    def random(self):
+        return 0.0 if self.device.exhausted else 1.0
+
+
+@pytest.mark.parametrize("url", [
+    "sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2",
+    "serial-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2",
+    "ble-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2",
+    "ble-sim://static?pace=fast&seed=16&order=%2Bz,-z&hold=2&reorder=0.3",
+])
+def test_a_frame_lost_at_the_very_end_of_a_script_is_counted_not_silently_missing(url):
+    # It used to end the stream 0.5 s later with no gap and no lost frame counted.
+    with driver_for(url) as driver:
+        if url.startswith("sim:"):
+            device = driver.device
+            device.faults.drop_probability, device._fault_rng = 0.5, LastFrameLost(device)
+        else:
+            device = driver.firmware.device
+            driver.firmware.faults.drop, driver.firmware.rng = 0.5, LastFrameLost(device)
+        rec = record(driver)   # until the source ends
+        total = device.total_samples
+        stats = getattr(driver, "stats", None)
+    missing = total - len(rec)
+    assert missing > 0
+    assert rec.meta["gaps"] == [{"index": len(rec), "missing": missing, "cause": rec.meta["gaps"][0]["cause"]}]
+    if stats is not None:
+        assert stats.lost_frames == 1 and stats.lost_samples == missing
 
 
 def test_a_simulated_firmware_device_is_the_same_device_on_every_rig():

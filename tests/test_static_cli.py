@@ -115,3 +115,16 @@ def test_profile_written_with_the_correction_and_its_uncertainty(six_face_csv, t
     assert np.allclose(profile.correction.matrix, result["correction"]["matrix"])
     assert np.allclose(profile.correction.bias_uncertainty, result["correction"]["bias_uncertainty"])
     assert profile.data["calibration"]["procedure"] == "static"
+
+
+def test_skip_pose_leaves_out_the_poses_named_in_one_or_several_flags(six_face_csv, capsys):
+    path, _ = six_face_csv
+    assert main(["calibrate", "static", str(path), "--skip-pose", "2,5", "--skip-pose", "7", "--json",
+                 "--no-store"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert [r["index"] for r in out["details"]["poses"] if r["fate"] == "left out"] == [2, 5, 7]
+    assert out["settings"]["skip_poses"] == [2, 5, 7]
+    for bad in ("0", "two"):
+        with pytest.raises(SystemExit):
+            main(["calibrate", "static", str(path), "--skip-pose", bad])
+        assert "--skip-pose" in capsys.readouterr().err

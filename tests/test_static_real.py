@@ -154,6 +154,10 @@ def test_xsens_multi_position_leaves_every_pose_on_g(tmp_path, capsys):
     # holds it (its lack of fit within its degrees of freedom), where the pose repeatability once had to
     assert r.quality["max_magnitude_residual"] < 0.005 and "model of the noise" in r.quality["uncertainty_source"]
     assert r.quality["noise"]["drift"]["slow_noise"]["seen_by"] == "halves" and r.quality["chi2"] < 1.5 * r.quality["dof"]
+    # its first hold (50 s) shows the memory (2.8 s: the recording's 50 s still has a flat variogram from 0.1 to 30 s),
+    # and the halves of all its holds agree with it: no warning that the offsets stand only for the run's level
+    assert r.quality["noise"]["drift"]["slow_noise"]["memory_shown"]["shown"]
+    assert not any("more slowly than the holds can show" in w for w in r.warnings)
 
 
 def test_the_declared_flatness_default_is_the_estimators():

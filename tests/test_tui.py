@@ -163,6 +163,31 @@ async def test_connect_screen_switches_device_and_shows_identity():
 
 
 @async_test
+async def test_connect_rescans_with_f5_in_the_url_field_where_r_types_itself():
+    # r was the only rescan key: in the URL field it typed an r, and the footer still offered it
+    app = AccelrigApp(device=FINITE)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("c")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConnectScreen))
+        screen = app.screen
+        scans = []
+        screen.scan = lambda: scans.append(screen.focused.id if screen.focused else None)
+        url_input = screen.query_one("#url")
+        url_input.value = ""
+        url_input.focus()
+        await pilot.press("r")
+        await wait_for(pilot, lambda: url_input.value == "r")
+        await pilot.press("f5")
+        await wait_for(pilot, lambda: scans == ["url"])
+        assert url_input.value == "r"
+        screen.query_one("#found").focus()
+        await pilot.press("r")
+        await wait_for(pilot, lambda: scans == ["url", "found"])
+        shown = {key.key for key in screen.query("FooterKey")}   # the footer offers the key that works
+        assert "f5" in shown and "r" not in shown
+
+
+@async_test
 async def test_a_bad_url_is_said_on_screen_and_nothing_crashes():
     app = AccelrigApp(device="sim://no-such-rig")
     async with app.run_test(size=(80, 24)) as pilot:

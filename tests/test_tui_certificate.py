@@ -215,6 +215,11 @@ async def test_the_campaign_screen_plots_the_sensitivities_and_writes_the_certif
         await wait_for(pilot, lambda: screen.certificate_path is not None, timeout=60)
         page = screen.certificate_path.read_text(encoding="utf-8")
         assert "Group results" in page and "J. Roux" in page
+        # the item calibrated names the device the campaign screen was given, beside the campaign and its file
+        # (newcomer 14 #7: a live campaign's certificate had no chip, range or connection)
+        item = page.split("Item calibrated")[1].split("<h2>")[0]
+        assert "<th>Identity</th>" in item and DEVICE["identity"] in item and "<td>±4 g</td>" in item
+        assert "<th>Campaign file</th>" in item
 
 
 def test_the_certificate_form_asks_for_the_report_command_s_conditions_in_its_words():

@@ -189,3 +189,25 @@ async def test_a_remembered_model_is_shown_as_such_and_ctrl_r_puts_the_defaults_
         await pilot.pause(0.3)
         assert app.screen.sub_title == "six-face static calibration"
     assert yaml.safe_load(settings_file().read_text())["static"]["model"] == ""
+
+
+@async_test
+async def test_the_wheel_and_rotary_forms_say_on_their_face_what_only_f1_said():
+    """The wheel's form did not say that the radius or the tilt is needed (F1 did), and the rotary form's
+    plan, steps FREQUENCY:DEGREES, gave no unit."""
+    from tui_support import open_wizard
+
+    for wizard, url, label, said in (
+            ("wheel", "sim://wheel?seed=1", "#settings-note", "Give the radius, the tilt, or both: the one left "
+                                                              "blank is estimated (one is needed)."),
+            ("rotary", "sim://rotary?seed=1", "#label-plan", "steps FREQUENCY:DEGREES, in Hz:degrees peak to peak")):
+        app = AccelrigApp(device=url, refresh_interval=0.05)
+        async with app.run_test(size=(80, 24)) as pilot:
+            await open_wizard(pilot, wizard)
+            form = app.screen
+            form.query_one(label).scroll_visible(animate=False)
+            await wait_for(pilot, lambda form=form, label=label: str(form.query_one(label).render()).strip())
+            assert " ".join(str(form.query_one(label).render()).split()) == said
+            await pilot.pause(0.2)
+            words = " ".join(" ".join(line.strip("│ ▁▂▃▄▅▆▇█▊▎") for line in screen_lines(app)).split())
+            assert said.split(":")[0] in words, words   # drawn where the operator reads it

@@ -23,6 +23,11 @@ class Block:
                 frames, FIFO overflow, reconnect); -1 if a gap happened but its
                 size is unknown.  A gap is a fact in the stream, never papered over.
     channels    extra per-sample float channels (e.g. encoder angle ``theta``).
+    gap_cause   why that gap happened, where the driver knows better than its kind
+                (a replay repeats the cause its recording gives); None: the cause of
+                its kind (recorder.gap_cause).
+    A block may be empty: a stream that ended with a loss carries the gap after
+    its last sample on one.
     """
 
     seq: int
@@ -33,6 +38,7 @@ class Block:
     t: np.ndarray
     gap_before: int = 0
     channels: dict[str, np.ndarray] = field(default_factory=dict)
+    gap_cause: str | None = None
 
     def __post_init__(self) -> None:
         if self.counts.ndim != 2 or self.counts.shape[1] != 3:

@@ -197,9 +197,13 @@ class FirmwareDriver(Driver):
         if self._flush_requested:  # the transport says nothing more will come for what is awaited
             self._flush_requested = False
             placed += self.sequencer.flush()
+        arrived = False
         for frame in frames:
             if isinstance(frame, P.DataFrame):
+                arrived = True
                 placed += self.sequencer.push(frame)
+        if arrived:   # held for a predecessor or not, data came: the device is not stalled
+            self._last_data = time.monotonic()
         if not placed:
             if time.monotonic() - self._last_data > self.stall_timeout:
                 raise DeviceStalled(

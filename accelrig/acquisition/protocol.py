@@ -310,7 +310,10 @@ class DataSequencer:
     """Orders DATA frames by sequence number and turns counter jumps into counted gaps.
 
     ``reorder_window`` frames may wait for a missing predecessor (BLE can
-    reorder notifications; serial cannot, so it uses 0).  A frame that
+    reorder notifications; serial cannot, so it uses 0).  With a window, the
+    stream starts at the older of its first two frames, so a frame that
+    overtakes the very first one does not start it (one frame's wait, not
+    the window's: at low rates a window of frames is seconds).  A frame that
     arrives after its predecessor was declared lost is dropped and counted as
     late: samples are never inserted into the past.  ``push`` returns
     ``[(frame, first_counter, gap_before)]`` in order: ``first_counter`` is
@@ -338,16 +341,25 @@ class DataSequencer:
         """The sequence number expected next (None before the first frame)."""
         return self._next_seq
 
+    @property
+    def next_counter(self) -> int | None:
+        """The unwrapped device counter expected next (None before the first frame is placed)."""
+        return self._next_counter
+
     def push(self, frame: DataFrame) -> list[tuple[DataFrame, int, int]]:
         stats = self.stats
-        if self._next_seq is None:
-            self._next_seq = self._origin = frame.seq
+        if self._next_seq is None:   # not started: wait for a frame the first one may have overtaken
+            if frame.seq in self._pending:
+                stats.duplicate_frames += 1
+                return []
+            self._pending[frame.seq] = frame
+            return self._release()
         ahead = _forward(self._next_seq, frame.seq)
         if ahead < 0:
             if -ahead > self.late_horizon:  # far behind: the device restarted
                 stats.restarts += 1
                 out = self.flush()
-                self._next_seq = self._origin = frame.seq
+                self._next_seq = None   # a new stream: it starts as the first one did
                 self._pending[frame.seq] = frame
                 return out + self._release()
             if frame.seq in self._skipped:
@@ -370,9 +382,34 @@ class DataSequencer:
         """Stop waiting for anything missing (a reconnect, the end of the stream)."""
         out = []
         while self._pending:
+            if self._next_seq is None:
+                self._start_at_oldest()
             self._skip_to_oldest()
             out += self._release()
         return out
+
+    def lose_tail(self, next_seq: int, device_next: int) -> int:
+        """The stream ended: the device numbered its frames up to ``next_seq`` (exclusive) and its
+        sample counter reached ``device_next``.  The frames after the last one received never came:
+        they are counted lost, and the samples they held are returned (0: nothing is missing, or
+        nothing was received to measure from).  Only a device that says where it stopped can tell;
+        call ``flush`` first."""
+        if self._next_seq is None or self._next_counter is None:
+            return 0
+        frames = _forward(self._next_seq, next_seq % _U32)
+        if frames <= 0:
+            return 0
+        samples = max(_forward(self._device_next, device_next % _U32), 0)
+        self.stats.lost_frames += frames
+        self.stats.lost_samples += samples
+        self._next_seq = next_seq % _U32
+        self._next_counter += samples
+        self._device_next = device_next % _U32
+        return samples
+
+    def _start_at_oldest(self) -> None:
+        first = next(iter(self._pending))   # the first to arrive: the others are near it, either side
+        self._next_seq = self._origin = min(self._pending, key=lambda s: _forward(first, s))
 
     def _skip_to_oldest(self) -> None:
         oldest = min(self._pending, key=lambda s: _forward(self._next_seq, s))
@@ -387,6 +424,10 @@ class DataSequencer:
     def _release(self) -> list[tuple[DataFrame, int, int]]:
         out = []
         while True:
+            if self._next_seq is None:
+                if len(self._pending) <= min(self.window, 1):
+                    return out
+                self._start_at_oldest()
             frame = self._pending.pop(self._next_seq, None)
             if frame is None:
                 if len(self._pending) > self.window:

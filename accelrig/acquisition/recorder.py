@@ -40,10 +40,15 @@ if TYPE_CHECKING:
     from accelrig.segments import SegmentWriter
 
 
+REPLAYED_GAP = "gap in the replayed recording (it records no cause)"
+
+
 def gap_cause(info: DeviceInfo) -> str:
     """Why a gap the driver reported happened, in words: where a driver of this kind loses samples."""
     if info.driver in ("i2c", "i2c-sim"):
         return "FIFO overflow (samples lost in the chip before they were read)"
+    if info.driver == "replay":   # a replay repeats each gap's recorded cause; this is for those without one
+        return REPLAYED_GAP
     if info.link_stats is not None:
         return "frames lost on the link (corrupt or dropped)"
     return "samples lost by the device or link"
@@ -121,7 +126,7 @@ class Recorder:
             chunk = dataclasses.replace(
                 chunk, counts=chunk.counts[:keep], t=chunk.t[:keep],
                 channels={name: values[:keep] for name, values in chunk.channels.items()},
-                gaps=[(pos, missing) for pos, missing in chunk.gaps if pos < keep])
+                gaps=[gap for gap in chunk.gaps if gap[0] < keep])
         self._keep(chunk)
         return chunk
 
@@ -131,9 +136,10 @@ class Recorder:
                 self._stream(chunk)    # the gap records go to the writer, not to memory
             elif chunk.lost:  # cannot happen on a lossless reader, but never hide it
                 self._gaps.append({"index": self.samples, "missing": chunk.lost, "cause": "reader overrun"})
-            for pos, missing in chunk.gaps:
+            for pos, missing, cause in chunk.gaps:
                 if self.writer is None:
-                    self._gaps.append({"index": self.samples + pos, "missing": missing, "cause": self.gap_cause})
+                    self._gaps.append({"index": self.samples + pos, "missing": missing,
+                                       "cause": cause or self.gap_cause})
                 self.missing += max(missing, 0)
                 self.gap_events += 1
             self._time_gaps(chunk)
@@ -156,7 +162,7 @@ class Recorder:
     def _time_gaps(self, chunk: Chunk) -> None:
         """Log this chunk's gaps with the time each one lasted (from the samples either side)."""
         found = [(0, chunk.lost, "reader overrun")] if chunk.lost else []
-        found += [(pos, missing, self.gap_cause) for pos, missing in chunk.gaps]
+        found += [(pos, missing, cause or self.gap_cause) for pos, missing, cause in chunk.gaps]
         at: dict[int, list[dict]] = {}   # the gaps before each sample of the chunk (n: after its last)
         for pos, missing, cause in found:
             entry = {"missing": missing, "cause": cause, "seconds": None}
@@ -207,7 +213,7 @@ class Recorder:
         if chunk.lost:
             w.gap(t[0] if chunk.n else time.time_ns(), chunk.lost, "reader overrun")
         start = 0
-        for pos, missing in [*chunk.gaps, (chunk.n, None)]:
+        for pos, missing, cause in [*chunk.gaps, (chunk.n, None, None)]:
             if pos > start:
                 w.write(t[start:pos], chunk.counts[start:pos],
                         {name: values[start:pos] for name, values in chunk.channels.items()} or None)
@@ -216,7 +222,7 @@ class Recorder:
                 at = int(t[pos]) if pos < chunk.n else time.time_ns()
                 seconds = ((at - self._last_ns) / NS - 1.0 / self.info.nominal_rate
                            if self._last_ns is not None and pos < chunk.n else None)
-                w.gap(at, missing, self.gap_cause, seconds)
+                w.gap(at, missing, cause or self.gap_cause, seconds)
             start = pos
 
     def close(self) -> None:

@@ -8,9 +8,12 @@ absolute index; a reader keeps the index of the next sample it wants.
   how many samples it lost (``Chunk.lost``); it never receives a sample that
   was being overwritten while it copied (seqlock-style check: the producer
   announces the slots it is about to write before writing them).
-* Gaps reported by the driver (``Block.gap_before``) are kept with the index
-  of the sample that follows them and reach every reader, including a reader
-  that overran and skipped past them (then as ``Chunk.skipped_gap``).
+* Gaps reported by the driver (``Block.gap_before``, with ``Block.gap_cause``
+  when the driver knows it) are kept with the index of the sample that
+  follows them and reach every reader, including a reader that overran and
+  skipped past them (then as ``Chunk.skipped_gap``).  A gap after the newest
+  sample (an empty block: a stream that ended with a loss) reaches readers
+  at once, at the end of their chunk.
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ class Chunk:
     """What one read returns: consecutive samples from ``first_index`` on.
 
     lost         samples this reader missed because it fell behind (overrun)
-    gaps         (position in this chunk, samples missing before it) from the driver;
-                 missing count -1 means the driver knew of a gap but not its size
+    gaps         (position in this chunk, samples missing before it, cause) from the driver;
+                 missing count -1 means the driver knew of a gap but not its size; cause None:
+                 the driver did not say (its kind says where it loses samples); position n:
+                 after the chunk's last sample
     skipped_gap  driver-reported missing samples inside the stretch this reader
                  lost by overrun (so no gap is ever unaccounted for)
     """
@@ -42,7 +47,7 @@ class Chunk:
     scale: float
     channels: dict[str, np.ndarray] = field(default_factory=dict)
     lost: int = 0
-    gaps: list[tuple[int, int]] = field(default_factory=list)
+    gaps: list[tuple[int, int, str | None]] = field(default_factory=list)
     skipped_gap: int = 0
 
     @property
@@ -75,8 +80,10 @@ class RingBuffer:
         self._reserved = 0   # samples whose slots the producer has started to overwrite
         self._gap_index: list[int] = []   # index of the sample following each gap
         self._gap_size: list[int] = []    # samples missing there (-1: unknown)
+        self._gap_cause: list[str | None] = []   # why, where the driver said
         self._gap_cum: list[int] = []     # known missing samples up to and including each gap
         self._gap_base = 0                # known missing samples in gaps already forgotten
+        self._gap_forgotten = 0           # gaps already forgotten (list position + this = gap number)
         self._gap_lock = threading.Lock()
         self.gap_events = 0
         self.blocks_written = 0
@@ -101,12 +108,16 @@ class RingBuffer:
         if missing_channels:
             raise DeviceError(f"block lacks channel(s) {', '.join(sorted(missing_channels))}")
         n = block.n
+        # announced before the gap: a reader that sees a gap at the head with nothing reserved past
+        # it knows no samples are on their way behind it (the block was empty)
+        self._reserved = self._head + n
         if block.gap_before:
             with self._gap_lock:
                 size = int(block.gap_before)
                 previous = self._gap_cum[-1] if self._gap_cum else self._gap_base
                 self._gap_index.append(self._head)
                 self._gap_size.append(size)
+                self._gap_cause.append(block.gap_cause)
                 self._gap_cum.append(previous + max(size, 0))
                 self.gap_events += 1
                 # Bound the list: old gaps are forgotten but stay in the cumulative
@@ -114,7 +125,8 @@ class RingBuffer:
                 drop = bisect.bisect_left(self._gap_index, self._head - 2 * self.capacity)
                 if drop > 1024:
                     self._gap_base = self._gap_cum[drop - 1]
-                    del self._gap_index[:drop], self._gap_size[:drop], self._gap_cum[:drop]
+                    self._gap_forgotten += drop
+                    del self._gap_index[:drop], self._gap_size[:drop], self._gap_cause[:drop], self._gap_cum[:drop]
         counts, t = block.counts, block.t
         channels = block.channels
         if n > self.capacity:  # only the newest capacity samples can be kept
@@ -141,10 +153,9 @@ class RingBuffer:
         self._head = start + n
         self.blocks_written += 1
 
-    def _cum_gap_before(self, index: int) -> int:
-        """Known missing samples in all gaps at indices < index (call under _gap_lock)."""
-        pos = bisect.bisect_left(self._gap_index, index)
-        return self._gap_cum[pos - 1] if pos else self._gap_base
+    def _cum_gap_to(self, pos: int) -> int:
+        """Known missing samples in all gaps before list position ``pos`` (call under _gap_lock)."""
+        return self._gap_cum[pos - 1] if pos > 0 else self._gap_base
 
     def reader(self, from_oldest: bool = False) -> Reader:
         """A new independent reader: from now on, or from the oldest sample still held."""
@@ -169,7 +180,9 @@ class Reader:
         self.cursor = start
         self.lost_total = 0
         with buffer._gap_lock:
-            self._gap_cum_reported = buffer._cum_gap_before(start)
+            pos = bisect.bisect_left(buffer._gap_index, start)
+            self._gap_cum_reported = buffer._cum_gap_to(pos)   # known missing samples accounted for
+            self._gap_next = buffer._gap_forgotten + pos       # number of the first gap not yet reported
 
     @property
     def pending(self) -> int:
@@ -196,12 +209,17 @@ class Reader:
         gaps: list[tuple[int, int]] = []
         if buf.gap_events:
             with buf._gap_lock:
+                index = buf._gap_index
+                # not reported yet: from the first gap at ``start`` on, less those reported at the end of the last chunk
+                mid = max(bisect.bisect_left(index, start), self._gap_next - buf._gap_forgotten)
                 # gaps before ``start`` that this reader never saw (it overran past them)
-                skipped_gap = buf._cum_gap_before(start) - self._gap_cum_reported
-                mid = bisect.bisect_left(buf._gap_index, start)
-                hi = bisect.bisect_left(buf._gap_index, stop)
-                gaps = [(buf._gap_index[i] - start, buf._gap_size[i]) for i in range(mid, hi)]
-                self._gap_cum_reported = buf._cum_gap_before(stop)
+                skipped_gap = buf._cum_gap_to(mid) - self._gap_cum_reported
+                # a gap at ``stop`` goes with the sample after it, unless no sample is on its way (the end)
+                at_end = stop == head and buf._reserved == head
+                hi = max((bisect.bisect_right if at_end else bisect.bisect_left)(index, stop), mid)
+                gaps = [(index[i] - start, buf._gap_size[i], buf._gap_cause[i]) for i in range(mid, hi)]
+                self._gap_cum_reported = buf._cum_gap_to(hi)
+                self._gap_next = buf._gap_forgotten + hi
         self.cursor = stop
         self.lost_total += lost
         return Chunk(start, counts, t, buf.scale, channels, lost, gaps, skipped_gap)

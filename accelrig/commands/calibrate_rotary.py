@@ -13,15 +13,16 @@ def register(sub, groups) -> None:
     p = groups["calibrate"].add_parser(
         "rotary",
         help="rotary oscillating bench (paper 001): sampling rate, sensitivity, uncertainty budget",
-        description="One test: --mems M.csv (counts, own clock) with --encoder E.csv (t,theta on an accurate "
+        description="One test: --mems M.csv (counts or a recording with its scale, own clock) with --encoder E.csv (t,theta on an accurate "
         "clock; or a theta channel in the MEMS file) and the geometry. A campaign: --campaign CAMPAIGN.yaml. "
         "Sensitivities are in counts per m/s^2, uncertainties standard (k = 1) unless labelled.",
     )
     p.add_argument("--campaign", metavar="YAML", help="campaign file listing the tests (see docs/rotary.md)")
-    p.add_argument("--mems", metavar="FILE", help="MEMS recording (.csv or .npz), in counts")
+    p.add_argument("--mems", metavar="FILE", help="MEMS recording (.csv or .npz): counts, or what the file declares")
     p.add_argument("--encoder", metavar="FILE", help="encoder log t,theta[,ref] (s, rad, m/s^2) on an accurate clock")
     add_arguments(p, TEST_SETTINGS)
-    p.add_argument("--units", default="counts", help="units of the MEMS file's ax,ay,az (default counts)")
+    p.add_argument("--units", help="units of the MEMS file's ax,ay,az (default: what the file declares, as "
+                   "'accelrig record' does, else counts)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-o", "--output", metavar="REPORT", help="campaign report file (.yaml or .md), written atomically")
     p.add_argument("--force", action="store_true", help="replace the report file if it exists")

@@ -31,6 +31,9 @@ def register(sub, groups) -> None:
     add_units(p)
     p.add_argument("--rate", type=float, help="sample rate in Hz for a file without a t column")
     add_time_range(p)
+    p.add_argument("--skip-pose", type=pose_numbers, action="append", default=[], metavar="N[,N...]",
+                   help="leave these poses out (numbers from the pose table, in time order from 1), e.g. a face "
+                   "that moved and was held again later; a moved pose not left out refuses the recording")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
     add_profile_arguments(p)
     p.set_defaults(func=run)
@@ -46,7 +49,7 @@ def run(args) -> int:
     from accelrig.commands.progress import Progress
 
     with Progress(f"calibrating from {args.recording}"):
-        result = calibrate_static(rec, **values)
+        result = calibrate_static(rec, skip_poses=[k for group in args.skip_pose for k in group], **values)
     warn_loss(rec, result)
     write_profile(result, rec, args)
     if args.json:
@@ -54,6 +57,19 @@ def run(args) -> int:
     else:
         print(text_report(result))
     return 0
+
+
+def pose_numbers(text: str) -> list[int]:
+    """'7' or '3,7': pose numbers from the pose table (argparse type)."""
+    import argparse
+
+    try:
+        numbers = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of pose numbers (e.g. 7 or 3,7)") from None
+    if not numbers or min(numbers) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: pose numbers start at 1 (e.g. 7 or 3,7)")
+    return numbers
 
 
 def text_report(result) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import textwrap
 
 import numpy as np
 
@@ -118,29 +119,35 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def noise_table(report) -> str:
-    """The closing-note table: one row per axis, datasheet units."""
-    lines = [
-        f"{report.n_samples} samples, {report.duration:.1f} s at {report.rate:.2f} Hz; "
-        "overlapping Allan deviation at octave taus; uncertainties k = 1",
-        *([f"read on the longest still stretch, t = {seg['start']:.1f}-{seg['stop']:.1f} s of a "
-           f"{seg['of_total']:.1f} s recording"] if (seg := report.still_segment) else []),
-        "",
-        "| axis | density ug/sqrt(Hz) | density (m/s^2)/sqrt(Hz) | bias instability ug (tau) | rate random walk (m/s^2)/sqrt(s) |",
-        "|---|---|---|---|---|",
-    ]
+    """The closing-note table: one row per axis, datasheet units; 80 columns wide (tables.fitted_lines:
+    the columns that do not fit stack under the first, each led by the axis)."""
+    from accelrig.tables import TERMINAL_WIDTH, fitted_lines
+
+    def wrapped(text: str) -> list[str]:
+        return textwrap.wrap(text, TERMINAL_WIDTH, subsequent_indent="  ", break_on_hyphens=False)
+
     def pm(value: float, u: float) -> str:   # rounded together, as on every face (format_value)
         return " +- ".join(format_value(value, u))
 
+    lines = wrapped(f"{report.n_samples} samples, {report.duration:.1f} s at {report.rate:.2f} Hz; "
+                    "overlapping Allan deviation at octave taus; uncertainties k = 1")
+    if seg := report.still_segment:
+        lines += wrapped(f"read on the longest still stretch, t = {seg['start']:.1f}-{seg['stop']:.1f} s of a "
+                         f"{seg['of_total']:.1f} s recording")
+    titles = ("axis", "density ug/sqrt(Hz)", "density (m/s^2)/sqrt(Hz)", "bias instability ug (tau)",
+              "rate random walk (m/s^2)/sqrt(s)")
+    rows = []
     for axis in AXES:
         a = report.axes[axis]
         d = a.density
         bi = (f"{pm(a.bias_instability.value * UG, a.bias_instability.uncertainty * UG)} "
               f"({a.bias_instability_tau:.3g} s)") if a.bias_instability else "not reached"
         rw = pm(a.random_walk.value, a.random_walk.uncertainty) if a.random_walk else "not seen"
-        lines.append(f"| {axis} | {pm(d.value * UG, d.uncertainty * UG)} | {pm(d.value, d.uncertainty)} | {bi} | {rw} |")
-    lines.append("")
-    lines.append("density is one-sided (datasheet convention): sigma(tau) = N / sqrt(2 tau), "
-                 "per-sample sd = N sqrt(rate / 2); bias instability = min sigma / 0.664 (IEEE 952)")
+        rows.append([axis, pm(d.value * UG, d.uncertainty * UG), pm(d.value, d.uncertainty), bi, rw])
+    lines += ["", *fitted_lines(titles, rows, (0, 1, 3, 4, 2)), ""]
+    lines += wrapped("density is one-sided (datasheet convention): sigma(tau) = N / sqrt(2 tau), "
+                     "per-sample sd = N sqrt(rate / 2); bias instability = min sigma / 0.664 (IEEE 952)")
     notes = sorted({n for axis in AXES for n in report.axes[axis].notes})
-    lines.extend(f"note: {n}" for n in notes)
+    for n in notes:
+        lines += wrapped(f"note: {n}")
     return "\n".join(lines)

@@ -36,6 +36,8 @@ def register(sub, groups) -> None:
                    "(its identity) instead of with the weighted mean of the others")
     p.add_argument("--number", help="certificate number")
     p.add_argument("--customer", help="customer (name and address)")
+    p.add_argument("--customer-reference", metavar="REF", help="the customer's reference or order number, "
+                   "printed under the customer")
     p.add_argument("--operator", help="who performed the calibration")
     p.add_argument("--approved-by", metavar="NAME", help="who authorises the certificate (printed above the "
                    "signature line; without it the name is left blank to fill in by hand)")
@@ -53,7 +55,8 @@ def run(args) -> int:
 
     # before anything is rendered: an issued certificate (its number, operator) is not replaced unasked
     writable_target(args.output, args.force, inputs=list(args.source) + [f for f in (args.noise, args.recording) if f])
-    conditions = {"certificate_number": args.number, "customer": args.customer, "operator": args.operator,
+    conditions = {"certificate_number": args.number, "customer": args.customer,
+                  "customer_reference": args.customer_reference, "operator": args.operator,
                   "approved_by": args.approved_by,
                   "location": args.location, "temperature": args.temperature, "humidity": args.humidity}
     if len(args.source) > 1 or Path(args.source[0]).is_dir():

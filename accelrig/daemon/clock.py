@@ -64,7 +64,8 @@ class UtcClock:
         """UTC seconds of samples with times ``t`` (one block or chunk), which arrived at ``arrival``
         (time.monotonic); ``missing_before``: samples the device reported lost just before them."""
         n = t.size
-        if n == 0:
+        if n == 0:   # an empty block carrying a gap (a stream that ended with a loss): the gap still counts
+            self._index += max(missing_before, 0)
             return np.empty(0)
         arrival_utc = arrival + self.wall_offset
         self._index += max(missing_before, 0) + n

@@ -42,7 +42,7 @@ from __future__ import annotations
 import json
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -92,9 +92,7 @@ class UtcDriver(Driver):
         if not blocks:
             return blocks
         arrival = time.monotonic()   # every block of this read had arrived by now
-        return [Block(b.seq, b.counter, b.host_time, b.counts, b.scale,
-                      self.clock.map(b.t, arrival, int(b.gap_before)), b.gap_before, b.channels)
-                for b in blocks]
+        return [replace(b, t=self.clock.map(b.t, arrival, int(b.gap_before))) for b in blocks]
 
     def close(self) -> None:
         self.inner.close()
@@ -146,6 +144,11 @@ class PendingGap:
     extra: dict = field(default_factory=dict)
 
 
+# a restarted device whose previous runner has not stopped yet (reload): it must not write beside it
+WAITING_FOR_PREVIOUS = ("waiting for this device's previous run to stop (a driver call hangs in it): "
+                        "starting when it returns")
+
+
 class DeviceRunner:
     def __init__(self, device: DeviceConfig, config: DaemonConfig, log, finisher=None):
         self.device = device
@@ -181,13 +184,37 @@ class DeviceRunner:
         self.publisher = None                # daemon.mqtt.Publisher when the config has an mqtt section
 
     # ------------------------------------------------------------------ lifecycle
-    def start(self) -> None:
+    def start(self, after: DeviceRunner | None = None) -> None:
+        """Start the device's thread.  ``after``: this device's previous runner, still stopping (a driver call
+        hangs in it): this one waits, state "waiting", until that one has returned (its segments closed, the
+        directory's lock released, its stop in the journal) before it touches the directory or the device."""
+        if after is None:
+            self._prepare()
+        target, args = (self._run, ()) if after is None else (self._run_after, (after,))
+        self._thread = threading.Thread(target=target, args=args, name=f"accelrig daemon {self.device.name}",
+                                        daemon=True)
+        self._thread.start()
+
+    def _prepare(self) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         self._pending = self._since_last_run()
         if self.config.mqtt is not None:
             self._start_publisher()
-        self._thread = threading.Thread(target=self._run, name=f"accelrig daemon {self.device.name}", daemon=True)
-        self._thread.start()
+
+    def _run_after(self, previous: DeviceRunner) -> None:
+        self._set("waiting", WAITING_FOR_PREVIOUS)
+        while not previous.join(0.5):
+            self.heartbeat = time.monotonic()   # waiting is the loop turning, for the watchdog
+            if self._stop.is_set():   # stopped again before it began: nothing was opened, nothing to close
+                self._set("stopped", WAITING_FOR_PREVIOUS)
+                return
+        self.log(f"{self.device.name}: the previous run has stopped; starting")
+        try:
+            self._prepare()
+        except Exception as exc:
+            self._fail(f"cannot start after the previous run: {exc}")
+            return
+        self._run()
 
     def _since_last_run(self) -> PendingGap | None:
         """Finish what a crash left open, and the gap between the last run's last sample and this run.

@@ -5,7 +5,9 @@
 * SIGHUP: the configuration is read again.  Devices added start, removed ones
   stop cleanly, changed ones (their entry, or a setting they use) restart, and
   so does one recording raw whose missing profile is there now; unchanged ones
-  keep streaming untouched, so their data have no gap.  A
+  keep streaming untouched, so their data have no gap.  A device whose old
+  runner does not stop within ``STOP_SECONDS`` (a driver call hangs) restarts
+  once that one has returned and closed its segments, not beside it.  A
   configuration that no longer validates is refused in the log and the old
   one kept: a typo must not stop the recording.
 * Every ``status_interval`` seconds one status line per device on standard
@@ -56,6 +58,7 @@ class Daemon:
         if self.config.mqtt is not None:
             check_mqtt(self.config.mqtt)
         self.runners: dict[str, DeviceRunner] = {}
+        self._stopping: dict[str, DeviceRunner] = {}   # removed or restarted by a reload, not yet returned
         self.started = time.time()
         self.reloads = 0
         self._stop = threading.Event()
@@ -130,7 +133,7 @@ class Daemon:
         for runner in self.runners.values():
             runner.stop()
         deadline = time.monotonic() + STOP_SECONDS
-        for runner in self.runners.values():
+        for runner in [*self._stopping.values(), *self.runners.values()]:
             if not runner.join(max(deadline - time.monotonic(), 0.0)):
                 log(f"{runner.device.name}: did not stop within {STOP_SECONDS:g} s (a driver call hangs); "
                     "its open segment will be recovered at the next start")
@@ -177,9 +180,13 @@ class Daemon:
         stop += found
         deadline = time.monotonic() + STOP_SECONDS
         for name in stop:
-            if not self.runners[name].join(max(deadline - time.monotonic(), 0.0)):
-                log(f"{name}: did not stop within {STOP_SECONDS:g} s (a driver call hangs); it stops when it returns")
-            del self.runners[name]
+            runner = self.runners.pop(name)
+            if not runner.join(max(deadline - time.monotonic(), 0.0)):
+                self._stopping[name] = runner
+                log(f"{name}: did not stop within {STOP_SECONDS:g} s (a driver call hangs); it stops when it returns"
+                    + (", and its new run starts then (it waits, its segments are not written beside the old "
+                       "ones)" if name in new_devices else ""))
+        self._stopping = {name: r for name, r in self._stopping.items() if not r.join(0)}
         self.config = new
         if new.status_socket != old.status_socket:
             self.server.stop()
@@ -194,7 +201,7 @@ class Daemon:
                 self.runners[device.name].device = device  # same entry; its place in the list may differ
         self.runners = {d.name: self.runners[d.name] for d in new.devices}   # listed in the file's order
         for name in started:
-            self.runners[name].start()
+            self.runners[name].start(after=self._stopping.get(name))
         self.reloads += 1
         removed = [n for n in stop if n not in new_devices]
         restarted = [n for n in stop if n in new_devices and n not in found]

@@ -164,6 +164,9 @@ class GravityFit:
     seconds: float = 0.0
     repeatability_sd: float = 0.0   # sigma_r (m/s^2) of the "repeatability" inflation, 0 when not applied
     chi2_before: float | None = None  # chi^2 before inflation (equals chi2 for Birge or none)
+    # d [values, C.ravel(), b] / d s (k, parameters + 12) along each of the pose means' shifts s asked of the fit
+    # (fit_six_face's ``mean_shifts``), None when none were
+    mean_response: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
 
     @property
@@ -439,20 +442,28 @@ class _Model:
         ginv = 1.0 / gains
         k = r.T * ginv[None, :]                       # R^T diag(1/G)
         o = -k @ offs
+        # dK / d angle_j = dR_j^T diag(1/G); dK / d gain_j = column j of R^T times -1/G_j^2 (arrays: the fit
+        # evaluates this some twenty times per solve)
+        dk = np.zeros((6, 3, 3))
+        dk[:3] = np.transpose(rotation_xyz_derivatives(angles), (0, 2, 1)) * ginv[None, None, :]
+        dk[3 + np.arange(3), :, np.arange(3)] = -r * ginv[:, None] ** 2      # row j: column j of R^T
         d = np.zeros((12, 9))
-        for j, dr in enumerate(rotation_xyz_derivatives(angles)):
-            dk = dr.T * ginv[None, :]
-            d[:9, j], d[9:, j] = dk.ravel(), -dk @ offs
-        for j in range(3):
-            dk = np.zeros((3, 3))
-            dk[:, j] = -r.T[:, j] * ginv[j] ** 2
-            d[:9, 3 + j], d[9:, 3 + j] = dk.ravel(), -dk @ offs
+        d[:9, :6] = dk.reshape(6, 9).T
+        d[9:, :6] = -(dk @ offs).T
         d[9:, 6:9] = -k
         return k, o, d
 
     def to_correction(self, p: np.ndarray) -> np.ndarray:
         k, o, _ = self.forward(p)
         return np.concatenate([np.linalg.inv(k).ravel(), o])
+
+    def correction_jacobian(self, p: np.ndarray) -> np.ndarray:
+        """d [C.ravel(), b] / d p (12, size) of ``to_correction``, from forward's dK/dp, do/dp: C = K^-1 moves
+        by -C dK C, b = o.  (Analytic: the central differences it replaces cost as much as a third of a fit.)"""
+        k, _, dko = self.forward(p)
+        c = np.linalg.inv(k)
+        dk = dko[:9].T.reshape(-1, 3, 3)
+        return np.vstack([(-c @ dk @ c).reshape(-1, 9).T, dko[9:]])
 
     def start(self, k: np.ndarray, o: np.ndarray) -> np.ndarray:
         if self.kind == "affine":
@@ -478,56 +489,82 @@ def _affine_exact_start(poses: Sequence[PoseStats], g: float) -> tuple[np.ndarra
 
 
 def _six_face_system(model: _Model, poses: Sequence[PoseStats], g: float, tau: float, extra_var: float = 0.0):
-    """Residual and Jacobian of the MAP problem: whitened pose means (3 per pose) and tilt priors (2 per pose)."""
-    downs = [face_down_direction(p.face) for p in poses]
-    tangents = [_tangents(e) for e in downs]
-    whiten = [np.linalg.inv(np.linalg.cholesky(p.mean_cov + extra_var * np.eye(3))) for p in poses]
-    means = [p.mean for p in poses]
+    """Residual and Jacobian of the MAP problem: whitened pose means (3 per pose) and tilt priors (2 per pose);
+    and the whitening (P, 3, 3) of each pose's mean.  All poses at once (arrays, no loop over poses: the fit
+    evaluates this some twenty times per solve)."""
+    downs = np.array([face_down_direction(p.face) for p in poses])
+    tangents = np.array([_tangents(e) for e in downs])                       # (P, 2, 3)
+    whiten = np.array([np.linalg.inv(np.linalg.cholesky(p.mean_cov + extra_var * np.eye(3))) for p in poses])
+    means = np.array([p.mean for p in poses])
     n_pose, n_m = len(poses), model.size
     n_t = 2 * n_pose if tau > 0 else 0
-
-    def directions(t):
-        out, derivs = [], []
-        for k, (e, (t1, t2)) in enumerate(zip(downs, tangents, strict=True)):
-            if tau > 0:
-                a, b = t[2 * k], t[2 * k + 1]
-                v = e + a * t1 + b * t2
-                nv = np.linalg.norm(v)
-                d = v / nv
-                proj = (np.eye(3) - np.outer(d, d)) / nv
-                derivs.append((proj @ t1, proj @ t2))
-            else:
-                d = e
-                derivs.append(None)
-            out.append(d)
-        return out, derivs
+    poses_ix = np.arange(n_pose)
 
     def system(x):
         p, t = x[:n_m], x[n_m:]
         k_mat, o, dko = model.forward(p)
-        ds, dds = directions(t)
+        if tau > 0:
+            v = downs + np.einsum("pj,pjk->pk", t.reshape(n_pose, 2), tangents)
+            nv = np.linalg.norm(v, axis=1)
+            d = v / nv[:, None]
+            # d direction / d (tilt a, tilt b): the tangents projected off the direction, over its length
+            dd = (tangents - np.einsum("pk,pj->pjk", d, np.einsum("pjk,pk->pj", tangents, d))) / nv[:, None, None]
+        else:
+            d = downs
+        f = -g * d                                                            # (P, 3)
+        pred = f @ k_mat.T + o
         res = np.zeros(3 * n_pose + n_t)
         jac = np.zeros((3 * n_pose + n_t, n_m + n_t))
-        for i, (d, dd, wi, m) in enumerate(zip(ds, dds, whiten, means, strict=True)):
-            f = -g * d
-            pred = k_mat @ f + o
-            rows = slice(3 * i, 3 * i + 3)
-            res[rows] = wi @ (m - pred)
-            # d pred / d [K.ravel(), o]: K_ab -> f_b in row a; o -> I
-            dpred_ko = np.zeros((3, 12))
-            for a in range(3):
-                dpred_ko[a, 3 * a:3 * a + 3] = f
-            dpred_ko[:, 9:] = np.eye(3)
-            jac[rows, :n_m] = -wi @ dpred_ko @ dko
-            if tau > 0:
-                jac[rows, n_m + 2 * i] = -wi @ (k_mat @ (-g * dd[0]))
-                jac[rows, n_m + 2 * i + 1] = -wi @ (k_mat @ (-g * dd[1]))
+        res[:3 * n_pose] = np.einsum("pij,pj->pi", whiten, means - pred).ravel()
+        # d pred / d p: K_ab -> f_b in row a, o -> I, through d [K.ravel(), o] / d p
+        dpred = np.einsum("pb,abn->pan", f, dko[:9].reshape(3, 3, n_m)) + dko[9:][None]
+        jac[:3 * n_pose, :n_m] = -np.einsum("pij,pjn->pin", whiten, dpred).reshape(3 * n_pose, n_m)
         if tau > 0:
+            # pose i's residual on its own two tilts: -W_i K (-g d direction / d tilt)
+            tilt_cols = g * np.einsum("pij,jk,pmk->pim", whiten, k_mat, dd)    # (P, 3, 2)
+            block = np.zeros((n_pose, 3, n_pose, 2))
+            block[poses_ix, :, poses_ix, :] = tilt_cols
+            jac[:3 * n_pose, n_m:] = block.reshape(3 * n_pose, n_t)
             res[3 * n_pose:] = t / tau
             jac[3 * n_pose:, n_m:] = np.eye(n_t) / tau
         return res, jac
 
-    return system, n_t
+    return system, n_t, whiten
+
+
+def _mean_response(model: _Model, system, x: np.ndarray, res: np.ndarray, jac: np.ndarray, inverse: np.ndarray,
+                   whiten: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+    """d [values, C.ravel(), b] / d s (k, size + 12): the MAP solution's first-order response to shifts s of the
+    pose means, ``shifts`` (k, P, 3), from the fit's own Jacobian at its solution x (implicit function theorem;
+    the weights and flatness held at the solve's).  The residual r = W (m - pred(x)) moves by W dm, so
+    dx = -H^-1 J^T W dm with H = J^T J + sum_i r_i d^2 r_i / dx^2.  J^T J alone (``inverse`` is its inverse: the
+    fit's covariance) misses the second term, 1e-3 to 1e-2 of the response with a hand's tilts and noise: it is
+    added by fixed-point steps dx <- -(J^T J)^-1 (J^T W dm + S dx), S dx from J's change along dx (one evaluation
+    per shift, forward difference of 1e-6 of the parameters' scale), each of which shrinks the error by the
+    term's size: two or three bring it to about 1e-6.  What it replaces: a refit per shift (the static
+    procedure's drift terms, 3 rates and 3 curvatures: six refits), the costliest part of the static calibration.  Checked against refits in tests/test_static_drift_jacobian.py."""
+    n_pose, n_rows = len(whiten), len(res)
+    data_shift = np.zeros((n_rows, len(shifts)))
+    data_shift[:3 * n_pose] = np.einsum("pij,kpj->pik", whiten, shifts).reshape(3 * n_pose, len(shifts))
+    gradient = jac.T @ data_shift                      # d (J^T r) / d s at fixed x
+    dx = -inverse @ gradient                           # Gauss-Newton
+    scale = np.maximum(np.abs(x), 1e-2)
+    for _ in range(5):
+        second = np.zeros_like(dx)
+        for k in range(dx.shape[1]):
+            size = float(np.max(np.abs(dx[:, k]) / scale))
+            if size == 0.0:
+                continue
+            eps = 1e-6 / size
+            # (J(x + eps dx) - J(x))^T r / eps: the residuals' curvature along dx, weighted by the residuals
+            second[:, k] = (system(x + eps * dx[:, k])[1] - jac).T @ res / eps
+        updated = -inverse @ (gradient + second)
+        change = np.max(np.abs(updated - dx) / scale[:, None]) / max(np.max(np.abs(updated) / scale[:, None]), 1e-300)
+        dx = updated
+        if change < 1e-7:     # converged: the step's own error (about 1e-6) is larger than what is left
+            break
+    dp = dx[:model.size]
+    return np.vstack([dp, model.correction_jacobian(x[:model.size]) @ dp]).T
 
 
 def _require_faces(poses: Sequence[PoseStats]) -> None:
@@ -546,15 +583,40 @@ def magnitude_z(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float
     """The gravity magnitudes' residuals |C (m_p - b)| - g per pose, and the same in units of their sd from
     each mean's covariance (plus ``extra_var`` per axis): (z, residuals)."""
     c_mat, b = correction_vec[:9].reshape(3, 3), correction_vec[9:12]
-    z, resid = [], []
-    for p in poses:
-        v = c_mat @ (p.mean - b)
-        u = v / np.linalg.norm(v)
-        var = u @ c_mat @ (p.mean_cov + extra_var * np.eye(3)) @ c_mat.T @ u
-        r = np.linalg.norm(v) - g
-        z.append(r / np.sqrt(var))
-        resid.append(r)
-    return np.array(z), np.array(resid)
+    means, covs = _means_and_covs(poses, extra_var)
+    v = (means - b) @ c_mat.T
+    norm = np.linalg.norm(v, axis=1)
+    w = (v / norm[:, None]) @ c_mat                    # C^T u: the magnitude's gradient in the raw mean
+    var = np.einsum("pi,pij,pj->p", w, covs, w)
+    resid = norm - g
+    return resid / np.sqrt(var), resid
+
+
+def magnitude_z_response(correction_vec: np.ndarray, d_correction: np.ndarray, poses: Sequence[PoseStats],
+                         d_means: np.ndarray, g: float, extra_var: float = 0.0) -> np.ndarray:
+    """d z / d s (P, k) of ``magnitude_z``'s z along k joint changes of the correction (``d_correction`` (k, 12),
+    [C.ravel(), b]) and of the pose means (``d_means`` (k, P, 3)); the means' covariances held.  Analytic: with
+    v = C (m - b), u = v / |v|, w = C^T u, var = w^T V w, z = (|v| - g) / sqrt(var)."""
+    c_mat, b = correction_vec[:9].reshape(3, 3), correction_vec[9:12]
+    d_c, d_b = d_correction[:, :9].reshape(-1, 3, 3), d_correction[:, 9:12]
+    means, covs = _means_and_covs(poses, extra_var)
+    v = (means - b) @ c_mat.T
+    norm = np.linalg.norm(v, axis=1)
+    u = v / norm[:, None]
+    w = u @ c_mat
+    var = np.einsum("pi,pij,pj->p", w, covs, w)
+    dv = np.einsum("kij,pj->kpi", d_c, means - b) + np.einsum("ij,kpj->kpi", c_mat, d_means - d_b[:, None, :])
+    d_norm = np.einsum("pi,kpi->kp", u, dv)
+    du = (dv - u[None] * d_norm[..., None]) / norm[None, :, None]
+    dw = np.einsum("kji,pj->kpi", d_c, u) + du @ c_mat
+    d_var = 2.0 * np.einsum("pi,pij,kpj->kp", w, covs, dw)
+    d_z = d_norm / np.sqrt(var) - (norm - g) * d_var / (2.0 * var ** 1.5)
+    return d_z.T
+
+
+def _means_and_covs(poses: Sequence[PoseStats], extra_var: float) -> tuple[np.ndarray, np.ndarray]:
+    return (np.array([p.mean for p in poses]),
+            np.array([p.mean_cov for p in poses]) + extra_var * np.eye(3))
 
 
 def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: float, extra_var: float) -> tuple[float, np.ndarray]:
@@ -566,7 +628,7 @@ def _magnitude_chi2(correction_vec: np.ndarray, poses: Sequence[PoseStats], g: f
 def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                  pose_flatness_deg: float = DEFAULT_POSE_FLATNESS_DEG, g: float = STANDARD_GRAVITY,
                  inflation: str = "repeatability", wander_var: float = 0.0, spent_dof: int = 0,
-                 between: np.ndarray | None = None) -> GravityFit:
+                 between: np.ndarray | None = None, mean_shifts: np.ndarray | None = None) -> GravityFit:
     """Six-face fit with every pose's gravity direction a nuisance tilted from its face (MAP, flatness prior).
 
     model "affine" (12: C, b) or "paper" (9: angles, gains, offsets, calibrated = G R raw + c).
@@ -585,7 +647,9 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     ``spent_dof``: degrees of freedom the pose means already gave to something fitted out of them (a drift
     referred to the middle of the run): the magnitudes' test has that many fewer.  ``between``: the covariance
     between different poses' means (3 P, 3 P, pose-major, diagonal blocks zero: noise slower than a hold),
-    added through ``_between_poses``.
+    added through ``_between_poses``.  ``mean_shifts`` (k, P, 3): directions in which the pose means may move
+    (the static procedure's drift terms); the fit's first-order response to each, d [values, C, b] per unit
+    along it, is returned as ``mean_response`` (``_mean_response``: from the fit's own Jacobian, no refit).
     """
     start = time.perf_counter()
     _check_inflation(inflation)
@@ -601,7 +665,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     def solve(flat_deg, extra_var):
         nonlocal n_eval
         tau = float(np.tan(np.radians(flat_deg)))
-        system, n_t = _six_face_system(m, poses, g, tau, extra_var)
+        system, n_t, whiten = _six_face_system(m, poses, g, tau, extra_var)
         x0 = np.concatenate([m.start(k0, o0), np.zeros(n_t)])
         sol = least_squares(lambda x: system(x)[0], x0, jac=lambda x: system(x)[1], method="lm",
                             xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=400)
@@ -613,10 +677,10 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
             chi2_m = _magnitude_chi2(corr, poses, g, extra_var)[0]
         else:
             chi2_t, chi2_m = 0.0, float(res @ res)
-        return sol.x, jac, chi2_m, chi2_t, n_t
+        return sol.x, jac, chi2_m, chi2_t, n_t, (system, whiten, res)
 
     flat = float(pose_flatness_deg)
-    x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
+    x, jac, chi2_m, chi2_t, n_t, last = solve(flat, wander_var)
     names = list(m.names) + [f"tilt{k}" for k in range(n_t)]
     problem = unidentifiable_direction(jac, names)
     if problem:
@@ -645,17 +709,16 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                          "tilts used")
         source = f"noise + observed flatness {observed:.2g} deg (stated {flat:g}, Type B)"
         flat = observed
-        x, jac, chi2_m, chi2_t, n_t = solve(flat, wander_var)
+        x, jac, chi2_m, chi2_t, n_t, last = solve(flat, wander_var)
     dof = (n_pose - 6 if flat > 0 else 3 * n_pose - m.size) - spent_dof
     # the scatter is judged without the wander floor (a floor must never turn the repeatability off)
     chi2_before = chi2_m if wander_var == 0 else solve(flat, 0.0)[2]
     birge, rejected = _birge(chi2_before, dof)
-    cov_scale, sigma_r, final_var = 1.0, 0.0, wander_var
+    cov_scale, sigma_r = 1.0, 0.0
     source += "" if rejected else _wander_note(wander_var)
     if rejected and inflation == "repeatability":
         v = max(_solve_repeatability(lambda var: solve(flat, var)[2], dof) * _student_variance_factor(dof), wander_var)
-        x, jac, chi2_m, chi2_t, n_t = solve(flat, v)
-        final_var = v
+        x, jac, chi2_m, chi2_t, n_t, last = solve(flat, v)
         sigma_r = float(np.sqrt(v))
         replaces = "; it replaces the slow-noise wander" if wander_var else ""
         source += (f" + pose repeatability {sigma_r:.2g} m/s^2 from the scatter (χ² was {chi2_before:.3g} for "
@@ -663,18 +726,22 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
     elif rejected and inflation == "birge":
         cov_scale = birge**2
         source += f" x Birge ratio {birge:.3g} (χ² = {chi2_m:.3g} for {dof} degrees of freedom)"
-    cov = np.linalg.inv(jac.T @ jac)
+    full_cov = np.linalg.inv(jac.T @ jac)
+    system, whiten, res = last
+    response = None if mean_shifts is None else _mean_response(m, system, x, res, jac, full_cov, whiten, mean_shifts)
+    cov = full_cov
     if between is not None:
         # the data rows are the pose means whitened by each pose's own covariance (as the last solve weighed them)
-        whiten = np.zeros((3 * n_pose, 3 * n_pose))
-        for i, pose in enumerate(poses):
-            whiten[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.linalg.inv(
-                np.linalg.cholesky(pose.mean_cov + final_var * np.eye(3)))
-        cov = _between_poses(cov, jac[:3 * n_pose], whiten, between)
+        whiten_all = np.zeros((3 * n_pose, 3 * n_pose))
+        for i in range(n_pose):
+            whiten_all[3 * i:3 * i + 3, 3 * i:3 * i + 3] = whiten[i]
+        cov = _between_poses(cov, jac[:3 * n_pose], whiten_all, between)
         source += "; the poses' shared slow noise added (sandwich)"
     cov = cov[:m.size, :m.size] * cov_scale
     p = x[:m.size]
-    corr_values, corr_cov = propagate_covariance(m.to_correction, p, cov)
+    corr_values, corr_jac = m.to_correction(p), m.correction_jacobian(p)
+    corr_cov = corr_jac @ cov @ corr_jac.T
+    corr_cov = 0.5 * (corr_cov + corr_cov.T)
     if flat > 0 and model == "affine":
         corr_cov = corr_cov + _diagonal_second_order(corr_cov)
     correction = Correction(corr_values[:9].reshape(3, 3), corr_values[9:], corr_cov)
@@ -685,7 +752,7 @@ def fit_six_face(poses: Sequence[PoseStats], model: str = "affine",
                       bool(rejected and inflation != "none") or tilts_rejected, source,
                       _magnitudes(correction, poses, g), _names(poses), g, pose_flatness_deg=flat,
                       tilts_deg=tilts, n_evaluations=n_eval, seconds=time.perf_counter() - start,
-                      repeatability_sd=sigma_r, chi2_before=chi2_before,
+                      repeatability_sd=sigma_r, chi2_before=chi2_before, mean_response=response,
                       extra={"chi2_tilts": tilt_stat, "tilt_dof": round(tilt_dof, 2), "tilt_p_value": tilt_p,
                              "notes": notes,
                              "stated_flatness_deg": float(pose_flatness_deg)})
@@ -769,7 +836,7 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
     k_true, o_true = np.linalg.inv(c), np.asarray(bias, dtype=float)
     poses = [PoseStats(k_true @ (-g * face_down_direction(f)) + o_true, sigma, n, f) for f, n in zip(faces, counts, strict=True)]
     tau = float(np.tan(np.radians(pose_flatness_deg)))
-    system, n_t = _six_face_system(m, poses, g, tau)
+    system, n_t, _ = _six_face_system(m, poses, g, tau)
     p = np.asarray(params, dtype=float) if params is not None else m.start(k_true, o_true)
     rng = np.random.default_rng(seed)
     samples = [np.zeros(n_t)] if n_t == 0 or draws == 0 else [tau * rng.standard_normal(n_t) for _ in range(draws)]
@@ -789,7 +856,9 @@ def six_face_crb(model: str, matrix: np.ndarray, bias: np.ndarray, faces: Sequen
         jac = np.hstack([system(np.concatenate([p, t]))[1], drift])
         info += jac.T @ jac / len(samples)
     cov = np.linalg.inv(info)[:m.size, :m.size]
-    return propagate_covariance(m.to_correction, p, cov)[1]
+    corr_jac = m.correction_jacobian(p)
+    out = corr_jac @ cov @ corr_jac.T
+    return 0.5 * (out + out.T)
 
 
 # ------------------------------------------------------------------ Ferraris pairing

@@ -62,6 +62,9 @@ class Procedure(abc.ABC):
     name: ClassVar[str]                     # 'static', 'wheel', 'slider-crank', 'rotary'
     title: ClassVar[str]                    # for people: 'six-face static calibration'
     settings: ClassVar[tuple[Setting, ...]] = ()
+    # what the settings need together that no one field says (the wheel: the radius, the tilt, or both);
+    # the settings form shows it under its title
+    settings_note: ClassVar[str] = ""
     actions: ClassVar[dict[str, str]] = {}  # action -> what it does, for keys and help
     # actions that need no new samples (finish with what was taken): still possible once the source ended
     closing_actions: ClassVar[tuple[str, ...]] = ()

@@ -322,6 +322,7 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
 
     from accelrig import __version__
     from accelrig.report.html import (
+        CONDITION_FIELDS,
         CSS,
         _kv,
         _sentence,
@@ -344,9 +345,8 @@ def render_batch_html(batch: Batch, conditions: dict | None = None, figures: lis
     html.append(f'<p class="note">{("No. " + escape(number) + " · ") if number else ""}issued '
                 f"{issued.strftime('%Y-%m-%d %H:%M UTC')} · written with accelrig {escape(__version__)} · "
                 f"{len(batch.sources)} sources</p>")
-    cond = [(label, conditions.get(key)) for key, label in
-            (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
-             ("temperature", "Ambient temperature"), ("humidity", "Relative humidity")) if key in conditions]
+    cond = [(label, conditions.get(key)) for key, label in CONDITION_FIELDS
+            if key in conditions and key != "certificate_number"]
     if cond:
         html.append(_kv(cond))
 

@@ -78,6 +78,13 @@ def check_lines(result: dict) -> list[tuple[str, str]]:
     if tilt_p is not None and math.isfinite(tilt_p) and q.get("stated_flatness_deg"):
         within = ("beyond it: the flatness the tilts show is used instead (see the uncertainty)"
                   if tilt_p < LACK_OF_FIT_ALPHA else "within it")
+        shown = q["stated_flatness_deg"] * math.sqrt(max(q["chi2_tilts"], 0.0) / q["tilt_dof"]) if q["tilt_dof"] else None
+        if tilt_p >= LACK_OF_FIT_ALPHA and shown is not None and shown < 0.5 * q["stated_flatness_deg"]:
+            # a first-time operator read "within it" as the data confirming the cross-axis u, and could not tell
+            # why that u followed the number typed in, whatever the data
+            within += (f"; the tilts the faces can show are about {shown:.2g} deg, yet the cross-axis terms' u "
+                       "rests on the stated flatness: across gravity a pose's tilt and C's off-diagonal terms read "
+                       "alike, so no data check it")
         lines.append(("pose tilts", f"the tilts the poses need to fit, against the stated flatness "
                                     f"{q['stated_flatness_deg']:g} deg: χ² = {q['chi2_tilts']:.3g} for "
                                     f"{q['tilt_dof']:.3g} degrees of freedom (p = {tilt_p:.3g}), {within}"))

@@ -24,7 +24,8 @@ from accelrig.result import Estimate, format_value
 
 DEFAULT_K = 2.0
 # approved_by is not a condition: it has its own block, with the signature (approval_block)
-CONDITION_FIELDS = (("customer", "Customer"), ("operator", "Operator"), ("location", "Location"),
+CONDITION_FIELDS = (("customer", "Customer"), ("customer_reference", "Customer reference"),
+                    ("operator", "Operator"), ("location", "Location"),
                     ("temperature", "Ambient temperature"), ("humidity", "Relative humidity"),
                     ("certificate_number", "Certificate number"))
 # facts of the run, not of the item: wall-clock time and solver iterations change from run to run
@@ -232,7 +233,7 @@ def groups_html(src: Source, k: float) -> str:
         return ""
     rows = [_group_row("1", f"{sensor} axis {axis}", e) for sensor, axes in d["per_axis"].items()
             for axis, e in axes.items()]
-    rows += [_group_row("2", sensor, e) for sensor, e in d["per_sensor"].items()]
+    rows += [_group_row("2", f"{sensor} (mean of its axes)", e) for sensor, e in d["per_sensor"].items()]
     b = d["batch"]
     rows.append(_group_row("3", f"batch ({len(b['sensors'])} sensors)", b))
     tests = []
@@ -329,17 +330,24 @@ def render_html(src: Source, conditions: dict | None = None, figures: list | Non
 
     verifies = r["procedure"] == "slider-crank"
     html.append(heading("Item verified" if verifies else "Item calibrated"))
+    device_rows = [(label, value) for label, value in (
+        ("Identity", dev.get("identity") or "not recorded"), ("Chip", dev.get("chip")),
+        ("Range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
+        ("Nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
+        ("Sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
+        ("Connection", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x) or None))
+        if value is not None]
     if src.is_campaign:
-        html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", src.details.get("source")),
-                         ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", [])))]))
+        # a campaign from a file names the file; one recorded live in the TUI has none, but has its device
+        records = src.details.get("records") or []
+        source = src.details.get("source") or (
+            f"none: recorded live, one recording per test ({len(records)}, under Recordings of the tests)"
+            if records else "not recorded")
+        html.append(_kv([("Campaign", src.details.get("campaign")), ("Campaign file", source),
+                         ("Sensors", ", ".join(src.details.get("batch", {}).get("sensors", []))),
+                         *(device_rows if dev.get("identity") else [])]))
     else:
-        html.append(_kv([(label, value) for label, value in (
-            ("Identity", dev.get("identity") or "not recorded"), ("Chip", dev.get("chip")),
-            ("Range", f"±{dev['range_g']:g} g" if dev.get("range_g") else None),
-            ("Nominal scale", f"{dev['scale']:.6g} m/s² per count" if dev.get("scale") else None),
-            ("Sample rate", f"{dev['rate']:g} Hz nominal" if dev.get("rate") else None),
-            ("Connection", " ".join(str(x) for x in (dev.get("driver"), dev.get("url")) if x) or None))
-            if value is not None]))
+        html.append(_kv(device_rows))
 
     html.append(heading("Method"))
     words = ESTIMATOR_WORDS.get((r["procedure"], r["method"]))

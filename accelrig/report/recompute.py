@@ -53,7 +53,7 @@ def _rerun(src: Source, rec):
 
         values = {s.name: settings[s.name] for s in SETTINGS if settings.get(s.name) is not None}
         values["model"] = settings.get("model_requested", values.get("model", "auto"))
-        return calibrate_static(rec, **values)
+        return calibrate_static(rec, skip_poses=settings.get("skip_poses", ()), **values)
     from accelrig.procedures.wheel.procedure import calibrate_wheel
 
     rig = src.provenance.get("rig") or {}

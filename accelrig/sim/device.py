@@ -109,6 +109,18 @@ class SimDevice:
             channels={k: np.asarray(v, dtype=float) for k, v in channels.items()},
         )
 
+    def lost_tail(self, host_time: float) -> Block | None:
+        """Once the script has ended, the samples of its last blocks 'lost on the link' as an empty
+        block carrying their gap (a gap is reported on the block after it, and none follows these);
+        None when nothing is waiting to be reported."""
+        if not self.exhausted or not self._pending_gap:
+            return None
+        gap, self._pending_gap = self._pending_gap, 0
+        seq, self.seq = self.seq, self.seq + 1
+        channels = {name: np.empty(0) for name in self.rig.channel_names}
+        return Block(seq=seq, counter=self.counter, host_time=host_time, counts=np.empty((0, 3), dtype=np.int16),
+                     scale=self.sensor.scale, t=np.empty(0), gap_before=gap, channels=channels)
+
     def _take(self, first: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         """Samples first .. first+n-1: (true times, reported times, counts, channels), copies.
 

@@ -114,6 +114,7 @@ class SimFirmware:
         self.config = P.LinkConfig(int(sensor.range_g), deliverable_rate(200.0), min(32, max_samples_per_frame))
         self.streaming = False
         self.seq = 0
+        self.numbered_until = 0   # device counter after the last numbered frame's samples (sent or not)
         self.record: bytes | None = None
         self.sent_frames = 0
         self.dropped_frames = 0
@@ -228,6 +229,7 @@ class SimFirmware:
             while d.counter + n <= due and not d.exhausted:
                 block = d.next_block(n, 0.0)
                 seq, self.seq = self.seq, (self.seq + 1) % (1 << 32)
+                self.numbered_until = block.counter + block.n
                 if faults.drop and self.rng.random() < faults.drop:
                     self.dropped_frames += 1
                     if self.fate_log is not None:

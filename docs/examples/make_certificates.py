@@ -30,7 +30,8 @@ from report_support import (  # noqa: E402
 
 ISSUED = datetime(2026, 1, 15, 9, 0, tzinfo=UTC)
 RECORDED = "2026-01-15T08:00:00Z"   # when the simulated recordings "started" (the simulator takes the clock's)
-CONDITIONS = {"customer": "Example Structural Monitoring Ltd.", "operator": "A. Tester", "location": "Lab 2",
+CONDITIONS = {"customer": "Example Structural Monitoring Ltd.", "customer_reference": "order 4500-0815",
+              "operator": "A. Tester", "location": "Lab 2",
               "temperature": "23.0 ± 1.0 °C", "humidity": "45 ± 10 %"}
 CAMPAIGN_SOURCE = "simulated campaign (accelrig.sim.campaign.write_sim_campaign, seed 7)"
 

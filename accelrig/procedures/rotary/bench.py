@@ -62,7 +62,7 @@ from accelrig.estimation.gum import Contribution, UncertaintyBudget
 from accelrig.estimation.sinefit import SineFit, fit_sine, fit_sines_known_frequency, interpolated_dft_frequency
 from accelrig.geometry import AXES, parse_axis
 from accelrig.procedures.rotary.settings import RATE_METHODS
-from accelrig.recording import Recording, load_recording, read_table
+from accelrig.recording import Recording, load_recording, read_table, utc_origin
 from accelrig.result import CalibrationResult, Estimate
 from accelrig.units import STANDARD_GRAVITY, normalise_unit
 
@@ -815,8 +815,23 @@ def sample_jumps(positions: np.ndarray, fit: SineFit) -> dict:
     return out
 
 
+# encoder log times above this are UTC epoch seconds (after 2001-09-09), not seconds since a test's start
+EPOCH_TIMES = 1e9
+
+
 def overlapping_encoder(mems: Recording, encoder: EncoderLog, n: int, nominal_rate: float) -> EncoderLog:
-    """The encoder log over the MEMS record (whose start is the only thing its clock is trusted for)."""
+    """The encoder log over the MEMS record (whose start is the only thing its clock is trusted for).
+
+    A recording that carries UTC time (``accelrig record``) meets an encoder log timed in UTC epoch seconds (a
+    lab logger's clock) on that clock: the log is moved onto the recording's time base."""
+    origin = utc_origin(mems)
+    if origin is not None and encoder.t[0] > EPOCH_TIMES:
+        encoder = EncoderLog(encoder.t - origin, encoder.theta, encoder.ref, encoder.source)
+    elif encoder.t[0] > EPOCH_TIMES:
+        raise DataError(f"the encoder log's times are UTC epoch seconds ({encoder.t[0]:.3f} ..), and the MEMS "
+                        "record carries no UTC time to meet them on",
+                        "record the MEMS with 'accelrig record' (which writes its UTC start), or give the encoder "
+                        "log's t in seconds from the MEMS record's first sample")
     mems_start = float(mems.t[0])
     mems_stop = mems_start + (n - 1) / nominal_rate
     overlap = min(mems_stop, encoder.t[-1]) - max(mems_start, encoder.t[0])
@@ -1110,10 +1125,12 @@ def _bland_altman_reference(enc: EncoderLog, enc_fit: SineFit, setup: RotarySetu
 
 def load_test_inputs(mems_path: str | os.PathLike, encoder_path: str | os.PathLike | None, nominal_rate: float,
                      units: str | None = None) -> tuple[Recording, EncoderLog | None]:
-    """The MEMS recording (counts; a file without ``t`` gets k / nominal_rate) and the encoder log, if given."""
+    """The MEMS recording (a file without ``t`` gets k / nominal_rate) and the encoder log, if given.
+    ``units``: what the file's values are; None takes what the file declares, else counts (a bench logger's
+    raw output; ``accelrig record`` declares m/s^2 and the counts scale, which ``mems_counts`` undoes)."""
     if units is not None:
         normalise_unit(units)
-    mems = load_recording(mems_path, units=units, rate=nominal_rate)
+    mems = load_recording(mems_path, units=units, rate=nominal_rate, default_units="counts")
     return mems, (read_encoder_csv(encoder_path) if encoder_path else None)
 
 

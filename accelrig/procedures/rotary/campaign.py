@@ -31,7 +31,7 @@ YAML (paths relative to the YAML file; per-test keys override the defaults)::
     components: [tangential, centripetal]   # add dc to use the radial DC part
     correlation: 1.0            # between u_rep, u_l, u_ref
     coverage_factor: 2
-    units: counts               # of the MEMS files
+    units: counts               # of the MEMS files (default: what each file declares, else counts)
     tests:
       - {sensor: S1, mems: s1_xy_5hz_a.csv, encoder: s1_xy_5hz_a_enc.csv,
          tangential: x, radial: y, frequency: 5}
@@ -166,7 +166,7 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
             "nominal_rate": float(merged["nominal_rate"]),
             "frequency": float(merged["frequency"]) if "frequency" in merged else None,
             "rate_method": merged.get("rate_method", "fit"),
-            "units": merged.get("units", "counts"),
+            "units": merged.get("units"),   # None: what the file declares, else counts
         }
         encoder = merged.get("encoder")
         out.append(CampaignTest(
@@ -189,7 +189,7 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
 def run_test(test: CampaignTest) -> RotaryTest:
     o = test.options
     try:
-        mems = load_recording(test.mems, units=o["units"], rate=o["nominal_rate"])
+        mems = load_recording(test.mems, units=o["units"], rate=o["nominal_rate"], default_units="counts")
         encoder = read_encoder_csv(test.encoder) if test.encoder else None
         result = analyse_test(mems, encoder, o["tangential"], o["radial"], o["nominal_rate"],
                               o["frequency"], o["rate_method"], test.setup)
@@ -328,9 +328,22 @@ def analyse_campaign(campaign: Campaign, results: list[RotaryTest]) -> Calibrati
     for sensor in sensors:
         groups = {a: [o.sensitivity for o in obs if o.sensor == sensor and o.axis == a] for a in per_axis[sensor]}
         try:
-            anova["across_axes"][sensor] = one_way_anova(groups).to_dict()
+            across = one_way_anova(groups)
         except CalibrationError as exc:
             anova["across_axes"][sensor] = {"not_evaluated": exc.message}
+            continue
+        anova["across_axes"][sensor] = across.to_dict()
+        if not across.equal_means():
+            # the paper's case 2 is one value for any axis: with axes that differ, it is not any one axis's
+            # sensitivity, which a reader of the group table could take it for
+            per = ", ".join(f"{axis} {format_value(m, per_axis[sensor][axis]['overall_uncertainty'])[0]}"
+                            for axis, m in across.group_means.items())
+            warnings.append(
+                f"{sensor}: its axes' sensitivities differ (one-way ANOVA F = {across.f_statistic:.3g}, "
+                f"p = {across.p_value:.2g}; {per}): the case 2 value "
+                f"{format_value(per_sensor[sensor]['mean_sensitivity'], per_sensor[sensor]['overall_uncertainty'])[0]}"
+                " is their mean, its u widened by their spread, and stands for the sensor as a whole; each axis's "
+                "own sensitivity is its case 1 value")
     try:
         anova["across_sensors"] = one_way_anova(
             {s: [o.sensitivity for o in obs if o.sensor == s] for s in sensors}).to_dict()
@@ -439,7 +452,7 @@ def report_markdown(result: CalibrationResult) -> str:
         for axis, e in axes.items():
             lines.append(f"| 1 | {sensor} axis {axis} | {s_u_U(e)} |")
     for sensor, e in report["per_sensor"].items():
-        lines.append(f"| 2 | {sensor} | {s_u_U(e)} |")
+        lines.append(f"| 2 | {sensor} (mean of its axes) | {s_u_U(e)} |")
     b = report["batch"]
     lines.append(f"| 3 | batch ({len(b['sensors'])} sensor{'' if len(b['sensors']) == 1 else 's'}) | {s_u_U(b)} |")
     lines += ["", "## ANOVA", "", "| groups | F | p | means differ (5 %) |", "|---|---|---|---|"]

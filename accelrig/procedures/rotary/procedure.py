@@ -23,6 +23,10 @@ from accelrig.procedures.rotary.settings import PAPER_PLAN, SETTINGS
 from accelrig.procedures.steps import StepCapture
 from accelrig.result import CalibrationResult
 
+# how far the swing the encoder measures may be from the plan's angle (relative; at least 1 degree): a motor
+# set by hand to the plan's angle lands within a few per cent; a step run at another angle is caught
+AMPLITUDE_TOLERANCE = 0.10
+
 
 @dataclass(frozen=True)
 class RotaryStep:
@@ -144,6 +148,14 @@ class RotaryProcedure(Procedure):
                                   step.frequency, self.rate_method, self.setup)
         except AccelrigError as exc:
             return [Event("problem", f"step {step.index + 1} not kept: {exc}; press space to record it again")]
+        swing = 2.0 * float(np.degrees(result.theta0.value))   # peak to peak, as the plan gives it
+        if abs(swing - step.amplitude_deg) > max(AMPLITUDE_TOLERANCE * step.amplitude_deg, 1.0):
+            # the campaign groups and labels the steps by the plan's angles: a step run at another angle would be
+            # certified as the plan's and would falsify the linearity between the amplitudes
+            return [Event("problem", f"step {step.index + 1} not kept: the encoder shows the bench swinging "
+                                     f"{swing:.1f} degrees peak to peak, the plan says {step.amplitude_deg:g}; set "
+                                     f"the motor to {step.amplitude_deg:g} degrees and press space to record it "
+                                     "again (or change the plan)")]
         self.results.append((step, result))
         self.records.append({"test": step.index + 1, "recording_hash": recording.content_hash(),
                              "samples": len(recording),

@@ -22,9 +22,9 @@ NOMINAL_RATE = Setting("nominal_rate", "nominal MEMS rate (a live device: its ow
 FREQUENCY = Setting("frequency", "excitation frequency (blank: from the encoder)", unit="Hz", low=0.0, low_open=True)
 RATE_METHOD = Setting("rate_method", "true sampling rate by a sample-index sine fit or the paper's 1 Hz FFT scan",
                       kind="choice", choices=RATE_METHODS, default="fit")
-PLAN = Setting("plan", "steps FREQUENCY:DEGREES peak to peak (blank: the paper's "
-               + ",".join(f"{f:g}:{a:g}" for f, a in PAPER_PLAN) + ")", kind="text", example="5:34,8:13",
-               label="Steps FREQUENCY:DEGREES peak to peak")
+PLAN = Setting("plan", "steps FREQUENCY:DEGREES, the frequency in Hz and the angle in degrees peak to peak "
+               "(blank: the paper's " + ",".join(f"{f:g}:{a:g}" for f, a in PAPER_PLAN) + ")", kind="text",
+               example="5:34,8:13", label="steps FREQUENCY:DEGREES, in Hz:degrees peak to peak")
 REPEATS = Setting("repeats", "repeats of each step", kind="int", default=6, low=1, high=100)
 SECONDS = Setting("seconds", "seconds recorded per step", unit="s", default=40.0, low=1.0, high=3600.0)
 

@@ -25,7 +25,9 @@ slower        when the correlation still runs at the longest lag tau is read at 
               of the noise (``SlowNoise``, white + exponentially correlated, fitted to the holds' variogram)
               gives each hold mean's covariance and the covariance between holds, which the fits add through
               a sandwich; it replaces the halves' factor and wander.  Its level is checked against the holds'
-              gravity magnitudes (``slow_model_check``) and scaled up when they scatter more.
+              gravity magnitudes (``slow_model_check``) and scaled up when they scatter more.  A wander seen
+              by the halves only is then checked for whether any hold shows its memory (``_memory_shown``):
+              when none does, the offsets stand for the run's own level of it, and a warning says so.
 per axis      each pose keeps its own 3 x 3 sample covariance (no pooled sigma): a z axis twice as
               noisy as x weighs its own rows in the six-face and multi-position fits.
 drift         an offset that moves during the run is invisible in one pose's mean but biases the
@@ -211,6 +213,8 @@ class StillNoise:
     wander_var: float = 0.0               # additive per-pose variance between poses from that slow noise
     # (slow_factor, wander_var) as the halves set them, kept when the slow-noise model replaces them (``_slow_model``)
     halves_widening: tuple[float, float] = (1.0, 0.0)
+    # each pose's two halves (``_halves``): (pose index, samples in a half, the halves' mean difference per axis)
+    halves: list[tuple[int, int, np.ndarray]] = field(default_factory=list)
     # noise slower than a hold (``slow_memory``): the model of it (``fit_slow_noise``) and the covariance of the
     # pose means it gives, (3 P, 3 P) pose-major; None when tau measured within the poses describes the noise
     slow: SlowNoise | None = None
@@ -467,6 +471,80 @@ def _slow_model(noise: StillNoise, samples: list[np.ndarray], times: list[np.nda
     noise.drift["slow_noise"] = {**noise.slow.to_dict(), "seen_by": "memory" if memory else "halves"}
 
 
+def halves_explained(noise: StillNoise, model: SlowNoise, times: list[np.ndarray]) -> dict:
+    """Does the variogram's model account for how far the poses' halves differ (``_halves``)?
+
+    Each hold's two half means differ by d, with variance var_A + var_B - 2 cov_AB under the model
+    (``mean_covariance`` of the two halves).  The halves average a hold's samples, so under a white floor they see a
+    slow part that the variogram within the holds does not: white 0.03 + AR(1) 0.01 m/s^2 over 25 s makes the halves
+    differ ~1.8x the white prediction, while the variogram at 3/4 of a hold rises ~1 % above its floor, within its
+    own scatter, and its fitted memory is then anything from 0.2 s to its search bound.  sum d^2 / var against
+    chi^2 with one degree of freedom per pose and axis: rejected at ALPHA, the holds do not show the wander's memory
+    (the model fitted to the variogram is not a measurement of it)."""
+    chi2, count = 0.0, 0
+    for i, half, d in noise.halves:
+        t = times[i]
+        cov = model.mean_covariance([t[:half], t[half:2 * half]])
+        var = np.diag(cov)[:3] + np.diag(cov)[3:] - 2.0 * np.diag(cov[:3, 3:])
+        chi2 += float(np.sum(d**2 / np.maximum(var, 1e-300)))
+        count += 3
+    return {"chi2": chi2, "dof": count, "ratio": chi2 / max(count, 1),
+            "p_value": float(chi2_dist.sf(chi2, count)) if count else 1.0}
+
+
+# A hold shows a memory when its two halves lie at least two memories apart (their centres are half the hold
+# apart): a memory up to this share of the longest hold.  And the halves tell a memory from a level only when
+# they see the wander at two separations at least MEMORY_SHOWN_SPREAD apart (the longest hold against the median
+# one): a memory shorter than both gives the same excess at both, a wander slower than both a larger one at the
+# longer (holds of one length, 4.5-6 s: a memory read as 1.1 s passed the halves, the truth was 25 s, b_z 7 u off)
+MEMORY_SHOWN_SHARE = 0.25
+MEMORY_SHOWN_SPREAD = 2.0
+
+
+def _memory_shown(noise: StillNoise, times: list[np.ndarray]) -> None:
+    """A wander under a white floor (the model engaged by the halves of the poses): do the holds show its memory?
+
+    The variogram within the holds rises only by a few % of the white floor over a hold, so the memory the model
+    carries comes from that rise and the holds' gravity magnitudes, and both match a memory of a few seconds as
+    well as one of tens: the magnitudes' scatter rises with the memory while the holds' means wander apart, then
+    falls once neighbouring holds share the wander and the fit's offsets take it.  The offsets stand for the run's
+    own level of the wander either way (their u from the model covers it: held-out white 0.03 + AR(1) 0.01 m/s^2
+    over 25 s, 100 % of the runs); how far that level lies from the long-term one depends on the memory, which a
+    run of short holds does not measure (the same runs: the memory read 1-16 s, the long-term offsets covered
+    78 %, up to 7 u off).  The holds show it when some hold is long enough (MEMORY_SHOWN_SHARE) and longer than
+    most (MEMORY_SHOWN_SPREAD), and the halves of the poses, long and short, differ as the model says
+    (``halves_explained``, at ALPHA); else a warning says what
+    the offsets stand for and how far a slower wander's long-term level can lie, the wander's rise over the run at
+    the rate the halves show (what a memory as long as the run gives).  Recorded in
+    ``drift["slow_noise"]["memory_shown"]``."""
+    lengths = np.array([t[-1] - t[0] for t in times])
+    longest, median = float(lengths.max()), float(np.median(lengths))
+    time = float(noise.slow.time[0])
+    check = halves_explained(noise, noise.slow, times)
+    short_enough = time <= MEMORY_SHOWN_SHARE * longest and longest >= MEMORY_SHOWN_SPREAD * median
+    explained = not (check["p_value"] < ALPHA and check["ratio"] > 1.0)
+    record = {"longest_hold_s": longest, "median_hold_s": median, "time_s": time, "halves": check,
+              "shown": short_enough and explained}
+    noise.drift["slow_noise"]["memory_shown"] = record
+    if record["shown"]:
+        return
+    span = float(max(t[-1] for t in times) - min(t[0] for t in times))
+    # adjacent half means a apart differ by (4/3) s a beyond their white part, for a wander rising as s per second
+    rates = [(float(d @ d) / 3.0 - float(np.mean(noise.sd**2)) * 2.0 / half) / (4.0 / 3.0 * half / noise.slow.rate)
+             for _, half, d in noise.halves]
+    reach = float(np.sqrt(max(float(np.mean(rates)), 0.0) * span))
+    record["rise_over_run_sd"] = reach
+    why = (f"holds of {median:.1f} s (the longest {longest:.1f} s) cannot tell it from a longer one"
+           if not short_enough else
+           f"the halves of the poses differ {np.sqrt(check['ratio']):.1f}x more than it accounts for (χ² = "
+           f"{check['chi2']:.3g} for {check['dof']} degrees of freedom)")
+    noise.warnings.append(
+        f"the noise wanders under its white floor more slowly than the holds can show: its memory is read as "
+        f"{time:.2g} s, but {why}: the offsets stand for the run's own level of that wander (their u allows for "
+        f"that memory); a slower wander's long-term level can lie up to about {reach:.2g} m/s^2 from it (its rise "
+        f"over the {span:.0f} s run at the rate the holds show): {SETTLE_HINT}")
+
+
 # The memory the holds' scatter asks for may be at most this share of the run (first hold to last): beyond it the
 # run's own average of the slow noise, which the offsets carry, has a variance of more than a third of the noise's
 # level, and that share rests on a memory several times longer than anything the run can show.
@@ -475,6 +553,17 @@ SLOW_MEMORY_SHARE = 0.2
 
 def slow_model_check(noise: StillNoise, chi2: float, dof: int, samples: list[np.ndarray],
                      times: list[np.ndarray]) -> str | None:
+    """The slow-noise model against the holds themselves (``_between_holds``); a refusal's text when the noise
+    cannot be bounded.  A model the halves of the poses engaged (a wander under a white floor) is then checked for
+    whether the holds show its memory at all (``_memory_shown``)."""
+    said = _between_holds(noise, chi2, dof, samples, times)
+    if said is None and noise.slow is not None and noise.drift["slow_noise"]["seen_by"] == "halves":
+        _memory_shown(noise, times)
+    return said
+
+
+def _between_holds(noise: StillNoise, chi2: float, dof: int, samples: list[np.ndarray],
+                   times: list[np.ndarray]) -> str | None:
     """The slow-noise model against the holds themselves; a refusal's text when the noise cannot be bounded.
 
     ``chi2`` and ``dof``: a first fit's lack of fit, the poses' gravity magnitudes against their variances from
@@ -583,15 +672,17 @@ def _halves(noise: StillNoise, centred: list[np.ndarray], span_in_poses: float) 
     lengths; and a pose mean's deviation from the run's level has half the variance of such a difference,
     where for white noise it has a quarter of the halves' (hence the 2)."""
     tau = np.array([max(w.tau, 1.0) if w.correlated else 1.0 for w in noise.axes])
-    ratios = []
-    for c in centred:
+    ratios, differences = [], []
+    for i, c in enumerate(centred):
         half = len(c) // 2
         if half < 5:
             continue
         d = c[:half].mean(axis=0) - c[half:2 * half].mean(axis=0)
         ratios.append(half * d**2 / 2.0 / (noise.sd**2 * tau))     # ~ chi^2(1) per axis under the tau model
+        differences.append((i, half, d))
     if not ratios:
         return
+    noise.halves = differences
     ratios = np.array(ratios)
     dof = ratios.size
     ratio = float(ratios.mean())

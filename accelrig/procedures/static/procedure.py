@@ -41,6 +41,7 @@ from accelrig.estimation.gravity_fit import (
     fit_multiposition,
     fit_six_face,
     magnitude_z,
+    magnitude_z_response,
 )
 from accelrig.estimation.residuals import ALPHA
 from accelrig.geometry import AXES, FACES, opposite_face
@@ -91,6 +92,8 @@ class StaticProcedure(Procedure):
         self._started = False
         self._n_distinct = 0
         self._n_captured = 0
+        # pose numbers (pose_table's) the operator asked to leave out of a recording (calibrate --skip-pose)
+        self.left_out: frozenset[int] = frozenset()
 
     @classmethod
     def create(cls, values: dict, device: dict) -> StaticProcedure:
@@ -237,6 +240,9 @@ class StaticProcedure(Procedure):
     def result(self) -> CalibrationResult:
         """The calibration, or a CalibrationError saying what cannot be calibrated and what to do."""
         rows, used = pose_table(self.detector.accepted(), self.rejected)
+        used = [(k, p) for k, p in used if k not in self.left_out]
+        for k in sorted(self.left_out):
+            rows[k - 1].update(fate="left out", reason=f"on request: {LEFT_OUT_WHY[rows[k - 1]['fate']]}")
         if not used and self.any_orientation:
             raise CalibrationError("no usable still pose was found",
                                    f"hold the sensor still for {self.detector.min_hold:g} s in each of at least "
@@ -277,6 +283,8 @@ class StaticProcedure(Procedure):
                                     "ljung_box_p": [w.p_value if w else None for w in pose_noise]}
         settings = {**self.settings_used(), "pose_flatness_deg": self.pose_flatness_deg,
                     "model_requested": self.model}
+        if self.left_out:
+            settings["skip_poses"] = sorted(self.left_out)
         result = build_result(poses, stats, rows, model, self.method, settings, noise)
         # noise slower than a hold: its model checked against the scatter of the holds, before the drift's terms
         # take the degrees of freedom that show it (``slow_model_check``)
@@ -338,6 +346,8 @@ class StaticProcedure(Procedure):
 
 
 FATES = {None: "used", "too_short": "too short", "moved": "moved", "saturated": "saturated"}
+LEFT_OUT_WHY = {"used": "it was usable", "too short": "it was too short", "moved": "it moved",
+                "saturated": "it saturated"}
 
 
 def _check_model(model: str, method: str) -> None:
@@ -423,12 +433,12 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     curvature, with q(t) = (t - t_a)(t - t_b) / 2 through that face's first and last holds, less its average
     over the run (the offsets stand for the run's average, which a curving drift moves too).  Both are the
     model's own: the values that minimise the fit's lack of fit, its whitened residuals profiled over the
-    other parameters (Gauss-Newton from the revisits' estimates, the Jacobian from one refit per parameter
-    two of its u away; the fits are linear in them to well within that); cov = (J^T J)^-1.  A rate taken
-    from the revisits alone would disagree with the fit's tilts and misalignment and show as lack of fit.
-    Their u enters the result's covariance through the fit's sensitivity to them (the same refits):
-    cov += S cov(r, kappa) S^T.  Their degrees of freedom go into them, so the lack-of-fit test has that many
-    fewer.  An axis held again but not three times far apart keeps a stated allowance for a curving drift
+    other parameters (Gauss-Newton from the revisits' estimates; the Jacobian, the six-face fit's own response
+    to the shift of the means, which is linear in the terms, or for the exact-face fits one refit per term two
+    of its u away); cov = (J^T J)^-1.  A rate taken from the revisits alone would disagree with the fit's tilts
+    and misalignment and show as lack of fit.  Their u enters the result's covariance through the fit's
+    sensitivity to them (the same Jacobian): cov += S cov(r, kappa) S^T.  Their degrees of freedom go into
+    them, so the lack-of-fit test has that many fewer.  An axis held again but not three times far apart keeps a stated allowance for a curving drift
     (``noise.drift_bend``, type B), and the uncertainty line names the check it could not make."""
     centres = np.array([float(np.mean(p.t)) for p in poses])
     counts = np.array([len(p.t) for p in poses], dtype=float)
@@ -455,9 +465,12 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
         return ([PoseStats(s.mean - d, s.cov, s.n, s.face, s.name) for s, d in zip(stats, shift, strict=True)],
                 [p.mean - d for p, d in zip(poses, shift, strict=True)])
 
-    def fit(rate: np.ndarray, bend: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def fit(rate: np.ndarray, bend: np.ndarray | None = None,
+            shifts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple | None]:
         """The model's whitened lack-of-fit residuals (no inflation: only their shape in r counts) and its
-        reported parameters then C and b, as ``build_result`` fits them."""
+        reported parameters then C and b, as ``build_result`` fits them; with ``shifts`` (k, P, 3: changes of
+        the pose means per unit of k terms; six-face only) their derivatives along each, (dz (P, k), dp (k, ..)),
+        from the fit's own Jacobian."""
         referred_stats, means = referred(rate, bend)
         if model in MODELS:
             data = PoseData([s.face for s in stats], means, [len(p.samples) for p in poses],
@@ -465,16 +478,20 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
             f = fit_model(data, model, method if model == "paper" else "vp")
             scale = f.sigma * np.sqrt(float(np.mean(noise.tau)) if noise.correlated else 1.0)
             z = (np.sqrt(counts)[:, None] * f.residuals).ravel() / scale
-            values, corr = f.values, f.correction
-        else:
-            f = fit_six_face(referred_stats, "paper", settings["pose_flatness_deg"], settings["g"],
-                             inflation="none", wander_var=noise.wander_var)
-            # with the slow-noise wander as the fit weighs the poses: the rates' u must carry the wander the
-            # poses carry (the tilt-free gravity magnitudes, whose chi^2 is the fit's lack of fit)
-            values, corr = f.values, f.correction
-            z = magnitude_z(np.concatenate([corr.matrix.ravel(), corr.bias]), referred_stats, settings["g"],
-                            noise.wander_var)[0]
-        return z, np.concatenate([values, corr.matrix.ravel(), corr.bias])
+            return z, np.concatenate([f.values, f.correction.matrix.ravel(), f.correction.bias]), None
+        f = fit_six_face(referred_stats, "paper", settings["pose_flatness_deg"], settings["g"],
+                         inflation="none", wander_var=noise.wander_var, mean_shifts=shifts)
+        # with the slow-noise wander as the fit weighs the poses: the rates' u must carry the wander the
+        # poses carry (the tilt-free gravity magnitudes, whose chi^2 is the fit's lack of fit)
+        corr = np.concatenate([f.correction.matrix.ravel(), f.correction.bias])
+        z = magnitude_z(corr, referred_stats, settings["g"], noise.wander_var)[0]
+        derivatives = None
+        if shifts is not None:
+            dp = f.mean_response
+            dz = magnitude_z_response(corr, dp[:, len(f.values):], referred_stats, shifts, settings["g"],
+                                      noise.wander_var)
+            derivatives = (dz, dp)
+        return z, np.concatenate([f.values, corr]), derivatives
 
     axes = [k for k in range(3) if noise.drift_rate_u[k] > 0]
     bent = [k for k in sorted(shaped) if k in axes]
@@ -487,13 +504,36 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
 
     start = np.concatenate([noise.drift_rate[axes], [shaped[k]["curvature"] for k in bent]])
     steps = 2.0 * np.concatenate([noise.drift_rate_u[axes], [shaped[k]["curvature_u"] for k in bent]])
-    z0, p0 = fit(*split(start))
-    jz, jp = [], []
-    for i in range(m + q):
-        z, p = fit(*split(start + steps[i] * np.eye(m + q)[i]))
-        jz.append((z - z0) / steps[i])
-        jp.append((p - p0) / steps[i])
-    jz, jac = np.column_stack(jz), np.column_stack(jp)
+    # the axes held again whose curvature is not measured: an allowance for it below, through the fit's
+    # response to it
+    allowed = [k for k in sorted(anchors) if k not in bent]
+    bend_response = {}
+    if model in MODELS:
+        # the exact-face fits (the paper's, Nelder-Mead over the angles among them) give no Jacobian at their
+        # solution: one refit per term, two of its u away (the fits are linear in them to well within that)
+        z0, p0, _ = fit(*split(start))
+        jz, jp = [], []
+        for i in range(m + q):
+            z, p, _ = fit(*split(start + steps[i] * np.eye(m + q)[i]))
+            jz.append((z - z0) / steps[i])
+            jp.append((p - p0) / steps[i])
+        jz, jac = np.column_stack(jz), np.column_stack(jp)
+    else:
+        # the six-face fit's own response to the terms: the pose means move linearly in the rates and
+        # curvatures (each term's column of ``referred``'s shift), and the fit gives its solution's derivative
+        # in the means from its own Jacobian (fit_six_face's mean_shifts): one fit instead of one per term
+        # (six refits with 3 rates and 3 curvatures, most of the calibration's time).  This is the tangent:
+        # refits a hundredth of a u apart agree with it to about 1e-6; the two-u secant it replaces was off by
+        # up to 1e-2 of a column (the fit's curvature over two u), which moved the terms by up to 1e-2 of their
+        # u and C, b by up to 6e-3 of theirs on the held-out simulator's static conditions.
+        unit = np.eye(3)
+        columns = ([np.outer(centres - middle, unit[k]) for k in axes] +
+                   [np.outer(bend_shape[:, k], unit[k]) for k in bent] +
+                   [np.outer(bend_shape[:, k], unit[k]) for k in allowed])
+        # ``referred`` subtracts the shift from the means
+        z0, p0, (dz, dp) = fit(*split(start), shifts=-np.array(columns))
+        jz, jac = dz[:, :m + q], dp[:m + q].T
+        bend_response = {k: dp[m + q + j] for j, k in enumerate(allowed)}
     info = jz.T @ jz
     eigenvalues = np.linalg.eigvalsh(info) if m + q else np.zeros(0)
     # information that is not positive in every direction is not a profile to trust: then the revisits' own
@@ -529,14 +569,15 @@ def _referred_to_middle(poses: list[Pose], stats: list[PoseStats], rows: list[di
     base = build_result(poses, referred_stats, rows, model, method, settings, noise, means=means, spent_dof=m + q)
     extra = jac @ theta_cov @ jac.T
     # the drift's curvature allowed on the axes whose shape was not measured (type B): through the same
-    # fits, one step of its sd per such axis (central differences; the departure is linear in it)
-    allowed = [k for k in sorted(anchors) if k not in bent]
+    # fits, one step of its sd per such axis (the departure is linear in it: the six-face fit's response
+    # above, the exact-face fits' central differences)
     if bend:
         for j, k in enumerate(sorted(anchors)):
             step = np.zeros(3)
             step[k] = bend["allowance"]["curvature_sd"][j]
             if k in allowed and step[k] > 0:
-                column = (fit(rate, bend_fitted + step)[1] - fit(rate, bend_fitted - step)[1]) / 2.0
+                column = (bend_response[k] * step[k] if k in bend_response else
+                          (fit(rate, bend_fitted + step)[1] - fit(rate, bend_fitted - step)[1]) / 2.0)
                 extra = extra + np.outer(column, column)
         bend["allowance"]["on"] = [AXES[k] for k in allowed]
     n_par = len(base.parameters)
@@ -758,14 +799,36 @@ def detect_poses(rec: Recording, **values) -> StaticProcedure:
     return proc
 
 
-def calibrate_static(rec: Recording, **values) -> CalibrationResult:
+def calibrate_static(rec: Recording, skip_poses=(), **values) -> CalibrationResult:
     """Six-face calibration of a recording (the batch form); bad data raise one clear DataError/CalibrationError.
 
-    ``values``: any of the declared SETTINGS by name (model, method, g, min_hold, still_threshold)."""
+    ``values``: any of the declared SETTINGS by name (model, method, g, min_hold, still_threshold).
+    ``skip_poses``: pose numbers (the pose table's, in time order from 1) the operator leaves out, e.g. a
+    face that moved and was held again later; a moved or saturated pose not left out refuses the recording,
+    because what to do with a pose a person captured is theirs to decide."""
     proc = detect_poses(rec, **values)
-    for pose in proc.rejected:
-        if pose.problem in ("moved", "saturated"):
-            raise DataError(pose.detail)
+    rows, _ = pose_table(proc.detector.accepted(), proc.rejected)
+    skip = frozenset(int(k) for k in skip_poses)
+    unknown = sorted(k for k in skip if not 1 <= k <= len(rows))
+    if unknown:
+        raise DataError(f"there is no pose {', '.join(map(str, unknown))} to leave out: the recording holds "
+                        f"{len(rows)} still poses, numbered from 1 in time order",
+                        "the text report's pose table numbers them, as does --json's details.poses")
+    for row in rows:
+        if row["fate"] in ("moved", "saturated") and row["index"] not in skip:
+            again = [r["index"] for r in rows if r["fate"] == "used" and r["face"] == row["face"]
+                     and r["index"] not in skip]
+            held = (f"; {row['face']} down was held still again as pose {', '.join(map(str, again))}"
+                    if again else "")
+            raise DataError(f"pose {row['index']}: {row['reason']}{held}",
+                            f"or leave pose {row['index']} out with --skip-pose {row['index']}")
+    proc.left_out = skip
     result = proc.result()
+    if skip:
+        result.warnings.append(
+            "left out on the operator's request: " + "; ".join(
+                f"pose {r['index']} ({r['face']} down, {r['start']:.1f}-{r['stop']:.1f} s; "
+                f"{r['reason'].removeprefix('on request: ')})"
+                for r in result.details["poses"] if r["index"] in skip))
     result.settings["recording"] = rec.meta.get("source") or rec.meta.get("device")
     return result

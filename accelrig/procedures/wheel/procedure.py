@@ -55,7 +55,13 @@ from accelrig.procedures.wheel.fit import (
 from accelrig.procedures.wheel.model import phase, predict
 from accelrig.procedures.wheel.paper import PaperSteps, paper_calibrate
 from accelrig.procedures.wheel.rest import Rest, RestCheck, check_rests, unseen_drift
-from accelrig.procedures.wheel.settings import DEFAULT_BOOTSTRAP, DEFAULT_CROSS_AXIS_SD, METHODS, SETTINGS
+from accelrig.procedures.wheel.settings import (
+    DEFAULT_BOOTSTRAP,
+    DEFAULT_CROSS_AXIS_SD,
+    METHODS,
+    NEEDS_RADIUS_OR_TILT,
+    SETTINGS,
+)
 from accelrig.procedures.wheel.start import joint_start
 from accelrig.recording import Recording
 from accelrig.result import CalibrationResult, Correction, Estimate
@@ -554,6 +560,7 @@ class WheelProcedure(Procedure):
     name = "wheel"
     title = "tilted wheel calibration"
     settings = SETTINGS
+    settings_note = NEEDS_RADIUS_OR_TILT
 
     def __init__(self, values: dict, device: dict):
         free_set(values["radius"], None if values["tilt_deg"] is None else np.deg2rad(values["tilt_deg"]))

@@ -16,6 +16,7 @@ DEFAULT_BOOTSTRAP = 20
 DEFAULT_CROSS_AXIS_SD = 0.02 / math.sqrt(3)
 
 # The null space of the paper's section II-C: of the radius and the tilt, one must be known.
+NEEDS_RADIUS_OR_TILT = "give the radius, the tilt, or both: the one left blank is estimated (one is needed)"
 RADIUS = Setting("radius", "distance from the sensor to the wheel axis (give it, the tilt, or both: the one not "
                  "given is estimated)", unit="m", low=0.0, low_open=True, high=2.0, label="radius", example="0.28",
                  hint="give it in metres, e.g. 0.28")

@@ -32,6 +32,8 @@ class Rig(abc.ABC):
     channel_names: tuple[str, ...] = ()
     # seconds of scripted scenario; None for an endless one
     duration: float | None = None
+    # the full scale (g) of a sim:// sensor on this rig when the URL gives no range=: one the rig's motion fits in
+    default_range_g: ClassVar[float] = 2.0
 
     @classmethod
     @abc.abstractmethod

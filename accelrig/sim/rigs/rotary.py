@@ -68,6 +68,9 @@ def parse_axis(spec: str, role: str) -> tuple[int, float]:
 class RotaryRig(Rig):
     name = "rotary"
     description = "encoder-driven oscillating disk (paper 001): tangential at f, centripetal at DC + 2f"
+    # the paper's 34 degrees at 5 Hz swing the tangential axis by 49.8 m/s^2, beyond +-2 g: its LSM6DSR ran at
+    # +-8 g, and a +-2 g default clipped three quarters of a first recording
+    default_range_g = 8.0
     options = {
         "radius": "sensor distance from the rotation axis, m (default 0.170)",
         "frequency": "oscillation frequency, Hz (default 5)",

@@ -39,9 +39,9 @@ async def write_certificate_flow(screen, result, recording, device: dict | None,
     # who it is for and who issues it: the flags of `accelrig report`, kept for the next certificate
     remembered = app.setting_texts.get("certificate", {})
     answer = await app.push_screen_wait(SettingsForm(
-        "Certificate: who it is for and who issues it (blank fields are left out; \"who authorises\" blank "
-        "leaves the name to fill in by hand)", CONDITION_SETTINGS, remembered, remembered=remembered,
-        verb="Continue"))
+        "Certificate: who it is for and who issues it", CONDITION_SETTINGS, remembered, remembered=remembered,
+        note="blank fields are left out of the certificate; who authorises it, left blank, leaves the name to "
+             "fill in by hand", verb="Continue"))
     if answer is None:
         set_status("no certificate written")
         return None

@@ -26,7 +26,9 @@ class ConnectScreen(Screen):
 
     BINDINGS = [
         Binding("escape", "back", "Back"),
-        Binding("r", "rescan", "Rescan"),
+        # f5 works in the URL field too, where r types itself (a URL may hold an r); r, outside it
+        Binding("f5", "rescan", "Rescan"),
+        Binding("r", "rescan", "Rescan", show=False),
     ]
 
     def __init__(self, wizard: str | None = None):
@@ -39,7 +41,8 @@ class ConnectScreen(Screen):
         return ("[b]Connect a device[/b]\n"
                 "The arrows move in the list of devices found, and enter connects to the one highlighted.  Or "
                 "tab to the URL field, type a device URL and press enter (in the field ? types itself: F1 opens "
-                f"this help).  r scans again (Bluetooth takes a few seconds).  escape goes back to {back}.\n"
+                f"this help).  F5 scans again, as r does outside the URL field (Bluetooth takes a few seconds).  "
+                f"escape goes back to {back}.\n"
                 f"URLs: {escape(URL_HINT)}; sim://RIG plays a simulated rig (static, wheel, slider-crank, rotary, "
                 "still), replay://FILE plays a recording.  The box at the bottom shows the connected device: "
                 "its identity, range and the rate it delivers.")
@@ -47,7 +50,7 @@ class ConnectScreen(Screen):
     def compose(self) -> ComposeResult:
         yield Header()
         with Vertical(id="connect-box"):
-            yield Label("Devices found (enter connects; r scans again, including BLE):")
+            yield Label("Devices found (enter connects; F5 scans again, including BLE):")
             yield OptionList(id="found")
             yield Label("Device URL:")
             with Horizontal(id="url-row"):

@@ -244,7 +244,7 @@ class SettingsForm(Dialog):
 
     def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
                  check=None, remembered: dict[str, str] | None = None, filled: dict[str, str] | None = None,
-                 verb: str = "Start"):
+                 note: str = "", verb: str = "Start"):
         """``verb``: what enter does, in the footer and the hint ("Start" a procedure, "Continue" to a file's
         name)."""
         super().__init__()
@@ -252,6 +252,7 @@ class SettingsForm(Dialog):
         self._bindings.key_to_bindings["enter"] = [Binding("enter", "submit", verb, priority=True)]
         self.verb = verb
         self.title_text = title
+        self.note = note
         self.settings = tuple(settings)
         self.texts = dict(texts or {})
         self.check = check
@@ -260,7 +261,8 @@ class SettingsForm(Dialog):
 
     def help_text(self) -> str:
         fields = "\n".join(f"  [b]{escape(s.title.split(' (')[0])}[/b]: {escape(s.describe())}" for s in self.settings)
-        return (f"[b]{escape(self.title_text)}[/b]\n\nOne field for each value asked; a blank field "
+        note = f"\n\n{escape(self.note[:1].upper() + self.note[1:])}." if self.note else ""
+        return (f"[b]{escape(self.title_text)}[/b]{note}\n\nOne field for each value asked; a blank field "
                 "takes its default (in grey), a field marked required must be filled.  tab or the arrows move "
                 f"between fields, enter {self.verb.lower()}s, a value that cannot work is refused in red with the "
                 "reason, ctrl+r "
@@ -271,6 +273,8 @@ class SettingsForm(Dialog):
         with VerticalScroll(classes="dialog settings-form"):
             # a Static wraps a title wider than the dialog (a Label cut it, and its closing parenthesis)
             yield Static(f"[b]{escape(self.title_text)}[/b]", id="settings-title")
+            if self.note:   # what the fields need together, which no one label says
+                yield Static(escape(self.note[:1].upper() + self.note[1:] + "."), id="settings-note")
             yield Static(self.remembered_text(), id="settings-remembered")
             for s in self.settings:
                 with Horizontal(classes="setting-row"):

@@ -187,15 +187,11 @@ class VerificationScreen(AsksBeforeClosing, Screen):
                          f"{s['model_amplitude']:.4g}", radius, radius_u, f"{s.get('radius_k', 2.0):.2f}",
                          " ".join(flags)])
         self.query_one("#steps", FittedTable).show(STEP_COLUMNS, rows, [s["label"] for s in steps])
-        self.call_after_refresh(self.say_left_out)
         self.show_plot()
 
-    def on_resize(self) -> None:
-        self.call_after_refresh(self.say_left_out)
-
-    def say_left_out(self) -> None:
+    def on_fitted_table_left_out(self, message: FittedTable.LeftOut) -> None:
         """Under the steps: the columns this width leaves out, and where they all are."""
-        left_out = self.query_one("#steps", FittedTable).left_out
+        left_out = message.left_out
         note = self.query_one("#steps-left-out", Static)
         note.update(f"[dim]left out at this width: {', '.join(left_out)} (s saves every column)[/]" if left_out
                     else "")

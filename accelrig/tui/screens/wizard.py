@@ -290,7 +290,7 @@ class ProcedureWizard(Screen):
         title = f"{cls.title}: settings" + (" (filled in for the simulated rig)" if filled else "")
         answer = await self.app.push_screen_wait(SettingsForm(title, cls.settings, {**remembered, **filled},
                                                               check=self.make_procedure, remembered=remembered,
-                                                              filled=filled))
+                                                              filled=filled, note=cls.settings_note))
         if answer is None:
             self.app.pop_screen()
             return
@@ -411,9 +411,9 @@ class ProcedureWizard(Screen):
                 chunk = recorder.poll()
                 if chunk.lost:  # cannot happen with a lossless reader; never hide it
                     notes.append((f"{chunk.lost} samples were lost before the procedure saw them", "bold red"))
-                for _, missing in chunk.gaps:
+                for _, missing, cause in chunk.gaps:
                     notes.append((f"the device reported a gap ({missing if missing >= 0 else 'unknown'} samples "
-                                  "missing)", "yellow"))
+                                  f"missing{': ' + cause if cause else ''})", "yellow"))
                 try:
                     if chunk.n:
                         # times from the capture's start, as the recording's (and the command line's) are:

@@ -10,13 +10,23 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from textual.message import Message
 from textual.widgets import DataTable
 
 from accelrig.tables import columns_that_fit  # the one rule, shared with the CLI's tables
 
 
 class FittedTable(DataTable):
-    """A read-only table redrawn whole (``show``) with the columns that fit its width."""
+    """A read-only table redrawn whole (``show``) with the columns that fit its width.
+
+    Posts ``LeftOut`` whenever the columns it leaves out change (its first real width comes with a resize
+    after the screen mounted it): a note that says them listens to that, not to the screen's own resize,
+    which can come before the table's."""
+
+    class LeftOut(Message):
+        def __init__(self, table: FittedTable, left_out: list[str]):
+            super().__init__()
+            self.table, self.left_out = table, left_out
 
     def __init__(self, priority: Sequence[int], **kwargs):
         super().__init__(show_cursor=False, zebra_stripes=True, fixed_columns=1, **kwargs)
@@ -40,7 +50,10 @@ class FittedTable(DataTable):
             self.clear()
         for row, key in zip(rows, keys, strict=True):
             self.add_row(*(row[i] for i in shown), key=key)
-        self.left_out = [str(titles[i]) for i in range(len(titles)) if i not in shown]
+        left_out = [str(titles[i]) for i in range(len(titles)) if i not in shown]
+        if left_out != self.left_out:
+            self.left_out = left_out
+            self.post_message(self.LeftOut(self, left_out))
 
     def on_resize(self) -> None:
         if self._last is not None:
