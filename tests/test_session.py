@@ -11,7 +11,6 @@ from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.session import Session, State
 from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import DeviceError
-from accelrig.result import Correction
 
 
 def _drain(session, reader, recorder, timeout=10.0):
@@ -131,14 +130,6 @@ def test_stop_ends_a_realtime_session_promptly():
     assert time.monotonic() - t0 < 1.0
     assert session.stats().state == State.STOPPED
     assert 20 < session.stats().samples < 200
-
-
-def test_flash_on_a_sim_device_says_it_cannot_store_a_calibration():
-    session = Session("sim://still?seed=7&pace=fast&seconds=1")
-    session.start()
-    with pytest.raises(DeviceError, match="cannot store a calibration"):
-        session.plan_flash(Correction(np.eye(3), np.zeros(3), np.zeros((12, 12))), b"profile!")
-    session.stop()
 
 
 class SlowReadDriver(Driver):

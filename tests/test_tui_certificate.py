@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from accelrig.tui.app import AccelrigApp  # noqa: E402
-from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen  # noqa: E402
+from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen, result_views  # noqa: E402
 from report_support import DEVICE, slider_crank_result, static_result, wheel_result  # noqa: E402
 from tui_support import async_test, wait_for  # noqa: E402
@@ -77,8 +77,18 @@ async def open_results(pilot, result, rec):
     return app.screen
 
 
+async def fill_conditions(pilot, **texts):
+    """The certificate's form (who it is for, who issues it): ``texts`` typed into their fields, then enter."""
+    app = pilot.app
+    await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+    for name, text in texts.items():
+        app.screen.field(name).value = text
+    await pilot.press("enter")
+
+
 async def type_path(pilot, path):
     app = pilot.app
+    await fill_conditions(pilot)
     await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
     field = app.screen.query_one("#path")
     field.value = str(path)
@@ -111,6 +121,9 @@ async def test_c_writes_the_html_certificate_and_asks_before_overwriting(static_
         results = await open_results(pilot, result, rec)
         assert "(s)" in results.query_one("#result-plot").x_label
         await pilot.press("c")
+        # who it is for and who issues it, as `accelrig report`'s flags
+        await fill_conditions(pilot, number="CAL-2026-0117", customer="Acme Sensors, Lyon", operator="J. Roux",
+                              approved_by="M. Lefort")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         # no browser here: the offered file is HTML and the prompt says why
         default = app.screen.query_one("#path").value
@@ -122,6 +135,18 @@ async def test_c_writes_the_html_certificate_and_asks_before_overwriting(static_
         assert "<svg" in page and rec.content_hash() in page
         for name in result.parameters:
             assert name in page
+        for text in ("No. CAL-2026-0117", "Acme Sensors, Lyon", "J. Roux", "M. Lefort"):
+            assert text in page, text
+
+        # the form offers them again (kept between runs, as the wizards' forms are), but not the number:
+        # each certificate has its own
+        await pilot.press("c")
+        await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
+        assert app.screen.field("operator").value == "J. Roux" and app.screen.field("approved_by").value == "M. Lefort"
+        assert app.screen.field("number").value == ""
+        assert app.setting_texts["certificate"]["customer"] == "Acme Sensors, Lyon"
+        await pilot.press("escape")
+        await wait_for(pilot, lambda: "no certificate written" in status(app))
 
         # again: an existing file is kept unless the operator says overwrite
         await pilot.press("c")
@@ -149,6 +174,7 @@ async def test_c_prints_a_pdf_when_chromium_is_installed(static_run, tmp_path):
     async with app.run_test(size=(100, 30)) as pilot:
         results = await open_results(pilot, result, rec)
         await pilot.press("c")
+        await fill_conditions(pilot)
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         assert app.screen.query_one("#path").value.endswith(".pdf")
         await pilot.press("enter")
@@ -182,14 +208,32 @@ async def test_the_campaign_screen_plots_the_sensitivities_and_writes_the_certif
         values = sorted(v for s in plot.series for v in s.y)
         assert values == sorted(t_s["value"] for t in result.details["tests"] for t_s in t["sensitivity"].values())
         await pilot.press("c")
+        await fill_conditions(pilot, operator="J. Roux")
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         assert app.screen.query_one("#path").value.endswith("sim-0042-rotary-certificate.html")
         await pilot.press("enter")
         await wait_for(pilot, lambda: screen.certificate_path is not None, timeout=60)
         page = screen.certificate_path.read_text(encoding="utf-8")
-        assert "Group results" in page
+        assert "Group results" in page and "J. Roux" in page
         # the item calibrated names the device the campaign screen was given, beside the campaign and its file
         # (newcomer 14 #7: a live campaign's certificate had no chip, range or connection)
         item = page.split("Item calibrated")[1].split("<h2>")[0]
         assert "<th>Identity</th>" in item and DEVICE["identity"] in item and "<td>±4 g</td>" in item
         assert "<th>Campaign file</th>" in item
+
+
+def test_the_certificate_form_asks_for_the_report_command_s_conditions_in_its_words():
+    """One field per condition flag of `accelrig report`, the flag's help as the field's text."""
+    import argparse
+
+    from accelrig.commands import report
+    from accelrig.report.conditions import CONDITION_SETTINGS
+
+    parser = argparse.ArgumentParser()
+    report.register(parser.add_subparsers(), None)
+    command = parser._subparsers._group_actions[0].choices["report"]
+    helps = {action.option_strings[0]: action.help.replace("%%", "%") for action in command._actions
+             if action.option_strings}
+    conditions = ("--number", "--customer", "--operator", "--approved-by", "--location", "--temperature",
+                  "--humidity")
+    assert {s.flag: s.help for s in CONDITION_SETTINGS} == {flag: helps[flag] for flag in conditions}

@@ -10,7 +10,7 @@ from accelrig.tui.app import AccelrigApp  # noqa: E402
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
-from tui_support import async_test, screen_lines, wait_for  # noqa: E402
+from tui_support import async_test, choose, screen_lines, wait_for  # noqa: E402
 
 DEVICE = "sim://static?seed=3&pace=fast"
 
@@ -117,23 +117,30 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await wait_for(pilot, lambda: results.profile is not None)
         # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu")
         assert screen_lines(app)[-1].rstrip().endswith("f Flash n Next plot c Certificate esc Close ? Help q Quit")
-        driver = app.session.driver
-        before = driver.chip.read_offset_words()
+        before = app.session.driver.chip.read_offset_words()   # the factory trim
         await pilot.press("f")
+        await choose(pilot, "flash")   # the profile is not saved: flash it without saving
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
         assert not app._notifications, "a notification lies over the plan while it asks"
         plan = str(app.screen.query_one("#details-text").render())
         assert "Flash plan for" in plan and "OFFSET" in plan.upper()
         assert "Write to the device?" in str(app.screen.query_one("#question").render())
         await pilot.press("n")  # cancel: nothing written
-        await wait_for(pilot, lambda: "nothing was written" in status(app))
-        assert driver.chip.read_offset_words() == before
+        await wait_for(pilot, lambda: "nothing was written" in status(app) and "streaming again" in status(app))
+        assert app.session.driver.chip.read_offset_words() == before
+        # saved, then flashed: the chip's offsets are volatile, so the stream opens again with profile=PATH,
+        # which writes them on this open and every later one
+        await pilot.press("s")
+        await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: "profile saved" in status(app))
         await pilot.press("f")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
         await pilot.press("y")
-        await wait_for(pilot, lambda: "verified" in status(app))
+        await wait_for(pilot, lambda: "streaming again" in status(app))
         assert "written and verified" in status(app)
-        assert driver.chip.read_offset_words() != before
+        assert f"profile={results.saved_path}" in app.session.url
+        assert app.session.driver.chip.read_offset_words() != before
 
 
 @async_test

@@ -109,6 +109,11 @@ class Recorder:
         before ``session.start()`` it holds (or, with ``writer``, streams) every sample the device delivers."""
         return cls(session.info, session.reader(from_oldest=True, lossless=True), session, writer)
 
+    @property
+    def start(self) -> float | None:
+        """Device time of the first sample kept, the recording's t = 0 (None before it)."""
+        return self._t0
+
     def poll(self, seconds: float | None = None, samples: int | None = None) -> Chunk:
         """Take what arrived; returns it as one chunk.
 

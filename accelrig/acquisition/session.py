@@ -31,11 +31,9 @@ import numpy as np
 
 from accelrig.acquisition.block import Block
 from accelrig.acquisition.driver import DeviceInfo, Driver, driver_for
-from accelrig.acquisition.flash import FlashPlan, FlashReport
 from accelrig.acquisition.recorder import Recorder
 from accelrig.acquisition.ringbuffer import Reader, RingBuffer
 from accelrig.errors import AccelrigError, DeviceError
-from accelrig.result import Correction
 from accelrig.units import saturated
 
 if TYPE_CHECKING:
@@ -85,7 +83,7 @@ class Session:
         self._lock = threading.Lock()
         self._space = threading.Condition(self._lock)  # lossless readers made room
         self._stop = threading.Event()
-        # Held around every driver call, so a flash never interleaves with a read.
+        # Held around every driver call: stop() closes the device only between two reads.
         self._device_lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self.recorder: Recorder | None = None   # set by open_and_start(record=True)
@@ -236,17 +234,6 @@ class Session:
                 last_error=self.last_error,
                 device_time=device_time,
             )
-
-    # ------------------------------------------------------------------ flashing
-    def plan_flash(self, correction: Correction, profile_id: bytes) -> FlashPlan:
-        """What storing ``correction`` on the device would write (reads only; see Driver.plan_flash)."""
-        with self._device_lock:
-            return self.driver.plan_flash(correction, profile_id)
-
-    def flash(self, plan: FlashPlan) -> FlashReport:
-        """Write a plan made by ``plan_flash``, between two reads of the pump."""
-        with self._device_lock:
-            return self.driver.flash(plan)
 
     # ------------------------------------------------------------------ the pump
     def _pump(self) -> None:

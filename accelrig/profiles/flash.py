@@ -14,12 +14,14 @@ flash from interleaving with the pump's reads): both offer ``info``,
 from __future__ import annotations
 
 import hashlib
+from urllib.parse import urlencode
 
 import numpy as np
 import yaml
 
-from accelrig.acquisition.driver import Driver
+from accelrig.acquisition.driver import Driver, driver_for
 from accelrig.acquisition.flash import FlashPlan, FlashReport, FlashWrite
+from accelrig.acquisition.url import DeviceURL
 from accelrig.errors import ProfileError
 from accelrig.profiles.apply import CLI_FORCE_HINT, check_compatible
 from accelrig.profiles.io import Profile, load_profile
@@ -65,6 +67,18 @@ def flash_url_profile(driver: Driver) -> None:
         return
     report = driver.flash(plan_flash(driver, load_profile(path)))
     driver.info.offsets_applied = report.residual
+
+
+def url_reapplying(url: str, profile_path) -> str | None:
+    """``url`` with ``profile=PROFILE_PATH``, for a device whose calibration store is volatile (its driver takes
+    ``profile=``: chip offset registers, which a reopen resets), so every open writes the profile again; None
+    for a device that keeps what was flashed (a firmware record) or takes no such option."""
+    known = driver_for(url).known_options() or set()
+    if "profile" not in known:
+        return None
+    parsed = DeviceURL.parse(url)
+    params = {**parsed.params, "profile": str(profile_path)}
+    return f"{url.partition('?')[0]}?{urlencode(params, safe='/:~,')}"
 
 
 def _cell(value) -> str:

@@ -244,8 +244,13 @@ class SettingsForm(Dialog):
 
     def __init__(self, title: str, settings: tuple[Setting, ...], texts: dict[str, str] | None = None,
                  check=None, remembered: dict[str, str] | None = None, filled: dict[str, str] | None = None,
-                 note: str = ""):
+                 note: str = "", verb: str = "Start"):
+        """``verb``: what enter does, in the footer and the hint ("Start" a procedure, "Continue" to a file's
+        name)."""
         super().__init__()
+        # the footer keeps enter first, named by what it does here
+        self._bindings.key_to_bindings["enter"] = [Binding("enter", "submit", verb, priority=True)]
+        self.verb = verb
         self.title_text = title
         self.note = note
         self.settings = tuple(settings)
@@ -257,9 +262,10 @@ class SettingsForm(Dialog):
     def help_text(self) -> str:
         fields = "\n".join(f"  [b]{escape(s.title.split(' (')[0])}[/b]: {escape(s.describe())}" for s in self.settings)
         note = f"\n\n{escape(self.note[:1].upper() + self.note[1:])}." if self.note else ""
-        return (f"[b]{escape(self.title_text)}[/b]{note}\n\nWhat the procedure needs, one field each; a blank field "
+        return (f"[b]{escape(self.title_text)}[/b]{note}\n\nOne field for each value asked; a blank field "
                 "takes its default (in grey), a field marked required must be filled.  tab or the arrows move "
-                "between fields, enter starts, a value that cannot work is refused in red with the reason, ctrl+r "
+                f"between fields, enter {self.verb.lower()}s, a value that cannot work is refused in red with the "
+                "reason, ctrl+r "
                 f"puts every field back to its default, escape cancels.  In a field ? types itself: F1 opens this "
                 f"help.\n\n{fields}")
 
@@ -277,8 +283,8 @@ class SettingsForm(Dialog):
                                   id=f"setting-{s.name}", classes="setting-input")
                     field.tooltip = s.describe()
                     yield field
-            yield Static("[dim]enter starts, tab or the arrows move between fields, escape cancels[/dim]",
-                         id="setup-status")
+            yield Static(f"[dim]enter {self.verb.lower()}s, tab or the arrows move between fields, escape "
+                         "cancels[/dim]", id="setup-status")
         yield KeyFooter()
 
     def kept_from_last_time(self) -> list[Setting]:
@@ -320,7 +326,8 @@ class SettingsForm(Dialog):
         for s in self.settings:
             self.field(s.name).value = self.filled.get(s.name, "")
         self.refresh_remembered()
-        self.query_one("#setup-status", Static).update("every field is back to its default: enter starts")
+        self.query_one("#setup-status", Static).update(f"every field is back to its default: enter "
+                                                       f"{self.verb.lower()}s")
 
     def field(self, name: str) -> Input:
         return self.query_one(f"#setting-{name}", Input)

@@ -6,7 +6,7 @@ from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import ModalScreen, Screen
-from textual.widgets import Static
+from textual.widgets import Input, Static
 
 from accelrig.tui.widgets.keys import KeyFooter
 
@@ -35,6 +35,8 @@ class HelpScreen(ModalScreen):
                 continue   # a list's or a field's own keys (Scroll Left, Page Right, ...): the line below says them
             seen.add((binding.action, binding.description))
             shown = binding.key_display or self.app.get_key_display(binding)
+            if binding.action in ("help", "app.help") and isinstance(self.below.focused, Input):
+                shown = "f1"   # in a text field (a form) ? types itself: the key that opened this help
             rows.append(f"  [b]{shown:>10}[/b]  {binding.description}")
         guide = getattr(self.below, "help_text", None)
         with VerticalScroll(id="help-box"):

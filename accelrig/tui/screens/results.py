@@ -6,6 +6,7 @@ saved by accelrig.profiles, the flash planned and rendered by accelrig.profiles.
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,15 +19,22 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Header, Static
 
-from accelrig.acquisition.flash import FlashPlan
+from accelrig.acquisition.driver import driver_for
 from accelrig.acquisition.session import Session
 from accelrig.errors import AccelrigError
-from accelrig.profiles.flash import format_plan, plan_flash
+from accelrig.profiles.flash import flash_url_profile, format_plan, plan_flash, url_reapplying
 from accelrig.recording import Recording
 from accelrig.report.html import format_value, scalar_estimates
 from accelrig.result import CalibrationResult
 from accelrig.tui.screens.certificate import file_stem, write_certificate_flow
-from accelrig.tui.screens.dialogs import DIALOG_TEXT_WIDTH, AsksBeforeClosing, ConfirmScreen, PathScreen, tell
+from accelrig.tui.screens.dialogs import (
+    DIALOG_TEXT_WIDTH,
+    AsksBeforeClosing,
+    ChoiceScreen,
+    ConfirmScreen,
+    PathScreen,
+    tell,
+)
 from accelrig.tui.widgets.keys import KeyFooter
 from accelrig.tui.widgets.plot import LinePlot, Series
 
@@ -256,6 +264,7 @@ class ResultsScreen(AsksBeforeClosing, Screen):
         self.certificate_path: Path | None = None
         self.profile = None
         self.saved_path: Path | None = None
+        self.flashing = False   # a flash is under way (its steps must not be started twice)
 
     def compose(self) -> ComposeResult:
         r = self.result
@@ -329,7 +338,8 @@ class ResultsScreen(AsksBeforeClosing, Screen):
 
     def help_text(self) -> str:
         """What ? shows on the results: how to read them, then this screen's keys (listed by the help)."""
-        return (f"[b]Results of the {escape(self.result.procedure)}[/b]\n"
+        return (f"[b]Results of the {escape(self.result.procedure)} calibration[/b] (method "
+                f"{escape(self.result.method)}, model {escape(self.result.model)})\n"
                 "Read the warnings at the top first: each says what the data showed that the model does not hold, "
                 "how large, and whether u already includes it.\n"
                 "Correction: what the profile applies to raw readings, a = C (raw - b).  Parameters: what the method "
@@ -479,39 +489,107 @@ class ResultsScreen(AsksBeforeClosing, Screen):
         if self.profile is None:
             self.set_status("[red]there is no profile to flash[/]")
             return
-        if self.session is None:
-            self.set_status("[red]no device is connected[/]")
+        if self.flashing:
+            self.set_status("a flash is under way: wait for it to end")
             return
-        self.set_status("reading the device to plan the flash ...")
-        self.plan_flash()
+        self.flashing = True
+        self.flash_flow()
 
-    @work(thread=True, exclusive=True, group="flash")
-    def plan_flash(self) -> None:
+    @work(group="flash")
+    async def flash_flow(self) -> None:
+        """The flash as ``accelrig flash`` makes it: the stream stops (a device flashes only when freshly
+        opened: a firmware refuses while it streams), the device is opened afresh, the plan is read and
+        shown, the operator agrees, it is written and read back; then the stream is opened again.
+        Each step is said on the status line."""
         try:
-            plan = plan_flash(self.session, self.profile, force_hint="")   # the TUI has no force for a flash
-        except AccelrigError as exc:
-            self.app.call_from_thread(self.set_status, f"[red]cannot flash:[/] {exc}")
-            return
-        self.app.call_from_thread(self.confirm_flash, plan)
+            if self.unsaved_result():
+                choice = await self.app.push_screen_wait(ChoiceScreen(
+                    "The profile is not saved. The flash stops the stream, opens the device afresh and opens "
+                    "the stream again after it (the captured data are kept).",
+                    [("save", "Save the profile, then flash it"), ("flash", "Flash it without saving"),
+                     ("stay", "Do not flash")]))
+                if choice == "save":
+                    if not await self.save_result():
+                        return
+                elif choice != "flash":
+                    self.set_status("not flashed")
+                    return
+            url = self.session.url
+            self.set_status(f"stopping the stream of {escape(url)} for the flash (the captured data are kept) ...")
+            await asyncio.to_thread(self.session.stop)
+            outcome, written = "", False
+            try:
+                outcome, written = await self.flash_fresh(url)
+            finally:
+                await self.reopen_stream(url, outcome, written)
+        finally:
+            self.flashing = False
 
-    @work(exclusive=True, group="flash-confirm")
-    async def confirm_flash(self, plan: FlashPlan) -> None:
-        plan_text = escape(format_plan(plan, width=DIALOG_TEXT_WIDTH))
-        # "reading the device to plan the flash ..." would lie over the plan's right half while it asks
-        self.app.clear_notifications()
-        if await self.app.push_screen_wait(ConfirmScreen("Write to the device?", "Write", "Cancel", details=plan_text)):
-            self.set_status("writing ...")
-            self.write_flash(plan)
-        else:
-            self.set_status("flash cancelled: nothing was written")
-
-    @work(thread=True, exclusive=True, group="flash")
-    def write_flash(self, plan: FlashPlan) -> None:
+    async def flash_fresh(self, url: str) -> tuple[str, bool]:
+        """Open ``url`` afresh, plan, ask, write and verify, as the command does; the outcome's text (still
+        shown once the stream is open again) and whether anything was written."""
+        driver = None
         try:
-            report = self.session.flash(plan)
+            self.set_status(f"opening {escape(url)} afresh for the flash ...")
+            driver = driver_for(url)
+            await asyncio.to_thread(driver.__enter__)
+            self.set_status("reading the device to plan the flash ...")
+            plan = await asyncio.to_thread(plan_flash, driver, self.profile, force_hint="")  # no force in the TUI
+            # the notifications of the steps would lie over the plan's right half while it asks
+            await self.clear_notifications()
+            question = ConfirmScreen("Write to the device?", "Write", "Cancel",
+                                     details=escape(format_plan(plan, width=DIALOG_TEXT_WIDTH)))
+            if not await self.app.push_screen_wait(question):
+                return "flash cancelled: nothing was written", False
+            self.set_status("writing, then reading back to verify ...")
+            report = await asyncio.to_thread(driver.flash, plan)
         except AccelrigError as exc:
-            self.app.call_from_thread(self.set_status, f"[red]flash failed:[/] {exc}")
-            return
+            return f"[red]cannot flash:[/] {escape(str(exc))}", False
+        finally:
+            if driver is not None:
+                await asyncio.to_thread(driver.close)
         verdict = "[green]written and verified[/]" if report.verified else "[red]written but NOT verified[/]"
-        self.app.call_from_thread(self.set_status, f"{verdict}: " + "; ".join(
-            f"{w.target} {w.current}" for w in report.readback) + ("\n" + "\n".join(report.notes) if report.notes else ""))
+        return f"{verdict}: " + escape("; ".join(f"{w.target} {w.current}" for w in report.readback)
+                                       + ("\n" + "\n".join(report.notes) if report.notes else "")), True
+
+    async def clear_notifications(self) -> None:
+        """Clear the notifications, those still on their way too: notify posts a message, so a clear made at
+        once can come before the last step's note (on a loaded machine) and leave it over the plan.  The
+        clear is queued behind them."""
+        cleared = asyncio.Event()
+
+        def clear() -> None:
+            self.app.clear_notifications()
+            cleared.set()
+
+        self.app.call_later(clear)
+        await cleared.wait()
+
+    async def reopen_stream(self, url: str, outcome: str, written: bool) -> None:
+        """Open the stream again after a flash (or an attempt), as the live view had it.  A device whose store
+        is volatile (chip offset registers, reset by the reopen) is reopened with profile=PATH when the profile
+        is saved, so the open writes it again, as every later connect with that URL does."""
+        if not self.app.is_running:
+            return   # the app quit during the flash: nothing to stream to
+        reapplying = url_reapplying(url, self.saved_path) if written and self.saved_path is not None else None
+        stream_url = reapplying or url
+        outcome = f"{outcome}\n" if outcome else ""
+        self.set_status(f"{outcome}opening the stream of {escape(stream_url)} again ...")
+        try:
+            session = await asyncio.to_thread(Session.open_and_start, stream_url, self.app.buffer_seconds,
+                                              prepare=flash_url_profile)
+        except AccelrigError as exc:
+            self.set_status(f"{outcome}[red]the stream could not be opened again:[/] {escape(str(exc))} "
+                            "(escape twice, then c on the live view connects)")
+            return
+        if not self.app.is_running:
+            session.stop()
+            return
+        self.session = session
+        self.app.use_session(session)
+        again = (f"streaming again from {escape(stream_url)}: the profile is written on every open of this URL "
+                 "(the chip forgets it at reset)" if reapplying else "streaming again")
+        if written and reapplying is None and url_reapplying(url, "PROFILE") is not None:
+            again += (": the chip forgot the offsets at this reopen; save the profile and flash again to have "
+                      "them written on every open (profile=PATH)")
+        self.set_status(f"{outcome}{again}")

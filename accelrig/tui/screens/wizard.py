@@ -35,6 +35,7 @@ what an action needs), ``not_ready_text`` and ``result_screen``.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from pathlib import Path
@@ -107,6 +108,8 @@ class ProcedureWizard(Screen):
         self._actions: list[tuple[str, dict]] = []   # operator actions for the next pump
         self._generation = 0       # a pump begun for an earlier procedure reports to nobody
         self._timer = None
+        self._compute_clock = None  # counts the seconds of a compute on the headline
+        self._compute_started = 0.0
         self._stream_line = ""
         self._last_logged = ""      # the last line of the log: a headline already there is not written twice
         self._alarm_key = None
@@ -313,6 +316,7 @@ class ProcedureWizard(Screen):
             self.set_instruction(f"cannot start: {exc}", "bold red")
             return
         self._generation += 1
+        self.stop_compute_clock()
         self.close_recorder()
         self.procedure = procedure
         self.recorder = None
@@ -412,7 +416,9 @@ class ProcedureWizard(Screen):
                                   f"missing{': ' + cause if cause else ''})", "yellow"))
                 try:
                     if chunk.n:
-                        events += procedure.feed(chunk)
+                        # times from the capture's start, as the recording's (and the command line's) are:
+                        # a device's own clock reads its uptime (16787.99 s on a BLE board)
+                        events += procedure.feed(dataclasses.replace(chunk, t=chunk.t - recorder.start))
                         called = True
                     elif state == State.ENDED and not self.source_ended:
                         # a finite source (replay, scripted simulation) delivered everything (the state
@@ -552,8 +558,25 @@ class ProcedureWizard(Screen):
         if self.computing:
             return
         self.computing = True
-        self.set_instruction(f"enough data: computing the {self.procedure_class.title} ...", "bold green")
+        self.set_instruction(self.computing_text(), "bold green")
+        # a fit can take a minute on a loaded machine: the headline counts the seconds, so the operator
+        # sees it is alive (the log keeps the line once, without them)
+        self._compute_started = time.monotonic()
+        self._compute_clock = self.set_interval(1.0, self.show_computing)
         self._fit(self._generation, self.procedure)
+
+    def computing_text(self) -> str:
+        return f"enough data: computing the {self.procedure_class.title} ..."
+
+    def show_computing(self) -> None:
+        elapsed = time.monotonic() - self._compute_started
+        self.query_one("#instruction", Static).update(f"[bold green]{escape(self.computing_text())} "
+                                                      f"{elapsed:.0f} s[/]")
+
+    def stop_compute_clock(self) -> None:
+        if self._compute_clock is not None:
+            self._compute_clock.stop()
+            self._compute_clock = None
 
     @work(thread=True, exclusive=True, group="wizard-fit")
     def _fit(self, generation: int, procedure: Procedure) -> None:
@@ -576,12 +599,14 @@ class ProcedureWizard(Screen):
         self.app.call_from_thread(self._show, generation, result, recording)
 
     def fit_failed(self, generation: int, message: str) -> None:
+        self.stop_compute_clock()
         if generation != self._generation:
             return
         self.computing = False
         self.set_instruction(f"calibration failed: {message}", "bold red")
 
     def _show(self, generation: int, result, recording) -> None:
+        self.stop_compute_clock()
         if generation != self._generation:
             return
         self.computing = False

@@ -79,6 +79,8 @@ class LiveView(Vertical):
         yield Static("", id="device-line")
         yield LinePlot("axes (m/s²)", x_label="time (s)", id="axes-plot")
         yield Static("", id="axes-now")
+        # the bars have no axis of their own: this line says what they are and the range they span
+        yield Static(f"|a| over the last {self.window_seconds:g} s (m/s²), bars below", id="magnitude-label")
         yield Sparkline([], id="magnitude")
         yield Static("", id="stats-line")
         yield Static("", id="warning-line")
@@ -131,6 +133,10 @@ class LiveView(Vertical):
                 f"[dodger_blue1]z {recent[2]:+8.3f}[/]  |a| {np.linalg.norm(recent):7.3f} m/s²"
             )
         self.query_one("#magnitude", Sparkline).data = magnitude[_decimate(magnitude.size, PLOT_POINTS)].tolist()
+        if magnitude.size:
+            self.query_one("#magnitude-label", Static).update(
+                f"|a| over the last {self.window_seconds:g} s (m/s²), bars below: lowest {magnitude.min():.3f}, "
+                f"highest {magnitude.max():.3f}")
         self.query_one("#stats-line", Static).update(
             f"{_state_text(stats.state)}  rate {stats.delivered_rate:7.1f} Hz  "
             f"samples {stats.samples}  drops {stats.missing}  gaps {stats.gap_events}"
