@@ -348,9 +348,11 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     receiver = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     receiver.bind(str(notify_path))
     receiver.settimeout(0.2)
-    with socket.socket() as probe:   # a free port on localhost
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    from mqtt_support import free_port
+
+    # free now, and below the ephemeral range: no outgoing connection of another test is handed it before the
+    # daemon binds it (a port the kernel picked with bind(0) is in that range)
+    port = free_port()
     out = tmp_path / "out"
     config = {"output": str(out), "metrics_port": port,
               "devices": [{"name": "a", "url": "sim://still?seed=1&rate=200"},
@@ -374,7 +376,7 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
             async with app.run_test(size=(120, 30)) as pilot:
                 from textual.widgets import DataTable
 
-                await wait_for(pilot, lambda: app.screen.query_one(DataTable).row_count == 2, timeout=20)
+                await wait_for(pilot, lambda: app.screen.query_one(DataTable).row_count == 2)
                 table = app.screen.query_one(DataTable)
                 return [table.get_row_at(i)[:2] for i in range(2)]
 

@@ -22,26 +22,45 @@ def accelrig(*args, **kw):
     return subprocess.run([sys.executable, "-m", "accelrig", *args], capture_output=True, text=True, timeout=120, **kw)
 
 
-def wait_for_samples(proc, path_glob, parent, timeout=30.0):
-    """Wait until the recording process has written at least one data frame."""
+def samples_on_disk(parent) -> int:
+    """Samples in the open segments under ``parent`` now (0 while there is none or it has no whole frame)."""
+    from accelrig.errors import AccelrigError
+    from accelrig.segments import read_arrays
+
+    if not list(parent.glob("*.seg")):
+        return 0
+    try:
+        return len(read_arrays(parent, units="counts")[0])
+    except (AccelrigError, OSError, ValueError):   # the header frame not written yet
+        return 0
+
+
+def wait_for_samples(proc, parent, at_least=1, timeout=60.0):
+    """Wait until the recording process has written ``at_least`` samples to its open segment (counted on disk,
+    not guessed from a fixed sleep: a loaded machine can hold the recorder back for seconds)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        files = list(parent.glob(path_glob))
-        if files and files[0].stat().st_size > 4096:
+        if samples_on_disk(parent) >= at_least:
             return
         assert proc.poll() is None, proc.stderr.read()
         time.sleep(0.1)
-    raise AssertionError("no samples written")
+    raise AssertionError(f"fewer than {at_least} samples written within {timeout:g} s")
+
+
+def with_ctrl_c_default():
+    """Ctrl+C's signal at its default in the child, as in a terminal's foreground job: a test run started in the
+    background of a non-interactive shell (nohup, `cmd &`, some CI runners) ignores SIGINT, and a child inherits
+    that, so `record` never saw the signal and the test waited out its timeout."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.mark.parametrize("output", ["segments", "run.parquet", "run.npz", "run.csv"])
 def test_ctrl_c_keeps_everything_recorded_so_far(tmp_path, output):
     out = tmp_path / output
     proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000", "-o",
-                             str(out)], stderr=subprocess.PIPE, text=True)
+                             str(out)], stderr=subprocess.PIPE, text=True, preexec_fn=with_ctrl_c_default)
     seg_dir = out if output == "segments" else tmp_path / f".{output}.parts"
-    wait_for_samples(proc, "*.seg", seg_dir)
-    time.sleep(0.5)
+    wait_for_samples(proc, seg_dir, at_least=600)
     proc.send_signal(signal.SIGINT)
     code = proc.wait(timeout=30)
     err = proc.stderr.read()
@@ -59,7 +78,7 @@ def test_ctrl_c_cutting_a_requested_length_short_says_so_and_keeps_it(tmp_path):
     out = tmp_path / "segs"
     proc = subprocess.Popen([sys.executable, "-m", "accelrig", "record", "sim://still?seed=3&rate=1000",
                              "--seconds", "600", "-o", str(out)], stderr=subprocess.PIPE, text=True)
-    wait_for_samples(proc, "*.seg", out)
+    wait_for_samples(proc, out)
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 130
     assert "kept" in proc.stderr.read()

@@ -38,6 +38,16 @@ async def wait_for(pilot, condition, timeout=40.0):
     await pilot.pause(0)
 
 
+def drawn(app) -> bool:
+    """The screen in front has been laid out for the terminal's size and has nothing waiting to be drawn (after
+    a resize or a change, a fixed pause before reading ``screen_lines`` can come before the redraw on a loaded
+    host)."""
+    screen = app.screen
+    return (screen._compositor.size == app.size and not screen._dirty_widgets
+            and not (screen._layout_required or screen._repaint_required or screen._scroll_required
+                     or screen._recompose_required))
+
+
 def screen_lines(app) -> list[str]:
     """The terminal's text as drawn now, one string per row (dialogs over the screens below them, as an
     operator sees it; what App.export_screenshot draws, as text)."""
