@@ -397,16 +397,20 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     assert [e["event"] for e in journal(out / "gone")][-1] == "stop"
 
 
-# The daemon with one device ("pier") whose start takes a second (as a long recovery of a crashed run's segment
-# would): the same program, started through this wrapper so the delay lands exactly there.
+# The daemon with one device ("pier") whose start takes long (as a long recovery of a crashed run's segment
+# would): the same program, started through this wrapper so the delay lands exactly there.  It lasts until the
+# test has read the status socket's first answer and creates the file PIER_GO (a fixed second could be over
+# before a loaded machine let the test ask).
 SLOW_START = """
-import sys, time
+import os, sys, time
 from accelrig.daemon import device
 from accelrig.cli import main
 start = device.DeviceRunner.start
 def slow_start(self):
     if self.device.name == "pier":
-        time.sleep(1.0)
+        deadline = time.monotonic() + 120
+        while not os.path.exists(os.environ["PIER_GO"]) and time.monotonic() < deadline:
+            time.sleep(0.02)
     start(self)
 device.DeviceRunner.start = slow_start
 sys.exit(main(sys.argv[1:]))
@@ -449,11 +453,12 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     config_path.write_text(yaml.safe_dump(config))
     log = open(config_path.with_suffix(".log"), "ab")
     proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
-                            stdout=log, stderr=log)
+                            stdout=log, stderr=log, env={**os.environ, "PIER_GO": str(tmp_path / "pier-go")})
     try:
-        first = first_status(proc, config_path)   # while pier takes a second to start: strict is listed too
+        first = first_status(proc, config_path)   # while pier takes long to start: strict is listed too
         assert [(d["name"], d["state"]) for d in first["devices"]] == [
             ("pier", "starting"), ("strict", "starting"), ("chip", "starting")]
+        (tmp_path / "pier-go").touch()   # pier's start goes on
         raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed"
                          and d["chip"]["written"] > 0)
         pier, chip = ({d["name"]: d for d in raw["devices"]}[name] for name in ("pier", "chip"))
@@ -465,7 +470,7 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
         table = format_table(raw)   # what `daemon status` prints (test_faults_reload_and_term runs the command)
         assert "recording raw" in table and "pier: recording raw: no profile for 'sim-random-11'" in table
         proc.send_signal(signal.SIGHUP)   # nothing filed yet: pier keeps recording, untouched
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while "pier: still recording raw" not in config_path.with_suffix(".log").read_text():
             assert time.monotonic() < deadline, config_path.with_suffix(".log").read_text()
             time.sleep(0.1)

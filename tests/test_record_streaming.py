@@ -107,18 +107,19 @@ def test_record_to_a_directory_rotates_and_reads_back_exactly(tmp_path):
     assert rec.meta["time_origin"] > 1.7e9                        # UTC epoch seconds of the first sample
 
 
-def test_every_reader_takes_a_directory_over_a_time_range(tmp_path):
+def test_every_reader_takes_a_directory_over_a_time_range(tmp_path, cli):
+    # (the commands in this process: a new interpreter for each cost seconds of imports under load)
     out = tmp_path / "still"
     assert main(["record", "sim://still?seed=2&pace=fast&rate=400", "--seconds", "400", "-o", str(out)]) == 0
-    r = accelrig("noise", str(out), "--start", "100", "--stop", "300", "--json")
+    r = cli("noise", str(out), "--start", "100", "--stop", "300", "--json")
     assert r.returncode == 0, r.stderr
     figures = json.loads(r.stdout)
     assert abs(figures["still_segment"]["of_total"] - 200.0) < 0.1
-    r = accelrig("record", f"replay://{out}?pace=fast&start=10&stop=20", "-o", str(tmp_path / "part.npz"))
+    r = cli("record", f"replay://{out}?pace=fast&start=10&stop=20", "-o", str(tmp_path / "part.npz"))
     assert r.returncode == 0, r.stderr
     part = load_recording(tmp_path / "part.npz")
     assert abs(part.duration - 10.0) < 0.01
-    r = accelrig("noise", str(out), "--start", "tomorrow")
+    r = cli("noise", str(out), "--start", "tomorrow")
     assert r.returncode != 0 and r.stderr.count("\n") == 1 and "neither seconds nor an ISO-8601 time" in r.stderr
 
 
