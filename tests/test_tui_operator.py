@@ -147,7 +147,9 @@ async def test_a_first_time_operator_gets_the_six_face_wizard_with_no_detour_and
     app = AccelrigApp(refresh_interval=0.05)   # the default device
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         form = app.screen
         assert form.field("model").value == "" and not form.query_one("#settings-remembered").display
@@ -180,7 +182,9 @@ async def test_a_remembered_model_is_shown_as_such_and_ctrl_r_puts_the_defaults_
     app = AccelrigApp(refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         form = app.screen
         await pilot.pause(0.2)

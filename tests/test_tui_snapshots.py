@@ -12,6 +12,7 @@ from pathlib import Path
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from tui_support import choose, drawn, wait_for  # noqa: E402
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
@@ -65,7 +66,9 @@ def test_static_wizard_done_80x24(snap_compare):
         deadline = loop.time() + 120
         while app.session is None:
             await pilot.pause(0.05)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         while not isinstance(app.screen, SettingsForm):
             assert loop.time() < deadline, "the settings form did not open"
             await pilot.pause(0.05)

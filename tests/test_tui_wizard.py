@@ -224,7 +224,7 @@ async def test_settings_form_refuses_in_place_remembers_and_actions_have_keys():
 async def test_an_action_after_the_results_resumes_feeding_from_the_live_stream():
     """Forgetting the data after the results makes the procedure need data again: the wizard feeds it
     from the live stream on (a real-time device here) and computes again."""
-    app = AccelrigApp(device="sim://still?seed=15&seconds=120", refresh_interval=0.05)
+    app = AccelrigApp(device="sim://still?seed=15&seconds=900", refresh_interval=0.05)   # outlasts a loaded run
     async with app.run_test(size=(80, 24)) as pilot:
         wizard = await open_wizard(app, pilot, seconds=2)
         await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen))

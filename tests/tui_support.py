@@ -24,8 +24,9 @@ def holds(condition) -> bool:
         return False
 
 
-async def wait_for(pilot, condition, timeout=40.0):
-    """Let the app run until ``condition()`` holds; fail after ``timeout`` seconds."""
+async def wait_for(pilot, condition, timeout=90.0):
+    """Let the app run until ``condition()`` holds; fail after ``timeout`` seconds (generous: only a failing test
+    waits it out, and under load 30 on 2 cores a Pilot test runs 3-5 times slower than on an idle machine)."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not holds(condition):
@@ -62,7 +63,7 @@ def screen_lines(app) -> list[str]:
     return console.export_text().splitlines()
 
 
-async def choose(pilot, choice: str, timeout=40.0):
+async def choose(pilot, choice: str, timeout=90.0):
     """Pick the option ``choice`` (its id) of the ChoiceScreen that is open or about to open, as the arrows and
     enter would."""
     from textual.widgets import OptionList
