@@ -93,7 +93,8 @@ async def test_help_reaches_a_dialog_and_tells_what_it_asks():
         await wait_for(pilot, lambda: isinstance(app.screen, PathScreen))
         dialog = app.screen
         # enter opens the broker's screen, and says so (it said "Save")
-        assert "⏎ Open esc Cancel f1 Help" in screen_lines(app)[-1]
+        # (the footer is drawn after the dialog: under load it was still blank when the dialog was up)
+        await wait_for(pilot, lambda: "⏎ Open esc Cancel f1 Help" in screen_lines(app)[-1])
         await pilot.press("question_mark")
         assert dialog.query_one("#path").value.endswith("?") and app.screen is dialog
         await pilot.press("f1")
@@ -112,7 +113,7 @@ async def test_help_reaches_a_dialog_and_tells_what_it_asks():
         await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, ChoiceScreen))
         choice = app.screen
-        assert "? Help" in screen_lines(app)[-1]
+        await wait_for(pilot, lambda: "? Help" in screen_lines(app)[-1])   # drawn after the dialog (see above)
         await pilot.press("question_mark")
         await wait_for(pilot, lambda: isinstance(app.screen, HelpScreen))
         guide = text_of(app, "#help-intro")

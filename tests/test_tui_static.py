@@ -119,7 +119,9 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await default_settings_to_results(app, pilot, timeout=90)
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
-        # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu")
+        # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu"); drawn after the
+        # screen (under load a dialog's footer was still blank when the dialog was up)
+        await wait_for(pilot, lambda: "Help" in screen_lines(app)[-1])
         assert screen_lines(app)[-1].rstrip().endswith("f Flash n Next plot c Certificate esc Close ? Help q Quit")
         driver = app.session.driver
         before = driver.chip.read_offset_words()
