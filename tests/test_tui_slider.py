@@ -64,7 +64,9 @@ async def test_slider_crank_steps_fill_the_response_and_the_radius_matches_the_t
         assert (shown["radius mm"], shown["u mm"]) == format_value(step["radius_m"]["value"] * 1e3,
                                                                    step["radius_m"]["uncertainty"] * 1e3)
         # at 80 columns the table fits whole (it was 3 cells too wide and scrolled sideways): the model's
-        # amplitude, which the plot draws, is left out, and the line under it says so
+        # amplitude, which the plot draws, is left out, and the line under it says so (written after the table's
+        # layout: waited for, it was still empty when read at once under load)
+        await wait_for(pilot, lambda: "left out" in str(screen.query_one("#steps-left-out").render()))
         assert table.virtual_size.width <= table.size.width
         assert list(shown) == ["step", "Hz", "amplitude", "u", "radius mm", "u mm", "k for U", "flags"]
         assert "left out at this width: model (s saves every column)" in str(
