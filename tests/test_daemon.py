@@ -48,7 +48,9 @@ def status_now(socket: Path) -> dict | None:
         return None
 
 
-def wait_until(proc, config_path: Path, condition, timeout: float = 30.0) -> dict:
+def wait_until(proc, config_path: Path, condition, timeout: float = 120.0) -> dict:
+    # (counted from before the daemon's start-up, which took over 20 s of a loaded 2-core machine: a 30 s wait
+    # timed out with the daemon up 7 s.  Only a failing test waits the timeout out.)
     deadline = time.monotonic() + timeout
     last = None
     while time.monotonic() < deadline:
@@ -348,9 +350,11 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     receiver = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     receiver.bind(str(notify_path))
     receiver.settimeout(0.2)
-    with socket.socket() as probe:   # a free port on localhost
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    from mqtt_support import free_port
+
+    # free now, and below the ephemeral range: no outgoing connection of another test is handed it before the
+    # daemon binds it (a port the kernel picked with bind(0) is in that range)
+    port = free_port()
     out = tmp_path / "out"
     config = {"output": str(out), "metrics_port": port,
               "devices": [{"name": "a", "url": "sim://still?seed=1&rate=200"},
@@ -360,7 +364,7 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     messages = []
     try:
         wait_until(proc, config_path, lambda d: d["a"]["written"] > 0 and d["gone"]["failed_connects"] >= 2)
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + 30
         while time.monotonic() < deadline and sum("WATCHDOG=1" in m for m in messages) < 2:
             try:
                 messages.append(receiver.recv(4096).decode())
@@ -374,7 +378,7 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
             async with app.run_test(size=(120, 30)) as pilot:
                 from textual.widgets import DataTable
 
-                await wait_for(pilot, lambda: app.screen.query_one(DataTable).row_count == 2, timeout=20)
+                await wait_for(pilot, lambda: app.screen.query_one(DataTable).row_count == 2)
                 table = app.screen.query_one(DataTable)
                 return [table.get_row_at(i)[:2] for i in range(2)]
 
@@ -395,23 +399,27 @@ def test_systemd_notify_watchdog_metrics_and_the_tui_screen(tmp_path):
     assert [e["event"] for e in journal(out / "gone")][-1] == "stop"
 
 
-# The daemon with one device ("pier") whose start takes a second (as a long recovery of a crashed run's segment
-# would): the same program, started through this wrapper so the delay lands exactly there.
+# The daemon with one device ("pier") whose start takes long (as a long recovery of a crashed run's segment
+# would): the same program, started through this wrapper so the delay lands exactly there.  It lasts until the
+# test has read the status socket's first answer and creates the file PIER_GO (a fixed second could be over
+# before a loaded machine let the test ask).
 SLOW_START = """
-import sys, time
+import os, sys, time
 from accelrig.daemon import device
 from accelrig.cli import main
 start = device.DeviceRunner.start
 def slow_start(self, *args, **kwargs):
     if self.device.name == "pier":
-        time.sleep(1.0)
+        deadline = time.monotonic() + 120
+        while not os.path.exists(os.environ["PIER_GO"]) and time.monotonic() < deadline:
+            time.sleep(0.02)
     start(self, *args, **kwargs)
 device.DeviceRunner.start = slow_start
 sys.exit(main(sys.argv[1:]))
 """
 
 
-def first_status(proc, config_path: Path, timeout: float = 30.0) -> dict:
+def first_status(proc, config_path: Path, timeout: float = 120.0) -> dict:
     """The status socket's first answer, asked for as soon as the socket is there."""
     socket = Path(yaml.safe_load(config_path.read_text())["output"]) / "daemon.sock"
     deadline = time.monotonic() + timeout
@@ -447,11 +455,12 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
     config_path.write_text(yaml.safe_dump(config))
     log = open(config_path.with_suffix(".log"), "ab")
     proc = subprocess.Popen([sys.executable, "-c", SLOW_START, "daemon", "--config", str(config_path)],
-                            stdout=log, stderr=log)
+                            stdout=log, stderr=log, env={**os.environ, "PIER_GO": str(tmp_path / "pier-go")})
     try:
-        first = first_status(proc, config_path)   # while pier takes a second to start: strict is listed too
+        first = first_status(proc, config_path)   # while pier takes long to start: strict is listed too
         assert [(d["name"], d["state"]) for d in first["devices"]] == [
             ("pier", "starting"), ("strict", "starting"), ("chip", "starting")]
+        (tmp_path / "pier-go").touch()   # pier's start goes on
         raw = wait_until(proc, config_path, lambda d: d["pier"]["written"] >= 100 and d["strict"]["state"] == "failed"
                          and d["chip"]["written"] > 0)
         pier, chip = ({d["name"]: d for d in raw["devices"]}[name] for name in ("pier", "chip"))
@@ -463,7 +472,7 @@ def test_a_device_without_the_profile_it_needs_records_raw_loudly_and_takes_the_
         table = format_table(raw)   # what `daemon status` prints (test_faults_reload_and_term runs the command)
         assert "recording raw" in table and "pier: recording raw: no profile for 'sim-random-11'" in table
         proc.send_signal(signal.SIGHUP)   # nothing filed yet: pier keeps recording, untouched
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while "pier: still recording raw" not in config_path.with_suffix(".log").read_text():
             assert time.monotonic() < deadline, config_path.with_suffix(".log").read_text()
             time.sleep(0.1)

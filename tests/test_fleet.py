@@ -52,6 +52,19 @@ def wait_for(condition, timeout: float, what: str):
     raise AssertionError(f"timed out waiting for {what}")
 
 
+def collected_to_the_end(local: Path, collected: Path) -> bool:
+    """The collector's files reach the last sample of the (stopped) daemon's local files.  Messages arrive in
+    order, so everything before it has arrived too: the condition to stop the collector on (a fixed second
+    raced the broker's backlog on a loaded machine)."""
+    from accelrig.errors import AccelrigError
+
+    try:
+        local_t, got_t = samples(local)[0], samples(collected)[0]
+    except (AccelrigError, OSError, ValueError):   # no segment yet, or its first frame not written yet
+        return False
+    return bool(local_t.size and got_t.size and got_t[-1] >= local_t[-1])
+
+
 def daemon_status(config: Path) -> dict:
     """What ``accelrig daemon status --json`` prints, through the same socket client in this process
     (a new process per poll cost about a second of start-up on a loaded machine; test_daemon.py runs the command)."""
@@ -101,7 +114,7 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
                          "--username", COLLECTOR_USER, "--password-env", "COLLECT_PW",
                          env={"COLLECT_PW": COLLECTOR_PASSWORD}, log=tmp_path / "collect.log")
     wait_for(lambda: "connected to" in (tmp_path / "collect.log").read_text() or collector.poll() is not None,
-             15, "the collector to connect")
+             60, "the collector to connect")
     assert collector.poll() is None, (tmp_path / "collect.log").read_text()
     daemons = {}
     for name, config in configs.items():
@@ -109,7 +122,7 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
         path.write_text(yaml.safe_dump(config))
         daemons[name] = (accelrig("daemon", "--config", str(path), log=tmp_path / f"{name}.log"), path)
     try:
-        wait_for(lambda: all((tmp_path / "fleet" / "north" / n).is_dir() for n in "ab"), 20,
+        wait_for(lambda: all((tmp_path / "fleet" / "north" / n).is_dir() for n in "ab"), 60,
                  "both devices at the collector")
         time.sleep(1.5)
         sent_before = metric(metrics_port, "accelrig_mqtt_messages_sent", "a")
@@ -126,7 +139,7 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
         broker.start()
         # the backlog goes out in order; b's spool overflowed and says so
         wait_for(lambda: all((s := daemon_status(p).get(n)) and s["mqtt"]["connected"] and s["mqtt"]["spooled"] <= 3
-                             for n, (_, p) in daemons.items()), 30, "the spools to drain")
+                             for n, (_, p) in daemons.items()), 60, "the spools to drain")
         status_b = daemon_status(daemons["b"][1])["b"]["mqtt"]
         assert status_b["dropped_samples"] > 0 and status_b["spool_gaps"] >= 1
         status_a = daemon_status(daemons["a"][1])["a"]["mqtt"]
@@ -156,8 +169,9 @@ def test_daemon_to_collector_through_a_broker_that_goes_away(broker, tmp_path):
         assert DAEMON_PASSWORD not in log and DAEMON_PASSWORD not in (tmp_path / f"out-{name}" / name /
                                                                        "journal.jsonl").read_text()
     # the collector finds the broker back within its reconnect_max (10 s) and takes what the broker kept for it
-    wait_for(lambda: "reconnected to" in (tmp_path / "collect.log").read_text(), 20, "the collector to reconnect")
-    time.sleep(1.0)
+    wait_for(lambda: "reconnected to" in (tmp_path / "collect.log").read_text(), 60, "the collector to reconnect")
+    wait_for(lambda: all(collected_to_the_end(tmp_path / f"out-{n}" / n, tmp_path / "fleet" / "north" / n)
+                         for n in "ab"), 60, "the collector to take the daemons' last samples")
     collector.send_signal(signal.SIGTERM)
     assert collector.wait(15) == 0
     collect_log = (tmp_path / "collect.log").read_text()
@@ -197,13 +211,18 @@ def test_wrong_password_is_refused_in_one_line(broker, tmp_path):
 
 
 def test_acl_keeps_a_daemon_to_its_own_topics(broker):
+    import threading
+
     import paho.mqtt.client as mqtt
+
+    subscribed = threading.Event()
 
     def client(user, password, received=None):
         c = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"t-{user}-{time.time_ns()}")
         c.username_pw_set(user, password)
         if received is not None:
             c.on_message = lambda cl, ud, m: received.append(m.topic)
+            c.on_subscribe = lambda *_: subscribed.set()
         c.connect("127.0.0.1", broker.port)
         c.loop_start()
         return c
@@ -211,11 +230,13 @@ def test_acl_keeps_a_daemon_to_its_own_topics(broker):
     received: list[str] = []
     reader = client(COLLECTOR_USER, COLLECTOR_PASSWORD, received)
     reader.subscribe("accelrig/#", 1)
-    time.sleep(0.5)
+    # the broker acknowledged the subscription: what is published from now on reaches the reader (a fixed
+    # half second could end first on a loaded machine, and the allowed message went to nobody)
+    assert subscribed.wait(60), "the broker never acknowledged the subscription"
     daemon = client(DAEMON_USER, DAEMON_PASSWORD)
     daemon.publish("accelrig/south/c/data", b"not mine", qos=1).wait_for_publish(5)
     daemon.publish("accelrig/north/a/data", b"mine", qos=1).wait_for_publish(5)
-    wait_for(lambda: "accelrig/north/a/data" in received, 5, "the allowed message")
+    wait_for(lambda: "accelrig/north/a/data" in received, 30, "the allowed message")
     time.sleep(0.3)
     assert "accelrig/south/c/data" not in received
     for c in (reader, daemon):
@@ -285,13 +306,13 @@ def test_a_daemon_killed_while_the_broker_is_away_sends_its_spool_at_the_next_st
     collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
     daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
     try:
-        wait_for(lambda: (tmp_path / "fleet" / "north" / "a").is_dir(), 20, "the device at the collector")
+        wait_for(lambda: (tmp_path / "fleet" / "north" / "a").is_dir(), 60, "the device at the collector")
         time.sleep(1.0)
         collector.send_signal(signal.SIGTERM)        # the collector restarts while all this happens
         assert collector.wait(15) == 0
         broker.stop()
         spool = tmp_path / "out" / "a" / "spool"
-        wait_for(lambda: len(list(spool.glob("*.msg"))) >= 3, 20, "blocks in the spool while the broker is away")
+        wait_for(lambda: len(list(spool.glob("*.msg"))) >= 3, 60, "blocks in the spool while the broker is away")
         daemon.kill()                                # kill -9 with the outage's blocks in the spool
         daemon.wait(10)
         spooled = list(spool.glob("*.msg"))
@@ -299,18 +320,19 @@ def test_a_daemon_killed_while_the_broker_is_away_sends_its_spool_at_the_next_st
         broker.start()
         collector = accelrig(*collect_args, env=env, log=tmp_path / "collect.log")
         daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
-        wait_for(lambda: "spooled message(s) to send" in (tmp_path / "a.log").read_text(), 20,
+        wait_for(lambda: "spooled message(s) to send" in (tmp_path / "a.log").read_text(), 60,
                  "the restarted daemon to find its spool")
-        wait_for(lambda: not set(spooled) & set(spool.glob("*.msg")), 20, "the old run's spool to go out")
+        wait_for(lambda: not set(spooled) & set(spool.glob("*.msg")), 60, "the old run's spool to go out")
         daemon.kill()                                # the broker sees it vanish: the last will says offline
         daemon.wait(10)
-        assert fleet_state(broker) == "offline"
+        wait_for(lambda: fleet_state(broker) == "offline", 60, "the last will (offline)")
         daemon = accelrig("daemon", "--config", str(config), log=tmp_path / "a.log")
-        wait_for(lambda: fleet_state(broker) == "streaming", 20, "the daemon streaming again")
+        wait_for(lambda: fleet_state(broker) == "streaming", 60, "the daemon streaming again")
         daemon.send_signal(signal.SIGTERM)
         assert daemon.wait(15) == 0
         assert fleet_state(broker) == "stopped"
-        time.sleep(1.0)
+        wait_for(lambda: collected_to_the_end(tmp_path / "out" / "a", tmp_path / "fleet" / "north" / "a"), 60,
+                 "the collector to take the daemon's last samples")
         collector.send_signal(signal.SIGTERM)
         assert collector.wait(15) == 0
     finally:
@@ -362,7 +384,7 @@ def test_meta_and_profile_are_retained(broker, tmp_path):
     publisher = Publisher(settings, "a", tmp_path / "spool", dict, lambda line: None)
     publisher.announce({"identity": "sim-1"}, 0.0006, "sim-1@2026", {"format": "accelrig-profile"})
     publisher.start()
-    wait_for(lambda: publisher.connected, 10, "the publisher to connect")
+    wait_for(lambda: publisher.connected, 60, "the publisher to connect")
     publisher.close()
     got: dict[str, bytes] = {}
     reader = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="t-retained")
@@ -372,7 +394,7 @@ def test_meta_and_profile_are_retained(broker, tmp_path):
     reader.subscribe("accelrig/north/a/+", 1)
     reader.loop_start()
     try:
-        wait_for(lambda: {"meta", "profile", "status"} <= set(got), 10, "the retained messages")
+        wait_for(lambda: {"meta", "profile", "status"} <= set(got), 60, "the retained messages")
     finally:
         reader.disconnect()
         reader.loop_stop()
@@ -397,7 +419,7 @@ def test_a_device_recording_raw_for_want_of_its_profile_says_so_to_the_fleet(bro
             table = rows(gather(broker.url, username=COLLECTOR_USER, password=COLLECTOR_PASSWORD, timeout=2))
             return table if table and table[0]["state"] == "recording raw" else None
 
-        (row,) = wait_for(seen, 20, "the fleet to see the device recording raw")
+        (row,) = wait_for(seen, 60, "the fleet to see the device recording raw")
         assert row["profile"] is None and row["error"].startswith("recording raw: no profile for 'sim-random-11'")
         assert "north/a: recording raw: no profile for 'sim-random-11'" in format_table([row])
     finally:

@@ -47,7 +47,7 @@ async def test_fleet_screen_shows_the_fleet_table_live(broker, tmp_path):
     try:
         async with app.run_test(size=(120, 30)) as pilot:
             await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
-                           and "north/a" in table_cells(app.screen), timeout=20)
+                           and "north/a" in table_cells(app.screen))
             screen = app.screen
             table = screen.query_one("#fleet-devices")
             assert [str(c.label) for c in table.columns.values()] == columns(30)
@@ -59,14 +59,14 @@ async def test_fleet_screen_shows_the_fleet_table_live(broker, tmp_path):
             assert row[2] == "streaming" and row[4] == "499.8" and row[7] == "none"   # no profile created date
             # live: a change of state shows without a key
             status["state"] = "disconnected"
-            await wait_for(pilot, lambda: table_cells(screen)["north/a"][2] == "disconnected", timeout=10)
+            await wait_for(pilot, lambda: table_cells(screen)["north/a"][2] == "disconnected")
             # a second device appears by itself
             pub_b = publisher(broker, tmp_path, "b", {"state": "streaming", "delivered_rate": 250.0})
             try:
-                await wait_for(pilot, lambda: "north/b" in table_cells(screen), timeout=10)
+                await wait_for(pilot, lambda: "north/b" in table_cells(screen))
             finally:
                 pub_b.close()
-            await wait_for(pilot, lambda: table_cells(screen)["north/b"][2] == "stopped", timeout=10)
+            await wait_for(pilot, lambda: table_cells(screen)["north/b"][2] == "stopped")
             assert "connected" in str(screen.query_one("#fleet-title").render())
             # read-only: the screen's keys change nothing anywhere; escape leaves (it is the only screen)
             await pilot.press("r")
@@ -93,7 +93,7 @@ async def test_m_on_the_live_screen_asks_for_the_broker_and_a_refusal_is_shown(b
         await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen))
         screen = app.screen
-        await wait_for(pilot, lambda: "refused" in str(screen.query_one("#fleet-title").render()), timeout=15)
+        await wait_for(pilot, lambda: "refused" in str(screen.query_one("#fleet-title").render()))
         # a login the m key cannot give: said, with the options that give one, and not asked again in vain
         await wait_for(pilot, lambda: "asks for a login" in str(screen.query_one("#fleet-title").render()))
         title = str(screen.query_one("#fleet-title").render())
@@ -110,7 +110,7 @@ async def test_a_refused_login_from_the_command_line_is_said_and_not_retried(bro
                       refresh_interval=0.05)
     async with app.run_test(size=(120, 30)) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
-                       and "not tried again" in str(app.screen.query_one("#fleet-title").render()), timeout=15)
+                       and "not tried again" in str(app.screen.query_one("#fleet-title").render()))
         title = str(app.screen.query_one("#fleet-title").render())
         assert "refused the connection" in title and "the user name and password given were refused" in title
 
@@ -123,7 +123,7 @@ async def test_a_broker_that_is_not_there_is_said_and_tried_again_one_connect_at
     app = AccelrigApp(fleet=FleetOptions(url), refresh_interval=0.05)
     async with app.run_test(size=(120, 30)) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, FleetScreen)
-                       and "cannot connect" in str(app.screen.query_one("#fleet-title").render()), timeout=15)
+                       and "cannot connect" in str(app.screen.query_one("#fleet-title").render()))
         screen = app.screen
         assert str(screen.query_one("#fleet-title").render()).count(url) == 1   # named once, not again in the error
         await pilot.pause(2.5)   # refreshed twice more: tried again, never two connects at once

@@ -6,11 +6,12 @@ import pytest
 import yaml
 
 from accelrig.tui.app import AccelrigApp, settings_file  # noqa: E402
+from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.dialogs import ChoiceScreen, ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
 from report_support import static_result  # noqa: E402
-from tui_support import async_test, choose, screen_lines, wait_for  # noqa: E402
+from tui_support import async_test, choose, drawn, screen_lines, wait_for  # noqa: E402
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=2"
 
@@ -82,13 +83,13 @@ async def test_the_rotary_form_reads_whole_its_title_and_the_axis_row_at_120x40_
     async with app.run_test(size=(120, 40)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         await pilot.press("k")
-        await pilot.pause(0.3)
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))   # the arrows go to the menu
         await pilot.press("down", "down", "down", "enter")
         await choose(pilot, "demo")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         for size in ((120, 40), (80, 24)):
             await pilot.resize_terminal(*size)
-            await pilot.pause(0.3)
+            await wait_for(pilot, lambda: drawn(app))   # laid out again for the new size
             lines = screen_lines(app)
             assert len(lines) == size[1]
             assert any("rotary bench calibration: settings (filled in for the simulated rig)" in line
@@ -128,9 +129,14 @@ async def test_a_long_log_line_is_shown_whole_at_80_columns():
         text = ("drift check, last round: now put -y down once more (the opposite face), so the fit can test "
                 "the drift between the holds. c computes without it")
         wizard.log_event(text)
-        await pilot.pause(0.3)
-        words = " ".join(line.strip("│ ▁▂▃▄▅▆▇█") for line in screen_lines(app)).split()
-        assert " ".join(text.split()) in " ".join(words)
+
+        def words():
+            return " ".join(" ".join(line.strip("│ ▁▂▃▄▅▆▇█") for line in screen_lines(app)).split())
+
+        # read off the screen once the log has drawn it (the wizard's timer keeps the screen busy: a fixed pause
+        # could read it before)
+        await wait_for(pilot, lambda: "the drift between the holds" in words())
+        assert " ".join(text.split()) in words()
 
 
 @async_test
@@ -141,26 +147,28 @@ async def test_a_first_time_operator_gets_the_six_face_wizard_with_no_detour_and
     app = AccelrigApp(refresh_interval=0.05)   # the default device
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         form = app.screen
         assert form.field("model").value == "" and not form.query_one("#settings-remembered").display
         # the footer shows the form's keys, not the wizard's below it (which do nothing there)
-        await wait_for(pilot, lambda: "Start" in screen_lines(app)[-1], timeout=10)
+        await wait_for(pilot, lambda: "Start" in screen_lines(app)[-1])
         footer = screen_lines(app)[-1]
         assert "Start" in footer and "Cancel" in footer and "Defaults" in footer, footer
         assert "Write data" not in footer and "redo a face" not in footer, footer
         await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, StaticWizard) and app.screen.procedure is not None)
         wizard = app.screen
-        await pilot.pause(0.3)
-        assert not isinstance(app.screen, ChoiceScreen)
+        assert not isinstance(app.screen, ChoiceScreen)   # (the orientation question comes instead of a procedure)
         assert wizard.sub_title == "six-face static calibration" and wizard.query_one("#faces").display
-        assert "Write data" in screen_lines(app)[-1]   # the wizard's keys once it is in front
+        # the wizard's keys once it is in front (drawn after it: wait for the footer, not a fixed pause)
+        await wait_for(pilot, lambda: "Write data" in screen_lines(app)[-1])
         app.push_screen(ConfirmScreen("Leave this calibration?", "Leave", "Stay"))
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmScreen))
         # the footer is drawn after the dialog (under load it was still blank after a fixed 0.2 s)
-        await wait_for(pilot, lambda: "Leave" in screen_lines(app)[-1], timeout=10)
+        await wait_for(pilot, lambda: "Leave" in screen_lines(app)[-1])
         footer = screen_lines(app)[-1]
         assert "Leave" in footer and "Stay" in footer and "Write data" not in footer, footer
 
@@ -174,7 +182,9 @@ async def test_a_remembered_model_is_shown_as_such_and_ctrl_r_puts_the_defaults_
     app = AccelrigApp(refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         form = app.screen
         await pilot.pause(0.2)

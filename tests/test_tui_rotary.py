@@ -10,8 +10,9 @@ from accelrig.tui.screens.rotary_wizard import CampaignScreen, RotaryWizard  # n
 from tui_support import async_test, open_wizard, wait_for  # noqa: E402
 
 # realtime: a step is recorded from the moment the operator presses space, as on a real bench
-# (a pace=fast source would have run out before the first key press)
-DEVICE = "sim://rotary?seed=2&range=8&rate=1000&seconds=60"
+# (a pace=fast source would have run out before the first key press); 900 s outlasts the test on a loaded
+# machine (60 s could end before the second capture, as a finite source ending between keys failed CI once)
+DEVICE = "sim://rotary?seed=2&range=8&rate=1000&seconds=900"
 
 
 @async_test

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from accelrig.acquisition.session import State  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
-from tui_support import choose  # noqa: E402
+from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
+from tui_support import choose, drawn, wait_for  # noqa: E402
 
 FINITE = "sim://still?seed=1&pace=fast&seconds=10"
 REPO = Path(__file__).resolve().parents[1]
@@ -21,11 +22,14 @@ REPO = Path(__file__).resolve().parents[1]
 async def until_ended(pilot):
     app = pilot.app
     loop = asyncio.get_running_loop()
-    deadline = loop.time() + 10
+    deadline = loop.time() + 60
     while app.session is None or app.session.stats().state != State.ENDED:
         assert loop.time() < deadline, "the simulated device did not end"
         await pilot.pause(0.05)
-    await pilot.pause(0.3)  # let the refresh timer draw the final state
+    # the refresh timer has drawn the final state (a fixed pause could end first on a loaded host): the stats
+    # line says the source ended, and every other line comes from that same refresh
+    await wait_for(pilot, lambda: "source ended" in str(app.screen.query_one("#stats-line").render()))
+    await wait_for(pilot, lambda: drawn(app))
 
 
 def test_live_80x24(snap_compare):
@@ -40,9 +44,11 @@ def test_live_120x40(snap_compare):
 
 def test_help_80x24(snap_compare):
     async def open_help(pilot):
+        from accelrig.tui.screens.help import HelpScreen
+
         await until_ended(pilot)
         await pilot.press("question_mark")
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, HelpScreen) and drawn(pilot.app))
 
     assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(80, 24),
                         run_before=open_help)
@@ -57,10 +63,12 @@ def test_static_wizard_done_80x24(snap_compare):
     async def run_wizard(pilot):
         app = pilot.app
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + 30
+        deadline = loop.time() + 120
         while app.session is None:
             await pilot.pause(0.05)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         while not isinstance(app.screen, SettingsForm):
             assert loop.time() < deadline, "the settings form did not open"
             await pilot.pause(0.05)
@@ -76,7 +84,7 @@ def test_static_wizard_done_80x24(snap_compare):
         await pilot.pause(0.3)
         await pilot.press("escape")   # the profile is not saved: it asks, and the result is discarded
         await choose(pilot, "discard")
-        await pilot.pause(0.5)
+        await wait_for(pilot, lambda: not isinstance(app.screen, ResultsScreen))   # back on the wizard
         # two live numbers depend on how many samples the last read took at pace=fast (the wizard stops reading
         # once it computes): the time the last face was held (4.0-4.6 s) and the samples captured. Pinned here so
         # the picture tests the layout, not the host's timing
@@ -87,7 +95,7 @@ def test_static_wizard_done_80x24(snap_compare):
             text = widget.content   # as given to update(), markup and all
             assert isinstance(text, str) and re.search(live, text), (selector, text)
             widget.update(re.sub(live, pinned, text))
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: drawn(app))
 
     assert snap_compare(AccelrigApp(device="sim://static?seed=3&pace=fast", refresh_interval=0.05),
                         terminal_size=(80, 24), run_before=run_wizard)
@@ -107,8 +115,10 @@ def test_static_results_120x40(snap_compare):
 
     async def show(pilot):
         await until_ended(pilot)
-        pilot.app.push_screen(ResultsScreen(result, recording, None))
-        await pilot.pause(0.3)
+        screen = ResultsScreen(result, recording, None)
+        pilot.app.push_screen(screen)
+        await wait_for(pilot, lambda: pilot.app.screen is screen and screen.query_one("#parameters").row_count > 0
+                       and drawn(pilot.app))
 
     assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(120, 40), run_before=show)
 
@@ -119,7 +129,7 @@ def test_fleet_without_a_broker_80x24(snap_compare):
 
     async def refused(pilot):
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + 15
+        deadline = loop.time() + 60
         while "refused" not in str(pilot.app.screen.query_one("#fleet-title").render()):
             assert loop.time() < deadline, "the refusal was not shown"
             await pilot.pause(0.05)
@@ -133,7 +143,7 @@ def until_rows(table: str, rows: int):
     """Wait until the screen's ``table`` shows ``rows`` rows."""
     async def shown(pilot):
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + 10
+        deadline = loop.time() + 60
         while pilot.app.screen.query_one(table).row_count < rows:
             assert loop.time() < deadline, f"{table} did not show {rows} rows"
             await pilot.pause(0.05)
@@ -242,6 +252,6 @@ def test_flash_plan_80x24(snap_compare):
         await until_ended(pilot)
         pilot.app.push_screen(ConfirmScreen("Write to the device?", "Write", "Cancel",
                                             details=escape(format_plan(plan, width=DIALOG_TEXT_WIDTH))))
-        await pilot.pause(0.3)
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, ConfirmScreen) and drawn(pilot.app))
 
     assert snap_compare(AccelrigApp(device=FINITE, refresh_interval=0.05), terminal_size=(80, 24), run_before=ask)

@@ -7,6 +7,7 @@ import numpy as np
 
 from accelrig.profiles import load_profile  # noqa: E402
 from accelrig.tui.app import AccelrigApp  # noqa: E402
+from accelrig.tui.screens.calibrate import CalibrateMenu  # noqa: E402
 from accelrig.tui.screens.dialogs import ConfirmScreen, PathScreen, SettingsForm  # noqa: E402
 from accelrig.tui.screens.results import ResultsScreen  # noqa: E402
 from accelrig.tui.screens.static_wizard import StaticWizard  # noqa: E402
@@ -19,11 +20,13 @@ def status(app):
     return str(app.screen.query_one("#results-status").render())
 
 
-async def default_settings_to_results(app, pilot, timeout=40.0):
+async def default_settings_to_results(app, pilot, timeout=90.0):
     """The operator's keys from the live view to the results: k, the first wizard (static), its settings as
     they are; the wizard computes on its own."""
     await wait_for(pilot, lambda: app.session is not None)
-    await pilot.press("k", "enter")
+    await pilot.press("k")
+    await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+    await pilot.press("enter")
     await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
     await pilot.press("enter")
     await wait_for(pilot, lambda: isinstance(app.screen, ResultsScreen) and bool(app.screen.query("#results-warnings")),
@@ -36,6 +39,7 @@ async def test_static_wizard_to_saved_profile_matches_the_truth(tmp_path):
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
         await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(app.screen, CalibrateMenu))   # enter goes to its list
         await pilot.press("enter")  # the first wizard: static
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         assert app.screen.field("g").placeholder == "9.80665"   # a blank field takes the default shown
@@ -115,7 +119,9 @@ async def test_static_through_an_emulated_chip_then_flash_shows_the_plan_and_ask
         await default_settings_to_results(app, pilot, timeout=90)
         results = app.screen
         await wait_for(pilot, lambda: results.profile is not None)
-        # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu")
+        # the footer names every key at 80 columns, flash included ("q Quit" was cut to "q Qu"); drawn after the
+        # screen (under load a dialog's footer was still blank when the dialog was up)
+        await wait_for(pilot, lambda: "Help" in screen_lines(app)[-1])
         assert screen_lines(app)[-1].rstrip().endswith("f Flash n Next plot c Certificate esc Close ? Help q Quit")
         before = app.session.driver.chip.read_offset_words()   # the factory trim
         await pilot.press("f")

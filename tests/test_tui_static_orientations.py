@@ -4,6 +4,7 @@ import numpy as np
 
 from accelrig.estimation.gravity_fit import MULTI_MIN_DISTINCT, upper_gauge
 from accelrig.tui.app import AccelrigApp
+from accelrig.tui.screens.calibrate import CalibrateMenu
 from accelrig.tui.screens.dialogs import SettingsForm
 from accelrig.tui.screens.results import ResultsScreen
 from accelrig.tui.screens.static_wizard import StaticWizard
@@ -17,7 +18,9 @@ async def test_any_orientation_counts_distinct_orientations_maps_them_and_fits_m
     app = AccelrigApp(device=DEVICE, refresh_interval=0.05)
     async with app.run_test(size=(100, 40)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         form = app.screen
         form.field("model").value = "multi-position"   # "hold it still in any orientation"
@@ -57,7 +60,9 @@ async def test_any_orientation_before_enough_says_how_many_more():
     app = AccelrigApp(device="sim://static?orientations=4&hold=3&seed=5&pace=fast", refresh_interval=0.05)
     async with app.run_test(size=(100, 40)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         app.screen.field("model").value = "multi-position"
         await pilot.press("enter")
@@ -80,7 +85,9 @@ async def test_multi_position_on_the_six_face_rig_offers_the_rig_that_has_the_or
     app = AccelrigApp(device="sim://static?seed=5&pace=fast", refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await wait_for(pilot, lambda: app.session is not None)
-        await pilot.press("k", "enter")
+        await pilot.press("k")
+        await wait_for(pilot, lambda: isinstance(pilot.app.screen, CalibrateMenu))   # enter goes to its list
+        await pilot.press("enter")
         await wait_for(pilot, lambda: isinstance(app.screen, SettingsForm))
         app.screen.field("model").value = "multi-position"
         await pilot.press("enter")

@@ -24,8 +24,9 @@ def holds(condition) -> bool:
         return False
 
 
-async def wait_for(pilot, condition, timeout=40.0):
-    """Let the app run until ``condition()`` holds; fail after ``timeout`` seconds."""
+async def wait_for(pilot, condition, timeout=90.0):
+    """Let the app run until ``condition()`` holds; fail after ``timeout`` seconds (generous: only a failing test
+    waits it out, and under load 30 on 2 cores a Pilot test runs 3-5 times slower than on an idle machine)."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not holds(condition):
@@ -36,6 +37,16 @@ async def wait_for(pilot, condition, timeout=40.0):
     # their first events (Textual's Header sets its title on a queued callback that fails with NoMatches when
     # the app exits before it runs, as a test does right after its last wait)
     await pilot.pause(0)
+
+
+def drawn(app) -> bool:
+    """The screen in front has been laid out for the terminal's size and has nothing waiting to be drawn (after
+    a resize or a change, a fixed pause before reading ``screen_lines`` can come before the redraw on a loaded
+    host)."""
+    screen = app.screen
+    return (screen._compositor.size == app.size and not screen._dirty_widgets
+            and not (screen._layout_required or screen._repaint_required or screen._scroll_required
+                     or screen._recompose_required))
 
 
 def screen_lines(app) -> list[str]:
@@ -52,7 +63,7 @@ def screen_lines(app) -> list[str]:
     return console.export_text().splitlines()
 
 
-async def choose(pilot, choice: str, timeout=40.0):
+async def choose(pilot, choice: str, timeout=90.0):
     """Pick the option ``choice`` (its id) of the ChoiceScreen that is open or about to open, as the arrows and
     enter would."""
     from textual.widgets import OptionList
