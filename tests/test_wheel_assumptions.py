@@ -363,6 +363,16 @@ def test_a_steady_nod_on_an_unbalanced_wheel_is_not_read_as_changing(monkeypatch
     120 refused at 1 %, the nod 0.05 deg larger at the end on average).  The unseen half is now projected out of
     that test.  Here (quiet, so what the test reads is the structure, not the noise) main read 0.09 -> 0.16 deg,
     p = 3e-5; the checks are read directly, since the steady nod itself is refused on its size at this noise."""
+    checks = checks_read(monkeypatch, nodding_coast(0.1, seed=2, sd=0.03, swing=0.003))
+    assert checks.causes == ["speed law", "wobble"]
+    assert not checks.nod_change.significant
+    start, end = checks.nod_ends_deg
+    assert abs(end - start) < 0.03 and 0.07 < 0.5 * (start + end) < 0.15
+
+
+def checks_read(monkeypatch, record):
+    """The assumption checks the wheel calibration read on ``record`` at radius 0.28 (whether it then refused or
+    not): for tests of a check itself, where the record is refused on another ground."""
     seen = {}
 
     def spy(*args, **kwargs):
@@ -371,12 +381,8 @@ def test_a_steady_nod_on_an_unbalanced_wheel_is_not_read_as_changing(monkeypatch
 
     monkeypatch.setattr(wheel_procedure, "check_residuals", spy)
     with contextlib.suppress(CalibrationError):
-        calibrate_wheel(nodding_coast(0.1, seed=2, sd=0.03, swing=0.003), radius=0.28)
-    checks = seen["checks"]
-    assert checks.causes == ["speed law", "wobble"]
-    assert not checks.nod_change.significant
-    start, end = checks.nod_ends_deg
-    assert abs(end - start) < 0.03 and 0.07 < 0.5 * (start + end) < 0.15
+        calibrate_wheel(record, radius=0.28)
+    return seen["checks"]
 
 
 def test_a_steady_nod_is_not_read_as_an_offset_drift(monkeypatch):
@@ -386,16 +392,7 @@ def test_a_steady_nod_is_not_read_as_an_offset_drift(monkeypatch):
     the unseen half out once a wobble is found.  Quiet (0.03 m/s^2), so what the test reads is the nod: main read a
     drift at p = 0.003; the checks are read directly, since the nod itself is refused on its size at this noise (on
     main it was accepted: the drift taken in had widened u)."""
-    seen = {}
-
-    def spy(*args, **kwargs):
-        seen["checks"] = checks = check_residuals(*args, **kwargs)
-        return checks
-
-    monkeypatch.setattr(wheel_procedure, "check_residuals", spy)
-    with contextlib.suppress(CalibrationError):
-        calibrate_wheel(nodding_coast(0.1, seed=1, sd=0.03), radius=0.28)
-    checks = seen["checks"]
+    checks = checks_read(monkeypatch, nodding_coast(0.1, seed=1, sd=0.03))
     assert checks.causes == ["wobble"]
     assert checks.drift.p_value > 0.05 and checks.drift_shape.p_value > 0.05
     assert checks.drift_per_axis is None
