@@ -234,6 +234,6 @@ def test_the_certificate_form_asks_for_the_report_command_s_conditions_in_its_wo
     command = parser._subparsers._group_actions[0].choices["report"]
     helps = {action.option_strings[0]: action.help.replace("%%", "%") for action in command._actions
              if action.option_strings}
-    conditions = ("--number", "--customer", "--operator", "--approved-by", "--location", "--temperature",
+    conditions = ("--number", "--customer", "--customer-reference", "--operator", "--approved-by", "--location", "--temperature",
                   "--humidity")
     assert {s.flag: s.help for s in CONDITION_SETTINGS} == {flag: helps[flag] for flag in conditions}
