@@ -134,7 +134,9 @@ async def test_disconnect_mid_procedure_is_said_and_data_kept(tmp_path):
 
         # the alarm is drawn by the screen's timer, and its count follows the recorder while it drains what the
         # ring held: wait until it says the count the recorder holds (a fixed pause raced both on a loaded host)
-        await wait_for(pilot, lambda: f"{wizard.recorder.samples} captured samples are kept" in alarm())
+        # (and until it has drained: the alarm can show the count while it is still 0)
+        await wait_for(pilot, lambda: wizard.recorder.samples > 500
+                       and f"{wizard.recorder.samples} captured samples are kept" in alarm())
         assert "DEVICE LOST" in alarm() and "disconnected" in alarm()
         assert wizard.recorder.samples > 500
         assert not isinstance(app.screen, ResultsScreen)
